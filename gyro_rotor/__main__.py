@@ -1,0 +1,7 @@
+"""``python -m gyro_rotor``: the gyro-rotor command line."""
+
+import sys
+
+from gyro_rotor.cli import main
+
+sys.exit(main())

