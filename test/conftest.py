@@ -1,0 +1,64 @@
+"""Test configuration: the ``ros`` marker, and a ROS domain of its own per test process.
+
+Every pytest process takes a free ROS_DOMAIN_ID (a lock file per id under the temp dir,
+held for the life of the process) and localhost-only discovery, so that concurrent test
+runs, and the nodes they start as subprocesses, cannot hear each other.
+"""
+
+import fcntl
+import os
+import tempfile
+
+import pytest
+
+_LOCK = None
+
+
+def _claim_domain_id() -> int:
+    global _LOCK
+    start = 1 + os.getpid() % 200
+    for i in range(200):
+        domain = 1 + (start + i) % 200
+        path = os.path.join(tempfile.gettempdir(), f'gyro_rotor_domain_{domain}.lock')
+        f = open(path, 'w')
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.close()
+            continue
+        _LOCK = f
+        return domain
+    raise RuntimeError('no free ROS_DOMAIN_ID in 1..200')
+
+
+os.environ['ROS_DOMAIN_ID'] = str(_claim_domain_id())
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('ROS_PYTHON_CHECK_FIELDS', '1')
+os.environ.setdefault('MPLBACKEND', 'Agg')
+
+
+def _have_rclpy() -> bool:
+    try:
+        import rclpy  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+HAVE_RCLPY = _have_rclpy()
+
+
+def pytest_collection_modifyitems(config, items):
+    """Skip tests marked ``ros`` where rclpy is not importable."""
+    if HAVE_RCLPY:
+        return
+    skip = pytest.mark.skip(reason='rclpy (ROS 2 Jazzy) is not importable')
+    for item in items:
+        if 'ros' in item.keywords:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope='session')
+def ros_domain_id() -> int:
+    """The ROS_DOMAIN_ID of this test process."""
+    return int(os.environ['ROS_DOMAIN_ID'])
