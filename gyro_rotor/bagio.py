@@ -635,7 +635,7 @@ def _read_indexed(stream: io.BufferedReader, size: int, data: _FileData) -> bool
             return False
         header = reader.get_header()
         metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-    except Exception:  # noqa: BLE001 - any damage: fall back to the sequential scan
+    except Exception:  # any damage: fall back to the sequential scan
         return False
     data.profile, data.library = header.profile, header.library
     data.schemas = dict(summary.schemas)
@@ -676,7 +676,7 @@ def _scan(stream: io.BufferedReader, size: int, data: _FileData) -> None:
                            if isinstance(record, Chunk) else [record])
             else:
                 records = []
-        except Exception as err:  # noqa: BLE001 - malformed record: keep what was read
+        except Exception as err:  # malformed record: keep what was read
             data.problem = (f'malformed record at byte {offset} (opcode 0x{opcode:02x}): '
                             f'{type(err).__name__}: {err}')
             break
@@ -893,7 +893,7 @@ class BagReader:
         for log_time, index, _, channel, schema, msg in self._iter(topics):
             try:
                 decoder = factories[index].decoder_for(channel.message_encoding, schema)
-            except Exception as err:  # noqa: BLE001 - the decoder raises various types
+            except Exception as err:  # the decoder raises various types
                 raise BagError(f'{self.files[index]}: cannot build a decoder for '
                                f'{channel.topic!r}: {err}') from err
             if decoder is None:
@@ -901,7 +901,7 @@ class BagReader:
                                'schema with cdr encoding, cannot decode')
             try:
                 yield channel.topic, log_time, decoder(msg.data)
-            except Exception as err:  # noqa: BLE001 - the decoder raises various types
+            except Exception as err:  # the decoder raises various types
                 raise BagError(f'{self.files[index]}: cannot decode message on '
                                f'{channel.topic!r} at {log_time}: {err}') from err
 
