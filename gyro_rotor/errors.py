@@ -38,3 +38,17 @@ class BagError(GyroRotorError, RuntimeError):
 
 class AnalysisError(GyroRotorError, RuntimeError):
     """An analysis cannot be carried out on the given data."""
+
+
+def did_you_mean(key: str, valid) -> str:
+    """``"; did you mean 'X'?"`` for the nearest valid name (case and _ ignored first), or ''."""
+    import difflib
+    valid = list(valid)
+
+    def norm(name: str) -> str:
+        return name.lower().replace('_', '').replace('-', '')
+    for v in valid:
+        if norm(v) == norm(key):
+            return f"; did you mean '{v}'?"
+    near = difflib.get_close_matches(key, valid, n=1, cutoff=0.6)
+    return f"; did you mean '{near[0]}'?" if near else ''

@@ -31,7 +31,7 @@ import numbers
 import warnings
 from typing import Any, Mapping
 
-from gyro_rotor.errors import ParameterError
+from gyro_rotor.errors import ParameterError, did_you_mean
 
 __all__ = ['RotorParams', 'DriveLaw', 'StaticallyUnstableWarning', 'PARAM_FIELDS',
            'PARAM_UNITS', 'PARAM_DESCRIPTIONS']
@@ -165,7 +165,5 @@ PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(RotorParams))
 
 
 def _unknown_message(key: str) -> str:
-    import difflib
-    near = difflib.get_close_matches(key, PARAM_FIELDS, n=1, cutoff=0.5)
-    hint = f"; did you mean '{near[0]}'?" if near else f'; valid: {", ".join(PARAM_FIELDS)}'
+    hint = did_you_mean(key, PARAM_FIELDS) or f'; valid: {", ".join(PARAM_FIELDS)}'
     return f"unknown parameter '{key}'{hint}"

@@ -41,7 +41,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.errors import ParameterError, SceneError, did_you_mean
 from gyro_rotor.model import MODELS, Model, make_model
 from gyro_rotor.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.steady import SteadyMotion, steady_motion
@@ -301,9 +301,7 @@ def flatten(d: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
 
 
 def _unknown(key: str, valid) -> str:
-    near = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.6)
-    hint = f"; did you mean '{near[0]}'?" if near else ''
-    return f"unknown key '{key}'{hint}"
+    return f"unknown key '{key}'{did_you_mean(key, valid)}"
 
 
 def _typed(key: str, value: Any, where: str, *, strict_float: bool) -> Any:

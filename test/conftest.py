@@ -5,6 +5,7 @@ held for the life of the process) and localhost-only discovery, so that concurre
 runs, and the nodes they start as subprocesses, cannot hear each other.
 """
 
+import atexit
 import fcntl
 import os
 import tempfile
@@ -27,6 +28,7 @@ def _claim_domain_id() -> int:
             f.close()
             continue
         _LOCK = f
+        atexit.register(f.close)
         return domain
     raise RuntimeError('no free ROS_DOMAIN_ID in 1..200')
 

@@ -1,0 +1,90 @@
+"""Scenes: every shipped scene loads; bad scene files give clear errors."""
+
+import pytest
+
+from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.scene import list_scenes, load_scene, perturb_state
+
+SHIPPED = ['precession', 'nutation', 'upright', 'stiff_drive', 'fast_spin', 'conservative',
+           'pole_slip', 'locked_housing']
+
+
+def test_all_required_scenes_ship():
+    assert set(SHIPPED) <= set(list_scenes())
+
+
+@pytest.mark.parametrize('name', SHIPPED)
+def test_scene_loads_and_is_statically_stable(name):
+    s = load_scene(name)
+    assert s.params.c_theta > s.params.G * s.params.s
+    assert s.initial_state().shape == (s.make_model().n,)
+
+
+def test_scene_specifics():
+    assert load_scene('fast_spin').params.Omega0 == 3141.6
+    assert load_scene('conservative').params.K_D == 0.0
+    assert load_scene('pole_slip').params.pole_pairs > 0
+    assert load_scene('locked_housing').model == 'locked_housing'
+    assert load_scene('nutation').initial.branch == 2
+    assert load_scene('upright').initial.branch == 0
+
+
+def write(tmp_path, body, name='s.yaml'):
+    f = tmp_path / name
+    f.write_text(body)
+    return f
+
+
+HEAD = 'rotor_sim:\n  ros__parameters:\n'
+
+
+@pytest.mark.parametrize('body, match', [
+    (HEAD + '    K_d: 0.1\n', "unknown key 'K_d'; did you mean 'K_D'"),
+    (HEAD + '    initial:\n      brnch: 1\n', "did you mean 'initial.branch'"),
+    (HEAD + '    G: 98\n', 'written as a float'),
+    (HEAD + '    K_S: fast\n', 'K_S must be a number'),
+    (HEAD + '    model: rigid\n', "unknown model 'rigid'"),
+    (HEAD + '    t_end: -1.0\n', 't_end must be positive'),
+    (HEAD + '    initial:\n      mode: wobble\n', 'initial.mode'),
+    (HEAD + '    initial:\n      mode: body\n      quaternion: [1.0, 0.0]\n', '4 numbers'),
+    (HEAD + '    initial:\n      mode: body\n      theta0: 0.1\n', 'belongs to initial.mode'),
+    (HEAD + '    pole_pairs: 1.5\n', 'pole_pairs must be an integer'),
+    ('rotor_sim: [1, 2\n', 'not valid YAML'),
+    ('other_node:\n  ros__parameters: {}\n', 'no rotor_sim'),
+    ('- 1\n- 2\n', 'expected a mapping'),
+])
+def test_bad_scene_files(tmp_path, body, match):
+    with pytest.raises(SceneError, match=match):
+        load_scene(write(tmp_path, body))
+
+
+def test_bad_parameter_in_file_names_field_and_file(tmp_path):
+    f = write(tmp_path, HEAD + '    C_M: -0.01\n')
+    with pytest.raises(ParameterError, match=r's\.yaml.*C_M.*-0\.01'):
+        load_scene(f)
+
+
+def test_missing_scene_and_typo():
+    with pytest.raises(SceneError, match="did you mean 'precession'"):
+        load_scene('precesion')
+    with pytest.raises(SceneError, match='does not exist'):
+        load_scene('/nonexistent/scene.yaml')
+
+
+def test_body_mode_scene(tmp_path):
+    f = write(tmp_path, HEAD + '    initial:\n      mode: body\n'
+              '      quaternion: [2.0, 0.0, 0.0, 0.0]\n      omega_body: [0.1, 0.0, 0.0]\n'
+              '      zdot: 0.5\n')
+    s = load_scene(f)
+    y = s.initial_state()
+    assert y[0] == pytest.approx(1.0) and y[4] == 0.1 and y[8] == 0.5
+
+
+def test_perturbation_kick():
+    s = load_scene('upright')
+    m = s.make_model()
+    y = s.initial_state(m)
+    y2 = perturb_state(m, y, {'dzdot': 1.0})
+    assert y2[8] == pytest.approx(y[8] + 1.0)
+    with pytest.raises(SceneError, match='perturbation.dzdott'):
+        perturb_state(m, y, {'dzdott': 1.0})

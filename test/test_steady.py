@@ -1,0 +1,88 @@
+"""Steady motions I and II: exact rates, eq. (22), and the full model staying on them."""
+
+import math
+
+import numpy as np
+import pytest
+
+from gyro_rotor.errors import NoSteadyMotionError, ParameterError
+from gyro_rotor.model import FullModel
+from gyro_rotor.params import RotorParams, StaticallyUnstableWarning
+from gyro_rotor.simulate import simulate
+from gyro_rotor.scene import load_scene
+from gyro_rotor.steady import steady_motion, steady_state
+
+
+def test_exact_rate_solves_the_theta_equation():
+    p = RotorParams()
+    th = 0.1
+    for branch in (1, 2):
+        x = steady_motion(p, th, branch).psidot0
+        a = p.I * math.cos(th) + (p.C_R + p.C_M) * (1 - math.cos(th))
+        b = p.G * p.s - p.c_theta * th / math.sin(th)
+        assert a * x * x - p.C_R * p.Omega0 * x + b == pytest.approx(0.0, abs=1e-9)
+
+
+def test_branches_follow_the_papers_text():
+    """Branch 1: slow precession against the rotor's sense; branch 2: fast, with it."""
+    p = RotorParams()
+    b1, b2 = steady_motion(p, 0.1, 1), steady_motion(p, 0.1, 2)
+    assert b1.psidot0 < 0 < b2.psidot0
+    assert abs(b1.psidot0) < abs(b2.psidot0)
+
+
+def test_eq22_is_close_but_not_exact():
+    p = RotorParams()
+    for branch, bound in ((1, 1e-3), (2, 1e-2)):
+        sm = steady_motion(p, 0.1, branch)
+        assert 0 < abs(sm.relative_difference) < bound
+    # the approximation a = I cos(theta0) becomes exact as theta0 -> 0
+    assert abs(steady_motion(p, 1e-3, 1).relative_difference) < 1e-7
+
+
+def test_printed_sin_squared_is_wrong():
+    """Eq. (22) as printed (sin^2 under the root) misses the theta equation by far."""
+    p = RotorParams()
+    th = 0.1
+    h = p.C_R * p.Omega0
+    printed = h / (2 * math.cos(th) * p.I) * (1 - math.sqrt(
+        1 - 4 * math.cos(th) * p.I * (p.G * p.s * math.sin(th) - p.c_theta * th)
+        / (h * h * math.sin(th) ** 2)))
+    exact = steady_motion(p, th, 1).psidot0
+    assert abs(printed - exact) / abs(exact) > 1.0
+
+
+def test_no_steady_motion_ii_is_a_clear_error():
+    # Only a restraint weaker than G s (b > 0) can make the discriminant negative: then a
+    # rotor too slow cannot hold the tilt gyroscopically.
+    with pytest.warns(StaticallyUnstableWarning):
+        p = RotorParams(Omega0=10.0, c_theta=1.0)
+    with pytest.raises(NoSteadyMotionError, match='discriminant'):
+        steady_motion(p, 0.5, 1)
+    with pytest.warns(StaticallyUnstableWarning), pytest.raises(NoSteadyMotionError):
+        load_scene('precession', overrides={'Omega0': 10.0, 'c_theta': 1.0,
+                                            'initial.theta0': 0.5})
+    # with a statically stable restraint, II exists at any speed (b < 0 < a)
+    assert steady_motion(RotorParams(Omega0=10.0), 0.5, 1).discriminant > 0
+
+
+@pytest.mark.parametrize('bad', [(0.0, 1), (-0.1, 2), (math.nan, 1), (0.1, 3), (0.1, 0)])
+def test_bad_steady_requests(bad):
+    with pytest.raises(ParameterError):
+        steady_motion(RotorParams(), *bad)
+
+
+@pytest.mark.parametrize('branch', [1, 2])
+def test_full_model_stays_on_solution_ii(branch):
+    """Started exactly on II, theta and psidot stay constant for 10 s."""
+    scene = load_scene('precession', overrides={
+        'initial.branch': branch, 'initial.dtheta': 0.0, 'initial.dthetadot': 0.0,
+        'initial.dchi': 0.0, 'initial.dz': 0.0, 'initial.dzdot': 0.0})
+    sm = scene.steady()
+    model = FullModel(scene.params)
+    assert np.allclose(scene.initial_state(model), steady_state(model, sm))
+    tr = simulate(scene, t_end=10.0, rate=20.0)
+    assert np.max(np.abs(tr.theta - sm.theta0)) < 1e-8
+    assert np.max(np.abs(tr.psidot - sm.psidot0)) < 1e-7 * max(1.0, abs(sm.psidot0))
+    assert np.max(np.abs(tr.chi)) < 1e-8
+    assert np.max(np.abs(tr.z)) < 1e-8
