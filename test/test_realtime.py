@@ -1,0 +1,172 @@
+"""Pure tests of gyro_rotor.realtime (no ROS): pacing with a fake steady clock."""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.realtime import (DenseStepper, EnergyBaseline, make_stepper, Pacer,
+                                 RK4Stepper)
+
+
+def oscillator(t, y):
+    """y'' = -y: y = (cos t, -sin t) from (1, 0)."""
+    return np.array([y[1], -y[0]])
+
+
+def exact(t):
+    return np.array([math.cos(t), -math.sin(t)])
+
+
+@pytest.mark.parametrize('method', ['DOP853', 'rk4', 'Radau'])
+def test_advance_to_lands_exactly_on_target(method):
+    st = make_stepper(method, oscillator, 0.0, np.array([1.0, 0.0]), rtol=1e-10, atol=1e-12,
+                      step_size=1e-3)
+    for t in (0.0123, 0.5, 0.5, 1.7777, 3.0):
+        y = st.advance_to(t)
+        assert st.t == t
+        np.testing.assert_allclose(y, exact(t), atol=1e-8)
+    with pytest.raises(RuntimeError):
+        st.advance_to(1.0)
+
+
+def test_skipped_ticks_land_exactly_on_target_and_keep_the_grid():
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=100.0, rtf=1.0, max_catch_up=0.25)
+    wall0 = 1000.0
+    ticks = [0.0, 0.01, 0.02, 0.0537, 0.06, 0.0999, 0.2]   # irregular, with skipped ticks
+    seen = []
+    for dt in ticks:
+        samples = pacer.tick(wall0 + dt)
+        assert st.t == pytest.approx(dt, abs=1e-12)      # t_target = rtf * elapsed exactly
+        seen += samples
+    ks = [s.k for s in seen]
+    assert ks == list(range(21))                          # every grid point once, in order
+    for s in seen:
+        assert s.t == pytest.approx(s.k / 100.0, abs=1e-15)
+        np.testing.assert_allclose(s.y, exact(s.t), atol=1e-9)
+
+
+def test_real_time_factor_scales_simulation_time():
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=50.0, rtf=0.5)
+    samples = pacer.tick(10.0)
+    samples += pacer.tick(10.2)
+    assert st.t == pytest.approx(0.1, abs=1e-12)
+    assert [s.k for s in samples] == [0, 1, 2, 3, 4, 5]
+    pacer.set_rtf(2.0, 10.2)
+    pacer.tick(10.3)
+    assert st.t == pytest.approx(0.3, abs=1e-12)
+
+
+def test_catch_up_is_capped_counted_and_reanchored():
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=100.0, rtf=1.0, max_catch_up=0.1)
+    pacer.tick(0.0)
+    samples = pacer.tick(0.5)                      # a 0.5 s stall: only 0.1 s caught up
+    assert st.t == pytest.approx(0.1, abs=1e-12)
+    assert len(samples) == 10
+    assert pacer.capped == 1
+    assert pacer.lost_sim_time == pytest.approx(0.4, abs=1e-12)
+    pacer.tick(0.55)                               # re-anchored: no further catching up
+    assert st.t == pytest.approx(0.15, abs=1e-12)
+    w = pacer.take_window(0.55)
+    assert w.capped == 1
+    assert w.achieved_rtf == pytest.approx(0.15 / 0.55)
+
+
+def test_rtf_zero_advances_a_fixed_chunk_per_tick():
+    st = RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3)
+    pacer = Pacer(st, sample_rate=200.0, rtf=0.0, chunk_samples=3)
+    pacer.tick(0.0)                                # wall time is irrelevant at rtf 0
+    pacer.tick(0.0)
+    samples = pacer.tick(0.0)
+    assert [s.k for s in samples] == [6, 7, 8]
+    assert st.t == pytest.approx(8 / 200.0, abs=1e-15)
+
+
+def test_pause_holds_time_and_resume_does_not_jump():
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=100.0, rtf=1.0)
+    pacer.tick(0.0)
+    pacer.tick(0.1)
+    pacer.pause(0.1)
+    assert pacer.tick(5.0) == []
+    assert st.t == pytest.approx(0.1)
+    pacer.resume(5.0)
+    samples = pacer.tick(5.05)
+    assert st.t == pytest.approx(0.15, abs=1e-12)
+    assert [s.k for s in samples] == [11, 12, 13, 14, 15]
+    assert pacer.capped == 0
+
+
+def test_t_end_stops_the_pacer():
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=10.0, rtf=1.0, t_end=0.35)
+    samples = pacer.tick(0.0)
+    samples += pacer.tick(0.2)
+    samples += pacer.tick(0.3)
+    assert not pacer.finished
+    samples += pacer.tick(0.9)
+    assert pacer.finished and st.t == pytest.approx(0.35)
+    assert [s.k for s in samples] == [0, 1, 2, 3]
+    assert pacer.tick(1.0) == []
+
+
+def test_overruns_count_ticks_longer_than_the_period():
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=100.0, rtf=1.0)
+    pacer.tick(0.0)
+    pacer.end_tick(0.005)
+    pacer.tick(0.01)
+    pacer.end_tick(0.025)                          # 15 ms > 10 ms period
+    assert pacer.overruns == 1
+    w = pacer.take_window(0.03)
+    assert w.overruns == 1 and w.ticks == 2 and w.busy_max == pytest.approx(0.015)
+
+
+def test_nonfinite_state_raises_and_keeps_the_last_good_state():
+    def blow_up(t, y):
+        return np.array([np.inf if t > 0.05 else 1.0])
+    st = RK4Stepper(blow_up, 0.0, np.array([0.0]), 0.01)
+    st.advance_to(0.04)
+    good = st.y.copy()
+    with pytest.raises(IntegrationError, match='non-finite'):
+        st.advance_to(0.2)
+    assert np.all(np.isfinite(good))
+    st2 = DenseStepper(lambda t, y: y * y, 0.0, np.array([1.0]))   # blows up at t = 1
+    with pytest.raises(IntegrationError):
+        st2.advance_to(2.0)
+    assert st2.t < 1.0 and np.all(np.isfinite(st2.y))
+
+
+def test_bad_arguments_are_refused():
+    y0 = np.array([1.0, 0.0])
+    with pytest.raises(ParameterError, match='unknown integrator'):
+        make_stepper('euler', oscillator, 0.0, y0)
+    with pytest.raises(ParameterError, match='rtol'):
+        DenseStepper(oscillator, 0.0, y0, rtol=-1.0)
+    with pytest.raises(ParameterError, match='step_size'):
+        RK4Stepper(oscillator, 0.0, y0, 0.0)
+    with pytest.raises(ParameterError, match='real_time_factor'):
+        Pacer(DenseStepper(oscillator, 0.0, y0), 100.0, rtf=-1.0)
+
+
+def test_energy_baseline_keeps_the_residual_continuous_across_a_jump():
+    # E = k x^2 / 2 + v^2 / 2, D in slot 2; a stiffness change from k = 1 to k = 4
+    y = np.array([0.5, 0.2, 0.1])
+    eb = EnergyBaseline(lambda s: 0.5 * s[0] ** 2 + 0.5 * s[1] ** 2, 2, y)
+    assert eb.residual(y) == pytest.approx(0.0)
+    y2 = y + np.array([0.0, 0.0, 0.01])            # pretend integration error of 0.01 J
+    r_before = eb.residual(y2)
+    jump = eb.rebase(lambda s: 2.0 * s[0] ** 2 + 0.5 * s[1] ** 2, y2, y2)
+    assert jump == pytest.approx(1.5 * 0.25)       # (4 - 1) x^2 / 2
+    assert eb.residual(y2) == pytest.approx(r_before)
+
+
+def test_realtime_does_not_import_rclpy():
+    code = 'import sys, gyro_rotor.realtime; assert "rclpy" not in sys.modules'
+    subprocess.run([sys.executable, '-c', code], check=True)
