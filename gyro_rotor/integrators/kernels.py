@@ -1,0 +1,749 @@
+"""Compiled kernels: the right-hand sides and the inner loops of every integrator.
+
+Everything here is written in plain scalar arithmetic on float64 arrays, with no
+allocation inside the loops, so that numba compiles it to machine code (``cache=True``:
+compiled once per machine, then loaded from ``__pycache__``). Without numba the same
+functions run as ordinary Python (slower, same results): real ROS installs without numba
+still work.
+
+Models are selected by an integer ``kind`` (0 full, 1 upright_axis, 2 locked_housing) and
+the parameters travel as one float array ``P`` (see :func:`pack_params`), so a single
+compiled kernel serves every scene without first-class function arguments.
+
+Status codes returned by the run loops: 0 finished, -1 step size underflow, -2 non-finite
+state, -3 step budget exhausted, -4 Newton/fixed-point iteration did not converge.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+try:  # pragma: no cover - exercised by whichever branch the install has
+    from numba import njit
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover
+    HAVE_NUMBA = False
+
+    def njit(*args, **kwargs):
+        """Stand-in for numba.njit: return the function unchanged."""
+        if len(args) == 1 and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+__all__ = ['HAVE_NUMBA', 'KIND', 'pack_params', 'rhs', 'rk_run', 'dop853_run',
+           'gauss_run', 'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense',
+           'gauss_step', 'rodas_step', 'fd_jacobian', 'normalize_quaternion']
+
+KIND = {'full': 0, 'upright_axis': 1, 'locked_housing': 2}
+_SERIES_LIMIT = 1e-4
+
+# step size control (as scipy's rk.py and Hairer's codes)
+SAFETY = 0.9
+MIN_FACTOR = 0.2   # smallest decrease of the step in one go
+MAX_FACTOR = 10.0  # largest increase of the step in one go
+
+
+def pack_params(p) -> np.ndarray:
+    """RotorParams -> float array (I, C_R, C_M, G s, c_theta, c_psi, K_S, K_D, Omega0, p)."""
+    return np.array([p.I, p.C_R, p.C_M, p.Gs, p.c_theta, p.c_psi, p.K_S, p.K_D, p.Omega0,
+                     float(p.pole_pairs)])
+
+
+@njit(cache=True)
+def rhs(kind, y, P, out):
+    """dy/dt of model ``kind`` at state ``y`` into ``out`` (see gyro_rotor.model)."""
+    C_R = P[1]
+    C_M = P[2]
+    c_psi = P[5]
+    K_S = P[6]
+    K_D = P[7]
+    pp = P[9]
+    if kind == 0:
+        I_ = P[0]
+        Gs = P[3]
+        c_theta = P[4]
+        Omega0 = P[8]
+        qw = y[0]
+        qx = y[1]
+        qy = y[2]
+        qz = y[3]
+        W1 = y[4]
+        W2 = y[5]
+        W3 = y[6]
+        z = y[7]
+        zd = y[8]
+        n = qw * qw + qx * qx + qy * qy + qz * qz
+        k1 = 2.0 * (qx * qz - qw * qy) / n
+        k2 = 2.0 * (qy * qz + qw * qx) / n
+        k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
+        st = math.sqrt(k1 * k1 + k2 * k2)
+        th = math.atan2(st, k3)
+        if st < _SERIES_LIMIT:
+            t2 = th * th
+            ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
+        else:
+            ratio = th / st
+        dV = Gs - c_theta * ratio
+        tw = c_psi * 2.0 * math.atan2(qz, qw)
+        tw_k = tw / (1.0 + k3)
+        M1 = dV * k2 - tw_k * k1
+        M2 = -dV * k1 - tw_k * k2
+        if pp != 0.0:
+            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
+        else:
+            Q = -K_S * z - K_D * zd
+        g = C_M * W3 + C_R * (W3 + Omega0 + zd) - I_ * W3
+        dW3 = (-tw - Q) / C_M
+        out[0] = 0.5 * (-qx * W1 - qy * W2 - qz * W3)
+        out[1] = 0.5 * (qw * W1 + qy * W3 - qz * W2)
+        out[2] = 0.5 * (qw * W2 + qz * W1 - qx * W3)
+        out[3] = 0.5 * (qw * W3 + qx * W2 - qy * W1)
+        out[4] = (M1 - W2 * g) / I_
+        out[5] = (M2 + W1 * g) / I_
+        out[6] = dW3
+        out[7] = zd
+        out[8] = Q / C_R - dW3
+        out[9] = K_D * zd * zd
+    elif kind == 1:
+        chi = y[0]
+        chid = y[1]
+        z = y[2]
+        zd = y[3]
+        if pp != 0.0:
+            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
+        else:
+            Q = -K_S * z - K_D * zd
+        chidd = (-c_psi * chi - Q) / C_M
+        out[0] = chid
+        out[1] = chidd
+        out[2] = zd
+        out[3] = Q / C_R - chidd
+        out[4] = K_D * zd * zd
+    else:
+        z = y[0]
+        zd = y[1]
+        if pp != 0.0:
+            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
+        else:
+            Q = -K_S * z - K_D * zd
+        out[0] = zd
+        out[1] = Q / C_R
+        out[2] = K_D * zd * zd
+
+
+@njit(cache=True)
+def normalize_quaternion(kind, y, f):
+    """The projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
+
+    The other equations depend on q only through its direction, so ``f`` stays the exact
+    right-hand side at the projected state.
+    """
+    if kind != 0:
+        return
+    n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
+    s = 1.0 / n
+    for i in range(4):
+        y[i] *= s
+        f[i] *= s
+
+
+@njit(cache=True)
+def _rms_error(err, y, y_new, rtol, atol):
+    n = y.shape[0]
+    acc = 0.0
+    for i in range(n):
+        sc = atol + rtol * max(abs(y[i]), abs(y_new[i]))
+        e = err[i] / sc
+        acc += e * e
+    return math.sqrt(acc / n)
+
+
+@njit(cache=True)
+def _all_finite(y):
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return True
+
+
+# -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
+@njit(cache=True)
+def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
+    """One explicit RK step of tableau (A, B) from (y, f0 = f(y)); result in ``y_new``.
+
+    ``K`` (s, n) receives the stages. Costs s - 1 evaluations (the first is ``f0``).
+    """
+    s = B.shape[0]
+    n = y.shape[0]
+    for m in range(n):
+        K[0, m] = f0[m]
+    for i in range(1, s):
+        for m in range(n):
+            acc = 0.0
+            for j in range(i):
+                acc += A[i, j] * K[j, m]
+            ytmp[m] = y[m] + h * acc
+        rhs(kind, ytmp, P, K[i])
+    for m in range(n):
+        acc = 0.0
+        for j in range(s):
+            acc += B[j] * K[j, m]
+        y_new[m] = y[m] + h * acc
+
+
+@njit(cache=True)
+def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, counts):
+    """Fixed-step explicit RK from t0 through the sample times ``t_eval`` (increasing).
+
+    Between consecutive samples the interval is cut into the fewest equal steps no longer
+    than ``h_max``, so every sample is hit exactly (no dense output needed). Returns the
+    status; ``counts`` receives (nfev, nsteps) and ``Y_out`` the samples.
+    """
+    n = y0.shape[0]
+    s = B.shape[0]
+    y = y0.copy()
+    y_new = np.empty(n)
+    f = np.empty(n)
+    ytmp = np.empty(n)
+    K = np.empty((s, n))
+    t = t0
+    nfev = 0
+    nsteps = 0
+    for k in range(t_eval.shape[0]):
+        span = t_eval[k] - t
+        if span > 0.0:
+            m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
+            if m < 1:
+                m = 1
+            h = span / m
+            for i in range(m):
+                rhs(kind, y, P, f)
+                rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
+                nfev += s
+                nsteps += 1
+                if renorm:
+                    normalize_quaternion(kind, y_new, f)
+                for j in range(n):
+                    y[j] = y_new[j]
+                if not _all_finite(y):
+                    counts[0] = nfev
+                    counts[1] = nsteps
+                    return -2
+                if nsteps >= max_steps:
+                    counts[0] = nfev
+                    counts[1] = nsteps
+                    return -3
+            t = t_eval[k]
+        for j in range(n):
+            Y_out[k, j] = y[j]
+    counts[0] = nfev
+    counts[1] = nsteps
+    return 0
+
+
+# -- DOP853, adaptive with dense output --------------------------------------------------------
+@njit(cache=True)
+def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_new):
+    """One trial step of DOP853 (12 stages, FSAL). Returns the scaled error norm.
+
+    ``K`` (16, n): rows 0-11 the stages, row 12 f(y_new) (also copied to ``f_new``).
+    """
+    n = y.shape[0]
+    for m in range(n):
+        K[0, m] = f[m]
+    for i in range(1, 12):
+        for m in range(n):
+            acc = 0.0
+            for j in range(i):
+                acc += A[i, j] * K[j, m]
+            ytmp[m] = y[m] + h * acc
+        rhs(kind, ytmp, P, K[i])
+    for m in range(n):
+        acc = 0.0
+        for j in range(12):
+            acc += B[j] * K[j, m]
+        y_new[m] = y[m] + h * acc
+    rhs(kind, y_new, P, f_new)
+    for m in range(n):
+        K[12, m] = f_new[m]
+    # error estimate of Hairer's DOP853 (scipy's DOP853._estimate_error_norm)
+    e5 = 0.0
+    e3 = 0.0
+    for m in range(n):
+        sc = atol + rtol * max(abs(y[m]), abs(y_new[m]))
+        a5 = 0.0
+        a3 = 0.0
+        for j in range(13):
+            a5 += E5[j] * K[j, m]
+            a3 += E3[j] * K[j, m]
+        e5 += (a5 / sc) ** 2
+        e3 += (a3 / sc) ** 2
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    denom = e5 + 0.01 * e3
+    return abs(h) * e5 / math.sqrt(denom * n)
+
+
+@njit(cache=True)
+def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
+    """Coefficients ``F`` (7, n) of the 7th-order dense output over the last step.
+
+    Computes the three extra stages (rows 13-15 of ``K``, 3 evaluations).
+    """
+    n = y_old.shape[0]
+    for s in range(13, 16):
+        for m in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * K[j, m]
+            ytmp[m] = y_old[m] + h * acc
+        rhs(kind, ytmp, P, K[s])
+    for m in range(n):
+        dy = y_new[m] - y_old[m]
+        F[0, m] = dy
+        F[1, m] = h * f_old[m] - dy
+        F[2, m] = 2.0 * dy - h * (f_new[m] + f_old[m])
+        for r in range(4):
+            acc = 0.0
+            for j in range(16):
+                acc += D[r, j] * K[j, m]
+            F[3 + r, m] = h * acc
+
+
+@njit(cache=True)
+def dense_eval(F, y_old, x, out):
+    """Evaluate the DOP853 interpolant at fraction ``x`` of the step into ``out``."""
+    n = y_old.shape[0]
+    for m in range(n):
+        v = 0.0
+        for i in range(7):
+            v += F[6 - i, m]
+            if i % 2 == 0:
+                v *= x
+            else:
+                v *= 1.0 - x
+        out[m] = v + y_old[m]
+
+
+@njit(cache=True)
+def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
+    """Starting step size (Hairer, Norsett, Wanner I, sec. II.4; scipy's select_initial_step)."""
+    n = y.shape[0]
+    d0 = 0.0
+    d1 = 0.0
+    for m in range(n):
+        sc = atol + abs(y[m]) * rtol
+        d0 += (y[m] / sc) ** 2
+        d1 += (f[m] / sc) ** 2
+    d0 = math.sqrt(d0 / n)
+    d1 = math.sqrt(d1 / n)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, h_max)
+    for m in range(n):
+        ytmp[m] = y[m] + h0 * f[m]
+    rhs(kind, ytmp, P, ftmp)
+    d2 = 0.0
+    for m in range(n):
+        sc = atol + abs(y[m]) * rtol
+        d2 += ((ftmp[m] - f[m]) / sc) ** 2
+    d2 = math.sqrt(d2 / n) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
+    return min(100.0 * h0, h1, h_max)
+
+
+@njit(cache=True)
+def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
+               A, B, C, D, E3, E5, Y_out, counts):
+    """Adaptive DOP853 from t0 to t_eval[-1], sampling ``t_eval`` with the dense output.
+
+    Returns the status; ``counts`` = (nfev, nsteps, rejected, last step size).
+    """
+    n = y0.shape[0]
+    y = y0.copy()
+    y_new = np.empty(n)
+    f = np.empty(n)
+    f_new = np.empty(n)
+    ytmp = np.empty(n)
+    ftmp = np.empty(n)
+    K = np.empty((16, n))
+    F = np.empty((7, n))
+    t = t0
+    t_end = t_eval[t_eval.shape[0] - 1]
+    rhs(kind, y, P, f)
+    nfev = 1
+    nsteps = 0
+    nrej = 0
+    k = 0
+    while k < t_eval.shape[0] and t_eval[k] <= t:
+        for j in range(n):
+            Y_out[k, j] = y[j]
+        k += 1
+    if h_init > 0.0:
+        h = h_init
+    else:
+        h = initial_step(kind, P, y, f, rtol, atol, 7, h_max, ytmp, ftmp)
+        nfev += 1
+    status = 0
+    while t < t_end:
+        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
+        if h < min_step:
+            status = -1
+            break
+        if h > h_max:
+            h = h_max
+        if t + h > t_end:
+            h = t_end - t
+        err = dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_new)
+        nfev += 12
+        if not math.isfinite(err):
+            h *= MIN_FACTOR
+            nrej += 1
+            continue
+        if err > 1.0:
+            h *= max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+            nrej += 1
+            continue
+        t_new = t + h
+        if renorm:
+            normalize_quaternion(kind, y_new, f_new)
+        if k < t_eval.shape[0] and t_eval[k] <= t_new:
+            dop853_dense(kind, P, y, y_new, f, f_new, h, A, C, D, K, ytmp, F)
+            nfev += 3
+            while k < t_eval.shape[0] and t_eval[k] <= t_new:
+                if t_eval[k] == t_new:
+                    for j in range(n):
+                        Y_out[k, j] = y_new[j]
+                else:
+                    dense_eval(F, y, (t_eval[k] - t) / h, Y_out[k])
+                k += 1
+        for j in range(n):
+            y[j] = y_new[j]
+            f[j] = f_new[j]
+        t = t_new
+        nsteps += 1
+        if not _all_finite(y):
+            status = -2
+            break
+        if nsteps >= max_steps:
+            status = -3
+            break
+        if err == 0.0:
+            fac = MAX_FACTOR
+        else:
+            fac = min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+        h *= fac
+    counts[0] = nfev
+    counts[1] = nsteps
+    counts[2] = nrej
+    counts[3] = h
+    return status
+
+
+# -- Gauss-Legendre collocation (implicit, fixed step) -----------------------------------------
+@njit(cache=True)
+def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
+    """One step of the s-stage Gauss method; stages by fixed-point iteration to round-off.
+
+    Returns the number of evaluations, or -1 if the iteration did not converge.
+    """
+    s = B.shape[0]
+    n = y.shape[0]
+    for i in range(s):
+        for m in range(n):
+            K[i, m] = f0[m]
+    Knew = np.empty(n)
+    nfev = 0
+    prev = math.inf
+    for it in range(max_iter):
+        delta = 0.0
+        for i in range(s):
+            for m in range(n):
+                acc = 0.0
+                for j in range(s):
+                    acc += A[i, j] * K[j, m]
+                ytmp[m] = y[m] + h * acc
+            rhs(kind, ytmp, P, Knew)
+            nfev += 1
+            for m in range(n):
+                d = abs(Knew[m] - K[i, m]) * h / (1e-12 + abs(y[m]) + abs(h * K[i, m]))
+                if d > delta:
+                    delta = d
+                K[i, m] = Knew[m]
+        # converged to round-off: tiny, or no longer decreasing once small
+        if delta <= 1e-16 or (delta < 1e-13 and delta >= prev):
+            break
+        prev = delta
+    else:
+        return -1
+    for m in range(n):
+        acc = 0.0
+        for j in range(s):
+            acc += B[j] * K[j, m]
+        y_new[m] = y[m] + h * acc
+    return nfev
+
+
+@njit(cache=True)
+def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, counts):
+    """Fixed-step Gauss method through the sample times (as :func:`rk_run`)."""
+    n = y0.shape[0]
+    s = B.shape[0]
+    y = y0.copy()
+    y_new = np.empty(n)
+    f = np.empty(n)
+    ytmp = np.empty(n)
+    K = np.empty((s, n))
+    t = t0
+    nfev = 0
+    nsteps = 0
+    for k in range(t_eval.shape[0]):
+        span = t_eval[k] - t
+        if span > 0.0:
+            m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
+            if m < 1:
+                m = 1
+            h = span / m
+            for i in range(m):
+                rhs(kind, y, P, f)
+                ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
+                if ne < 0:
+                    counts[0] = nfev
+                    counts[1] = nsteps
+                    return -4
+                nfev += ne + 1
+                nsteps += 1
+                for j in range(n):
+                    y[j] = y_new[j]
+                if not _all_finite(y):
+                    counts[0] = nfev
+                    counts[1] = nsteps
+                    return -2
+                if nsteps >= max_steps:
+                    counts[0] = nfev
+                    counts[1] = nsteps
+                    return -3
+            t = t_eval[k]
+        for j in range(n):
+            Y_out[k, j] = y[j]
+    counts[0] = nfev
+    counts[1] = nsteps
+    return 0
+
+
+# -- RODAS4 (Rosenbrock, L-stable) -------------------------------------------------------------
+@njit(cache=True)
+def fd_jacobian(kind, P, y, J, ytmp, fa, fb):
+    """Jacobian df/dy by central differences (10 pairs of evaluations for the full model).
+
+    Truncation error ~ eps^(2/3) relative; the stiff entries (linear in zdot) are exact
+    up to round-off.
+    """
+    n = y.shape[0]
+    for j in range(n):
+        for m in range(n):
+            ytmp[m] = y[m]
+        d = 6e-6 * max(1.0, abs(y[j]))
+        ytmp[j] = y[j] + d
+        rhs(kind, ytmp, P, fa)
+        ytmp[j] = y[j] - d
+        rhs(kind, ytmp, P, fb)
+        for m in range(n):
+            J[m, j] = (fa[m] - fb[m]) / (2.0 * d)
+    return 2 * n
+
+
+@njit(cache=True)
+def lu_factor(M, piv):
+    """In-place LU factorization with partial pivoting; False if singular."""
+    n = M.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(M[k, k])
+        for i in range(k + 1, n):
+            if abs(M[i, k]) > big:
+                big = abs(M[i, k])
+                p = i
+        if big == 0.0:
+            return False
+        piv[k] = p
+        if p != k:
+            for j in range(n):
+                tmp = M[k, j]
+                M[k, j] = M[p, j]
+                M[p, j] = tmp
+        inv = 1.0 / M[k, k]
+        for i in range(k + 1, n):
+            M[i, k] *= inv
+            lik = M[i, k]
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    M[i, j] -= lik * M[k, j]
+    return True
+
+
+@njit(cache=True)
+def lu_solve(M, piv, b):
+    """Solve with the factors of :func:`lu_factor`, in place on ``b``."""
+    n = M.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= M[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= M[i, j] * b[j]
+        b[i] = acc / M[i, i]
+
+
+@njit(cache=True)
+def rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new, W, piv,
+               rhs_buf):
+    """One trial step of RODAS4 with Jacobian ``J`` at y; returns the error norm (inf if
+    the matrix W = I/(h gamma) - J is singular)."""
+    n = y.shape[0]
+    s = Mw.shape[0]
+    g = 1.0 / (h * gamma)
+    for i in range(n):
+        for j in range(n):
+            W[i, j] = -J[i, j]
+        W[i, i] += g
+    if not lu_factor(W, piv):
+        return math.inf
+    for i in range(s):
+        if i == 0:
+            for m in range(n):
+                rhs_buf[m] = f[m]
+        else:
+            for m in range(n):
+                acc = 0.0
+                for j in range(i):
+                    acc += A[i, j] * K[j, m]
+                ytmp[m] = y[m] + acc
+            rhs(kind, ytmp, P, rhs_buf)
+            for m in range(n):
+                acc = 0.0
+                for j in range(i):
+                    acc += C[i, j] * K[j, m]
+                rhs_buf[m] += acc / h
+        lu_solve(W, piv, rhs_buf)
+        for m in range(n):
+            K[i, m] = rhs_buf[m]
+    for m in range(n):
+        acc = 0.0
+        for j in range(s):
+            acc += Mw[j] * K[j, m]
+        y_new[m] = y[m] + acc
+    return _rms_error(K[s - 1], y, y_new, rtol, atol)
+
+
+@njit(cache=True)
+def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
+              A, C, Mw, gamma, Y_out, counts):
+    """Adaptive RODAS4 through the sample times: steps are clipped to land on each sample.
+
+    Returns the status; ``counts`` = (nfev, nsteps, rejected, last step size, njev).
+    """
+    n = y0.shape[0]
+    s = Mw.shape[0]
+    y = y0.copy()
+    y_new = np.empty(n)
+    f = np.empty(n)
+    ytmp = np.empty(n)
+    fa = np.empty(n)
+    fb = np.empty(n)
+    rbuf = np.empty(n)
+    K = np.empty((s, n))
+    J = np.empty((n, n))
+    W = np.empty((n, n))
+    piv = np.zeros(n, dtype=np.int64)
+    t = t0
+    t_end = t_eval[t_eval.shape[0] - 1]
+    nfev = 0
+    njev = 0
+    nsteps = 0
+    nrej = 0
+    k = 0
+    while k < t_eval.shape[0] and t_eval[k] <= t:
+        for j in range(n):
+            Y_out[k, j] = y[j]
+        k += 1
+    rhs(kind, y, P, f)
+    nfev += 1
+    if h_init > 0.0:
+        h = h_init
+    else:
+        h = initial_step(kind, P, y, f, rtol, atol, 3, h_max, ytmp, fa)
+        nfev += 1
+    status = 0
+    jac_fresh = False
+    while t < t_end:
+        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
+        if h < min_step:
+            status = -1
+            break
+        if h > h_max:
+            h = h_max
+        h_free = h
+        clipped = False
+        t_next = t_eval[k] if k < t_eval.shape[0] else t_end
+        if t + h >= t_next:
+            h = t_next - t
+            clipped = True
+        if not jac_fresh:
+            nfev += fd_jacobian(kind, P, y, J, ytmp, fa, fb)
+            njev += 1
+            jac_fresh = True
+        err = rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new,
+                         W, piv, rbuf)
+        nfev += s - 1
+        if not math.isfinite(err) or err > 1.0:
+            nrej += 1
+            if math.isfinite(err):
+                h *= max(MIN_FACTOR, SAFETY * err ** (-0.25))
+            else:
+                h *= MIN_FACTOR
+            continue
+        t = t_next if clipped else t + h
+        rhs(kind, y_new, P, f)
+        nfev += 1
+        if renorm:
+            normalize_quaternion(kind, y_new, f)
+        for j in range(n):
+            y[j] = y_new[j]
+        jac_fresh = False
+        nsteps += 1
+        if not _all_finite(y):
+            status = -2
+            break
+        while k < t_eval.shape[0] and t_eval[k] <= t:
+            for j in range(n):
+                Y_out[k, j] = y[j]
+            k += 1
+        if nsteps >= max_steps:
+            status = -3
+            break
+        fac = 6.0 if err == 0.0 else min(6.0, SAFETY * err ** (-0.25))
+        fac = max(MIN_FACTOR, fac)
+        h = max(h * fac, h_free) if clipped else h * fac
+    counts[0] = nfev
+    counts[1] = nsteps
+    counts[2] = nrej
+    counts[3] = h
+    counts[4] = njev
+    return status
