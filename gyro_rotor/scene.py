@@ -70,6 +70,8 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
     'diagnostics_period': (float, 1.0, 'period of /diagnostics [s]'),
     'max_catch_up': (float, 0.25, 'most wall seconds of simulation one tick may catch up'),
     'stop_at_t_end': (bool, False, 'stop integrating (and idle) when t reaches t_end'),
+    'max_residual': (float, 1.0, 'divergence guard: |energy-balance residual| [J] above '
+                                 'which the node stops integrating'),
     'use_sim_time': (bool, False, 'ROS: must stay false for the simulator itself'),
 }
 

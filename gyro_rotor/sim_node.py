@@ -1,0 +1,509 @@
+"""``rotor_sim``: the full nonlinear gyrostat in real time on ROS 2 (a thin adapter).
+
+The node declares every scene key as a parameter (with descriptors), loads the scene named
+by ``scene``, integrates the scene's model with a :class:`~gyro_rotor.realtime.Pacer` from
+a steady-clock timer, and publishes samples on the output grid t_k = k / publish_rate:
+
+* ``joint_states`` (sensor_msgs/JointState): theta, psi, phi_R, phi_M; effort = the
+  generalized forces (Q_theta, Q_psi, Q, -c_psi chi - Q) of eqs. (19, 23);
+* ``energy`` (std_msgs/Float64MultiArray, layout in :mod:`gyro_rotor.ros_msgs`);
+* ``axis`` (Vector3Stamped), ``stator_pose`` (PoseStamped), ``axis_marker`` (Marker);
+* ``/diagnostics`` about once a second, ``/clock`` when ``publish_clock`` is true;
+* ``~/scene`` (std_msgs/String, transient local): the current scene as YAML.
+
+Services ``~/reset``, ``~/perturb`` (std_srvs/Trigger) and ``~/pause`` (std_srvs/SetBool).
+Run: ``rotor_sim --ros-args -p scene:=nutation`` or ``python -m gyro_rotor.sim_node``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import signal
+import sys
+import threading
+import time
+import warnings
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped, Vector3Stamped
+import numpy as np
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, String
+from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import Marker
+
+from gyro_rotor import ros_msgs
+from gyro_rotor.errors import GyroRotorError, IntegrationError
+from gyro_rotor.model import make_model
+from gyro_rotor.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS, RotorParams
+from gyro_rotor.realtime import EnergyBaseline, make_stepper, Pacer
+from gyro_rotor.rotations import axis_from_quaternion, euler_from_quaternion, \
+    euler_rates_from_body
+from gyro_rotor.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, perturb_state,
+                              PERTURBATION_KEYS, Scene, scene_from_mapping)
+from gyro_rotor.simulate import choose_method
+
+__all__ = ['RotorSimNode', 'main', 'STATE_QOS']
+
+#: QoS of the state topics: reliable, deep enough for a recorder to keep up
+STATE_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+_LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_BIG = 1e9
+
+# ranges of the RotorParams fields (the on-set callback still validates via RotorParams)
+_PARAM_RANGES = {
+    'A_R': (0.0, 1e6), 'A_M': (0.0, 1e6), 'C_R': (0.0, 1e6), 'C_M': (0.0, 1e6),
+    'G': (0.0, 1e7), 's': (-100.0, 100.0), 'c_theta': (0.0, _BIG), 'c_psi': (0.0, _BIG),
+    'K_S': (0.0, _BIG), 'K_D': (0.0, _BIG), 'Omega0': (-1e5, 1e5),
+}
+_NODE_RANGES = {
+    'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
+    'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
+    'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, _BIG),
+}
+_READ_ONLY = {'scene', 'model', 'publish_rate', 'description'}
+#: node keys whose change rebuilds the integrator at the current state
+_STEPPER_KEYS = ('integrator', 'rtol', 'atol', 'step_size')
+_INITIAL_DOC = {
+    'mode': 'initial condition: steady (on a steady motion) or body (quaternion, rates)',
+    'theta0': 'tilt of the steady motion [rad]', 'branch': 'steady motion: 0 = solution I, '
+    '1 = precession, 2 = nutation branch', 'dtheta': 'offset of theta [rad]',
+    'dthetadot': 'offset of thetadot [rad/s]', 'dpsidot': 'offset of psidot [rad/s]',
+    'dchi': 'offset of the twist chi [rad]', 'dz': 'offset of z [rad]',
+    'dzdot': 'offset of zdot [rad/s]', 'quaternion': 'stator quaternion [w, x, y, z]',
+    'omega_body': 'stator body rates [rad/s]', 'z': 'rotor lag z [rad]',
+    'zdot': 'rate of z [rad/s]', 'chi': 'twist chi [rad]',
+}
+_PERTURB_UNITS = {'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s', 'dchi': 'rad',
+                  'dz': 'rad', 'dzdot': 'rad/s'}
+
+
+def _descriptor(name: str, description: str, read_only: bool = False,
+                frange: tuple | None = None, irange: tuple | None = None) -> ParameterDescriptor:
+    d = ParameterDescriptor(name=name, description=description, read_only=read_only)
+    if frange:
+        d.floating_point_range = [FloatingPointRange(from_value=float(frange[0]),
+                                                     to_value=float(frange[1]), step=0.0)]
+    if irange:
+        d.integer_range = [IntegerRange(from_value=int(irange[0]), to_value=int(irange[1]),
+                                        step=1)]
+    return d
+
+
+class RotorSimNode(Node):
+    """The simulation node (see module doc); importable so that tests can compose it."""
+
+    def __init__(self, node_name: str = 'rotor_sim', **kwargs):
+        super().__init__(node_name, **kwargs)
+        self._lock = threading.RLock()
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.scene = self._declare_parameters()
+        self.cfg = {k: self.get_parameter(k).value for k in NODE_KEYS if k != 'use_sim_time'}
+        self.perturbation = {k: self.get_parameter(f'perturbation.{k}').value
+                             for k in PERTURBATION_KEYS}
+        if self.get_parameter('use_sim_time').value:
+            self.get_logger().warn('use_sim_time is true: the simulator keeps its own time '
+                                   'and publishes /clock; set it on the other nodes instead')
+        self.model = self.scene.make_model()
+        self.seq = 0
+        self.diverged: str | None = None
+        self.last_window = None
+        self._last = None          # (t, y) of the last published (good) sample
+        self._start(self.scene.initial_state(self.model))
+
+        self.pub_joints = self.create_publisher(JointState, 'joint_states', STATE_QOS)
+        self.pub_energy = self.create_publisher(Float64MultiArray, 'energy', STATE_QOS)
+        self.pub_axis = self.create_publisher(Vector3Stamped, 'axis', 10)
+        self.pub_pose = self.create_publisher(PoseStamped, 'stator_pose', 10)
+        self.pub_marker = self.create_publisher(Marker, 'axis_marker', 10)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
+        self.pub_scene = self.create_publisher(String, '~/scene', _LATCHED)
+        self.create_service(Trigger, '~/reset', self._srv_reset)
+        self.create_service(Trigger, '~/perturb', self._srv_perturb)
+        self.create_service(SetBool, '~/pause', self._srv_pause)
+        self._timer = None
+        self._diag_timer = None
+        self._make_timer()
+        self._make_diag_timer()
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._post_set)
+        self._publish_scene()
+        self.get_logger().info(
+            f"scene '{self.scene.name}' (model {self.model.name}), integrator "
+            f'{self.stepper.method}, publish_rate {self.cfg["publish_rate"]:g} Hz, '
+            f'real_time_factor {self.cfg["real_time_factor"]:g}')
+
+    # -- parameters --------------------------------------------------------------------------
+    def _declare_parameters(self) -> Scene:
+        name = self.declare_parameter('scene', DEFAULT_SCENE, _descriptor(
+            'scene', 'scene name (config/<name>.yaml) or path to a scene file; loaded at '
+            'start, the other parameters override it', read_only=True)).value
+        base = load_scene(name)
+        flat: dict = {'scene': base.name}
+        d = self.declare_parameter('description', base.description, _descriptor(
+            'description', 'what the scene shows', read_only=True))
+        flat['description'] = d.value
+        flat['model'] = self.declare_parameter('model', base.model, _descriptor(
+            'model', 'full | locked_housing | upright_axis', read_only=True)).value
+        flat['t_end'] = self.declare_parameter('t_end', base.t_end, _descriptor(
+            't_end', 'scene duration [s] (the node stops there if stop_at_t_end)',
+            frange=(1e-6, _BIG))).value
+        for f in PARAM_FIELDS:
+            desc = f'{PARAM_DESCRIPTIONS[f]} [{PARAM_UNITS[f]}]; live'
+            value = getattr(base.params, f)
+            if f == 'pole_pairs':
+                d = _descriptor(f, desc, irange=(0, 64))
+            else:
+                d = _descriptor(f, desc, frange=_PARAM_RANGES[f])
+            flat[f] = self.declare_parameter(f, value, d).value
+        ic = base.initial
+        mode = self.declare_parameter('initial.mode', ic.mode, _descriptor(
+            'initial.mode', _INITIAL_DOC['mode'], read_only=True)).value
+        keys = (('theta0', 'branch', *PERTURBATION_KEYS) if mode == 'steady'
+                else ('quaternion', 'omega_body', 'z', 'zdot'))
+        flat['initial.mode'] = mode
+        for k in keys:
+            v = getattr(ic, k)
+            v = [float(x) for x in v] if isinstance(v, tuple) else v
+            flat[f'initial.{k}'] = self.declare_parameter(f'initial.{k}', v, _descriptor(
+                f'initial.{k}', _INITIAL_DOC[k] + '; read at start and by ~/reset',
+                read_only=True)).value
+        if mode == 'body' and ic.chi is not None:
+            flat['initial.chi'] = self.declare_parameter('initial.chi', ic.chi, _descriptor(
+                'initial.chi', _INITIAL_DOC['chi'], read_only=True)).value
+        for k in PERTURBATION_KEYS:
+            flat[f'perturbation.{k}'] = self.declare_parameter(
+                f'perturbation.{k}', float(base.perturbation.get(k, 0.0)), _descriptor(
+                    f'perturbation.{k}', f'kick of ~/perturb [{_PERTURB_UNITS[k]}]; live')).value
+        for k, (typ, default, doc) in NODE_KEYS.items():
+            if k == 'use_sim_time':
+                continue
+            value = base.node.get(k, default)
+            flat[k] = self.declare_parameter(k, value, _descriptor(
+                k, doc + ('' if k in _READ_ONLY else '; live'), read_only=k in _READ_ONLY,
+                frange=_NODE_RANGES.get(k))).value
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            return scene_from_mapping(flat, path=base.path, strict_float=False)
+
+    def _on_set(self, params) -> SetParametersResult:
+        """Validate a change before it is accepted (RotorParams, integrator settings)."""
+        changes = {p.name: p.value for p in params}
+        phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                new = self.scene.params.replace(**phys) if phys else self.scene.params
+            if any(k in changes for k in _STEPPER_KEYS) or phys:
+                cfg = {**self.cfg, **{k: v for k, v in changes.items() if k in self.cfg}}
+                scene = dataclasses.replace(self.scene, params=new)
+                self._new_stepper(make_model(scene.model, new), self.stepper.t,
+                                  self.stepper.y, cfg, scene)
+        except GyroRotorError as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _post_set(self, params) -> None:
+        """Apply accepted changes without restart."""
+        changes = {p.name: p.value for p in params}
+        now = self._now()
+        with self._lock:
+            for k, v in changes.items():
+                if k in self.cfg:
+                    self.cfg[k] = v
+                elif k.startswith('perturbation.'):
+                    self.perturbation[k.split('.', 1)[1]] = v
+            phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
+            if 't_end' in changes:
+                self.scene = dataclasses.replace(self.scene, t_end=changes['t_end'])
+            if phys:
+                self._apply_params(self.scene.params.replace(**phys), now)
+            elif any(k in changes for k in _STEPPER_KEYS):
+                self._restart_stepper(self.stepper.y.copy(), now)
+            if 'real_time_factor' in changes:
+                was_fast = self.pacer.rtf == 0
+                self.pacer.set_rtf(self.cfg['real_time_factor'], now)
+                if was_fast != (self.pacer.rtf == 0):
+                    self._make_timer()
+            self.pacer.max_catch_up = self.cfg['max_catch_up']
+            self.pacer.t_end = self.scene.t_end if self.cfg['stop_at_t_end'] else None
+            if 'diagnostics_period' in changes:
+                self._make_diag_timer()
+        self._publish_scene()
+
+    def _apply_params(self, new: RotorParams, now: float) -> None:
+        """Switch to new parameters at the current state.
+
+        The state (q, W, z) is kept; an Omega0 change keeps the rotor's absolute spin
+        (zdot jumps by -delta Omega0, the field angle is continuous). E* jumps (e.g. by
+        (K_S' - K_S) z^2 / 2 for a K_S change); the residual baseline is moved by the jump.
+        """
+        old_model = self.model
+        y_old = self.stepper.y.copy()
+        t = self.stepper.t
+        y = y_old.copy()
+        dOmega = new.Omega0 - old_model.params.Omega0
+        if dOmega:
+            self._field = (t, self._field_angle(t))
+            y[old_model.izd] -= dOmega
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            self.scene = dataclasses.replace(self.scene, params=new)
+        self.model = make_model(self.scene.model, new)
+        jump = self.baseline.rebase(self.model.energy, y, y_old)
+        self._restart_stepper(y, now)
+        self.get_logger().info(f'parameters changed; E* jumped by {jump:.6g} J '
+                               f'(residual baseline moved with it)')
+
+    # -- simulation state --------------------------------------------------------------------
+    def _now(self) -> float:
+        return self._steady.now().nanoseconds * 1e-9
+
+    def _new_stepper(self, model, t, y, cfg, scene):
+        method = cfg['integrator']
+        if method == 'auto':
+            method = choose_method(scene)
+        return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
+                            step_size=cfg['step_size'])
+
+    def _start(self, y0: np.ndarray) -> None:
+        """(Re)start at t = 0 from y0."""
+        self.stepper = self._new_stepper(self.model, 0.0, y0, self.cfg, self.scene)
+        self.baseline = EnergyBaseline(self.model.energy, self.model.idiss, y0)
+        self._field = (0.0, 0.0)     # (t_c, field angle at t_c) for phi_R
+        self.pacer = Pacer(self.stepper, self.cfg['publish_rate'],
+                           rtf=self.cfg['real_time_factor'],
+                           max_catch_up=self.cfg['max_catch_up'],
+                           t_end=self.scene.t_end if self.cfg['stop_at_t_end'] else None)
+        self._last = (0.0, np.array(y0, dtype=float))
+        self.diverged = None
+
+    def _restart_stepper(self, y: np.ndarray, now: float) -> None:
+        self.stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg, self.scene)
+        self.pacer.restart(self.stepper, now)
+
+    def _field_angle(self, t: float) -> float:
+        t_c, a_c = self._field
+        return a_c + self.model.params.Omega0 * (t - t_c)
+
+    # -- timers ------------------------------------------------------------------------------
+    def _make_timer(self) -> None:
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+        rtf = self.cfg['real_time_factor']
+        period = 1.0 / self.cfg['publish_rate'] if rtf > 0 else 0.0
+        self._timer = self.create_timer(period, self._tick, clock=self._steady)
+
+    def _make_diag_timer(self) -> None:
+        if self._diag_timer is not None:
+            self.destroy_timer(self._diag_timer)
+        self._diag_timer = self.create_timer(self.cfg['diagnostics_period'],
+                                             self._publish_diagnostics, clock=self._steady)
+
+    def _tick(self) -> None:
+        with self._lock:
+            if self.diverged:
+                return
+            now = self._now()
+            try:
+                samples = self.pacer.tick(now)
+            except IntegrationError as err:
+                samples = []
+                self._diverge(str(err))
+            if samples:
+                self._publish_samples(samples)
+            if self.cfg['publish_clock'] and not self.diverged:
+                self.pub_clock.publish(ros_msgs.clock(ros_msgs.stamp(self.stepper.t)))
+            self.pacer.end_tick(self._now())
+
+    def _diverge(self, reason: str) -> None:
+        self.diverged = reason
+        self.get_logger().error(f'integration stopped, last good state at t = '
+                                f'{self._last[0]:.6f} s kept: {reason}')
+        self._publish_diagnostics()
+
+    def _publish_samples(self, samples) -> None:
+        m = self.model
+        p = m.params
+        t = np.array([s.t for s in samples])
+        Y = np.array([s.y for s in samples])
+        q = m.quaternion(Y)
+        W = m.body_rates(Y)
+        psi, theta, phi_M = euler_from_quaternion(q)
+        psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, W)
+        z, zdot = Y[:, m.iz], Y[:, m.izd]
+        field = np.array([self._field_angle(ti) for ti in t])
+        E = m.energy(Y)
+        forces = m.generalized_forces(Y)
+        for i, s in enumerate(samples):
+            r = self.baseline.residual(s.y, float(E[i]))
+            if not (math.isfinite(E[i]) and abs(r) <= self.cfg['max_residual']):
+                self._diverge(f'energy-balance residual {r:.6g} J at t = {s.t:.6f} s exceeds '
+                              f'max_residual {self.cfg["max_residual"]:g} J (or E* is not '
+                              f'finite)')
+                return
+            st = ros_msgs.stamp(s.t)
+            self.pub_joints.publish(ros_msgs.joint_state(
+                st, (theta[i], psi[i], field[i] + z[i] + phi_M[i], phi_M[i]),
+                (thetadot[i], psidot[i], p.Omega0 + zdot[i] + phi_M_dot[i], phi_M_dot[i]),
+                forces[i]))
+            self.pub_energy.publish(ros_msgs.energy_array({
+                't_sim': s.t, 'E_star': E[i], 'dE_dt': -p.K_D * zdot[i] ** 2,
+                'dissipation': p.K_D * zdot[i] ** 2, 'residual': r, 'z': z[i],
+                'zdot': zdot[i], 'seq': self.seq, 'D': s.y[m.idiss], 'k': s.k}))
+            self.seq += 1
+            self._last = (s.t, s.y)
+        st = ros_msgs.stamp(samples[-1].t)
+        frame = self.cfg['frame_id']
+        axis = axis_from_quaternion(q[-1])
+        self.pub_axis.publish(ros_msgs.axis_vector(st, frame, axis))
+        self.pub_pose.publish(ros_msgs.stator_pose(st, frame, q[-1]))
+        self.pub_marker.publish(ros_msgs.axis_marker(st, frame, axis))
+
+    # -- diagnostics -------------------------------------------------------------------------
+    def _publish_diagnostics(self) -> None:
+        with self._lock:
+            now = self._now()
+            w = self.pacer.take_window(now)
+            self.last_window = w
+            t, y = self._last
+            m = self.model
+            rtf = self.pacer.rtf
+            qn = float(m.quaternion_norm_error(y))
+            res = self.baseline.residual(y)
+            level, msg = 'OK', 'running'
+            if self.diverged:
+                level, msg = 'ERROR', f'diverged: {self.diverged}'
+            elif self.pacer.paused:
+                msg = 'paused'
+            elif self.pacer.finished:
+                msg = f'stopped at t_end = {self.scene.t_end:g} s'
+            elif w.capped:
+                level, msg = 'WARN', (f'cannot keep up: {w.capped} ticks capped, '
+                                      f'{w.lost_sim_time:.3f} s of simulation time lost')
+            elif rtf > 0 and w.ticks > 2 and w.achieved_rtf < 0.9 * rtf:
+                level, msg = 'WARN', f'achieved real-time factor {w.achieved_rtf:.3f} < {rtf:g}'
+            elif abs(qn) > 1e-6:
+                level, msg = 'WARN', f'quaternion norm drift {qn:.3e}'
+            values = {
+                'scene': self.scene.name, 'model': m.name, 'integrator': self.stepper.method,
+                'rtol': getattr(self.stepper, 'rtol', ''),
+                'atol': getattr(self.stepper, 'atol', ''),
+                'step_size': getattr(self.stepper, 'h', ''), 't_sim': self.stepper.t,
+                'real_time_factor': rtf, 'achieved_rtf': w.achieved_rtf,
+                'overruns': w.overruns, 'overruns_total': self.pacer.overruns,
+                'capped_ticks': w.capped, 'capped_total': self.pacer.capped,
+                'lost_sim_time_total': self.pacer.lost_sim_time,
+                'tick_interval_mean': w.interval_mean, 'tick_jitter_std': w.interval_std,
+                'tick_interval_max': w.interval_max, 'tick_busy_max': w.busy_max,
+                'nfev': self.stepper.nfev, 'quaternion_norm_error': qn, 'residual': res,
+                'E_star': float(m.energy(y)), 'samples': self.seq,
+                'publish_rate': self.cfg['publish_rate'], 'paused': self.pacer.paused,
+            }
+            self.pub_diag.publish(ros_msgs.diagnostic_array(
+                ros_msgs.stamp(self.stepper.t), f'{self.get_name()}: simulation', level, msg,
+                values, hardware_id=f'scene:{self.scene.name}'))
+
+    def _publish_scene(self) -> None:
+        import yaml
+        doc = {'scene': self.scene.name, 'model': self.scene.model, 't_end': self.scene.t_end,
+               'params': self.scene.params.to_mapping(), 'perturbation': self.perturbation,
+               'node': self.cfg, 'integrator': self.stepper.method, 't_sim': self.stepper.t,
+               'path': self.scene.path}
+        self.pub_scene.publish(ros_msgs.text(yaml.safe_dump(doc, sort_keys=False)))
+
+    # -- services ----------------------------------------------------------------------------
+    def _srv_reset(self, request, response):
+        with self._lock:
+            try:
+                y0 = self.scene.initial_state(self.model)
+            except GyroRotorError as err:
+                response.success, response.message = False, str(err)
+                return response
+            rtf_anchor = self._now()
+            self._start(y0)
+            self.pacer.set_rtf(self.cfg['real_time_factor'], rtf_anchor)
+        self._publish_scene()
+        response.success, response.message = True, f"reset to scene '{self.scene.name}' at t = 0"
+        return response
+
+    def _srv_perturb(self, request, response):
+        with self._lock:
+            if self.diverged:
+                response.success = False
+                response.message = 'diverged: reset first'
+                return response
+            y_old = self.stepper.y.copy()
+            try:
+                y = perturb_state(self.model, y_old, self.perturbation)
+            except GyroRotorError as err:
+                response.success, response.message = False, str(err)
+                return response
+            jump = self.baseline.rebase(self.model.energy, y, y_old)
+            self._restart_stepper(y, self._now())
+        response.success = True
+        response.message = (f'kicked at t = {self.stepper.t:.6f} s with '
+                            f'{self.perturbation}; E* changed by {jump:.6g} J')
+        return response
+
+    def _srv_pause(self, request, response):
+        with self._lock:
+            now = self._now()
+            if request.data:
+                self.pacer.pause(now)
+            else:
+                self.pacer.resume(now)
+        response.success = True
+        response.message = 'paused' if request.data else 'running'
+        return response
+
+
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until SIGINT/SIGTERM; return the exit status.
+
+    rclpy's own signal handlers would shut the context down under a running timer
+    callback (its next publish then fails); instead both signals raise KeyboardInterrupt
+    in the main thread, between callbacks or inside one, and the node is torn down here.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = {sig: signal.signal(sig, _raise_interrupt)
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    node = None
+    status = 0
+    try:
+        node = RotorSimNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except GyroRotorError as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        status = 1
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_IGN if handler is None else handler)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())
