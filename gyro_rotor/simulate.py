@@ -1,12 +1,13 @@
 """Simulation driver: a scene in, a :class:`Trajectory` out (pure Python, no rclpy).
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
-the solution at ``rate`` Hz with the integrator's dense output. The integrator is scipy's
-``solve_ivp`` with DOP853 (order 8) by default (Radau IIA where the drive damping makes
-the scene stiff, see :func:`choose_method`), at tolerances tight enough that every
-shipped scene is accurate to 1e-8 or better in the symmetry-axis direction over its
-duration (``test/test_simulate.py`` checks it against a run at 100 times tighter
-tolerances); ``method``, ``rtol`` and ``atol`` override.
+the solution at ``rate`` Hz. The integrator is chosen per scene by default
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.integrators`, RODAS4 where
+the drive damping makes the scene stiff, Gauss6 for long conservative runs), at
+tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
+symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
+run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
+override, and scipy's ``solve_ivp`` methods stay selectable by their names.
 """
 
 from __future__ import annotations
@@ -18,11 +19,13 @@ from typing import Any, Mapping
 import numpy as np
 
 from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.integrators import METHODS, choose_method as choose_integrator, integrate
 from gyro_rotor.model import Model
 from gyro_rotor.scene import Scene, load_scene
 
 __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
-           'CSV_COLUMNS', 'check_tolerances']
+           'CSV_COLUMNS', 'check_tolerances', 'auto_method', 'choose_method',
+           'SCIPY_METHODS']
 
 DEFAULT_METHOD = 'auto'
 #: stiffness indicator K_D (1/C_R + 1/C_M) [1/s] above which 'auto' takes an implicit method
@@ -30,6 +33,8 @@ STIFF_RATE = 1e4
 DEFAULT_RTOL = 1e-11
 DEFAULT_ATOL = 1e-12
 DEFAULT_RATE = 100.0
+#: scipy solve_ivp methods, selectable by their (upper-case) names as baselines
+SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
 
 CSV_COLUMNS = ('t', 'theta', 'psi', 'phi_R', 'phi_M', 'thetadot', 'psidot', 'phi_R_dot',
                'phi_M_dot', 'axis_x', 'axis_y', 'axis_z', 'chi', 'z', 'zdot', 'Q', 'E_star',
@@ -53,6 +58,8 @@ class Trajectory:
     wall_time: float
     success: bool = True
     message: str = ''
+    #: why 'auto' chose this method ('' when the method was given)
+    method_reason: str = ''
 
     def __getattr__(self, name: str) -> Any:
         out = self.__dict__.get('out')
@@ -103,16 +110,24 @@ class Trajectory:
             'max_abs_residual': self.max_abs_residual,
             'max_qnorm_drift': self.max_qnorm_drift, 'nfev': self.nfev,
             'nsteps': self.nsteps, 'wall_time': self.wall_time,
+            'method_reason': self.method_reason,
         }
 
 
-def choose_method(scene: Scene) -> str:
-    """'auto': DOP853, or Radau where the drive damping makes the scene stiff.
+def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
+    """'auto': the integrator for this scene and the reason (see
+    :func:`gyro_rotor.integrators.choose_method`): RODAS4 where the drive damping makes the
+    scene stiff, Gauss6 for long conservative runs, DOP853 otherwise."""
+    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
 
-    The drive has a real root near -K_D (1/C_R + 1/C_M); above STIFF_RATE an explicit
-    method would need steps near its inverse.
+
+def choose_method(scene: Scene) -> str:
+    """The scipy ``solve_ivp`` name for a scene: DOP853, or Radau where it is stiff.
+
+    Kept for callers that step with scipy (the real-time stepper); :func:`simulate` uses
+    :func:`auto_method`.
     """
-    return 'Radau' if scene.params.stiff_rate() > STIFF_RATE else 'DOP853'
+    return 'Radau' if auto_method(scene)[0] == 'rodas4' else 'DOP853'
 
 
 def check_tolerances(rtol: float, atol: float) -> None:
@@ -126,7 +141,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
              rate: float = DEFAULT_RATE, method: str = DEFAULT_METHOD,
              rtol: float | None = None, atol: float | None = None,
              overrides: Mapping[str, Any] | None = None,
-             y0: np.ndarray | None = None) -> Trajectory:
+             y0: np.ndarray | None = None, step: float | None = None) -> Trajectory:
     """Integrate a scene and return its sampled trajectory.
 
     Parameters
@@ -137,14 +152,20 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Duration [s]; default the scene's ``t_end``.
     rate : float
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
-    method, rtol, atol
-        Integrator (a scipy ``solve_ivp`` method name) and tolerances.
+    method : str
+        'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
+        method of :mod:`gyro_rotor.integrators` (rk4, rk8, dop853, gauss6, rodas4) or a
+        scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
+    rtol, atol : float, optional
+        Tolerances of adaptive methods.
+    step : float, optional
+        Step of the fixed-step methods (rk4, rk8, gauss6) [s]; default from the model's
+        fastest rate.
     overrides : mapping, optional
         Flat scene keys to change (e.g. ``{'K_D': 0.1}``), validated like the file.
     y0 : ndarray, optional
         Initial state instead of the scene's.
     """
-    from scipy.integrate import solve_ivp
     if isinstance(scene, Scene):
         if overrides:
             raise ParameterError('overrides need a scene name or path, not a loaded Scene')
@@ -158,7 +179,12 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     rtol = DEFAULT_RTOL if rtol is None else float(rtol)
     atol = DEFAULT_ATOL if atol is None else float(atol)
     check_tolerances(rtol, atol)
-    method = choose_method(scene) if method == 'auto' else method
+    reason = ''
+    if method == 'auto':
+        method, reason = auto_method(scene, t_end)
+    if method not in METHODS and method not in SCIPY_METHODS:
+        raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
+                             f"{', '.join(METHODS)}, {', '.join(SCIPY_METHODS)}")
     model = scene.make_model()
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
     if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
@@ -168,17 +194,25 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     if t_eval[-1] < t_end - 1e-12:
         t_eval = np.append(t_eval, t_end)
     t0 = time.perf_counter()
-    try:
-        sol = solve_ivp(model.rhs, (0.0, t_end), y_init, method=method, t_eval=t_eval,
-                        rtol=rtol, atol=atol)
-    except ValueError as err:
-        raise ParameterError(f'integrator {method}: {err}') from err
-    wall = time.perf_counter() - t0
-    if sol.status < 0 or not np.all(np.isfinite(sol.y)):
-        raise IntegrationError(f'integration of scene {scene.name} failed at '
-                               f't = {sol.t[-1] if sol.t.size else 0.0}: {sol.message}')
-    Y = sol.y.T
-    return Trajectory(scene=scene, model=model, t=sol.t, y=Y, out=model.outputs(sol.t, Y),
-                      method=method, rtol=rtol, atol=atol, nfev=int(sol.nfev),
-                      nsteps=int(getattr(sol, 'nsteps', 0) or 0), wall_time=wall,
-                      success=sol.success, message=sol.message)
+    if method in METHODS:
+        res = integrate(model, y_init, (0.0, t_end), t_eval, method, rtol=rtol, atol=atol,
+                        step=step)
+        wall = time.perf_counter() - t0
+        t_s, Y, nfev, nsteps = res.t, res.y, res.nfev, res.nsteps
+        status, message = res.status, res.message
+    else:
+        from scipy.integrate import solve_ivp
+        try:
+            sol = solve_ivp(model.rhs, (0.0, t_end), y_init, method=method, t_eval=t_eval,
+                            rtol=rtol, atol=atol)
+        except ValueError as err:
+            raise ParameterError(f'integrator {method}: {err}') from err
+        wall = time.perf_counter() - t0
+        t_s, Y, nfev, nsteps = sol.t, sol.y.T, int(sol.nfev), 0
+        status, message = sol.status, sol.message
+    if status < 0 or not np.all(np.isfinite(Y)):
+        raise IntegrationError(f'integration of scene {scene.name} with {method} failed at '
+                               f't = {t_s[-1] if t_s.size else 0.0}: {message}')
+    return Trajectory(scene=scene, model=model, t=t_s, y=Y, out=model.outputs(t_s, Y),
+                      method=method, rtol=rtol, atol=atol, nfev=int(nfev), nsteps=int(nsteps),
+                      wall_time=wall, success=True, message=message, method_reason=reason)

@@ -32,6 +32,8 @@ def run(args: argparse.Namespace) -> int:
     s = tr.summary()
     print(f"scene {s['scene']} (model {s['model']}), {s['t_end']:g} s with {s['method']} "
           f"(rtol {s['rtol']:g}, atol {s['atol']:g})")
+    if s['method_reason']:
+        print(f"  auto: {s['method']}, {s['method_reason']}")
     print(f"  final state:  theta {s['theta_end']:.9f} rad, psidot {s['psidot_end']:.9f} "
           f"rad/s, chi {s['chi_end']:.3e} rad, z {s['z_end']:.3e} rad, "
           f"zdot {s['zdot_end']:.3e} rad/s")
