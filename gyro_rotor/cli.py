@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
-import warnings
 
 from gyro_rotor.errors import GyroRotorError
 
@@ -64,9 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter('default')
-            return int(args._run(args) or 0)
+        return int(args._run(args) or 0)
     except GyroRotorError as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1

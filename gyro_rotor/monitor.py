@@ -1,0 +1,57 @@
+"""Topic statistics for ``gyro-rotor monitor`` (pure Python, no rclpy).
+
+:class:`TopicStats` keeps, per topic, the arrival times of the last messages (a ring of
+wall-clock readings), the count, the bytes and, where the message carries a sequence
+counter (the ``energy`` array's ``seq``), the number of missing sequence numbers. Its
+rate is the one ``ros2 topic hz`` reports: messages in the window over the window's span.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+
+__all__ = ['TopicStats']
+
+
+@dataclasses.dataclass
+class TopicStats:
+    """Arrival statistics of one topic (see module doc)."""
+
+    name: str
+    type_name: str = ''
+    window: int = 500
+    count: int = 0
+    bytes: int = 0
+    gaps: int = 0
+    last_seq: int | None = None
+    times: collections.deque = dataclasses.field(default_factory=collections.deque)
+
+    def add(self, t_wall: float, size: int = 0, seq: int | None = None) -> None:
+        """Record one message that arrived at wall time ``t_wall`` [s]."""
+        self.count += 1
+        self.bytes += size
+        self.times.append(t_wall)
+        while len(self.times) > self.window:
+            self.times.popleft()
+        if seq is not None:
+            if self.last_seq is not None and seq > self.last_seq + 1:
+                self.gaps += seq - self.last_seq - 1
+            self.last_seq = seq
+
+    def rate(self, now: float | None = None, horizon: float = 5.0) -> float:
+        """Messages per second over the last ``horizon`` seconds of the window (NaN if < 2)."""
+        ts = [t for t in self.times if now is None or t >= now - horizon]
+        if len(ts) < 2 or ts[-1] <= ts[0]:
+            return math.nan
+        return (len(ts) - 1) / (ts[-1] - ts[0])
+
+    def jitter(self) -> float:
+        """Standard deviation of the inter-arrival time over the window [s] (NaN if < 3)."""
+        ts = list(self.times)
+        if len(ts) < 3:
+            return math.nan
+        d = [b - a for a, b in zip(ts, ts[1:])]
+        mean = sum(d) / len(d)
+        return math.sqrt(sum((x - mean) ** 2 for x in d) / (len(d) - 1))
