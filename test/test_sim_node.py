@@ -1,0 +1,288 @@
+"""The simulation node, in-process (node + probe in one executor) and as a separate process.
+
+Rates are checked per *simulated* second through the stamps (exact by construction: the
+node publishes every grid sample t_k = k / publish_rate), wall-clock rates only loosely.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+
+from gyro_rotor.ros_msgs import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
+from gyro_rotor.sim_node import RotorSimNode, STATE_QOS  # noqa: E402
+
+pytestmark = pytest.mark.ros
+RATE = 250.0
+F = {name: i for i, name in enumerate(ENERGY_FIELDS)}
+
+
+class Rig:
+    """rotor_sim and a probe node in one SingleThreadedExecutor."""
+
+    def __init__(self):
+        self.context = rclpy.context.Context()
+        rclpy.init(context=self.context)
+        self.node = RotorSimNode(context=self.context, parameter_overrides=[
+            Parameter('scene', value='precession'),
+            Parameter('real_time_factor', value=1.0),
+            Parameter('publish_rate', value=RATE),
+            Parameter('diagnostics_period', value=0.5)])
+        self.probe = rclpy.create_node('probe', context=self.context)
+        self.energy, self.joints, self.diags = [], [], []
+        self.probe.create_subscription(Float64MultiArray, 'energy', self.energy.append,
+                                       STATE_QOS)
+        self.probe.create_subscription(JointState, 'joint_states', self.joints.append,
+                                       STATE_QOS)
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diags.append, 10)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+
+    def spin_until(self, cond, timeout=15.0):
+        deadline = time.monotonic() + timeout
+        while not cond():
+            assert time.monotonic() < deadline, 'condition not met before the deadline'
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def call(self, srv_type, name, request):
+        client = self.probe.create_client(srv_type, name)
+        self.spin_until(lambda: client.service_is_ready())
+        future = client.call_async(request)
+        self.spin_until(future.done)
+        self.probe.destroy_client(client)
+        return future.result()
+
+    def energy_rows(self, start=0):
+        return np.array([list(m.data) for m in self.energy[start:]])
+
+    def close(self):
+        self.executor.shutdown()
+        self.probe.destroy_node()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture(scope='module')
+def rig():
+    r = Rig()
+    yield r
+    r.close()
+
+
+def test_topics_at_the_configured_rate_with_consistent_stamps(rig):
+    wall0 = time.monotonic()
+    n0 = len(rig.energy)
+    rig.spin_until(lambda: len(rig.energy) - n0 >= 2 * RATE + 10)
+    rig.spin_for(0.05)     # the joint_states paired with the last energy samples
+    wall = time.monotonic() - wall0
+    rows = rig.energy_rows(n0)
+    assert rig.energy[-1].layout.dim[0].label == ENERGY_LABEL
+    # nothing lost: consecutive sequence numbers and grid indices; t = k / rate exactly
+    assert np.all(np.diff(rows[:, F['seq']]) == 1)
+    assert np.all(np.diff(rows[:, F['k']]) == 1)
+    np.testing.assert_array_equal(rows[:, F['t_sim']], rows[:, F['k']] / RATE)
+    # samples per simulated second (from the stamps of joint_states) = publish_rate
+    stamps = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+                       for m in rig.joints])
+    t_a = np.ceil(stamps[0])
+    per_second = np.count_nonzero((stamps >= t_a) & (stamps < t_a + 1.0))
+    if stamps[-1] >= t_a + 1.0:
+        assert per_second == RATE
+    assert set(np.round(rows[:, F['t_sim']] * 1e9)) <= set(np.round(stamps * 1e9))
+    # simulation time never runs ahead of rtf * wall time; loosely keeps up with it
+    span = rows[-1, F['t_sim']] - rows[0, F['t_sim']]
+    assert span <= wall + 2.0 / RATE
+    assert span > 0.2 * wall
+    js = rig.joints[-1]
+    assert tuple(js.name) == JOINT_NAMES
+    assert len(js.position) == len(js.velocity) == len(js.effort) == 4
+
+
+def test_energy_layout_effort_and_lyapunov(rig):
+    n0 = len(rig.energy)
+    rig.spin_until(lambda: len(rig.energy) - n0 >= 100)
+    rows = rig.energy_rows(n0)
+    p = rig.node.scene.params
+    z, zdot = rows[:, F['z']], rows[:, F['zdot']]
+    np.testing.assert_allclose(rows[:, F['dissipation']], p.K_D * zdot ** 2, rtol=1e-12)
+    np.testing.assert_allclose(rows[:, F['dE_dt']], -rows[:, F['dissipation']])
+    # E* non-increasing (eq. 17) and the energy balance closes
+    assert np.all(np.diff(rows[:, F['E_star']]) <= 1e-10)
+    assert np.max(np.abs(rows[:, F['residual']])) < 1e-8
+    # effort[2] is the drive torque Q = -K_S z - K_D zdot of the same sample
+    by_stamp = {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in rig.joints}
+    for row in rows[-15:-10]:
+        ns = int(round(row[F['t_sim']] * 1e9))
+        js = by_stamp[(ns // 10 ** 9, ns % 10 ** 9)]
+        assert js.effort[2] == pytest.approx(-p.K_S * row[F['z']] - p.K_D * row[F['zdot']],
+                                             rel=1e-9, abs=1e-12)
+    assert z.shape == zdot.shape
+
+
+def test_diagnostics_carry_byte_levels_and_pacing_figures(rig):
+    rig.spin_until(lambda: len(rig.diags) >= 2)
+    st = rig.diags[-1].status[0]
+    assert isinstance(st.level, bytes)
+    assert st.level in (DiagnosticStatus.OK, DiagnosticStatus.WARN)
+    values = {kv.key: kv.value for kv in st.values}
+    for key in ('integrator', 'achieved_rtf', 'overruns', 'quaternion_norm_error',
+                'residual', 'scene'):
+        assert key in values
+    assert values['scene'] == 'precession' and values['integrator'] == 'DOP853'
+    assert 'rotor_sim' in st.name
+
+
+def test_perturb_and_reset_services(rig):
+    rig.spin_until(lambda: len(rig.energy) > 10)
+    node = rig.node
+    assert rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=True)).success
+    y0, t0 = node.stepper.y.copy(), node.stepper.t
+    E_ref0 = node.baseline.E_ref
+    res = rig.call(Trigger, '/rotor_sim/perturb', Trigger.Request())
+    assert res.success, res.message
+    y1 = node.stepper.y
+    assert node.stepper.t == t0
+    assert y1[8] == pytest.approx(y0[8] + 1.0)                 # perturbation.dzdot = 1.0
+    assert y1[9] == y0[9]                                       # dissipated work kept
+    jump = float(node.model.energy(y1) - node.model.energy(y0))
+    assert node.baseline.E_ref - E_ref0 == pytest.approx(jump, rel=1e-12, abs=1e-15)
+    assert rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False)).success
+    n0 = len(rig.energy)
+    rig.spin_until(lambda: len(rig.energy) - n0 >= 20)
+    rows = rig.energy_rows(n0)
+    assert np.max(np.abs(rows[:, F['residual']])) < 1e-8      # baseline moved with E*
+    seq_before = rig.energy[-1].data[F['seq']]
+    res = rig.call(Trigger, '/rotor_sim/reset', Trigger.Request())
+    assert res.success, res.message
+    n0 = len(rig.energy)
+    rig.spin_until(lambda: any(m.data[F['k']] == 0 for m in rig.energy[n0:]))
+    rig.spin_until(lambda: len(rig.energy) - n0 >= 20)
+    rows = rig.energy_rows(n0)
+    after = rows[np.argmax(rows[:, F['k']] == 0):]
+    np.testing.assert_array_equal(after[:, F['k']], np.arange(len(after)))
+    assert after[0, F['seq']] > seq_before                    # seq continues over resets
+    assert np.all(np.diff(rows[:, F['seq']]) == 1)
+
+
+def test_pause_holds_time_and_resume_continues_without_a_gap(rig):
+    res = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=True))
+    assert res.success
+    t_paused = rig.node.stepper.t
+    n0 = len(rig.energy)
+    rig.spin_for(0.3)
+    assert all(m.data[F['t_sim']] <= t_paused for m in rig.energy[n0:])
+    assert rig.node.stepper.t == t_paused
+    k_last = rig.energy[-1].data[F['k']]
+    res = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
+    assert res.success
+    n1 = len(rig.energy)
+    rig.spin_until(lambda: len(rig.energy) - n1 >= 10)
+    ks = rig.energy_rows(n1)[:, F['k']]
+    assert ks[0] == k_last + 1 and np.all(np.diff(ks) == 1)
+
+
+def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
+    node = rig.node
+    for name, value, word in (('K_D', -1.0, 'K_D'), ('A_R', 0.0, 'A_R'),
+                              ('model', 'upright_axis', 'read-only'),
+                              ('integrator', 'euler', 'euler')):
+        (result,) = node.set_parameters([Parameter(name, value=value)])
+        assert not result.successful
+        assert word in result.reason
+    assert node.scene.params.K_D == 0.05 and node.scene.params.A_R == 0.05
+    # K_S: E* jumps by (K_S' - K_S) z^2 / 2, the residual baseline moves with it
+    y = node.stepper.y.copy()
+    E_ref = node.baseline.E_ref
+    (result,) = node.set_parameters([Parameter('K_S', value=40.0)])
+    assert result.successful, result.reason
+    assert node.scene.params.K_S == 40.0 and node.model.params.K_S == 40.0
+    assert node.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
+                                                        abs=1e-15)
+    n0 = len(rig.energy)
+    rig.spin_until(lambda: len(rig.energy) - n0 >= 20)
+    rows = rig.energy_rows(n0 + 2)
+    assert np.max(np.abs(rows[:, F['residual']])) < 1e-8
+    assert np.all(np.diff(rows[:, F['E_star']]) <= 1e-10)
+    # Omega0: the rotor keeps its absolute spin rate, zdot takes the difference
+    zdot = node.stepper.y[8]
+    (result,) = node.set_parameters([Parameter('Omega0', value=320.0)])
+    assert result.successful, result.reason
+    assert node.stepper.y[8] == pytest.approx(zdot - (320.0 - 314.16))
+    node.set_parameters([Parameter('Omega0', value=314.16), Parameter('K_S', value=20.0)])
+
+
+def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
+    node = rig.node
+    (result,) = node.set_parameters([Parameter('max_residual', value=0.0)])
+    assert result.successful
+    rig.spin_until(lambda: node.diverged is not None)
+    t_stop = node._last[0]
+    n0 = len(rig.diags)
+    rig.spin_until(lambda: len(rig.diags) > n0)
+    st = rig.diags[-1].status[0]
+    assert st.level == DiagnosticStatus.ERROR and 'residual' in st.message
+    n1 = len(rig.energy)
+    rig.spin_for(0.2)
+    assert all(m.data[F['t_sim']] <= t_stop for m in rig.energy[n1:])
+    assert np.all(np.isfinite(node._last[1]))
+    node.set_parameters([Parameter('max_residual', value=1.0)])
+    assert rig.call(Trigger, '/rotor_sim/reset', Trigger.Request()).success
+    n2 = len(rig.energy)
+    rig.spin_until(lambda: len(rig.energy) - n2 >= 5)
+    assert node.diverged is None
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_separate_process_publishes_and_shuts_down_cleanly(sig):
+    env = dict(os.environ, PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'gyro_rotor.sim_node', '--ros-args', '-p', 'scene:=precession',
+         '-p', 'real_time_factor:=0.0'],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    try:
+        probe = rclpy.create_node('probe_proc', context=context)
+        energy, joints = [], []
+        probe.create_subscription(Float64MultiArray, 'energy', energy.append, STATE_QOS)
+        probe.create_subscription(JointState, 'joint_states', joints.append, STATE_QOS)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(probe)
+        deadline = time.monotonic() + 30.0
+        while (len(energy) < 50 or len(joints) < 50) and time.monotonic() < deadline:
+            assert proc.poll() is None, proc.stderr.read()
+            executor.spin_once(timeout_sec=0.05)
+        assert len(energy) >= 50 and len(joints) >= 50
+        rows = np.array([list(m.data) for m in energy])
+        assert np.all(np.diff(rows[:, F['t_sim']]) > 0)
+        executor.shutdown()
+        probe.destroy_node()
+    finally:
+        proc.send_signal(sig)
+        try:
+            out, err = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, err = proc.communicate()
+        rclpy.shutdown(context=context)
+    assert proc.returncode == 0, err
+    assert 'Traceback' not in err, err
