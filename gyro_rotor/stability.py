@@ -134,6 +134,7 @@ class ClaimsReport:
     K_D_star: float | None
     breakaway: float | None
     regimes: list
+    locus: RootLocus | None = dataclasses.field(default=None, repr=False)
 
     @property
     def all_hold(self) -> bool:
@@ -710,7 +711,8 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
             regimes.append({'regime': f'{nm}: decay grows with K_D, then falls back',
                             'K_D_from': 0.0, 'K_D_to': float(Ks[i]),
                             'max_decay_rate': float(-re_b[i])})
-    return ClaimsReport(claims=claims, K_D_star=K_star, breakaway=lam_star, regimes=regimes)
+    return ClaimsReport(claims=claims, K_D_star=K_star, breakaway=lam_star, regimes=regimes,
+                        locus=loc)
 
 
 # -- the best K_D ----------------------------------------------------------------------------
