@@ -39,7 +39,8 @@ import numpy as np
 
 from gyro_rotor.errors import IntegrationError, ParameterError
 
-__all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'make_stepper', 'Pacer', 'Sample',
+__all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
+           'resolve_method', 'Pacer', 'Sample',
            'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL', 'DEFAULT_RK4_STEP',
            'EnergyBaseline']
 
@@ -172,19 +173,84 @@ class RK4Stepper:
         return self.y
 
 
-def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: float = 0.0,
-                 atol: float = 0.0, step_size: float = 0.0) -> Stepper:
-    """A stepper by name: 'rk4', a scipy OdeSolver name, or a method of gyro_rotor.integrators.
+class IntegratorStepper:
+    """Adapter of a :mod:`gyro_rotor.integrators` method to the :class:`Stepper` interface.
 
-    Zero tolerances or step size mean the method's default. 'auto' must be resolved by the
-    caller (:func:`gyro_rotor.simulate.choose_method`).
+    Its ``advance_to`` clips the last step onto the target; a failed status becomes an
+    :class:`~gyro_rotor.errors.IntegrationError`, with the last good state kept in
+    ``t, y``.
     """
+
+    def __init__(self, integrator):
+        self.integrator = integrator
+        self.method = integrator.name
+        self.rtol = integrator.rtol
+        self.atol = integrator.atol
+        self.t = float(integrator.t)
+        self.y = np.array(integrator.y, dtype=float)
+
+    @property
+    def nfev(self) -> int:
+        """Right-hand side evaluations so far."""
+        return int(self.integrator.nfev)
+
+    def advance_to(self, t_target: float) -> np.ndarray:
+        """Integrate to exactly ``t_target`` and return y(t_target)."""
+        if t_target < self.t:
+            raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
+        status = self.integrator.advance_to(t_target)
+        y = np.array(self.integrator.y, dtype=float)
+        if status == 'failed' or not np.all(np.isfinite(y)):
+            raise IntegrationError(f'{self.method}: failed near t = '
+                                   f'{self.integrator.t:.9g} s: {self.integrator.message}')
+        self.t, self.y = float(t_target), y
+        return y
+
+
+def _integrators():
+    """The METHODS registry and make_integrator of gyro_rotor.integrators, if present."""
+    try:
+        from gyro_rotor.integrators import make_integrator, METHODS
+    except ImportError:
+        return None, None
+    return METHODS, make_integrator
+
+
+def resolve_method(method: str, params, t_end: float = math.inf) -> tuple[str, str]:
+    """'auto' -> (method, reason): gyro_rotor.integrators' choice, else scipy's DOP853/Radau."""
+    if method != 'auto':
+        return method, 'requested'
+    methods, _ = _integrators()
+    if methods is not None:
+        from gyro_rotor.integrators import choose_method
+        return choose_method(params, t_end)
+    stiff = params.K_D * (1.0 / params.C_R + 1.0 / params.C_M)
+    return ('Radau', 'stiff drive') if stiff > 1e4 else ('DOP853', 'non-stiff')
+
+
+def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: float = 0.0,
+                 atol: float = 0.0, step_size: float = 0.0, model=None) -> Stepper:
+    """A stepper by name.
+
+    With ``model`` given, a method of :mod:`gyro_rotor.integrators` (``rk4``, ``rk8``,
+    ``dop853``, ``gauss6``, ``rodas4``); otherwise, or for the scipy names (``DOP853``,
+    ``Radau``, ...), scipy's OdeSolver with dense output; ``rk4`` falls back to
+    :class:`RK4Stepper`. Zero tolerances or step size mean the method's default.
+    """
+    methods, make_integrator = _integrators()
+    if model is not None and methods is not None and method in methods:
+        try:
+            integ = make_integrator(method, model, y0, t0, math.inf, rtol=rtol or None,
+                                    atol=atol or None, step=step_size or None)
+        except ValueError as err:
+            raise ParameterError(str(err)) from err
+        return IntegratorStepper(integ)
     if method == 'rk4':
         return RK4Stepper(fun, t0, y0, step_size or DEFAULT_RK4_STEP)
     if method in SCIPY_METHODS:
         return DenseStepper(fun, t0, y0, method, rtol or DEFAULT_RTOL, atol or DEFAULT_ATOL)
-    raise ParameterError(f"unknown integrator '{method}'; valid: auto, rk4, "
-                         f"{', '.join(SCIPY_METHODS)}")
+    valid = ['auto', *(methods or ['rk4']), *SCIPY_METHODS]
+    raise ParameterError(f"unknown integrator '{method}'; valid: {', '.join(valid)}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -211,6 +277,7 @@ class WindowStats:
     interval_mean: float     # mean wall interval between ticks [s]
     interval_std: float      # its standard deviation (tick jitter) [s]
     interval_max: float
+    interval_p99: float      # 99th percentile of the interval [s]
     busy_mean: float         # mean wall time of a tick's work [s]
     busy_max: float
 
@@ -387,7 +454,8 @@ class Pacer:
             ticks=self._w_ticks, samples=self._w_samples, overruns=self._w_overruns,
             capped=self._w_capped, lost_sim_time=self._w_lost,
             interval_mean=float(np.mean(iv)), interval_std=float(np.std(iv)),
-            interval_max=float(np.max(iv)), busy_mean=float(np.mean(busy)),
+            interval_max=float(np.max(iv)), interval_p99=float(np.percentile(iv, 99)),
+            busy_mean=float(np.mean(busy)),
             busy_max=float(np.max(busy)))
         self._reset_window(now)
         return stats

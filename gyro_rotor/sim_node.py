@@ -46,12 +46,11 @@ from gyro_rotor import ros_msgs
 from gyro_rotor.errors import GyroRotorError, IntegrationError
 from gyro_rotor.model import make_model
 from gyro_rotor.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS, RotorParams
-from gyro_rotor.realtime import EnergyBaseline, make_stepper, Pacer
+from gyro_rotor.realtime import EnergyBaseline, make_stepper, Pacer, resolve_method
 from gyro_rotor.rotations import axis_from_quaternion, euler_from_quaternion, \
     euler_rates_from_body
 from gyro_rotor.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, perturb_state,
                               PERTURBATION_KEYS, Scene, scene_from_mapping)
-from gyro_rotor.simulate import choose_method
 
 __all__ = ['RotorSimNode', 'main', 'STATE_QOS']
 
@@ -60,6 +59,8 @@ STATE_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
 _LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _BIG = 1e9
+#: with real_time_factor 0, each tick advances this much simulated time [s] (whole samples)
+FAST_CHUNK = 0.04
 
 # ranges of the RotorParams fields (the on-set callback still validates via RotorParams)
 _PARAM_RANGES = {
@@ -272,11 +273,10 @@ class RotorSimNode(Node):
         return self._steady.now().nanoseconds * 1e-9
 
     def _new_stepper(self, model, t, y, cfg, scene):
-        method = cfg['integrator']
-        if method == 'auto':
-            method = choose_method(scene)
+        t_end = scene.t_end if cfg['stop_at_t_end'] else math.inf
+        method, self.method_reason = resolve_method(cfg['integrator'], model.params, t_end)
         return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
-                            step_size=cfg['step_size'])
+                            step_size=cfg['step_size'], model=model)
 
     def _start(self, y0: np.ndarray) -> None:
         """(Re)start at t = 0 from y0."""
@@ -286,6 +286,7 @@ class RotorSimNode(Node):
         self.pacer = Pacer(self.stepper, self.cfg['publish_rate'],
                            rtf=self.cfg['real_time_factor'],
                            max_catch_up=self.cfg['max_catch_up'],
+                           chunk_samples=max(1, math.ceil(self.cfg['publish_rate'] * FAST_CHUNK)),
                            t_end=self.scene.t_end if self.cfg['stop_at_t_end'] else None)
         self._last = (0.0, np.array(y0, dtype=float))
         self.diverged = None
@@ -408,7 +409,8 @@ class RotorSimNode(Node):
                 'lost_sim_time_total': self.pacer.lost_sim_time,
                 'tick_interval_mean': w.interval_mean, 'tick_jitter_std': w.interval_std,
                 'tick_interval_max': w.interval_max, 'tick_busy_max': w.busy_max,
-                'nfev': self.stepper.nfev, 'quaternion_norm_error': qn, 'residual': res,
+                'integrator_reason': self.method_reason, 'nfev': self.stepper.nfev,
+                'quaternion_norm_error': qn, 'residual': res,
                 'E_star': float(m.energy(y)), 'samples': self.seq,
                 'publish_rate': self.cfg['publish_rate'], 'paused': self.pacer.paused,
             }

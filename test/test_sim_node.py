@@ -147,7 +147,7 @@ def test_diagnostics_carry_byte_levels_and_pacing_figures(rig):
     for key in ('integrator', 'achieved_rtf', 'overruns', 'quaternion_norm_error',
                 'residual', 'scene'):
         assert key in values
-    assert values['scene'] == 'precession' and values['integrator'] == 'DOP853'
+    assert values['scene'] == 'precession' and values['integrator'] == 'dop853'
     assert 'rotor_sim' in st.name
 
 
