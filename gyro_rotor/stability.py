@@ -651,7 +651,8 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
         i = int(np.argmax(bad))
         j = judged[int(np.argmax(re[i]))]
         detail = (f'fails: at K_D = {loc.K_D[pos][i]:.4g} the {names[j]} root has Re = '
-                  f'{re[i].max():+.3e} 1/s (not < -{tol_re:.1e}); not in the open left half plane: '
+                  f'{re[i].max():+.3e} 1/s (not < -{tol_re:.1e}); not in the open left '
+                  f'half plane: '
                   f'{sorted({names[judged[k]] for k in np.where(bad_pts[i])[0]})}')
     else:
         detail = (f'holds on {int(pos.sum())} K_D values from {loc.K_D[pos][0]:.3g} to '
