@@ -12,8 +12,8 @@ at 1e-12 to 2e-12 on stiff_drive). Recorded per run:
   (max |r| of the energy balance, J), ``qnorm`` (max ||q| - 1|);
 - ``wall_per_sim``: wall seconds per simulated second (median of the repeats);
 - ``nfev``, ``nsteps``; ``status`` (0 ok; a run over its budget stops and reports its
-  cost rate over the part it did, with err = nan, and the method's tighter settings are
-  skipped).
+  cost rate over the part it did, with err = nan; after such a run, or one slower than
+  SLOW_RUN wall seconds, the method's tighter settings are skipped).
 
 scipy's ``solve_ivp`` (RK45, DOP853, Radau, LSODA) runs on the same model (its plain-float
 right-hand side) as the baseline. Also: the E* drift of each method on the conservative
@@ -51,6 +51,8 @@ ATOL_RATIO = 1e-2
 #: budgets: our compiled methods stop after this many steps, scipy after this many RHS calls
 MAX_STEPS = 3_000_000
 SCIPY_MAX_NFEV = 200_000
+#: a run slower than this [wall s] ends its method's sweep (tighter settings are slower)
+SLOW_RUN = 8.0
 
 
 @dataclasses.dataclass
@@ -226,7 +228,7 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         rows.append(BenchRow(scene=label, method=name, family=family, setting=setting,
                              wall_per_sim=wall / t_done, nfev=nfev, nsteps=nsteps,
                              status=status, **e))
-        if status == -3:
+        if status == -3 or wall > SLOW_RUN:
             over_budget.add(name)
         if progress:
             progress(f'{label:22s} {name:7s} {setting:14s} err {e["err"]:.2e} '

@@ -252,10 +252,11 @@ class Integrator:
 
 
 def model_rate(p) -> float:
-    """The fastest rate of the model [1/s], for default fixed steps and the auto choice.
+    """The fastest rate of the model [1/s], for the default steps of fixed-step methods.
 
-    The largest of: the nutation rate C_R Omega0 / I (about H_3 / I, eq. 18), the drive's frequency sqrt(K_S (1/C_R + 1/C_M)), its damping rate
-    K_D (1/C_R + 1/C_M) (the stiff real root, MODEL.md section 7), the tilt frequency
+    The largest of: the nutation rate C_R Omega0 / I (about H_3 / I, eq. 18), the drive's
+    frequency sqrt(K_S (1/C_R + 1/C_M)), its damping rate K_D (1/C_R + 1/C_M) (the stiff
+    real root, MODEL.md section 7), the tilt frequency
     sqrt(|c_theta - G s| / I), the twist frequency sqrt(c_psi / C_M), and the spin itself.
     """
     inv_c = 1.0 / p.C_R + 1.0 / p.C_M

@@ -473,6 +473,8 @@ def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
             rhs(kind, ytmp, P, Knew)
             nfev += 1
             for m in range(n):
+                if not math.isfinite(Knew[m]):
+                    return -1
                 d = abs(Knew[m] - K[i, m]) * h / (1e-12 + abs(y[m]) + abs(h * K[i, m]))
                 if d > delta:
                     delta = d

@@ -25,8 +25,7 @@ import numpy as np
 
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.integrators import kernels, tableaux as tb
-from gyro_rotor.integrators.base import (IntegrationResult, Integrator, STATUS_MESSAGES,
-                                         model_rate)
+from gyro_rotor.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
 from gyro_rotor.model import Model
 
 __all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'METHODS', 'integrate',

@@ -1,0 +1,177 @@
+"""Integrators: tableaux, empirical order, invariants on every scene, hard cases, misuse."""
+
+import math
+
+import numpy as np
+import pytest
+
+from gyro_rotor.errors import ParameterError
+from gyro_rotor.integrators import METHODS, choose_method, integrate, make_integrator, tableaux
+from gyro_rotor.scene import list_scenes, load_scene
+
+STIFF = ('stiff_drive',)
+
+
+def _setup(name='precession', **overrides):
+    sc = load_scene(name, overrides=overrides or None)
+    m = sc.make_model()
+    return sc, m, sc.initial_state(m)
+
+
+# -- tableaux ----------------------------------------------------------------------------------
+@pytest.mark.parametrize('A, B, C, order', [
+    (tableaux.RK4_A, tableaux.RK4_B, tableaux.RK4_C, 4),
+    (tableaux.DOP853_A[:12, :12], tableaux.DOP853_B, tableaux.DOP853_C[:12], 8),
+    (tableaux.GAUSS6_A, tableaux.GAUSS6_B, tableaux.GAUSS6_C, 6),
+])
+def test_tableau_consistency(A, B, C, order):
+    assert math.isclose(B.sum(), 1.0, rel_tol=0, abs_tol=1e-14)
+    np.testing.assert_allclose(A.sum(axis=1), C, atol=1e-14)
+    for k in range(1, order + 1):           # quadrature conditions sum b c^(k-1) = 1/k
+        assert math.isclose(B @ C ** (k - 1), 1.0 / k, abs_tol=1e-13), k
+    assert math.isclose(B @ (A @ C), 1.0 / 6.0, abs_tol=1e-13)   # an order-3 tree
+
+
+def test_dop853_extended_stages_and_error_weights():
+    A, C = tableaux.DOP853_A, tableaux.DOP853_C
+    np.testing.assert_allclose(A.sum(axis=1), C, atol=1e-13)
+    np.testing.assert_allclose(A[12, :12], tableaux.DOP853_B, atol=1e-15)  # FSAL stage
+    assert abs(tableaux.DOP853_E5.sum()) < 1e-14 and abs(tableaux.DOP853_E3.sum()) < 1e-14
+
+
+def test_rodas4_is_stiffly_accurate():
+    # y_new = (argument of the last stage) + k_6, and the error estimate is k_6 itself
+    M, A = tableaux.RODAS4_M, tableaux.RODAS4_A
+    np.testing.assert_array_equal(M[:5], A[5, :5])
+    np.testing.assert_array_equal(A[5, :4], A[4, :4])
+    assert M[5] == 1.0 and list(tableaux.RODAS4_E) == [0, 0, 0, 0, 0, 1]
+
+
+# -- empirical order ---------------------------------------------------------------------------
+@pytest.mark.parametrize('method, order, h, extra', [
+    ('rk4', 4, 2e-3, {}), ('rk8', 8, 2e-2, {}), ('gauss6', 6, 1e-2, {}),
+    ('rodas4', 4, 4e-3, {'rtol': 1e3, 'atol': 1e3}),      # huge tolerances: fixed steps
+    ('dop853', 8, 2e-2, {'rtol': 1e3, 'atol': 1e3}),
+])
+def test_empirical_order(method, order, h, extra):
+    """Halving the step divides the error (max over 5 samples) by about 2^order."""
+    _, m, y0 = _setup('precession')
+    te = np.linspace(0, 0.4, 5)
+    ref = integrate(m, y0, (0, 0.4), te, 'dop853', rtol=1e-14, atol=1e-16).y
+    errs = []
+    for hh in (h, h / 2):
+        r = integrate(m, y0, (0, 0.4), te, method, step=hh, **extra)
+        assert r.success
+        errs.append(np.max(np.abs(r.y - ref)))
+    p = math.log2(errs[0] / errs[1])
+    assert abs(p - order) < 0.5, (errs, p)
+
+
+# -- invariants on every scene -----------------------------------------------------------------
+def _cases():
+    for name in list_scenes():
+        stiff = name in STIFF
+        for method in METHODS:
+            if stiff and method != 'rodas4':
+                continue          # explicit and fixed-point methods are not for K_D = 1e4
+            yield name, method
+
+
+@pytest.mark.parametrize('name, method', list(_cases()))
+def test_quaternion_norm_and_energy_residual_at_tolerance_level(name, method):
+    sc, m, y0 = _setup(name)
+    T = min(sc.t_end, 0.5)
+    r = integrate(m, y0, (0, T), np.linspace(0, T, 26), method)
+    assert r.success, r.message
+    scale = max(1.0, float(np.max(np.abs(m.energy(r.y)))))
+    res = np.max(np.abs(m.residual(r.y)))
+    solver = METHODS[method]
+    tol = solver.default_rtol if solver.adaptive else 1e-9
+    assert res < 1e3 * tol * scale, res
+    # step ends are projected (or exact for gauss6); dense-output samples at tolerance level
+    assert np.max(np.abs(m.quaternion_norm_error(r.y))) < 100 * tol
+
+
+# -- hard cases --------------------------------------------------------------------------------
+def test_pole_slip_count_right_for_every_method():
+    sc, m, y0 = _setup('pole_slip')
+    p = sc.params.pole_pairs
+
+    def poles(res):
+        return round(res.y[-1, m.iz] * p / (2 * math.pi))
+    ref = poles(integrate(m, y0, (0, sc.t_end), None, 'dop853', rtol=1e-13, atol=1e-15))
+    assert ref != 0                      # the scene does slip
+    for method in METHODS:
+        assert poles(integrate(m, y0, (0, sc.t_end), None, method)) == ref, method
+
+
+def test_gauss6_energy_error_bounded_not_drifting():
+    sc, m, y0 = _setup('conservative')
+    te = np.linspace(0, 100.0, 21)
+    r = integrate(m, y0, (0, 100.0), te, 'gauss6')
+    E = m.energy(r.y)
+    dev = np.abs(E - E[0]) / abs(E[0])
+    assert dev.max() < 1e-12
+    # no growth: the second half deviates no more than the first (up to round-off)
+    assert dev[11:].max() <= 2.0 * dev[1:11].max() + 1e-14
+    assert np.max(np.abs(m.quaternion_norm_error(r.y))) < 1e-13   # no projection needed
+
+
+def test_stiff_method_completes_kd_1e6_within_step_budget():
+    sc, m, y0 = _setup('stiff_drive', K_D=1e6)
+    assert choose_method(sc.params)[0] == 'rodas4'
+    r = integrate(m, y0, (0, sc.t_end), None, 'rodas4', max_steps=5000)
+    assert r.success, r.message
+    scale = float(np.max(np.abs(m.energy(r.y))))
+    assert abs(m.residual(r.y)[-1]) < 1e-6 * scale
+    # an explicit method hits the same budget long before the end
+    e = integrate(m, y0, (0, sc.t_end), None, 'dop853', max_steps=5000)
+    assert e.status == -3
+
+
+def test_auto_choice():
+    assert choose_method(load_scene('precession').params)[0] == 'dop853'
+    assert choose_method(load_scene('stiff_drive').params)[0] == 'rodas4'
+    assert choose_method(load_scene('conservative').params, 1000.0)[0] == 'gauss6'
+    assert 'stiff' in choose_method(load_scene('stiff_drive').params)[1]
+
+
+# -- misuse and bad input ----------------------------------------------------------------------
+@pytest.mark.parametrize('kwargs, match', [
+    ({'y0': np.full(10, np.nan)}, 'finite'), ({'rtol': -1e-6}, 'rtol'),
+    ({'atol': float('inf')}, 'atol'), ({'step': 5.0}, 'horizon'), ({'step': 0.0}, 'step'),
+    ({'method': 'euler'}, 'unknown integrator'), ({'y0': np.ones(3)}, 'components'),
+])
+def test_bad_input_refused(kwargs, match):
+    _, m, y0 = _setup()
+    args = {'y0': y0, 'method': 'rk4', **kwargs}
+    with pytest.raises(ParameterError, match=match):
+        integrate(m, args.pop('y0'), (0, 1.0), None, args.pop('method'), **args)
+
+
+@pytest.mark.parametrize('method', list(METHODS))
+def test_state_machine_and_advance_to(method):
+    _, m, y0 = _setup()
+    s = make_integrator(method, m, y0, 0.0, 0.05)
+    assert s.status == 'running' and s.nsteps == 0 and s.step_size is None
+    s.step()
+    assert s.nsteps == 1 and s.t > 0 and s.step_size == s.t
+    assert s.advance_to(0.0123) == 'running' and s.t == 0.0123     # exactly, not beyond
+    while s.status == 'running':
+        s.step()
+    assert s.status == 'finished' and s.t == 0.05
+    with pytest.raises(RuntimeError):
+        s.step()
+    ref = integrate(m, y0, (0, 0.05), None, method).y[-1]
+    np.testing.assert_allclose(s.y, ref, atol=1e-9)   # step() path == compiled loop
+
+
+def test_failed_solver_refuses_to_step():
+    _, m, y0 = _setup('stiff_drive')
+    s = make_integrator('gauss6', m, y0, 0.0, 1.0, step=0.01)   # stages cannot converge
+    msg = s.step()
+    assert s.status == 'failed' and 'converge' in msg
+    with pytest.raises(RuntimeError):
+        s.step()
+    r = integrate(m, y0, (0, 1.0), None, 'gauss6', step=0.01)
+    assert not r.success and r.status == -4
