@@ -55,7 +55,7 @@ from gyro_rotor.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, perturb_stat
 __all__ = ['RotorSimNode', 'main', 'STATE_QOS']
 
 #: QoS of the state topics: reliable, deep enough for a recorder to keep up
-STATE_QOS = QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE)
+STATE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 _LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 _BIG = 1e9
