@@ -49,7 +49,7 @@ __all__ = ['RotorAnalyzer', 'Sample', 'SamplePairer', 'Prediction', 'PredictedMo
            'ModeCheck', 'SegmentResult', 'AnalysisResult', 'predict', 'identify_modes',
            'ANALYSIS_FIELDS', 'ANALYSIS_LABEL', 'MODE_FIELDS', 'MODE_LABEL', 'VERDICTS',
            'MODE_STATUS', 'SYNC_STATES', 'scene_to_flat', 'energy_sample_fields',
-           'samples_from_trajectory']
+           'samples_from_trajectory', 'scene_from_sim_doc', 'AnalysisSession']
 
 #: verdicts, in the order of their numeric code on the ``analysis`` topic
 VERDICTS = ('insufficient data', 'asymptotically stable', 'marginal', 'unstable', 'diverged')
@@ -72,6 +72,34 @@ MODE_FIELDS = ('pred_re', 'pred_im', 'meas_re', 'meas_im', 'pred_tau', 'meas_tau
 MODE_LABEL = ','.join(MODE_FIELDS)
 
 _TWO_PI = 2.0 * math.pi
+_BLAS_LIMITED = False
+
+
+def limit_blas_threads(n: int = 1) -> bool:
+    """Limit numpy's bundled OpenBLAS to ``n`` threads; return whether it worked.
+
+    The analysis runs beside the simulator on a small machine; a multithreaded OpenBLAS
+    spin-waits when the cores are busy: the SVD of one window (2280 x 121) took 3 to 5 s
+    with 2 threads under load and 0.05 s with one (measured here on 2 cores), long enough
+    for the node to miss messages. Environment variables would have to be set before numpy
+    is loaded, so the library's own ``*_set_num_threads`` is called instead.
+    """
+    import ctypes
+    import glob
+    import os
+    libdir = os.path.join(os.path.dirname(np.__file__), os.pardir, 'numpy.libs')
+    for lib in glob.glob(os.path.join(libdir, '*openblas*')):
+        try:
+            dll = ctypes.CDLL(lib)
+        except OSError:
+            continue
+        for name in ('scipy_openblas_set_num_threads64_', 'scipy_openblas_set_num_threads',
+                     'openblas_set_num_threads64_', 'openblas_set_num_threads'):
+            fn = getattr(dll, name, None)
+            if fn is not None:
+                fn(int(n))
+                return True
+    return False
 
 
 # ------------------------------------------------------------------------------------------
@@ -563,12 +591,18 @@ class RotorAnalyzer:
         A slip within this time keeps the state 'lost synchronism' [s].
     min_fit_s : float
         Shortest window for fits [s].
+    max_window_samples : int
+        Samples kept per segment (older ones are dropped from the fits).
+    blas_threads : int
+        Limit numpy's OpenBLAS to this many threads (0 = leave it), see
+        :func:`limit_blas_threads`.
     """
 
     def __init__(self, scene: Scene, *, window_s: float = 8.0, lyapunov_tol: float = 1e-8,
                  lyapunov_rtol: float = 1e-9, residual_warn: float = 1e-6,
                  diverge_residual: float = 1e-2, sync_hold_s: float = 1.0,
-                 min_fit_s: float = 2.0, max_window_samples: int = 20000):
+                 min_fit_s: float = 2.0, max_window_samples: int = 20000,
+                 blas_threads: int = 1):
         if not isinstance(scene, Scene):
             raise AnalysisError('RotorAnalyzer needs a gyro_rotor.scene.Scene')
         self.window_s = float(window_s) if window_s and math.isfinite(window_s) else math.inf
@@ -579,6 +613,9 @@ class RotorAnalyzer:
         self.sync_hold_s = float(sync_hold_s)
         self.min_fit_s = float(min_fit_s)
         self.max_window_samples = int(max_window_samples)
+        global _BLAS_LIMITED
+        if blas_threads and not _BLAS_LIMITED:
+            _BLAS_LIMITED = limit_blas_threads(blas_threads)
         self.scene = scene
         self.prediction = predict(scene)
         self.samples = 0
@@ -969,3 +1006,141 @@ def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
                    z=float(o['z'][i]), zdot=float(o['zdot'][i]), D=float(D[i]),
                    positions=tuple(pos[i]), velocities=tuple(vel[i]))
             for i, t in enumerate(tr.t)]
+
+
+def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] | None = None
+                       ) -> Scene:
+    """The Scene described by the simulation node's ``~/scene`` YAML document.
+
+    The document carries the scene name and path, the model, t_end, the (live) parameters
+    and the perturbation, but not the initial condition; that comes from ``base`` (a Scene
+    or a flat mapping, e.g. from the bag's metadata), else from the scene file named.
+
+    Raises
+    ------
+    SceneError, ParameterError
+        For an unknown scene without a base, or invalid values.
+    """
+    from gyro_rotor.scene import load_scene, scene_from_mapping
+    if not isinstance(doc, Mapping) or 'params' not in doc:
+        raise AnalysisError(f'not a scene document of rotor_sim: {str(doc)[:80]!r}')
+    if isinstance(base, Scene):
+        flat = scene_to_flat(base)
+    elif base is not None:
+        flat = dict(base)
+    else:
+        path = doc.get('path')
+        try:
+            flat = scene_to_flat(load_scene(path if path else doc.get('scene', '')))
+        except AnalysisError:
+            raise
+        except Exception:
+            flat = scene_to_flat(load_scene(doc.get('scene', '')))
+    flat['scene'] = str(doc.get('scene', flat.get('scene', 'custom')))
+    for key in ('model', 't_end'):
+        if key in doc:
+            flat[key] = doc[key]
+    flat.update(doc['params'])
+    for k, v in (doc.get('perturbation') or {}).items():
+        flat[f'perturbation.{k}'] = v
+    return scene_from_mapping(flat, strict_float=False)
+
+
+class AnalysisSession:
+    """Messages in, analysis out: the glue the node and the offline analysis share.
+
+    Messages are duck-typed: rclpy messages (live) and the ``mcap_ros2`` decoder's objects
+    (offline) have the same fields. Samples that arrive before the scene is known are
+    kept (up to ``max_pending``) and analysed when it is.
+
+    Parameters
+    ----------
+    scene : Scene, optional
+        A fixed scene (then the sim node's scene documents only switch parameters).
+    base : Scene or flat mapping, optional
+        Initial-condition source for :func:`scene_from_sim_doc`.
+    **options
+        Passed to :class:`RotorAnalyzer` (``window_s`` ...).
+    """
+
+    def __init__(self, scene: Scene | None = None, base=None, *, max_pending: int = 100000,
+                 **options: Any):
+        self.options = options
+        self.base = base if base is not None else scene
+        self.fixed = scene is not None
+        self.analyzer: RotorAnalyzer | None = (RotorAnalyzer(scene, **options)
+                                               if scene is not None else None)
+        self.pairer = SamplePairer()
+        self.pending: list[Sample] = []
+        self.max_pending = max_pending
+        self.scene_docs = 0
+        self.energy_fields: tuple = ()
+
+    @property
+    def scene(self) -> Scene | None:
+        """The scene being analysed (None until known)."""
+        return self.analyzer.scene if self.analyzer is not None else None
+
+    def on_scene_doc(self, text: str) -> Scene:
+        """A ``~/scene`` document (YAML text) of the simulation node."""
+        import yaml
+        try:
+            doc = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise AnalysisError(f'scene document is not YAML: {err}') from err
+        self.scene_docs += 1
+        scene = scene_from_sim_doc(doc, self.base)
+        if self.base is None:
+            self.base = scene
+        if self.analyzer is None:
+            self.analyzer = RotorAnalyzer(scene, **self.options)
+            self.analyzer.add_many(self.pending)
+            self.pending.clear()
+        else:
+            self.analyzer.set_scene(scene)
+        return scene
+
+    def on_energy(self, msg: Any) -> None:
+        """A ``energy`` message (std_msgs/Float64MultiArray, layout of ros_msgs)."""
+        from_label = ''
+        if msg.layout.dim:
+            from_label = msg.layout.dim[0].label
+        if from_label and (not self.energy_fields or
+                           ','.join(self.energy_fields) != from_label):
+            self.energy_fields = tuple(from_label.split(','))
+        if not self.energy_fields:
+            raise AnalysisError('energy message without a labelled layout')
+        fields = energy_sample_fields(msg.data, self.energy_fields)
+        stamp = int(round(fields['t_sim'] * 1e9))
+        self._take(self.pairer.add_energy(stamp, fields))
+
+    def on_joints(self, msg: Any) -> None:
+        """A ``joint_states`` message (sensor_msgs/JointState)."""
+        stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        self._take(self.pairer.add_joints(stamp, msg.position, msg.velocity))
+
+    def _take(self, samples: list[Sample]) -> None:
+        if not samples:
+            return
+        if self.analyzer is None:
+            self.pending.extend(samples)
+            del self.pending[:max(0, len(self.pending) - self.max_pending)]
+        else:
+            self.analyzer.add_many(samples)
+
+    def finish(self) -> None:
+        """Analyse samples still waiting for their pair."""
+        self._take(self.pairer.flush())
+
+    def result(self) -> AnalysisResult:
+        """The analysis so far.
+
+        Raises
+        ------
+        AnalysisError
+            If the scene is still unknown.
+        """
+        if self.analyzer is None:
+            raise AnalysisError(f'the scene is unknown ({len(self.pending)} samples waiting): '
+                                'no scene document from rotor_sim and no scene given')
+        return self.analyzer.result()

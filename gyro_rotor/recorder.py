@@ -1,0 +1,160 @@
+"""Recording of the simulation topics into a rosbag2 (MCAP) bag: the ROS side of bagio.
+
+:class:`BagRecorder` attaches to a node. For every topic it creates one ``raw=True``
+subscription (RELIABLE, KEEP_LAST ``depth``, VOLATILE; TRANSIENT_LOCAL for the latched
+``~/scene`` document), so the bag holds the serialized bytes exactly as received, never
+re-encoded. A topic's channel is registered at its first message, with the QoS profiles its
+publishers offer (``Node.get_publishers_info_by_topic``), as ``ros2 bag record`` does;
+``log_time`` is the receive time and ``publish_time`` the publisher's source timestamp
+(both ns since the epoch). A timer flushes the open chunk every ``flush_period`` seconds
+and the writer ends a chunk at least every ``flush_period`` while messages arrive, so a
+killed recorder loses at most about a second.
+
+Each received message may also be handed to a callback (``on_message(topic, data)``) so
+that the analysis uses the very bytes that were recorded.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+import time
+from typing import Callable, Mapping
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from gyro_rotor.bagio import BagWriter, normalize_qos, qos_profile_dict
+from gyro_rotor.errors import BagError
+
+__all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable']
+
+
+def sim_topics(sim_node: str = 'rotor_sim') -> dict[str, str]:
+    """Topics of the simulation node (relative names as it publishes them) and their types."""
+    return {
+        'joint_states': 'sensor_msgs/msg/JointState',
+        'energy': 'std_msgs/msg/Float64MultiArray',
+        'axis': 'geometry_msgs/msg/Vector3Stamped',
+        'stator_pose': 'geometry_msgs/msg/PoseStamped',
+        'axis_marker': 'visualization_msgs/msg/Marker',
+        '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
+        '/clock': 'rosgraph_msgs/msg/Clock',
+        f'{sim_node}/scene': 'std_msgs/msg/String',
+    }
+
+
+def default_bag_path(root: str | os.PathLike = 'bags_out') -> Path:
+    """A fresh timestamped bag directory under ``root`` (not created here)."""
+    stamp = time.strftime('%Y%m%d_%H%M%S', time.localtime())
+    base = Path(root) / f'rotor_{stamp}'
+    path, i = base, 1
+    while path.exists():
+        path = Path(f'{base}_{i}')
+        i += 1
+    return path
+
+
+def check_writable(path: Path) -> None:
+    """Raise BagError unless the bag directory ``path`` can be created (before any ROS work)."""
+    path = Path(path)
+    if path.exists():
+        raise BagError(f'output {path} exists already, not overwriting')
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise BagError(f'output directory {parent} is not writable (bag {path})')
+
+
+def _import_type(type_name: str):
+    import importlib
+    pkg, _, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{pkg}.msg'), name)
+
+
+class BagRecorder:
+    """Record topics of ``node``'s graph into a bag (see module doc).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+    path : path
+        Bag directory to create (must not exist).
+    topics : mapping of topic name to type name
+        Names may be relative (resolved in the node's namespace).
+    metadata : mapping, optional
+        MCAP metadata records written at open.
+    depth : int
+        Subscription queue depth (RELIABLE, KEEP_LAST).
+    flush_period : float
+        Seconds between flushes of the open chunk.
+    on_message : callable, optional
+        ``on_message(resolved_topic, data)`` for every received message.
+    latched : iterable of str
+        Topics to subscribe TRANSIENT_LOCAL (latched documents).
+    """
+
+    def __init__(self, node: Node, path: str | os.PathLike, topics: Mapping[str, str], *,
+                 metadata: Mapping[str, Mapping[str, str]] | None = None, depth: int = 1000,
+                 flush_period: float = 0.5,
+                 on_message: Callable[[str, bytes], None] | None = None,
+                 latched: tuple = ()):
+        self.node = node
+        self.path = Path(path)
+        self.on_message = on_message
+        self.writer = BagWriter(self.path, flush_interval_s=flush_period, metadata=metadata)
+        self.received: dict[str, int] = {}
+        self._types: dict[str, str] = {}
+        self._subs = []
+        latched_names = {node.resolve_topic_name(t) for t in latched}
+        for topic, type_name in topics.items():
+            name = node.resolve_topic_name(topic)
+            self._types[name] = type_name
+            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                             reliability=ReliabilityPolicy.RELIABLE,
+                             durability=(DurabilityPolicy.TRANSIENT_LOCAL
+                                         if name in latched_names
+                                         else DurabilityPolicy.VOLATILE))
+            self._subs.append(node.create_subscription(
+                _import_type(type_name), name, functools.partial(self._on_raw, name), qos,
+                raw=True))
+        self._timer = node.create_timer(flush_period, self.flush)
+
+    def _offered_qos(self, topic: str) -> list:
+        infos = self.node.get_publishers_info_by_topic(topic)
+        profiles = [normalize_qos(i.qos_profile)[0] for i in infos]
+        return profiles or [qos_profile_dict()]
+
+    def _on_raw(self, topic: str, data: bytes, info=None) -> None:
+        now = time.time_ns()
+        if self.writer.closed:
+            return
+        if topic not in self.received:
+            self.writer.add_topic(topic, self._types[topic], self._offered_qos(topic))
+            self.received[topic] = 0
+        publish = None
+        if isinstance(info, Mapping):
+            publish = info.get('source_timestamp') or None
+        self.writer.write(topic, data, now, publish if publish and publish > 0 else now)
+        self.received[topic] += 1
+        if self.on_message is not None:
+            self.on_message(topic, data)
+
+    def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
+        """Write an MCAP metadata record (e.g. the scene when it becomes known)."""
+        if not self.writer.closed:
+            self.writer.add_metadata(name, data)
+
+    def flush(self) -> None:
+        """End the open chunk and write it (timer callback)."""
+        if not self.writer.closed:
+            self.writer.flush()
+
+    def close(self) -> None:
+        """Finalize the bag (summary, footer, metadata.yaml); idempotent."""
+        if self._timer is not None:
+            self.node.destroy_timer(self._timer)
+            self._timer = None
+        self.writer.close()
