@@ -6,7 +6,7 @@ checks as ``gyro-rotor analyze BAG``). The received bytes of ``energy``, ``joint
 the simulation node's ``~/scene`` document are deserialized once and fed to the analysis.
 
 Parameters: ``output`` (bag directory; default a fresh ``bags_out/rotor_<time>``),
-``record`` (bool, default true), ``scene`` (name or path; empty = take it from the
+``record`` (bool, default true), ``compression`` (none | zstd | lz4), ``scene`` (name or path; empty = take it from the
 simulation node's latched ``/<sim_node>/scene`` document, which follows live parameter
 changes), ``sim_node`` (default ``rotor_sim``), ``window_s`` (sliding fit window, default
 8 s), ``min_fit_s`` (2 s), ``period`` (publication period of the results, 1 s).
@@ -70,6 +70,9 @@ class RotorAnalysisNode(Node):
         output = p('output', '', ParameterDescriptor(
             description='bag directory to create (default bags_out/rotor_<time>)',
             read_only=True)).value
+        compression = p('compression', 'none', ParameterDescriptor(
+            description="MCAP chunk compression: none (as rosbag2), zstd or lz4",
+            read_only=True)).value
         self.record = p('record', True, ParameterDescriptor(
             description='record a bag', read_only=True)).value
         scene_name = p('scene', '', ParameterDescriptor(
@@ -112,6 +115,7 @@ class RotorAnalysisNode(Node):
                                             'flat': yaml.safe_dump(scene_to_flat(scene))}
             self.recorder = BagRecorder(self, path, {**topics, **OWN_TOPICS},
                                         metadata=meta, on_message=self._on_bytes,
+                                        compression=compression,
                                         latched=(f'{self.sim_node}/scene',
                                                  'analysis_verdict'))
             self.get_logger().info(f'recording to {self.recorder.path}')

@@ -94,17 +94,20 @@ class BagRecorder:
         ``on_message(resolved_topic, data)`` for every received message.
     latched : iterable of str
         Topics to subscribe TRANSIENT_LOCAL (latched documents).
+    compression : {'none', 'zstd', 'lz4'}
+        MCAP chunk compression (rosbag2 writes none by default).
     """
 
     def __init__(self, node: Node, path: str | os.PathLike, topics: Mapping[str, str], *,
                  metadata: Mapping[str, Mapping[str, str]] | None = None, depth: int = 1000,
                  flush_period: float = 0.5,
                  on_message: Callable[[str, bytes], None] | None = None,
-                 latched: tuple = ()):
+                 latched: tuple = (), compression: str = 'none'):
         self.node = node
         self.path = Path(path)
         self.on_message = on_message
-        self.writer = BagWriter(self.path, flush_interval_s=flush_period, metadata=metadata)
+        self.writer = BagWriter(self.path, flush_interval_s=flush_period, metadata=metadata,
+                                compression=compression)
         self.received: dict[str, int] = {}
         self._types: dict[str, str] = {}
         self._subs = []
