@@ -31,7 +31,8 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
     p = res.prediction
     lines = []
     if bag is not None:
-        lines.append(f'bag: {bag.path}' + (' (TRUNCATED: read up to the damage)'
+        lines.append(f'bag: {bag.path}' + (' (TRUNCATED: read up to the damage; '
+                                           '`gyro-rotor recover BAG` repairs it)'
                                            if bag.truncated else ''))
         lines.append(f'scene: {res.scene} (from {bag.scene_source}); options {bag.options}')
     lines.append(f'verdict: {res.verdict.upper()}  [{res.level}]')
