@@ -256,8 +256,8 @@ def model_rate(p) -> float:
 
     The largest of: the nutation rate C_R Omega0 / I (about H_3 / I, eq. 18), the drive's
     frequency sqrt(K_S (1/C_R + 1/C_M)), its damping rate K_D (1/C_R + 1/C_M) (the stiff
-    real root, MODEL.md section 7), the tilt frequency
-    sqrt(|c_theta - G s| / I), the twist frequency sqrt(c_psi / C_M), and the spin itself.
+    real root, MODEL.md section 7), the tilt frequency sqrt(|c_theta - G s| / I), the
+    twist frequency sqrt(c_psi / C_M), and 1 1/s as a floor.
     """
     inv_c = 1.0 / p.C_R + 1.0 / p.C_M
     rates = (p.C_R * abs(p.Omega0) / p.I,
