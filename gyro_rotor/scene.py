@@ -72,6 +72,9 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
     'stop_at_t_end': (bool, False, 'stop integrating (and idle) when t reaches t_end'),
     'max_residual': (float, 1.0, 'divergence guard: |energy-balance residual| [J] above '
                                  'which the node stops integrating'),
+    'wait_for_subscribers': (int, 0, 'hold simulation time at 0 until joint_states and '
+                                     'energy each have this many subscribers (a recorder '
+                                     'then gets every sample from t = 0; 0 = start at once)'),
     'use_sim_time': (bool, False, 'ROS: must stay false for the simulator itself'),
 }
 

@@ -73,7 +73,7 @@ _NODE_RANGES = {
     'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
     'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, _BIG),
 }
-_READ_ONLY = {'scene', 'model', 'publish_rate', 'description'}
+_READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers'}
 #: node keys whose change rebuilds the integrator at the current state
 _STEPPER_KEYS = ('integrator', 'rtol', 'atol', 'step_size')
 _INITIAL_DOC = {
@@ -134,6 +134,7 @@ class RotorSimNode(Node):
         self.create_service(Trigger, '~/reset', self._srv_reset)
         self.create_service(Trigger, '~/perturb', self._srv_perturb)
         self.create_service(SetBool, '~/pause', self._srv_pause)
+        self._waiting = self.cfg['wait_for_subscribers'] > 0
         self._timer = None
         self._diag_timer = None
         self._make_timer()
@@ -317,6 +318,13 @@ class RotorSimNode(Node):
         with self._lock:
             if self.diverged:
                 return
+            if self._waiting:
+                n = self.cfg['wait_for_subscribers']
+                if min(self.pub_joints.get_subscription_count(),
+                       self.pub_energy.get_subscription_count()) < n:
+                    return          # the pacer anchors its clock at the first real tick
+                self._waiting = False
+                self.get_logger().info(f'{n} subscriber(s) matched: simulation time starts')
             now = self._now()
             try:
                 samples = self.pacer.tick(now)
