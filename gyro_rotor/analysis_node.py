@@ -6,10 +6,11 @@ checks as ``gyro-rotor analyze BAG``). The received bytes of ``energy``, ``joint
 the simulation node's ``~/scene`` document are deserialized once and fed to the analysis.
 
 Parameters: ``output`` (bag directory; default a fresh ``bags_out/rotor_<time>``),
-``record`` (bool, default true), ``compression`` (none | zstd | lz4), ``scene`` (name or path; empty = take it from the
-simulation node's latched ``/<sim_node>/scene`` document, which follows live parameter
-changes), ``sim_node`` (default ``rotor_sim``), ``window_s`` (sliding fit window, default
-8 s), ``min_fit_s`` (2 s), ``period`` (publication period of the results, 1 s).
+``record`` (bool, default true), ``compression`` (none | zstd | lz4), ``scene`` (name or
+path; empty = take it from the simulation node's latched ``/<sim_node>/scene`` document,
+which follows live parameter changes), ``sim_node`` (default ``rotor_sim``), ``window_s``
+(sliding fit window, default 8 s), ``min_fit_s`` (2 s), ``period`` (publication period of
+the results, 1 s).
 
 Publishes ``analysis`` (std_msgs/Float64MultiArray, one dimension labelled with
 :data:`~gyro_rotor.analysis.ANALYSIS_LABEL`), ``analysis_modes`` (2-D: a row per predicted

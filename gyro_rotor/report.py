@@ -174,8 +174,8 @@ def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
     z = np.array([s.z for s in S])
     zd = np.array([s.zdot for s in S])
     r = np.array([s.residual for s in S])
-    for a, y, lab in zip(axs, (theta, z, zd, r), ('theta [rad]', 'z [rad]', 'zdot [rad/s]',
-                                                   'residual [J]')):
+    labels = ('theta [rad]', 'z [rad]', 'zdot [rad/s]', 'residual [J]')
+    for a, y, lab in zip(axs, (theta, z, zd, r), labels):
         a.plot(t, y, lw=0.7)
         a.set_ylabel(lab, fontsize=8)
     axs[-1].set_xlabel('simulation time t [s]')
