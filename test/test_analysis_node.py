@@ -183,3 +183,14 @@ def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
     a, b, c = _energy_seq_three_readers(bag)
     assert a == b == c and [s for s, _ in a] == seq
     assert not open_bag(bag).truncated
+
+
+def test_unwritable_output_is_a_clear_error_at_start(tmp_path):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('not a directory')
+    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.analysis_node', '--ros-args',
+                           '-p', f'output:={blocker / "bag"}'], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 1
+    assert 'ERROR:' in proc.stderr and 'not writable' in proc.stderr, proc.stderr
+    assert 'Traceback' not in proc.stderr
