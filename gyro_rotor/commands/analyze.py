@@ -16,7 +16,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--out', default=None, metavar='DIR',
                    help='write report.txt, report.json and plots (energy.png, '
                         'eigenvalues.png, state.png) into DIR')
-    p.add_argument('--json', default=None, metavar='FILE', help='write the JSON report')
+    p.add_argument('--json', default=None, metavar='FILE', help="write the JSON report ('-': to stdout)")
     p.add_argument('--scene', default=None,
                    help='scene name or path (default: the one recorded in the bag)')
     p.add_argument('--window', type=float, default=None, metavar='S',
@@ -30,8 +30,10 @@ def run(args: argparse.Namespace) -> int:
     from gyro_rotor.report import _clean, json_report, text_report, write_report
     bag = analyze_bag(args.bag, scene=args.scene, window_s=args.window)
     sys.stdout.write(text_report(bag.result, bag))
-    files = write_report(bag, args.out, args.json, plots=not args.no_plots)
-    if args.json == '-':
+    to_stdout = args.json == '-'
+    files = write_report(bag, args.out, None if to_stdout else args.json,
+                         plots=not args.no_plots)
+    if to_stdout:
         print(json.dumps(_clean(json_report(bag.result, bag)), indent=1))
     for f in files:
         print(f'wrote {f}')
