@@ -16,7 +16,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--out', default=None, metavar='DIR',
                    help='write report.txt, report.json and plots (energy.png, '
                         'eigenvalues.png, state.png) into DIR')
-    p.add_argument('--json', default=None, metavar='FILE', help="write the JSON report ('-': to stdout)")
+    p.add_argument('--json', default=None, metavar='FILE',
+                   help="write the JSON report ('-': to stdout)")
     p.add_argument('--scene', default=None,
                    help='scene name or path (default: the one recorded in the bag)')
     p.add_argument('--window', type=float, default=None, metavar='S',
