@@ -221,8 +221,16 @@ class RotorAnalysisNode(Node):
         return super().destroy_node()
 
 
+def _on_sigterm(signum, frame):
+    """SIGTERM as SIGINT: leave spin() and finalize the bag (rclpy 7.1.6 here does not)."""
+    raise KeyboardInterrupt
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the node until SIGINT/SIGTERM; the bag is finalized on the way out."""
+    import signal
+    # before rclpy.init: rclpy's own handler chains to the handler it finds installed
+    signal.signal(signal.SIGTERM, _on_sigterm)
     rclpy.init(args=args)
     node = None
     status = 0

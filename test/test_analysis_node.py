@@ -194,3 +194,19 @@ def test_unwritable_output_is_a_clear_error_at_start(tmp_path):
     assert proc.returncode == 1
     assert 'ERROR:' in proc.stderr and 'not writable' in proc.stderr, proc.stderr
     assert 'Traceback' not in proc.stderr
+
+
+def test_sigterm_finalizes_the_bag(tmp_path):
+    bag = tmp_path / 'bag'
+    an = _start(['gyro_rotor.analysis_node', '--ros-args', '-p', f'output:={bag}'],
+                tmp_path / 'an.log')
+    try:
+        _wait_for(tmp_path / 'an.log', 'recording to', an)
+        time.sleep(1.0)
+    finally:
+        rc = _stop(an, signal.SIGTERM)
+    assert rc == 0, (tmp_path / 'an.log').read_text()
+    reader = open_bag(bag)
+    assert not reader.truncated
+    # no simulator ran: the final record says why there is no verdict
+    assert 'scene is unknown' in reader.metadata['gyro_rotor.live_result']['error']
