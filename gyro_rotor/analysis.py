@@ -40,10 +40,9 @@ import dataclasses
 import math
 from typing import Any, Iterable, Mapping, Sequence
 
-import numpy as np
-
 from gyro_rotor.errors import AnalysisError
 from gyro_rotor.scene import Scene
+import numpy as np
 
 __all__ = ['RotorAnalyzer', 'Sample', 'SamplePairer', 'Prediction', 'PredictedMode',
            'ModeCheck', 'SegmentResult', 'AnalysisResult', 'predict', 'identify_modes',
@@ -286,8 +285,8 @@ def predict(scene: Scene) -> Prediction:
     E_inf = float(model.energy(_steady_state(scene)))
     sm = scene.steady()
     p = scene.params
-    common = dict(scene=scene.name, E_inf=E_inf, theta0=sm.theta0, psidot0=sm.psidot0,
-                  pole_pairs=int(p.pole_pairs), K_D=float(p.K_D))
+    common = {'scene': scene.name, 'E_inf': E_inf, 'theta0': sm.theta0,
+              'psidot0': sm.psidot0, 'pole_pairs': int(p.pole_pairs), 'K_D': float(p.K_D)}
     try:
         from gyro_rotor import stability
         analyze_scene = stability.analyze_scene
@@ -476,7 +475,7 @@ class AnalysisResult:
 
     @property
     def current(self) -> SegmentResult | None:
-        """The last segment (None before data)."""
+        """Return the last segment (None before data)."""
         return self.segments[-1] if self.segments else None
 
     def as_dict(self) -> dict:
@@ -974,7 +973,7 @@ def _status(m: PredictedMode, z: complex, a: float, amax: float, span: float) ->
 
 
 def scene_to_flat(scene: Scene) -> dict[str, Any]:
-    """The flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it."""
+    """Return the flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it."""
     flat: dict[str, Any] = {'scene': scene.name, 'model': scene.model, 't_end': scene.t_end}
     if scene.description:
         flat['description'] = scene.description
@@ -997,7 +996,7 @@ def scene_to_flat(scene: Scene) -> dict[str, Any]:
 
 
 def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
-    """Samples as the simulation node would publish them, from a simulate() Trajectory."""
+    """Return samples as the simulation node would publish them, from a simulate() Trajectory."""
     o = tr.out
     wrap = np.vectorize(lambda a: math.remainder(a, _TWO_PI))
     pos = np.column_stack([o['theta'], wrap(o['psi']), wrap(o['phi_R']), wrap(o['phi_M'])])
@@ -1012,11 +1011,12 @@ def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
 
 def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] | None = None
                        ) -> Scene:
-    """The Scene described by the simulation node's ``~/scene`` YAML document.
+    """Return the Scene described by the simulation node's ``~/scene`` YAML document.
 
-    The document carries the scene name and path, the model, t_end, the (live) parameters
-    and the perturbation, but not the initial condition; that comes from ``base`` (a Scene
-    or a flat mapping, e.g. from the bag's metadata), else from the scene file named.
+    The document carries the scene name and path, the model, t_end, the (live) parameters,
+    the perturbation and (since issue 8) the initial condition as ``initial``; ``base`` (a
+    Scene or a flat mapping, e.g. from the bag's metadata) takes precedence, and older
+    documents without ``initial`` fall back to the scene file named.
 
     Raises
     ------
@@ -1030,6 +1030,8 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
         flat = scene_to_flat(base)
     elif base is not None:
         flat = dict(base)
+    elif isinstance(doc.get('initial'), Mapping):     # documents since issue 8
+        flat = {f'initial.{k}': v for k, v in doc['initial'].items()}
     else:
         path = doc.get('path')
         try:
@@ -1081,11 +1083,11 @@ class AnalysisSession:
 
     @property
     def scene(self) -> Scene | None:
-        """The scene being analysed (None until known)."""
+        """Return the scene being analysed (None until known)."""
         return self.analyzer.scene if self.analyzer is not None else None
 
     def on_scene_doc(self, text: str) -> Scene:
-        """A ``~/scene`` document (YAML text) of the simulation node."""
+        """Feed a ``~/scene`` document (YAML text) of the simulation node."""
         import yaml
         try:
             doc = yaml.safe_load(text)
@@ -1104,7 +1106,7 @@ class AnalysisSession:
         return scene
 
     def on_energy(self, msg: Any) -> None:
-        """A ``energy`` message (std_msgs/Float64MultiArray, layout of ros_msgs)."""
+        """Feed an ``energy`` message (std_msgs/Float64MultiArray, layout of ros_msgs)."""
         from_label = ''
         if msg.layout.dim:
             from_label = msg.layout.dim[0].label
@@ -1118,7 +1120,7 @@ class AnalysisSession:
         self._take(self.pairer.add_energy(stamp, fields))
 
     def on_joints(self, msg: Any) -> None:
-        """A ``joint_states`` message (sensor_msgs/JointState)."""
+        """Feed a ``joint_states`` message (sensor_msgs/JointState)."""
         stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
         self._take(self.pairer.add_joints(stamp, msg.position, msg.velocity))
 
@@ -1138,7 +1140,7 @@ class AnalysisSession:
         self._take(self.pairer.flush())
 
     def result(self) -> AnalysisResult:
-        """The analysis so far.
+        """Return the analysis so far.
 
         Raises
         ------
@@ -1192,10 +1194,9 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     import json
     import warnings
 
-    import yaml
-
     from gyro_rotor.bagio import BagWarning, open_bag
     from gyro_rotor.scene import load_scene, scene_from_mapping
+    import yaml
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always', BagWarning)
         reader = open_bag(path)

@@ -55,6 +55,9 @@ import time
 from typing import Any, NamedTuple
 import warnings
 
+from gyro_rotor import __version__
+from gyro_rotor.errors import BagError
+from gyro_rotor.msgdefs import message_definition, normalize_type_name, type_hash
 import mcap
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -63,10 +66,6 @@ from mcap.records import Channel, Chunk, Footer, Header, Message, Metadata, Sche
 from mcap.stream_reader import breakup_chunk
 from mcap.writer import CompressionType, Writer
 import yaml
-
-from gyro_rotor import __version__
-from gyro_rotor.errors import BagError
-from gyro_rotor.msgdefs import message_definition, normalize_type_name, type_hash
 
 __all__ = [
     'BagError', 'BagWarning', 'BagWriter', 'BagReader', 'TopicInfo', 'RecoveryReport',
@@ -225,9 +224,9 @@ def _qos_yaml(profiles: list[dict[str, Any]]) -> str:
 @dataclasses.dataclass
 class _Topic:
     name: str
-    type: str
+    type: str  # noqa: A003 (rosbag2 metadata.yaml key)
     qos: list[dict[str, Any]]
-    hash: str
+    hash: str  # noqa: A003 (rosbag2 metadata.yaml key)
     count: int = 0
 
 
@@ -573,7 +572,7 @@ def _time_ns(name: str, value: Any) -> int:
 class TopicInfo(NamedTuple):
     """Type and message count of one topic in a bag."""
 
-    type: str
+    type: str  # noqa: A003 (public field name, as in rosbag2's metadata)
     count: int
 
 
@@ -823,7 +822,7 @@ class BagReader:
 
     @property
     def message_count(self) -> int:
-        """Number of readable messages."""
+        """Return the number of readable messages."""
         return sum(t.count for t in self.topics.values())
 
     def _iter_file(self, index: int, topics: set[str] | None

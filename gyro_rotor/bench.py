@@ -29,10 +29,9 @@ import statistics
 import time
 from typing import Callable
 
+from gyro_rotor.integrators import integrate, METHODS
+from gyro_rotor.scene import load_scene, Scene
 import numpy as np
-
-from gyro_rotor.integrators import METHODS, integrate
-from gyro_rotor.scene import Scene, load_scene
 
 __all__ = ['BenchRow', 'DEFAULT_SCENES', 'run_sweep', 'reference', 'best_table',
            'energy_drift', 'pole_counts', 'parse_scene_spec', 'ERROR_LEVELS']
@@ -200,7 +199,7 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         if name in ('dop853', 'rodas4'):
             for r in rtols:
                 jobs.append(('gyro_rotor', name, f'rtol={r:.0e}',
-                             dict(rtol=r, atol=r * ATOL_RATIO)))
+                             {'rtol': r, 'atol': r * ATOL_RATIO}))
         elif name in STEP_FACTORS:
             if name == 'gauss6' and stiff:
                 continue       # fixed-point stages cannot converge at useful steps
@@ -208,11 +207,11 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
             facs = facs[::2] if quick else facs
             for f in facs:
                 h = min(f / rate, scene.t_end)
-                jobs.append(('gyro_rotor', name, f'h={h:.2e}', dict(step=h)))
+                jobs.append(('gyro_rotor', name, f'h={h:.2e}', {'step': h}))
     if scipy:
         for name in SCIPY:
             for r in rtols:
-                jobs.append(('scipy', name, f'rtol={r:.0e}', dict(rtol=r, atol=r * ATOL_RATIO)))
+                jobs.append(('scipy', name, f'rtol={r:.0e}', {'rtol': r, 'atol': r * ATOL_RATIO}))
     rows = []
     over_budget = set()
     for family, name, setting, kw in jobs:

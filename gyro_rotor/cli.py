@@ -41,7 +41,7 @@ def _load(name: str):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argparse parser with every available subcommand."""
+    """Build the argparse parser with every available subcommand."""
     parser = argparse.ArgumentParser(
         prog='gyro-rotor',
         description='Magnus (1980) gyrostat on a synchronous drive: simulate, analyse, '

@@ -18,14 +18,13 @@ import dataclasses
 import math
 import time
 
-import numpy as np
-
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.integrators import kernels, tableaux as tb
 from gyro_rotor.integrators.base import model_rate
 from gyro_rotor.integrators.kernels import njit
 from gyro_rotor.model import Model
 from gyro_rotor.params import RotorParams
+import numpy as np
 
 __all__ = ['EnsembleResult', 'run_ensemble', 'BACKENDS']
 
@@ -115,7 +114,7 @@ def _ens_run(kind, P, Y, t_eval, h_max, A, B, renorm, Y_out):
 
 
 def _rhs_full_vec(Y: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """The full model's right-hand side on columns: Y (10, N), P (10, N) -> (10, N)."""
+    """Evaluate the full model's right-hand side on columns: Y (10, N), P (10, N) -> (10, N)."""
     I_, C_R, C_M, Gs, c_theta, c_psi, K_S, K_D, Omega0, pp = P
     qw, qx, qy, qz, W1, W2, W3, z, zd, _ = Y
     n = qw * qw + qx * qx + qy * qy + qz * qz
@@ -197,7 +196,7 @@ def run_ensemble(model: Model, Y0, t_eval, *, method: str = 'rk4', step: float |
     """
     if method not in _TABLEAUX:
         raise ParameterError(f"ensemble method must be one of {', '.join(_TABLEAUX)}, got "
-                             f"{method!r}")
+                             f'{method!r}')
     if backend not in BACKENDS:
         raise ParameterError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
     Y0 = np.atleast_2d(np.asarray(Y0, dtype=float))

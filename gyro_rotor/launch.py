@@ -15,7 +15,7 @@ import signal
 import subprocess
 import sys
 import tempfile
-from typing import IO, Any, Mapping
+from typing import Any, IO, Mapping
 
 __all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param']
 

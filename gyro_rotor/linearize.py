@@ -68,12 +68,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
-
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.model import FullModel, make_model
 from gyro_rotor.params import RotorParams
 from gyro_rotor.steady import SteadyMotion
+import numpy as np
 
 __all__ = ['LinearSystem', 'linearize', 'jacobian_analytic', 'jacobian_fd',
            'reduced_rhs', 'reduced_rhs_lagrange', 'equilibrium', 'coordinates',
@@ -122,7 +121,7 @@ class LinearSystem:
         return iter((self.A, self.state_names))
 
     def with_K_D(self, K_D: float) -> np.ndarray:
-        """A at another drive damping (the steady motion does not depend on K_D)."""
+        """Return A at another drive damping (the steady motion does not depend on K_D)."""
         return self.A0 - float(K_D) * np.outer(self.b, self.c)
 
 
@@ -137,12 +136,12 @@ def coordinates(model: str, motion: SteadyMotion) -> str:
         return 'upright'
     if model != 'full':
         raise ParameterError(f"unknown model '{model}'; valid: full, upright_axis, "
-                             f"locked_housing")
+                             'locked_housing')
     return 'I' if motion.branch == 0 else 'II'
 
 
 def equilibrium(model: str, motion: SteadyMotion) -> np.ndarray:
-    """The steady motion as an equilibrium of the reduced coordinates."""
+    """Return the steady motion as an equilibrium of the reduced coordinates."""
     coords = coordinates(model, motion)
     if coords == 'II':
         return np.array([motion.theta0, 0.0, motion.psidot0, 0.0, 0.0, 0.0, 0.0])
@@ -157,7 +156,7 @@ def _names(coords: str) -> tuple:
 # -- analytic Jacobian ------------------------------------------------------------------------
 def _analytic_A0_b(p: RotorParams, coords: str, motion: SteadyMotion):
     """(A0, b) of the analytic linearization (module doc); A = A0 - K_D b c^T."""
-    I, C_R, C_M, Cs = p.I, p.C_R, p.C_M, p.C_R + p.C_M
+    I, C_R, Cs = p.I, p.C_R, p.C_R + p.C_M
     Om = p.Omega0
     if coords == 'II':
         th, w = motion.theta0, motion.psidot0
@@ -220,7 +219,7 @@ def _analytic_A0_b(p: RotorParams, coords: str, motion: SteadyMotion):
 
 def jacobian_analytic(params: RotorParams, motion: SteadyMotion,
                       model: str = 'full') -> np.ndarray:
-    """The analytic Jacobian A (module doc) about ``motion``."""
+    """Return the analytic Jacobian A (module doc) about ``motion``."""
     coords = coordinates(model, motion)
     A0, b = _analytic_A0_b(params, coords, motion)
     c = _c_vector(coords)
@@ -236,7 +235,7 @@ def _c_vector(coords: str) -> np.ndarray:
 
 # -- nonlinear reduced right-hand sides -------------------------------------------------------
 def reduced_rhs(params: RotorParams, x, coords: str = 'II', *, _model=None) -> np.ndarray:
-    """x' of the reduced coordinates, computed through the full quaternion model.
+    """Return x' of the reduced coordinates, computed through the full quaternion model.
 
     The full model's right-hand side is evaluated at the state that ``x`` describes and
     its derivative is mapped back by the exact kinematics (3-1-3 angle rates for 'II',
@@ -277,7 +276,7 @@ def reduced_rhs(params: RotorParams, x, coords: str = 'II', *, _model=None) -> n
 
 
 def reduced_rhs_lagrange(params: RotorParams, x) -> np.ndarray:
-    """x' about solution II from the Lagrange equations M(theta) v' = g(x) (module doc).
+    """Return x' about solution II from the Lagrange equations M(theta) v' = g(x) (module doc).
 
     The nonlinear equations from which the analytic Jacobian is taken; a test holds them
     against :func:`reduced_rhs` (the full model) at arbitrary states.
@@ -308,8 +307,10 @@ def reduced_rhs_lagrange(params: RotorParams, x) -> np.ndarray:
 
 def jacobian_fd(params: RotorParams, motion: SteadyMotion, model: str = 'full',
                 step: float = FD_STEP) -> np.ndarray:
-    """Central finite-difference Jacobian of :func:`reduced_rhs` (the full model) at the
-    equilibrium; step ``step`` times max(1, |x_i|) per coordinate."""
+    """Return the central finite-difference Jacobian of :func:`reduced_rhs` at the equilibrium.
+
+    The full model is evaluated; the step is ``step`` times max(1, |x_i|) per coordinate.
+    """
     coords = coordinates(model, motion)
     x0 = equilibrium(model, motion)
     mname = {'II': 'full', 'I': 'full', 'upright': 'upright_axis',

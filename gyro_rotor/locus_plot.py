@@ -7,9 +7,8 @@ from __future__ import annotations
 
 import math
 
+from gyro_rotor.stability import ClaimsReport, RootLocus, ZERO_ROOT
 import numpy as np
-
-from gyro_rotor.stability import ZERO_ROOT, ClaimsReport, RootLocus
 
 __all__ = ['plot_root_locus']
 

@@ -38,12 +38,11 @@ from __future__ import annotations
 import math
 from typing import Callable
 
-import numpy as np
-
 from gyro_rotor.params import RotorParams
 from gyro_rotor.rotations import (axis_from_quaternion, body_rates_from_euler,
                                   euler_from_quaternion, euler_rates_from_body,
                                   quaternion_from_euler, tilt, twist)
+import numpy as np
 
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
            'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin']
@@ -52,7 +51,7 @@ _SERIES_LIMIT = 1e-4
 
 
 def theta_over_sin(sin_t: float, cos_t: float) -> float:
-    """theta / sin(theta), regular at theta = 0 (series 1 + theta^2/6 + 7 theta^4/360)."""
+    """Return theta / sin(theta), regular at theta = 0 (series 1 + theta^2/6 + 7 theta^4/360)."""
     theta = math.atan2(sin_t, cos_t)
     if sin_t < _SERIES_LIMIT:
         t2 = theta * theta
@@ -133,7 +132,7 @@ class Model:
 
     # -- outputs ---------------------------------------------------------------------------
     def quaternion(self, Y) -> np.ndarray:  # pragma: no cover
-        """Stator quaternion(s) of states Y."""
+        """Stator quaternions of the states Y."""
         raise NotImplementedError
 
     def body_rates(self, Y) -> np.ndarray:  # pragma: no cover
@@ -146,7 +145,7 @@ class Model:
         return np.zeros(Y.shape[:-1])
 
     def outputs(self, t, Y) -> dict:
-        """Derived outputs of a trajectory (time ``t`` shape (m,), states ``Y`` (m, n)).
+        """Return the derived outputs of a trajectory (time ``t`` shape (m,), states ``Y`` (m, n)).
 
         Returns a dict of arrays: ``quaternion`` (m, 4), ``omega_body`` (m, 3), ``axis``
         (m, 3) symmetry axis in space, ``theta``, ``psi``, ``phi_M``, ``phi_R`` (3-1-3
@@ -201,7 +200,7 @@ class Model:
         raise NotImplementedError
 
     def to_full(self, Y) -> np.ndarray:
-        """The equivalent state(s) of the full model (for comparisons)."""
+        """Return the equivalent state(s) of the full model (for comparisons)."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
         q = self.quaternion(Y)
         W = self.body_rates(Y)
@@ -276,7 +275,7 @@ class FullModel(Model):
                 + 0.5 * p.C_R * (zd + W3) ** 2 + drive_potential(p, z) + V)
 
     def quaternion(self, Y):
-        """Stator quaternion (as integrated, not renormalized)."""
+        """Stator quaternion, as integrated (not renormalized)."""
         return np.asarray(Y, dtype=float)[..., 0:4]
 
     def body_rates(self, Y):
@@ -347,7 +346,7 @@ class UprightAxisModel(Model):
         return np.stack([zero, zero, chid], axis=-1)
 
     def chi(self, Y):
-        """Twist chi (a state of this model)."""
+        """Twist chi, a state of this model."""
         return np.asarray(Y, dtype=float)[..., 0]
 
     def state_from_euler(self, theta=0.0, thetadot=0.0, psi=0.0, psidot=0.0, phi_M=0.0,
@@ -415,7 +414,7 @@ MODELS = {cls.name: cls for cls in (FullModel, UprightAxisModel, LockedHousingMo
 
 
 def make_model(name: str, params: RotorParams) -> Model:
-    """The model class registered under ``name`` ('full', 'upright_axis', 'locked_housing')."""
+    """Make the model registered under ``name`` ('full', 'upright_axis', 'locked_housing')."""
     try:
         cls = MODELS[name]
     except KeyError:

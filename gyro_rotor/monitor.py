@@ -23,7 +23,7 @@ class TopicStats:
     type_name: str = ''
     window: int = 500
     count: int = 0
-    bytes: int = 0
+    bytes: int = 0  # noqa: A003 (public field name)
     gaps: int = 0
     last_seq: int | None = None
     times: collections.deque = dataclasses.field(default_factory=collections.deque)
@@ -48,7 +48,10 @@ class TopicStats:
         return (len(ts) - 1) / (ts[-1] - ts[0])
 
     def jitter(self) -> float:
-        """Standard deviation of the inter-arrival time over the window [s] (NaN if < 3)."""
+        """Return the standard deviation of the inter-arrival time over the window [s].
+
+        NaN with fewer than 3 arrivals.
+        """
         ts = list(self.times)
         if len(ts) < 3:
             return math.nan

@@ -121,7 +121,7 @@ def _dependencies(text: str, package: str) -> list[str]:
 
 @functools.lru_cache(maxsize=None)
 def message_definition(type_name: str) -> str:
-    """Return the complete ``ros2msg`` definition text of a message type, as rosbag2 writes it.
+    r"""Return the complete ``ros2msg`` definition text of a message type, as rosbag2 writes it.
 
     Parameters
     ----------
@@ -131,7 +131,7 @@ def message_definition(type_name: str) -> str:
     Returns
     -------
     str
-        The ``.msg`` text, followed by one ``'\\n' + '=' * 80 + '\\nMSG: pkg/Type\\n' + text``
+        The ``.msg`` text, followed by one ``'\n' + '=' * 80 + '\nMSG: pkg/Type\n' + text``
         block for every (recursive) dependency.
 
     Raises

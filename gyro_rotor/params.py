@@ -28,10 +28,10 @@ import dataclasses
 import enum
 import math
 import numbers
-import warnings
 from typing import Any, Mapping
+import warnings
 
-from gyro_rotor.errors import ParameterError, did_you_mean
+from gyro_rotor.errors import did_you_mean, ParameterError
 
 __all__ = ['RotorParams', 'DriveLaw', 'StaticallyUnstableWarning', 'PARAM_FIELDS',
            'PARAM_UNITS', 'PARAM_DESCRIPTIONS']
@@ -133,7 +133,7 @@ class RotorParams:
 
     @property
     def Gs(self) -> float:
-        """Static tilt moment coefficient G s [N m]."""
+        """Return the static tilt moment coefficient G s [N m]."""
         return self.G * self.s
 
     def stiff_rate(self) -> float:

@@ -13,9 +13,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gyro_rotor.analysis import AnalysisResult, BagAnalysis
+import numpy as np
 
 __all__ = ['text_report', 'json_report', 'write_report', 'plot_report']
 
@@ -27,7 +26,7 @@ def _f(x: Any, spec: str = '.4g') -> str:
 
 
 def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
-    """A human-readable report (verdict, evidence, modes, data integrity)."""
+    """Return a human-readable report (verdict, evidence, modes, data integrity)."""
     p = res.prediction
     lines = []
     if bag is not None:
@@ -67,7 +66,7 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
 
 
 def json_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> dict:
-    """The report as a JSON-friendly dict."""
+    """Return the report as a JSON-friendly dict."""
     d = res.as_dict()
     if bag is not None:
         d['bag'] = {'path': bag.path, 'truncated': bag.truncated, 'topics': bag.topics,

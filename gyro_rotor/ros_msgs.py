@@ -61,7 +61,7 @@ def _wrap(a: float) -> float:
 
 
 def joint_state(t: Time, positions, velocities, efforts) -> JointState:
-    """JointState with JOINT_NAMES; angles wrapped to (-pi, pi] (theta in [0, pi])."""
+    """Build a JointState with JOINT_NAMES; angles wrapped to (-pi, pi] (theta in [0, pi])."""
     msg = JointState()
     msg.header.stamp = t
     msg.name = list(JOINT_NAMES)
@@ -82,7 +82,7 @@ def energy_array(values: Mapping[str, float]) -> Float64MultiArray:
 
 
 def axis_vector(t: Time, frame_id: str, axis) -> Vector3Stamped:
-    """The stator's symmetry axis e_3 in space axes (unit vector)."""
+    """Return the stator's symmetry axis e_3 in space axes (unit vector)."""
     msg = Vector3Stamped()
     msg.header.stamp = t
     msg.header.frame_id = frame_id
@@ -104,7 +104,7 @@ def stator_pose(t: Time, frame_id: str, q) -> PoseStamped:
 
 def axis_marker(t: Time, frame_id: str, axis, length: float = 0.3,
                 ns: str = 'rotor_axis') -> Marker:
-    """An ARROW from the fixed point F along the symmetry axis (RViz, Foxglove)."""
+    """Build an ARROW from the fixed point F along the symmetry axis (RViz, Foxglove)."""
     m = Marker()
     m.header.stamp = t
     m.header.frame_id = frame_id
@@ -124,7 +124,7 @@ def axis_marker(t: Time, frame_id: str, axis, length: float = 0.3,
 
 def diagnostic_array(t: Time, name: str, level: str, message: str,
                      values: Mapping[str, object], hardware_id: str = '') -> DiagnosticArray:
-    """A DiagnosticArray with one status; ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
+    """Build a DiagnosticArray with one status; ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
     st = DiagnosticStatus()
     st.level = LEVELS[level]
     st.name = name

@@ -36,7 +36,10 @@ def quaternion_multiply(a, b):
 
 
 def quaternion_from_euler(psi, theta, phi):
-    """Unit quaternion (body to space) of the 3-1-3 rotation Rz(psi) Rx(theta) Rz(phi)."""
+    """Return the unit quaternion (body to space) of the 3-1-3 rotation.
+
+    The rotation is Rz(psi) Rx(theta) Rz(phi).
+    """
     psi, theta, phi = np.broadcast_arrays(*(np.asarray(v, dtype=float)
                                             for v in (psi, theta, phi)))
     ct, st = np.cos(theta / 2), np.sin(theta / 2)
@@ -59,7 +62,7 @@ def vertical_in_body(q):
 
 
 def axis_from_quaternion(q):
-    """The symmetry axis e_3 of the stator expressed in space axes (unit vector)."""
+    """Return the symmetry axis e_3 of the stator expressed in space axes (unit vector)."""
     q = np.asarray(q, dtype=float)
     w, x, y, z = np.moveaxis(q, -1, 0)
     n = w * w + x * x + y * y + z * z

@@ -35,16 +35,15 @@ import dataclasses
 import difflib
 import math
 import os
-import sys
 from pathlib import Path
+import sys
 from typing import Any, Mapping
 
-import numpy as np
-
-from gyro_rotor.errors import ParameterError, SceneError, did_you_mean
-from gyro_rotor.model import MODELS, Model, make_model
+from gyro_rotor.errors import did_you_mean, ParameterError, SceneError
+from gyro_rotor.model import make_model, Model, MODELS
 from gyro_rotor.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.steady import SteadyMotion, steady_motion
+from gyro_rotor.steady import steady_motion, SteadyMotion
+import numpy as np
 
 __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'find_scene',
            'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS', 'NODE_KEYS',
@@ -126,11 +125,11 @@ class Scene:
     path: str | None = None
 
     def make_model(self) -> Model:
-        """The model this scene needs."""
+        """Return the model this scene needs."""
         return make_model(self.model, self.params)
 
     def steady(self) -> SteadyMotion:
-        """The steady motion the initial condition refers to (solution I for body mode)."""
+        """Return the steady motion the initial condition refers to (solution I for body mode)."""
         ic = self.initial
         if ic.mode != 'steady':
             return steady_motion(self.params, 0.0, 0)
@@ -144,7 +143,7 @@ class Scene:
             sm = self.steady()
             if model.name != 'full' and (ic.dtheta or ic.dthetadot or sm.theta0):
                 raise SceneError(f"scene '{self.name}': model {model.name} holds the axis "
-                                 f"vertical; theta0, dtheta and dthetadot must be 0")
+                                 'vertical; theta0, dtheta and dthetadot must be 0')
             return model.state_from_euler(
                 theta=sm.theta0 + ic.dtheta, thetadot=ic.dthetadot, psi=0.0,
                 psidot=sm.psidot0 + ic.dpsidot, phi_M=ic.dchi, phi_M_dot=-sm.psidot0,
@@ -164,7 +163,7 @@ class Scene:
         if model.name == 'upright_axis':
             if abs(W[0]) > 0 or abs(W[1]) > 0 or abs(q[1]) > 0 or abs(q[2]) > 0:
                 raise SceneError(f"scene '{self.name}': model upright_axis needs the axis "
-                                 f"vertical: quaternion x, y and omega_body 1, 2 must be 0")
+                                 'vertical: quaternion x, y and omega_body 1, 2 must be 0')
             chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
             return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
         return np.array([ic.z, ic.zdot, 0.0])
@@ -280,7 +279,7 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
     for key in section:
         if key != 'ros__parameters':
             raise SceneError(f"scene file {path}: unexpected key '{key}' beside "
-                             f"ros__parameters")
+                             'ros__parameters')
     if overrides:
         for key, value in overrides.items():
             if key not in SCENE_KEYS:

@@ -16,12 +16,11 @@ import dataclasses
 import time
 from typing import Any, Mapping
 
-import numpy as np
-
 from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.integrators import METHODS, choose_method as choose_integrator, integrate
+from gyro_rotor.integrators import choose_method as choose_integrator, integrate, METHODS
 from gyro_rotor.model import Model
-from gyro_rotor.scene import Scene, load_scene
+from gyro_rotor.scene import load_scene, Scene
+import numpy as np
 
 __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
            'CSV_COLUMNS', 'check_tolerances', 'auto_method', 'choose_method',
@@ -69,16 +68,16 @@ class Trajectory:
 
     @property
     def max_abs_residual(self) -> float:
-        """max |r(t)| over the samples."""
+        """Return max |r(t)| over the samples."""
         return float(np.max(np.abs(self.out['residual'])))
 
     @property
     def max_qnorm_drift(self) -> float:
-        """max ||q| - 1| over the samples."""
+        """Return max ||q| - 1| over the samples."""
         return float(np.max(np.abs(self.out['qnorm_error'])))
 
     def columns(self) -> dict:
-        """The CSV columns (see CSV_COLUMNS) as arrays."""
+        """Return the CSV columns as arrays (see CSV_COLUMNS)."""
         o = self.out
         cols = {k: o[k] for k in CSV_COLUMNS if k in o}
         cols['axis_x'], cols['axis_y'], cols['axis_z'] = o['axis'].T
@@ -115,14 +114,16 @@ class Trajectory:
 
 
 def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
-    """'auto': the integrator for this scene and the reason (see
-    :func:`gyro_rotor.integrators.choose_method`): RODAS4 where the drive damping makes the
-    scene stiff, Gauss6 for long conservative runs, DOP853 otherwise."""
+    """Return the integrator for this scene and the reason (method 'auto').
+
+    See :func:`gyro_rotor.integrators.choose_method`: RODAS4 where the drive damping makes
+    the scene stiff, Gauss6 for long conservative runs, DOP853 otherwise.
+    """
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
 
 
 def choose_method(scene: Scene) -> str:
-    """The scipy ``solve_ivp`` name for a scene: DOP853, or Radau where it is stiff.
+    """Return the scipy ``solve_ivp`` name for a scene: DOP853, or Radau where it is stiff.
 
     Kept for callers that step with scipy (the real-time stepper); :func:`simulate` uses
     :func:`auto_method`.

@@ -30,12 +30,11 @@ import dataclasses
 import math
 from typing import Callable, Sequence
 
-import numpy as np
-
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linearize import LinearSystem, linearize
+from gyro_rotor.linearize import linearize, LinearSystem
 from gyro_rotor.params import RotorParams
-from gyro_rotor.steady import SteadyMotion, steady_motion
+from gyro_rotor.steady import steady_motion, SteadyMotion
+import numpy as np
 
 __all__ = ['Mode', 'StabilityReport', 'RootLocus', 'Claim', 'ClaimsReport', 'TuneResult',
            'spectrum', 'modes', 'analyze', 'analyze_scene', 'root_locus', 'check_claims',
@@ -108,7 +107,7 @@ class StabilityReport:
     A: np.ndarray = dataclasses.field(repr=False)
 
     def mode(self, name: str) -> Mode:
-        """The mode called ``name``."""
+        """Return the mode called ``name``."""
         for m in self.modes:
             if m.name == name:
                 return m
@@ -138,7 +137,7 @@ class ClaimsReport:
 
     @property
     def all_hold(self) -> bool:
-        """True if (a) to (d) all hold."""
+        """Return True if (a) to (d) all hold."""
         return all(c.holds for c in self.claims.values())
 
 
@@ -201,8 +200,11 @@ def _tol_re(lin: LinearSystem) -> float:
 
 
 def spectrum(lin: LinearSystem, K_D: float, *, left: bool = False):
-    """Eigenvalues (n,), right eigenvectors (n, n) (columns, energy-weighted, unit norm)
-    and, if ``left``, left eigenvectors of A(K_D) (unweighted). K_D may be inf."""
+    """Return the eigenvalues and eigenvectors of A(K_D); K_D may be inf.
+
+    Eigenvalues (n,), right eigenvectors (n, n) (columns, energy-weighted, unit norm)
+    and, if ``left``, left eigenvectors (unweighted).
+    """
     import scipy.linalg as sl
     n = len(lin.c)
     if K_D < 0 or math.isnan(K_D):
@@ -294,16 +296,16 @@ def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> list:
 
 
 def _match(lam0, V0, lam1, V1):
-    """Assignment of new eigenpairs to old ones: eigenvector overlap, eigenvalue distance."""
+    """Assign new eigenpairs to old ones: eigenvector overlap, eigenvalue distance."""
     from scipy.optimize import linear_sum_assignment
-    O = np.abs(V0.conj().T @ V1)
+    overlap = np.abs(V0.conj().T @ V1)
     scale = max(np.max(np.abs(lam0)), np.max(np.abs(lam1)), 1e-12)
     D = np.abs(lam0[:, None] - lam1[None, :]) / scale
-    cost = (1.0 - O) + D
+    cost = (1.0 - overlap) + D
     rows, cols = linear_sum_assignment(cost)
     perm = np.empty(len(lam0), dtype=int)
     perm[rows] = cols
-    quality = float(np.min(O[rows, cols])), float(np.max(D[rows, cols]))
+    quality = float(np.min(overlap[rows, cols])), float(np.max(D[rows, cols]))
     return perm, quality
 
 
@@ -479,7 +481,7 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
 
 def modes(params: RotorParams, motion: SteadyMotion, model: str = 'full',
           K_D: float | None = None) -> list:
-    """The named modes about ``motion`` (shorthand for ``analyze(...).modes``)."""
+    """Return the named modes about ``motion`` (shorthand for ``analyze(...).modes``)."""
     return analyze(params, motion, model, K_D=K_D).modes
 
 
@@ -494,7 +496,7 @@ def scene_operating_point(scene) -> tuple:
 
 def analyze_scene(scene) -> StabilityReport:
     """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.scene.Scene`)."""
-    from gyro_rotor.scene import Scene, load_scene
+    from gyro_rotor.scene import load_scene, Scene
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     p, sm, model = scene_operating_point(scene)
@@ -537,8 +539,10 @@ def _check_grid(grid) -> np.ndarray:
 
 
 def _reach(lin, K, zeros, gain) -> float:
-    """Distance of the roots at K from their asymptotes, relative to the spectral scale
-    max(|zeros|, |eig(A0)|)."""
+    """Return the distance of the roots at K from their asymptotes.
+
+    Relative to the spectral scale max(|zeros|, |eig(A0)|).
+    """
     lam, _ = spectrum(lin, K)
     if not np.all(np.isfinite(lam)):
         return math.inf
@@ -604,7 +608,7 @@ def _real_count(lin, K, tol_im) -> int:
 
 
 def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
-    """The paper's claims (a) to (d) for this linearization (any scene).
+    """Check the paper's claims (a) to (d) for this linearization (any scene).
 
     (a) at K_D = 0 all roots on the imaginary axis: the expected number of undamped
     oscillations (3 about II) plus the zero root(s); (b) for every K_D > 0 of the grid all
@@ -738,7 +742,7 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
 # -- the best K_D ----------------------------------------------------------------------------
 def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
              K_S: float | None = None, K_D_grid=None) -> TuneResult:
-    """The K_D that maximizes the slowest decay rate -max Re over the judged modes.
+    """Return the K_D that maximizes the slowest decay rate -max Re over the judged modes.
 
     Judged modes: all except the cyclic zero root and the modes the drive damping does not
     reach (their rate is 0 for every K_D; they are listed in ``excluded_modes``). A grid

@@ -27,10 +27,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
-
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.params import RotorParams
+import numpy as np
 
 __all__ = ['SteadyMotion', 'steady_motion', 'precession_rate_exact',
            'precession_rate_eq22', 'BRANCH_NAMES']

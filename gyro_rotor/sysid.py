@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
 from gyro_rotor.errors import AnalysisError
+import numpy as np
 
 __all__ = ['ModalFit', 'matrix_pencil', 'match_eigenvalues']
 
@@ -111,8 +110,10 @@ def matrix_pencil(signals, dt: float, order: int, *, pencil: int | None = None,
 
 
 def match_eigenvalues(fitted, predicted) -> np.ndarray:
-    """Index into ``fitted`` of the nearest fitted eigenvalue for each predicted one
-    (a one-to-one assignment by distance)."""
+    """Return, for each predicted eigenvalue, the index of the nearest one in ``fitted``.
+
+    A one-to-one assignment by distance.
+    """
     from scipy.optimize import linear_sum_assignment
     f = np.asarray(fitted, dtype=complex)
     p = np.asarray(predicted, dtype=complex)

@@ -21,7 +21,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--scene', default=None,
                    help='scene name or path (default: the one recorded in the bag)')
     p.add_argument('--window', type=float, default=None, metavar='S',
-                   help='fit window [s] (default: the live node\'s; 0 = whole segments)')
+                   help="fit window [s] (default: the live node's; 0 = whole segments)")
     p.add_argument('--no-plots', action='store_true', help='no plots (faster)')
 
 

@@ -38,7 +38,7 @@ def _fmt(v) -> str:
 
 
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
-    """The markdown report; returns its text."""
+    """Write the markdown report and return its text."""
     table = bench.best_table(rows)
     scenes = list(dict.fromkeys(r.scene for r in rows))
     methods = list(dict.fromkeys(r.method for r in rows))
@@ -47,7 +47,7 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
              f'a reference; `-` = not reached within the sweep or budget). Machine: '
              f'{platform.machine()}, {os.cpu_count()} cores, shared and noisy; '
              f'{"quick" if args.quick else "full"} sweep, {args.repeats} repeats, '
-             f'{elapsed / 60:.1f} min. Methods in lower case are gyro_rotor\'s, upper case '
+             f"{elapsed / 60:.1f} min. Methods in lower case are gyro_rotor's, upper case "
              f'scipy solve_ivp.', '',
              '| scene | ' + ' | '.join(methods) + ' |',
              '|---|' + '---|' * len(methods)]
@@ -83,7 +83,7 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
             lines.append(f'| {m} | ' + ' | '.join(f'{x:.1e}' for x in d) + f' | {w:.2f} |')
     if poles:
         ref = poles['reference']
-        lines += ['', f'Slipped poles on pole_slip at each method\'s default tolerance '
+        lines += ['', f"Slipped poles on pole_slip at each method's default tolerance "
                   f'(reference {ref}):', '', '| method | poles | right |', '|---|---|---|']
         for m, n in poles.items():
             if m != 'reference':

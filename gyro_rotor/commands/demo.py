@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.scene import DEFAULT_SCENE, load_scene
@@ -154,7 +154,7 @@ HEADER = ('  t [s]       E* [J]  residual  E* decay   >= bound  slips  modes: pr
 
 
 def expected_outcome(scene, duration: float) -> dict:
-    """What linear theory (and, for a sine law, a reference simulation) expects."""
+    """Return what linear theory (and, for a sine law, a reference simulation) expects."""
     from gyro_rotor.stability import analyze_scene
     exp = {'verdict': analyze_scene(scene).verdict, 'pole_slips': None}
     if scene.params.pole_pairs:
@@ -170,7 +170,7 @@ def expected_outcome(scene, duration: float) -> dict:
 def run(args: argparse.Namespace) -> int:  # noqa: C901 -- one linear story
     """Run the demo; 0 if the run confirms the expected behaviour of the scene."""
     from gyro_rotor.analysis import analyze_bag
-    from gyro_rotor.launch import NodeProcess, claim_domain_id
+    from gyro_rotor.launch import claim_domain_id, NodeProcess
     from gyro_rotor.report import text_report, write_report
     _check(args)
     scene = load_scene(args.scene)
@@ -279,5 +279,3 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901 -- one linear story
     ok = all(c for c, _ in checks)
     print(f'RESULT: {"CONFIRMED" if ok else "NOT CONFIRMED"}: {res.verdict}')
     return 0 if ok else 1
-
-

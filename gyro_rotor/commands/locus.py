@@ -6,14 +6,12 @@ import argparse
 import csv
 import json
 
-import numpy as np
-
 from gyro_rotor.cli_util import parse_sets
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linearize import linearize
 from gyro_rotor.scene import load_scene
-from gyro_rotor.stability import (check_claims, default_grid, root_locus,
-                                  scene_operating_point)
+from gyro_rotor.stability import check_claims, default_grid, root_locus, scene_operating_point
+import numpy as np
 
 HELP = "root locus over K_D (the paper's figure 2), its asymptotes and claims (a) to (d)"
 

@@ -29,7 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='stop after this many seconds (default: until Ctrl-C)')
     p.add_argument('--period', type=float, default=1.0, help='print period [s]')
     p.add_argument('--domain-id', type=int, default=None,
-                   help='ROS_DOMAIN_ID to join (default: the environment\'s)')
+                   help="ROS_DOMAIN_ID to join (default: the environment's)")
     p.add_argument('--namespace', default='/', help='only topics under this namespace')
 
 
@@ -94,7 +94,7 @@ class Monitor:
         return cb
 
     def render(self) -> str:
-        """The current table as text."""
+        """Render the current table as text."""
         now = time.monotonic()
         lines = [f'{"topic":32s} {"type":36s} {"count":>8s} {"Hz":>8s} {"jitter ms":>9s} '
                  f'{"lost":>5s}']

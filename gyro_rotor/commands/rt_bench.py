@@ -13,7 +13,7 @@ import argparse
 import os
 import time
 
-HELP = 'measure the simulation node\'s achieved real-time factor and tick jitter'
+HELP = "measure the simulation node's achieved real-time factor and tick jitter"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

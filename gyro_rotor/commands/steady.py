@@ -16,7 +16,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """Arguments of ``steady``."""
     p.add_argument('scene', nargs='?', default='precession', help='scene name or path')
     p.add_argument('--theta0', type=float, default=None,
-                   help='tilt of solution II [rad] (default: the scene\'s, else 0.1)')
+                   help="tilt of solution II [rad] (default: the scene's, else 0.1)")
     p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE')
 
 

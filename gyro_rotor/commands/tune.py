@@ -8,7 +8,7 @@ from gyro_rotor.cli_util import parse_sets
 from gyro_rotor.scene import load_scene
 from gyro_rotor.stability import best_K_D, scene_operating_point
 
-HELP = 'best drive damping K_D for the scene\'s K_S (fastest slowest decay) and its sensitivity'
+HELP = "best drive damping K_D for the scene's K_S (fastest slowest decay) and its sensitivity"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -16,7 +16,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('scene', nargs='?', default='precession', help='scene name or path')
     p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE')
     p.add_argument('--K-S', dest='K_S', type=float, default=None,
-                   help='drive stiffness to tune for [N m/rad] (default: the scene\'s)')
+                   help="drive stiffness to tune for [N m/rad] (default: the scene's)")
 
 
 def run(args: argparse.Namespace) -> int:

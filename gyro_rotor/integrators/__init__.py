@@ -6,11 +6,10 @@ See :mod:`gyro_rotor.integrators.base` for the contract (scipy's OdeSolver shape
 :mod:`gyro_rotor.integrators.kernels` for the compiled loops (numba if installed).
 """
 
-from gyro_rotor.integrators.base import (IntegrationResult, Integrator, STATUS_MESSAGES,
-                                         model_rate)
+from gyro_rotor.integrators.base import IntegrationResult, Integrator, model_rate, STATUS_MESSAGES
 from gyro_rotor.integrators.kernels import HAVE_NUMBA
-from gyro_rotor.integrators.methods import (DOP853, Gauss6, METHODS, RK4, RK8, Rodas4,
-                                            choose_method, integrate, make_integrator)
+from gyro_rotor.integrators.methods import (choose_method, DOP853, Gauss6, integrate,
+                                            make_integrator, METHODS, RK4, RK8, Rodas4)
 
 __all__ = ['Integrator', 'IntegrationResult', 'STATUS_MESSAGES', 'METHODS', 'RK4', 'RK8',
            'DOP853', 'Gauss6', 'Rodas4', 'integrate', 'choose_method', 'make_integrator',

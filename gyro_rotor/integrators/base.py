@@ -26,11 +26,10 @@ import dataclasses
 import math
 from typing import Any
 
-import numpy as np
-
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.integrators import kernels
 from gyro_rotor.model import Model
+import numpy as np
 
 __all__ = ['Integrator', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate']
 
@@ -59,7 +58,7 @@ class IntegrationResult:
 
     @property
     def success(self) -> bool:
-        """True if the end of the interval was reached."""
+        """Return True if the end of the interval was reached."""
         return self.status == 0
 
 
@@ -163,7 +162,7 @@ class Integrator:
         return out
 
     def project(self, y: np.ndarray, f: np.ndarray) -> None:
-        """The quaternion hook (module doc): scale q and dq/dt to |q| = 1, in place."""
+        """Apply the quaternion hook (module doc): scale q and dq/dt to |q| = 1, in place."""
         if self.renormalize:
             kernels.normalize_quaternion(self.kind, y, f)
 
@@ -252,7 +251,7 @@ class Integrator:
 
 
 def model_rate(p) -> float:
-    """The fastest rate of the model [1/s], for the default steps of fixed-step methods.
+    """Return the fastest rate of the model [1/s], for the default steps of fixed-step methods.
 
     The largest of: the nutation rate C_R Omega0 / I (about H_3 / I, eq. 18), the drive's
     frequency sqrt(K_S (1/C_R + 1/C_M)), its damping rate K_D (1/C_R + 1/C_M) (the stiff

@@ -46,7 +46,10 @@ MAX_FACTOR = 10.0  # largest increase of the step in one go
 
 
 def pack_params(p) -> np.ndarray:
-    """RotorParams -> float array (I, C_R, C_M, G s, c_theta, c_psi, K_S, K_D, Omega0, p)."""
+    """Pack RotorParams into a float array.
+
+    The order is (I, C_R, C_M, G s, c_theta, c_psi, K_S, K_D, Omega0, p).
+    """
     return np.array([p.I, p.C_R, p.C_M, p.Gs, p.c_theta, p.c_psi, p.K_S, p.K_D, p.Omega0,
                      float(p.pole_pairs)])
 
@@ -135,7 +138,7 @@ def rhs(kind, y, P, out):
 
 @njit(cache=True)
 def normalize_quaternion(kind, y, f):
-    """The projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
+    """Apply the projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
 
     The other equations depend on q only through its direction, so ``f`` stays the exact
     right-hand side at the projected state.
@@ -329,7 +332,10 @@ def dense_eval(F, y_old, x, out):
 
 @njit(cache=True)
 def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
-    """Starting step size (Hairer, Norsett, Wanner I, sec. II.4; scipy's select_initial_step)."""
+    """Return the starting step size.
+
+    Hairer, Norsett, Wanner I, sec. II.4; scipy's select_initial_step.
+    """
     n = y.shape[0]
     d0 = 0.0
     d1 = 0.0
@@ -616,8 +622,10 @@ def lu_solve(M, piv, b):
 @njit(cache=True)
 def rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new, W, piv,
                rhs_buf):
-    """One trial step of RODAS4 with Jacobian ``J`` at y; returns the error norm (inf if
-    the matrix W = I/(h gamma) - J is singular)."""
+    """Take one trial step of RODAS4 with Jacobian ``J`` at y.
+
+    Returns the error norm (inf if the matrix W = I/(h gamma) - J is singular).
+    """
     n = y.shape[0]
     s = Mw.shape[0]
     g = 1.0 / (h * gamma)

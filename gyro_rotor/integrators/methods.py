@@ -21,12 +21,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.integrators import kernels, tableaux as tb
 from gyro_rotor.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
 from gyro_rotor.model import Model
+import numpy as np
 
 __all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'METHODS', 'integrate',
            'choose_method', 'STIFF_RATIO', 'LONG_CONSERVATIVE']
@@ -291,7 +290,7 @@ METHODS: dict[str, type[Integrator]] = {
 
 
 def choose_method(params, t_end: float = 0.0) -> tuple[str, str]:
-    """The automatic choice for a scene: ``(method name, reason)``.
+    """Return the automatic choice for a scene: ``(method name, reason)``.
 
     - rodas4 when the drive's damping rate K_D (1/C_R + 1/C_M) (a real root of the
       linearization, MODEL.md section 7) exceeds the fastest oscillation by STIFF_RATIO:
@@ -318,7 +317,7 @@ def choose_method(params, t_end: float = 0.0) -> tuple[str, str]:
 
 def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
                     t_bound: float = math.inf, **kwargs) -> Integrator:
-    """An integrator from the registry by name ('auto' uses :func:`choose_method`)."""
+    """Make an integrator from the registry by name ('auto' uses :func:`choose_method`)."""
     if method == 'auto':
         method = choose_method(model.params, t_bound - t0)[0]
     try:
