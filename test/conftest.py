@@ -62,5 +62,5 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope='session')
 def ros_domain_id() -> int:
-    """The ROS_DOMAIN_ID of this test process."""
+    """Return the ROS_DOMAIN_ID of this test process."""
     return int(os.environ['ROS_DOMAIN_ID'])

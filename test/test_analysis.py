@@ -18,15 +18,13 @@ from pathlib import Path
 import subprocess
 import sys
 
-import numpy as np
-import pytest
-
-from gyro_rotor.analysis import (ANALYSIS_FIELDS, MODE_FIELDS, RotorAnalyzer, Sample,
-                                 SamplePairer, samples_from_trajectory, scene_from_sim_doc,
-                                 scene_to_flat)
+from gyro_rotor.analysis import (ANALYSIS_FIELDS, MODE_FIELDS, RotorAnalyzer, Sample, SamplePairer,
+                                 samples_from_trajectory, scene_from_sim_doc, scene_to_flat)
 from gyro_rotor.errors import AnalysisError
 from gyro_rotor.scene import load_scene, perturb_state, scene_from_mapping
 from gyro_rotor.simulate import simulate
+import numpy as np
+import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 FREQ_RTOL = 0.005

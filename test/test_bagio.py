@@ -19,16 +19,13 @@ import textwrap
 import time
 import warnings
 
+from gyro_rotor.bagio import (BagError, BagWarning, BagWriter, message_definition, normalize_qos,
+                              open_bag, qos_profile_dict, recover_bag, type_hash)
+from gyro_rotor.msgdefs import DELIMITER
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
 import yaml
-
-from gyro_rotor.bagio import (
-    BagError, BagWarning, BagWriter, message_definition, normalize_qos, open_bag,
-    qos_profile_dict, recover_bag, type_hash,
-)
-from gyro_rotor.msgdefs import DELIMITER
 
 REPO = Path(__file__).resolve().parents[1]
 FLOAT64 = 'std_msgs/msg/Float64'
@@ -96,7 +93,7 @@ def check_structure(bag: Path) -> dict[str, int]:
 
 
 def values(msg: object) -> tuple:
-    """Comparable field values of the test messages, whatever reader decoded them."""
+    """Return comparable field values of the test messages, whatever reader decoded them."""
     def floats(seq: object) -> list[float]:
         return [float(x) for x in seq]
 
@@ -259,8 +256,7 @@ def test_qos_from_rclpy_profile():
     qos_mod = pytest.importorskip('rclpy.qos')
     profile = qos_mod.QoSProfile(depth=7, reliability=qos_mod.ReliabilityPolicy.BEST_EFFORT)
     (out,) = normalize_qos(profile)
-    assert (out['history'], out['depth'], out['reliability']) == ('keep_last', 7,
-                                                                   'best_effort')
+    assert (out['history'], out['depth'], out['reliability']) == ('keep_last', 7, 'best_effort')
 
 
 def test_roundtrip_with_three_readers(tmp_path):
@@ -443,7 +439,7 @@ def test_truncated_file_gives_readable_prefix(tmp_path):
             continue
         assert got == full[:len(got)], f'cut at {cut}: not a prefix'
         assert [d.data for _, _, d in decoded] == [struct.unpack('<d', x[4:])[0]
-                                                    for _, _, x in got]
+                                                   for _, _, x in got]
         assert reader.truncated == (cut < len(data))
         readable.append(len(got))
     assert readable == sorted(readable) and readable[-1] == len(full)
@@ -502,7 +498,7 @@ def test_recover_cut_bag(tmp_path):
         recover_bag(bag)
 
 
-SIGKILL_WRITER = textwrap.dedent('''
+SIGKILL_WRITER = textwrap.dedent("""
     import sys, time
     from rclpy.serialization import serialize_message
     from rosgraph_msgs.msg import Clock
@@ -524,7 +520,7 @@ SIGKILL_WRITER = textwrap.dedent('''
         writer.write('/clock', serialize_message(clock), now)
         i += 1
         time.sleep(0.01)
-''')
+""")
 
 
 def test_sigkill_then_recover(tmp_path):

@@ -14,13 +14,12 @@ import math
 from pathlib import Path
 import shutil
 
-import pytest
-import yaml
-
 from gyro_rotor import cli
 from gyro_rotor.analysis import analyze_bag
 from gyro_rotor.bagio import BagWriter, open_bag
 from gyro_rotor.errors import AnalysisError, BagError, SceneError
+import pytest
+import yaml
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 EXPECTED = {'precession': 'asymptotically stable', 'upright': 'marginal',
@@ -70,7 +69,7 @@ def test_bag_specifics(analyses):
 
 
 def test_sample_bag_with_three_readers():
-    """mcap + mcap_ros2, rosbags AnyReader and bagio's structural reader agree."""
+    """Check that mcap + mcap_ros2, rosbags AnyReader and bagio's structural reader agree."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader

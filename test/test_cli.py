@@ -3,9 +3,8 @@
 import subprocess
 import sys
 
-import pytest
-
 from gyro_rotor.cli import main
+import pytest
 
 
 def test_simulate_prints_summary_and_writes_csv(tmp_path, capsys):

@@ -4,9 +4,8 @@ import json
 import subprocess
 import sys
 
-import pytest
-
 from gyro_rotor.bagio import open_bag
+import pytest
 
 
 @pytest.mark.ros

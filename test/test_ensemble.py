@@ -1,12 +1,11 @@
 """Ensemble mode: lockstep runs agree with single-trajectory runs; bad input refused."""
 
-import numpy as np
-import pytest
-
 from gyro_rotor.ensemble import run_ensemble
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.integrators import HAVE_NUMBA, integrate
 from gyro_rotor.scene import load_scene
+import numpy as np
+import pytest
 
 BACKENDS = ['numpy'] + (['numba'] if HAVE_NUMBA else [])
 

@@ -2,12 +2,11 @@
 
 import math
 
+from gyro_rotor.errors import ParameterError
+from gyro_rotor.integrators import choose_method, integrate, make_integrator, METHODS, tableaux
+from gyro_rotor.scene import list_scenes, load_scene
 import numpy as np
 import pytest
-
-from gyro_rotor.errors import ParameterError
-from gyro_rotor.integrators import METHODS, choose_method, integrate, make_integrator, tableaux
-from gyro_rotor.scene import list_scenes, load_scene
 
 STIFF = ('stiff_drive',)
 

@@ -3,15 +3,14 @@
 import subprocess
 import sys
 
-import numpy as np
-import pytest
-from scipy.integrate import solve_ivp
-
 from gyro_rotor.model import FullModel, LockedHousingModel, UprightAxisModel
 from gyro_rotor.params import RotorParams
 from gyro_rotor.rotations import (body_rates_from_euler, euler_from_quaternion,
                                   euler_rates_from_body, quaternion_from_euler)
 from gyro_rotor.scene import load_scene
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
 
 
 def lagrange_rhs(p: RotorParams):
@@ -140,6 +139,7 @@ def test_core_does_not_import_rclpy():
             'import gyro_rotor.scene, gyro_rotor.simulate, gyro_rotor.rotations, gyro_rotor.cli\n'
             'from gyro_rotor.simulate import simulate\n'
             'simulate("precession", t_end=0.1)\n'
-            'bad = [m for m in sys.modules if m.startswith(("rclpy", "sensor_msgs", "std_msgs"))]\n'
+            'bad = [m for m in sys.modules\n'
+            '       if m.startswith(("rclpy", "sensor_msgs", "std_msgs"))]\n'
             'assert not bad, bad\n')
     subprocess.run([sys.executable, '-c', code], check=True)

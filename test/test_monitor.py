@@ -6,9 +6,8 @@ import signal
 import subprocess
 import sys
 
-import pytest
-
 from gyro_rotor.monitor import TopicStats
+import pytest
 
 
 def test_topic_stats_rate_jitter_and_gaps():

@@ -3,10 +3,9 @@
 import math
 import warnings
 
-import pytest
-
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.params import PARAM_FIELDS, RotorParams, StaticallyUnstableWarning
+import pytest
 
 
 def test_defaults_are_valid_and_statically_stable():

@@ -9,16 +9,15 @@ of another kind.
 import math
 import warnings
 
-import numpy as np
-import pytest
-import yaml
-from hypothesis import HealthCheck, given, settings, strategies as st
-
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.model import FullModel
 from gyro_rotor.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.scene import load_scene, scene_from_mapping, SCENE_KEYS
 from gyro_rotor.simulate import simulate
+from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
+import pytest
+import yaml
 
 pytestmark = pytest.mark.filterwarnings(
     'ignore::gyro_rotor.params.StaticallyUnstableWarning')
@@ -73,7 +72,7 @@ def test_invalid_parameters_are_refused_naming_the_field(field, value):
         # only values that are valid for this field may pass: 0 for the non-negative
         # fields, -1 for signed ones (s, Omega0), 0 for pole_pairs
         assert (value == 0.0 and field in ('G', 's', 'c_theta', 'c_psi', 'K_S', 'K_D',
-                                             'Omega0', 'pole_pairs')) or (
+                                           'Omega0', 'pole_pairs')) or (
             value == -1.0 and field in ('s', 'Omega0'))
 
 

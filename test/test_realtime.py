@@ -4,16 +4,14 @@ import math
 import subprocess
 import sys
 
+from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.realtime import DenseStepper, EnergyBaseline, make_stepper, Pacer, RK4Stepper
 import numpy as np
 import pytest
 
-from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.realtime import (DenseStepper, EnergyBaseline, make_stepper, Pacer,
-                                 RK4Stepper)
-
 
 def oscillator(t, y):
-    """y'' = -y: y = (cos t, -sin t) from (1, 0)."""
+    """Return the rate of y'' = -y: y = (cos t, -sin t) from (1, 0)."""
     return np.array([y[1], -y[0]])
 
 

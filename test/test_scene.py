@@ -1,9 +1,8 @@
 """Scenes: every shipped scene loads; bad scene files give clear errors."""
 
-import pytest
-
 from gyro_rotor.errors import ParameterError, SceneError
 from gyro_rotor.scene import list_scenes, load_scene, perturb_state
+import pytest
 
 SHIPPED = ['precession', 'nutation', 'upright', 'stiff_drive', 'fast_spin', 'conservative',
            'pole_slip', 'locked_housing']

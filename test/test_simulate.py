@@ -1,11 +1,10 @@
 """simulate(): energy balance, conservation, the passage through theta = 0, reduced models."""
 
+from gyro_rotor.errors import ParameterError
+from gyro_rotor.simulate import CSV_COLUMNS, simulate
 import numpy as np
 import pytest
 from scipy.signal import argrelmin
-
-from gyro_rotor.errors import ParameterError
-from gyro_rotor.simulate import CSV_COLUMNS, simulate
 
 SCENES = ['precession', 'nutation', 'upright', 'stiff_drive', 'fast_spin', 'conservative',
           'pole_slip', 'locked_housing']

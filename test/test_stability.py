@@ -1,24 +1,26 @@
-"""Linear stability (issue 4): Jacobians, named modes, claims (a) to (d), drive penetration,
-best K_D, and the cross-check of the eigenvalues against the full nonlinear model."""
+"""Linear stability (issue 4).
+
+Jacobians, named modes, claims (a) to (d), drive penetration, best K_D, and the cross-check
+of the eigenvalues against the full nonlinear model.
+"""
 
 import math
 import subprocess
 import sys
 
-import numpy as np
-import pytest
-
 from gyro_rotor import cli
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linearize import (jacobian_analytic, jacobian_fd, linearize,
-                                  reduced_rhs, reduced_rhs_lagrange)
+from gyro_rotor.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
+                                  reduced_rhs_lagrange)
 from gyro_rotor.params import RotorParams
 from gyro_rotor.scene import load_scene
 from gyro_rotor.simulate import simulate
-from gyro_rotor.stability import (ZERO_ROOT, analyze, analyze_scene, best_K_D,
-                                  check_claims, root_locus, sensitivities, spectrum, sweep)
+from gyro_rotor.stability import (analyze, analyze_scene, best_K_D, check_claims, root_locus,
+                                  sensitivities, spectrum, sweep, ZERO_ROOT)
 from gyro_rotor.steady import steady_motion
 from gyro_rotor.sysid import match_eigenvalues, matrix_pencil
+import numpy as np
+import pytest
 
 P = RotorParams()
 
@@ -120,7 +122,7 @@ def test_penetration_solution_I_tilt_modes_not_reached():
     r = analyze_scene('upright')
     assert r.verdict == 'marginal'
     assert set(r.marginal_modes) == {'nutation', 'precession'}
-    assert "Hagedorn" in r.reason
+    assert 'Hagedorn' in r.reason
     for name in ('housing twist', 'rotor-field coupling'):
         assert r.mode(name).reached_by_drive and r.mode(name).eigenvalue.real < 0
 

@@ -2,15 +2,14 @@
 
 import math
 
-import numpy as np
-import pytest
-
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.model import FullModel
 from gyro_rotor.params import RotorParams, StaticallyUnstableWarning
-from gyro_rotor.simulate import simulate
 from gyro_rotor.scene import load_scene
+from gyro_rotor.simulate import simulate
 from gyro_rotor.steady import steady_motion, steady_state
+import numpy as np
+import pytest
 
 
 def test_exact_rate_solves_the_theta_equation():
