@@ -1,8 +1,8 @@
 """Recording of the simulation topics into a rosbag2 (MCAP) bag: the ROS side of bagio.
 
 :class:`BagRecorder` attaches to a node. For every topic it creates one ``raw=True``
-subscription (RELIABLE, KEEP_LAST ``depth``, VOLATILE; TRANSIENT_LOCAL for the latched
-``~/scene`` document), so the bag holds the serialized bytes exactly as received, never
+subscription (RELIABLE, KEEP_ALL, VOLATILE; KEEP_LAST ``depth`` TRANSIENT_LOCAL for the
+latched ``~/scene`` document), so the bag holds the serialized bytes exactly as received, never
 re-encoded. A topic's channel is registered at its first message, with the QoS profiles its
 publishers offer (``Node.get_publishers_info_by_topic``), as ``ros2 bag record`` does;
 ``log_time`` is the receive time and ``publish_time`` the publisher's source timestamp
@@ -28,7 +28,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from gyro_rotor.bagio import BagWriter, normalize_qos, qos_profile_dict
 from gyro_rotor.errors import BagError
 
-__all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable']
+__all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable', 'DRAIN_MAX']
+
+#: most messages one callback takes from its subscription beyond the one it was given
+DRAIN_MAX = 200
 
 
 def sim_topics(sim_node: str = 'rotor_sim') -> dict[str, str]:
@@ -87,7 +90,11 @@ class BagRecorder:
     metadata : mapping, optional
         MCAP metadata records written at open.
     depth : int
-        Subscription queue depth (RELIABLE, KEEP_LAST).
+        Queue depth of the latched topics (KEEP_LAST); 0 makes every subscription
+        KEEP_LAST 1000 (the behaviour before issue 8). The other topics are KEEP_ALL: a
+        message the subscription cannot store is not acknowledged, so a reliable
+        publisher that waits for acknowledgements (``rotor_sim`` at real_time_factor 0)
+        is held back instead of losing messages.
     flush_period : float
         Seconds between flushes of the open chunk.
     on_message : callable, optional
@@ -111,18 +118,26 @@ class BagRecorder:
         self.received: dict[str, int] = {}
         self._types: dict[str, str] = {}
         self._subs = []
+        self._sub_of: dict = {}
+        self.drain_max = DRAIN_MAX
         latched_names = {node.resolve_topic_name(t) for t in latched}
         for topic, type_name in topics.items():
             name = node.resolve_topic_name(topic)
             self._types[name] = type_name
-            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+            latched_topic = name in latched_names
+            keep_all = depth > 0 and not latched_topic
+            qos = QoSProfile(history=(HistoryPolicy.KEEP_ALL if keep_all
+                                      else HistoryPolicy.KEEP_LAST),
+                             depth=depth or 1000,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL
-                                         if name in latched_names
+                                         if latched_topic
                                          else DurabilityPolicy.VOLATILE))
-            self._subs.append(node.create_subscription(
+            sub = node.create_subscription(
                 _import_type(type_name), name, functools.partial(self._on_raw, name), qos,
-                raw=True))
+                raw=True)
+            self._subs.append(sub)
+            self._sub_of[name] = sub
         self._timer = node.create_timer(flush_period, self.flush)
 
     def _offered_qos(self, topic: str) -> list:
@@ -131,6 +146,28 @@ class BagRecorder:
         return profiles or [qos_profile_dict()]
 
     def _on_raw(self, topic: str, data: bytes, info=None) -> None:
+        """Record a message, then take and record what else is queued on the topic.
+
+        The executor costs far more per callback than a take does, so each callback drains
+        up to ``drain_max`` further messages of its subscription itself.
+        """
+        self._record(topic, data, info)
+        sub = self._sub_of.get(topic)
+        if sub is None:
+            return
+        for _ in range(self.drain_max):
+            if self.writer.closed:
+                return
+            try:
+                with sub.handle:
+                    got = sub.handle.take_message(sub.msg_type, sub.raw)
+            except Exception:   # noqa: B902 -- a destroyed handle (shutdown): stop draining
+                return
+            if got is None:
+                return
+            self._record(topic, got[0], got[1])
+
+    def _record(self, topic: str, data: bytes, info=None) -> None:
         now = time.time_ns()
         if self.writer.closed:
             return

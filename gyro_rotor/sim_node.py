@@ -18,6 +18,7 @@ Run: ``rotor_sim --ros-args -p scene:=nutation`` or ``python -m gyro_rotor.sim_n
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import signal
 import sys
@@ -32,6 +33,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 SetParametersResult)
 import rclpy
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -61,6 +63,14 @@ _LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 _BIG = 1e9
 #: with real_time_factor 0, each tick advances this much simulated time [s] (whole samples)
 FAST_CHUNK = 0.04
+#: flow control at real_time_factor 0: longest block per tick waiting for acknowledgements
+ACK_WAIT = Duration(seconds=0.05)
+#: at shutdown, longest wait for the last messages to be acknowledged [s]
+SHUTDOWN_ACK_WAIT = 2.0
+#: ... and the most samples per state topic that may be in flight unacknowledged
+ACK_WINDOW = STATE_QOS.depth // 2
+#: ... and how long a subscriber may stay silent before the simulator goes on without it [s]
+ACK_GIVE_UP = 5.0
 
 # ranges of the RotorParams fields (the on-set callback still validates via RotorParams)
 _PARAM_RANGES = {
@@ -131,6 +141,18 @@ class RotorSimNode(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.pub_clock = self.create_publisher(ClockMsg, '/clock', 10)
         self.pub_scene = self.create_publisher(String, '~/scene', _LATCHED)
+        # reused for every sample (see _publish_samples)
+        self._msg_joints = ros_msgs.joint_state(ros_msgs.stamp(0), (0.0,) * 4, (0.0,) * 4,
+                                                (0.0,) * 4)
+        self._msg_energy = ros_msgs.energy_array(dict.fromkeys(ros_msgs.ENERGY_FIELDS, 0.0))
+        #: messages published per topic over the node's life (in the diagnostics)
+        self.published = dict.fromkeys(('joint_states', 'energy', 'axis', 'stator_pose',
+                                        'axis_marker', 'clock', 'diagnostics'), 0)
+        #: flow control at real_time_factor 0: wall time spent waiting for acknowledgements
+        self.ack_wait_s = 0.0
+        self.ack_timeouts = 0
+        self._ack_since: float | None = None
+        self._unacked = 0
         self.create_service(Trigger, '~/reset', self._srv_reset)
         self.create_service(Trigger, '~/perturb', self._srv_perturb)
         self.create_service(SetBool, '~/pause', self._srv_pause)
@@ -326,6 +348,8 @@ class RotorSimNode(Node):
                 self._waiting = False
                 self.get_logger().info(f'{n} subscriber(s) matched: simulation time starts')
             now = self._now()
+            if self.pacer.rtf == 0 and not self._acked(now):
+                return
             try:
                 samples = self.pacer.tick(now)
             except IntegrationError as err:
@@ -335,7 +359,38 @@ class RotorSimNode(Node):
                 self._publish_samples(samples)
             if self.cfg['publish_clock'] and not self.diverged:
                 self.pub_clock.publish(ros_msgs.clock(ros_msgs.stamp(self.stepper.t)))
+                self.published['clock'] += 1
             self.pacer.end_tick(self._now())
+
+    def _acked(self, now: float) -> bool:
+        """Flow control at real_time_factor 0: may the next chunk be computed?
+
+        As fast as possible is meant for batch recording, so it must not outrun a reliable
+        subscriber. At most ``ACK_WINDOW`` samples of ``joint_states`` and ``energy`` may
+        be unacknowledged by their reliable subscriptions (less than the publisher's
+        history, so that DDS never overwrites an unacknowledged sample); a KEEP_ALL
+        subscription that cannot store more does not acknowledge, which holds the
+        simulator back. A full window blocks each call for at most ``ACK_WAIT``, so that
+        services are still served; a subscriber silent for ``ACK_GIVE_UP`` s (killed) is
+        given up on for that window (counted in ``ack_timeouts``).
+        """
+        if self._unacked + self.pacer.chunk_samples <= ACK_WINDOW:
+            return True
+        start = time.monotonic()
+        ok = all(pub.wait_for_all_acked(ACK_WAIT) for pub in (self.pub_joints,
+                                                              self.pub_energy))
+        self.ack_wait_s += time.monotonic() - start
+        if not ok:
+            if self._ack_since is None:
+                self._ack_since = now
+            if now - self._ack_since < ACK_GIVE_UP:
+                return False
+            self.ack_timeouts += 1
+            self.get_logger().warn(f'a subscriber did not acknowledge for {ACK_GIVE_UP:g} s: '
+                                   'continuing without it')
+        self._ack_since = None
+        self._unacked = 0
+        return True
 
     def _diverge(self, reason: str) -> None:
         self.diverged = reason
@@ -344,42 +399,75 @@ class RotorSimNode(Node):
         self._publish_diagnostics()
 
     def _publish_samples(self, samples) -> None:
+        """Publish joint_states and energy for every sample, the 3-D topics for the last.
+
+        Everything is computed once per tick on arrays (states, angles, forces, E*, the
+        residuals and their check), converted to Python floats in one ``tolist`` each, and
+        written into two message objects reused for every sample (``publish`` serializes
+        synchronously, so reusing them is safe). If a residual fails the check, the
+        samples before it are published and the node stops (:meth:`_diverge`).
+        """
         m = self.model
         p = m.params
-        t = np.array([s.t for s in samples])
+        n = len(samples)
+        t = np.fromiter((s.t for s in samples), float, n)
         Y = np.array([s.y for s in samples])
         q = m.quaternion(Y)
         W = m.body_rates(Y)
         psi, theta, phi_M = euler_from_quaternion(q)
         psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, W)
         z, zdot = Y[:, m.iz], Y[:, m.izd]
-        field = np.array([self._field_angle(ti) for ti in t])
-        E = m.energy(Y)
-        forces = m.generalized_forces(Y)
-        for i, s in enumerate(samples):
-            r = self.baseline.residual(s.y, float(E[i]))
-            if not (math.isfinite(E[i]) and abs(r) <= self.cfg['max_residual']):
-                self._diverge(f'energy-balance residual {r:.6g} J at t = {s.t:.6f} s exceeds '
-                              f'max_residual {self.cfg["max_residual"]:g} J (or E* is not '
-                              f'finite)')
-                return
-            st = ros_msgs.stamp(s.t)
-            self.pub_joints.publish(ros_msgs.joint_state(
-                st, (theta[i], psi[i], field[i] + z[i] + phi_M[i], phi_M[i]),
-                (thetadot[i], psidot[i], p.Omega0 + zdot[i] + phi_M_dot[i], phi_M_dot[i]),
-                forces[i]))
-            self.pub_energy.publish(ros_msgs.energy_array({
-                't_sim': s.t, 'E_star': E[i], 'dE_dt': -p.K_D * zdot[i] ** 2,
-                'dissipation': p.K_D * zdot[i] ** 2, 'residual': r, 'z': z[i],
-                'zdot': zdot[i], 'seq': self.seq, 'D': s.y[m.idiss], 'k': s.k}))
-            self.seq += 1
-            self._last = (s.t, s.y)
-        st = ros_msgs.stamp(samples[-1].t)
-        frame = self.cfg['frame_id']
-        axis = axis_from_quaternion(q[-1])
-        self.pub_axis.publish(ros_msgs.axis_vector(st, frame, axis))
-        self.pub_pose.publish(ros_msgs.stator_pose(st, frame, q[-1]))
-        self.pub_marker.publish(ros_msgs.axis_marker(st, frame, axis))
+        t_c, a_c = self._field
+        field = a_c + p.Omega0 * (t - t_c)
+        E = np.asarray(m.energy(Y), dtype=float)
+        D = Y[:, m.idiss]
+        resid = E + D - self.baseline.E_ref
+        bad = ~(np.isfinite(E) & (np.abs(resid) <= self.cfg['max_residual']))
+        n_good = int(np.argmax(bad)) if bad.any() else n
+        if n_good:
+            forces = m.generalized_forces(Y[:n_good])
+            pos = np.column_stack([theta, psi, field + z + phi_M, phi_M])[:n_good].tolist()
+            vel = np.column_stack([thetadot, psidot, p.Omega0 + zdot + phi_M_dot,
+                                   phi_M_dot])[:n_good].tolist()
+            eff = forces.tolist()
+            diss = p.K_D * zdot * zdot
+            seq = np.arange(self.seq, self.seq + n, dtype=float)
+            k = np.fromiter((s.k for s in samples), float, n)
+            rows = np.column_stack([t, E, -diss, diss, resid, z, zdot, seq, D, k])
+            rows = rows[:n_good].tolist()
+            js, en = self._msg_joints, self._msg_energy
+            stamp = js.header.stamp
+            pub_j, pub_e = self.pub_joints.publish, self.pub_energy.publish
+            rem, two_pi = math.remainder, 2 * math.pi
+            for i in range(n_good):
+                ns = int(round(t[i] * 1e9))
+                stamp.sec, stamp.nanosec = divmod(ns, 1_000_000_000)
+                a = [rem(x, two_pi) for x in pos[i]]
+                js.position = [math.pi if x == -math.pi else x for x in a]
+                js.velocity = vel[i]
+                js.effort = eff[i]
+                pub_j(js)
+                en.data = rows[i]
+                pub_e(en)
+            self.seq += n_good
+            self._unacked += n_good
+            self.published['joint_states'] += n_good
+            self.published['energy'] += n_good
+            last = samples[n_good - 1]
+            self._last = (last.t, last.y)
+            st = ros_msgs.stamp(last.t)
+            frame = self.cfg['frame_id']
+            axis = axis_from_quaternion(q[n_good - 1])
+            self.pub_axis.publish(ros_msgs.axis_vector(st, frame, axis))
+            self.pub_pose.publish(ros_msgs.stator_pose(st, frame, q[n_good - 1]))
+            self.pub_marker.publish(ros_msgs.axis_marker(st, frame, axis))
+            for topic in ('axis', 'stator_pose', 'axis_marker'):
+                self.published[topic] += 1
+        if n_good < n:
+            s = samples[n_good]
+            self._diverge(f'energy-balance residual {resid[n_good]:.6g} J at t = {s.t:.6f} s '
+                          f'exceeds max_residual {self.cfg["max_residual"]:g} J (or E* is not '
+                          f'finite)')
 
     # -- diagnostics -------------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -421,7 +509,10 @@ class RotorSimNode(Node):
                 'quaternion_norm_error': qn, 'residual': res,
                 'E_star': float(m.energy(y)), 'samples': self.seq,
                 'publish_rate': self.cfg['publish_rate'], 'paused': self.pacer.paused,
+                'ack_wait_s': self.ack_wait_s, 'ack_timeouts': self.ack_timeouts,
+                **{f'published_{k}': v for k, v in self.published.items()},
             }
+            self.published['diagnostics'] += 1
             self.pub_diag.publish(ros_msgs.diagnostic_array(
                 ros_msgs.stamp(self.stepper.t), f'{self.get_name()}: simulation', level, msg,
                 values, hardware_id=f'scene:{self.scene.name}'))
@@ -429,10 +520,28 @@ class RotorSimNode(Node):
     def _publish_scene(self) -> None:
         import yaml
         doc = {'scene': self.scene.name, 'model': self.scene.model, 't_end': self.scene.t_end,
-               'params': self.scene.params.to_mapping(), 'perturbation': self.perturbation,
+               'params': self.scene.params.to_mapping(), 'initial': self._initial_doc(),
+               'perturbation': self.perturbation,
                'node': self.cfg, 'integrator': self.stepper.method, 't_sim': self.stepper.t,
                'path': self.scene.path}
         self.pub_scene.publish(ros_msgs.text(yaml.safe_dump(doc, sort_keys=False)))
+
+    def _initial_doc(self) -> dict:
+        """The initial condition as ``initial.*`` keys without the prefix (plain YAML)."""
+        ic = self.scene.initial
+        keys = (('mode', 'theta0', 'branch', *PERTURBATION_KEYS) if ic.mode == 'steady'
+                else ('mode', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'))
+        out = {}
+        for k in keys:
+            v = getattr(ic, k)
+            if v is None:
+                continue
+            if isinstance(v, (tuple, list, np.ndarray)):
+                v = [float(x) for x in v]
+            elif not isinstance(v, (bool, int, str)):
+                v = float(v)
+            out[k] = v
+        return out
 
     # -- services ----------------------------------------------------------------------------
     def _srv_reset(self, request, response):
@@ -480,6 +589,42 @@ class RotorSimNode(Node):
         return response
 
 
+#: Fast DDS profile of the simulator's writers: a reliable writer asks its readers for
+#: acknowledgements every heartbeat period (default 3 s); the flow control at
+#: real_time_factor 0 waits for them, so the period bounds its throughput
+FASTDDS_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <data_writer profile_name="gyro_rotor_sim_writer" is_default_profile="true">
+    <times>
+      <heartbeatPeriod><sec>0</sec><nanosec>{ns}</nanosec></heartbeatPeriod>
+    </times>
+  </data_writer>
+</profiles>
+"""
+#: heartbeat period of the simulator's writers [ns]
+HEARTBEAT_NS = 5_000_000
+
+
+def use_fastdds_profile() -> str | None:
+    """Point Fast DDS at :data:`FASTDDS_PROFILE` unless a profile file is configured.
+
+    Must run before ``rclpy.init``; returns the file used (None if the user's is kept).
+    """
+    import os
+    import tempfile
+    if os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or \
+            os.environ.get('FASTDDS_DEFAULT_PROFILES_FILE'):
+        return None
+    path = os.path.join(tempfile.gettempdir(), f'gyro_rotor_sim_fastdds_{HEARTBEAT_NS}.xml')
+    if not os.path.exists(path):
+        tmp = f'{path}.{os.getpid()}'
+        with open(tmp, 'w') as f:
+            f.write(FASTDDS_PROFILE.format(ns=HEARTBEAT_NS))
+        os.replace(tmp, path)
+    os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = path
+    return path
+
+
 def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt
 
@@ -491,6 +636,7 @@ def main(args: list[str] | None = None) -> int:
     callback (its next publish then fails); instead both signals raise KeyboardInterrupt
     in the main thread, between callbacks or inside one, and the node is torn down here.
     """
+    use_fastdds_profile()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     previous = {sig: signal.signal(sig, _raise_interrupt)
                 for sig in (signal.SIGINT, signal.SIGTERM)}
@@ -510,6 +656,12 @@ def main(args: list[str] | None = None) -> int:
         for sig, handler in previous.items():
             signal.signal(sig, signal.SIG_IGN if handler is None else handler)
         if node is not None:
+            # the soak benchmark compares these with the messages recorded
+            print(f'published counts: {json.dumps(node.published)}', file=sys.stderr,
+                  flush=True)
+            # a reliable writer's unacknowledged messages die with it: give them a moment
+            for pub in (node.pub_joints, node.pub_energy):
+                pub.wait_for_all_acked(Duration(seconds=SHUTDOWN_ACK_WAIT))
             node.destroy_node()
         rclpy.try_shutdown()
     return status
