@@ -6,34 +6,16 @@ runs, and the nodes they start as subprocesses, cannot hear each other.
 """
 
 import atexit
-import fcntl
 import os
-import tempfile
 
+from gyro_rotor.launch import claim_domain_id
 import pytest
 
-_LOCK = None
+# the same lock files as gyro_rotor.launch (demo, soak), so no two of them share a domain
+_CLAIM = claim_domain_id(first=1, last=200)
+atexit.register(_CLAIM.release)
 
-
-def _claim_domain_id() -> int:
-    global _LOCK
-    start = 1 + os.getpid() % 200
-    for i in range(200):
-        domain = 1 + (start + i) % 200
-        path = os.path.join(tempfile.gettempdir(), f'gyro_rotor_domain_{domain}.lock')
-        f = open(path, 'w')
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            f.close()
-            continue
-        _LOCK = f
-        atexit.register(f.close)
-        return domain
-    raise RuntimeError('no free ROS_DOMAIN_ID in 1..200')
-
-
-os.environ['ROS_DOMAIN_ID'] = str(_claim_domain_id())
+os.environ['ROS_DOMAIN_ID'] = str(_CLAIM.domain_id)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_PYTHON_CHECK_FIELDS', '1')
 os.environ.setdefault('MPLBACKEND', 'Agg')
