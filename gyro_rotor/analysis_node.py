@@ -27,6 +27,12 @@ import math
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
+from gyro_rotor import ros_msgs
+from gyro_rotor.analysis import (ANALYSIS_FIELDS, ANALYSIS_LABEL, AnalysisSession,
+                                 MODE_FIELDS, MODE_LABEL, scene_to_flat)
+from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.recorder import BagRecorder, check_writable, default_bag_path, sim_topics
+from gyro_rotor.scene import load_scene
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -36,13 +42,6 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 import yaml
-
-from gyro_rotor import ros_msgs
-from gyro_rotor.analysis import (ANALYSIS_FIELDS, ANALYSIS_LABEL, AnalysisSession,
-                                 MODE_FIELDS, MODE_LABEL, scene_to_flat)
-from gyro_rotor.errors import GyroRotorError
-from gyro_rotor.recorder import BagRecorder, check_writable, default_bag_path, sim_topics
-from gyro_rotor.scene import load_scene
 
 __all__ = ['RotorAnalysisNode', 'main', 'OWN_TOPICS']
 
@@ -72,7 +71,7 @@ class RotorAnalysisNode(Node):
             description='bag directory to create (default bags_out/rotor_<time>)',
             read_only=True)).value
         compression = p('compression', 'none', ParameterDescriptor(
-            description="MCAP chunk compression: none (as rosbag2), zstd or lz4",
+            description='MCAP chunk compression: none (as rosbag2), zstd or lz4',
             read_only=True)).value
         self.record = p('record', True, ParameterDescriptor(
             description='record a bag', read_only=True)).value
@@ -116,7 +115,7 @@ class RotorAnalysisNode(Node):
                                             'flat': yaml.safe_dump(scene_to_flat(scene))}
             self.recorder = BagRecorder(self, path, {**topics, **OWN_TOPICS},
                                         metadata=meta, on_message=self._on_bytes,
-                                        compression=compression,
+                                        compression=compression, on_error=self._error,
                                         latched=(f'{self.sim_node}/scene',
                                                  'analysis_verdict'))
             self.get_logger().info(f'recording to {self.recorder.path}')
@@ -183,7 +182,7 @@ class RotorAnalysisNode(Node):
         mm.data = [float(v) for row in rows for v in row]
         self.pub_modes.publish(mm)
         self.pub_verdict.publish(String(data=f'{res.verdict}: ' + '; '.join(res.evidence[:2])))
-        values = {f: v for f, v in zip(ANALYSIS_FIELDS, vec)}
+        values = dict(zip(ANALYSIS_FIELDS, vec))
         values['verdict'] = res.verdict
         for i, line in enumerate(res.evidence):
             values[f'evidence_{i}'] = line

@@ -35,9 +35,8 @@ import dataclasses
 import math
 from typing import Callable, Protocol
 
-import numpy as np
-
 from gyro_rotor.errors import IntegrationError, ParameterError
+import numpy as np
 
 __all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
            'resolve_method', 'Pacer', 'Sample',
@@ -208,7 +207,7 @@ class IntegratorStepper:
 
 
 def _integrators():
-    """The METHODS registry and make_integrator of gyro_rotor.integrators, if present."""
+    """Return the METHODS registry and make_integrator of gyro_rotor.integrators, if present."""
     try:
         from gyro_rotor.integrators import make_integrator, METHODS
     except ImportError:
@@ -230,7 +229,7 @@ def resolve_method(method: str, params, t_end: float = math.inf) -> tuple[str, s
 
 def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: float = 0.0,
                  atol: float = 0.0, step_size: float = 0.0, model=None) -> Stepper:
-    """A stepper by name.
+    """Make a stepper by name.
 
     With ``model`` given, a method of :mod:`gyro_rotor.integrators` (``rk4``, ``rk8``,
     ``dop853``, ``gauss6``, ``rodas4``); otherwise, or for the scipy names (``DOP853``,
@@ -476,7 +475,7 @@ class EnergyBaseline:
         self.jumps = 0
 
     def restart(self, energy: Callable[[np.ndarray], float], y0: np.ndarray) -> None:
-        """New baseline E_ref = E*(y0) + D(y0) (reset)."""
+        """Start a new baseline E_ref = E*(y0) + D(y0) (reset)."""
         self.energy = energy
         self.E_ref = float(energy(y0)) + float(y0[self.idiss])
 
@@ -490,6 +489,6 @@ class EnergyBaseline:
         return jump
 
     def residual(self, y: np.ndarray, E: float | None = None) -> float:
-        """r = E*(y) + D(y) - E_ref."""
+        """Return the residual r = E*(y) + D(y) - E_ref."""
         E = float(self.energy(y)) if E is None else E
         return E + float(y[self.idiss]) - self.E_ref

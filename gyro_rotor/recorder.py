@@ -5,8 +5,11 @@ subscription (RELIABLE, KEEP_ALL, VOLATILE; KEEP_LAST ``depth`` TRANSIENT_LOCAL 
 latched ``~/scene`` document), so the bag holds the serialized bytes exactly as received, never
 re-encoded. A topic's channel is registered at its first message, with the QoS profiles its
 publishers offer (``Node.get_publishers_info_by_topic``), as ``ros2 bag record`` does;
-``log_time`` is the receive time and ``publish_time`` the publisher's source timestamp
-(both ns since the epoch). A timer flushes the open chunk every ``flush_period`` seconds
+``log_time`` is the receive time (when the recorder took the message, wall clock) and
+``publish_time`` the publisher's DDS source timestamp (both ns since the epoch, this host's
+clock); the simulation time is only in the messages (stamps, ``/clock``). Each callback
+drains its subscription (up to ``DRAIN_MAX`` messages), which the executor's per-callback
+cost makes necessary at 1000 Hz. A timer flushes the open chunk every ``flush_period`` seconds
 and the writer ends a chunk at least every ``flush_period`` while messages arrive, so a
 killed recorder loses at most about a second.
 
@@ -19,17 +22,20 @@ from __future__ import annotations
 import functools
 import os
 from pathlib import Path
+import shutil
 import time
 from typing import Callable, Mapping
 
+from gyro_rotor.bagio import BagWriter, normalize_qos, qos_profile_dict
+from gyro_rotor.errors import BagError
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from gyro_rotor.bagio import BagWriter, normalize_qos, qos_profile_dict
-from gyro_rotor.errors import BagError
+__all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable', 'DRAIN_MAX',
+           'MIN_FREE_BYTES']
 
-__all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable', 'DRAIN_MAX']
-
+#: free space check_writable requires [bytes] (about a minute at 1000 Hz)
+MIN_FREE_BYTES = 32 * 1024 * 1024
 #: most messages one callback takes from its subscription beyond the one it was given
 DRAIN_MAX = 200
 
@@ -49,7 +55,7 @@ def sim_topics(sim_node: str = 'rotor_sim') -> dict[str, str]:
 
 
 def default_bag_path(root: str | os.PathLike = 'bags_out') -> Path:
-    """A fresh timestamped bag directory under ``root`` (not created here)."""
+    """Return a fresh timestamped bag directory under ``root`` (not created here)."""
     stamp = time.strftime('%Y%m%d_%H%M%S', time.localtime())
     base = Path(root) / f'rotor_{stamp}'
     path, i = base, 1
@@ -59,8 +65,13 @@ def default_bag_path(root: str | os.PathLike = 'bags_out') -> Path:
     return path
 
 
-def check_writable(path: Path) -> None:
-    """Raise BagError unless the bag directory ``path`` can be created (before any ROS work)."""
+def check_writable(path: Path, min_free: int | None = None) -> None:
+    """Raise BagError unless the bag directory ``path`` can be created (before any ROS work).
+
+    Also refuses a file system with less than ``min_free`` bytes free (default
+    :data:`MIN_FREE_BYTES`), so that a full disk is a clear error at start rather than a
+    failed write later.
+    """
     path = Path(path)
     if path.exists():
         raise BagError(f'output {path} exists already, not overwriting')
@@ -69,6 +80,11 @@ def check_writable(path: Path) -> None:
         parent = parent.parent
     if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
         raise BagError(f'output directory {parent} is not writable (bag {path})')
+    need = MIN_FREE_BYTES if min_free is None else min_free
+    free = shutil.disk_usage(parent).free
+    if free < need:
+        raise BagError(f'output directory {parent} has only {free // 1024} kB free, at least '
+                       f'{need // 1024} kB needed to start recording (bag {path})')
 
 
 def _import_type(type_name: str):
@@ -103,19 +119,28 @@ class BagRecorder:
         Topics to subscribe TRANSIENT_LOCAL (latched documents).
     compression : {'none', 'zstd', 'lz4'}
         MCAP chunk compression (rosbag2 writes none by default).
+    on_error : callable, optional
+        ``on_error(text)`` once when a write fails (disk full, I/O error): recording then
+        stops, ``on_message`` still gets every message, and :meth:`close` raises.
     """
 
     def __init__(self, node: Node, path: str | os.PathLike, topics: Mapping[str, str], *,
                  metadata: Mapping[str, Mapping[str, str]] | None = None, depth: int = 1000,
                  flush_period: float = 0.5,
                  on_message: Callable[[str, bytes], None] | None = None,
-                 latched: tuple = (), compression: str = 'none'):
+                 latched: tuple = (), compression: str = 'none',
+                 on_error: Callable[[str], None] | None = None):
         self.node = node
         self.path = Path(path)
         self.on_message = on_message
         self.writer = BagWriter(self.path, flush_interval_s=flush_period, metadata=metadata,
                                 compression=compression)
         self.received: dict[str, int] = {}
+        #: why recording stopped (a failed write), None while all is well
+        self.failed: str | None = None
+        #: messages received after a failed write (not in the bag)
+        self.not_written = 0
+        self.on_error = on_error
         self._types: dict[str, str] = {}
         self._subs = []
         self._sub_of: dict = {}
@@ -145,8 +170,11 @@ class BagRecorder:
         profiles = [normalize_qos(i.qos_profile)[0] for i in infos]
         return profiles or [qos_profile_dict()]
 
-    def _on_raw(self, topic: str, data: bytes, info=None) -> None:
+    def _on_raw(self, topic: str, data: bytes, info) -> None:
         """Record a message, then take and record what else is queued on the topic.
+
+        ``info`` has no default, so that rclpy passes the MessageInfo (with the DDS source
+        timestamp, the bag's ``publish_time``).
 
         The executor costs far more per callback than a take does, so each callback drains
         up to ``drain_max`` further messages of its subscription itself.
@@ -171,14 +199,21 @@ class BagRecorder:
         now = time.time_ns()
         if self.writer.closed:
             return
-        if topic not in self.received:
-            self.writer.add_topic(topic, self._types[topic], self._offered_qos(topic))
-            self.received[topic] = 0
-        publish = None
-        if isinstance(info, Mapping):
-            publish = info.get('source_timestamp') or None
-        self.writer.write(topic, data, now, publish if publish and publish > 0 else now)
-        self.received[topic] += 1
+        if self.failed:
+            self.not_written += 1
+        else:
+            publish = None
+            if isinstance(info, Mapping):
+                publish = info.get('source_timestamp') or None
+            try:
+                if topic not in self.received:
+                    self.writer.add_topic(topic, self._types[topic], self._offered_qos(topic))
+                    self.received[topic] = 0
+                self.writer.write(topic, data, now, publish if publish and publish > 0 else now)
+                self.received[topic] += 1
+            except (OSError, BagError) as err:
+                self._fail(err)
+                self.not_written += 1
         if self.on_message is not None:
             self.on_message(topic, data)
 
@@ -189,12 +224,39 @@ class BagRecorder:
 
     def flush(self) -> None:
         """End the open chunk and write it (timer callback)."""
-        if not self.writer.closed:
-            self.writer.flush()
+        if not self.writer.closed and not self.failed:
+            try:
+                self.writer.flush()
+            except (OSError, BagError) as err:
+                self._fail(err)
+
+    def _fail(self, err: Exception) -> None:
+        """Stop writing after a failed write (disk full, ...) and say so loudly, once."""
+        if self.failed:
+            return
+        total = sum(self.received.values())
+        self.failed = (f'recording stopped after {total} messages: cannot write {self.path}: '
+                       f'{getattr(err, "strerror", None) or err}')
+        self.node.get_logger().error(self.failed)
+        if self.on_error is not None:
+            self.on_error(self.failed)
 
     def close(self) -> None:
-        """Finalize the bag (summary, footer, metadata.yaml); idempotent."""
+        """Finalize the bag (summary, footer, metadata.yaml); idempotent.
+
+        Raises
+        ------
+        BagError
+            If writing failed during the recording or at close (the bag is then
+            incomplete; ``gyro-rotor recover`` salvages what reached the disk).
+        """
         if self._timer is not None:
             self.node.destroy_timer(self._timer)
             self._timer = None
-        self.writer.close()
+        if not self.writer.closed:
+            try:
+                self.writer.close()
+            except (OSError, BagError) as err:
+                self._fail(err)
+        if self.failed:
+            raise BagError(f'{self.failed}; {self.not_written} messages not recorded')

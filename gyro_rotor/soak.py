@@ -53,7 +53,7 @@ def read_rss_kb(pid: int) -> int | None:
 
 
 def energy_seq_from_cdr(data: bytes) -> int:
-    """The ``seq`` field of a serialized ``energy`` message (the data array ends the CDR)."""
+    """Return the ``seq`` of a serialized ``energy`` message (its data array ends the CDR)."""
     from gyro_rotor.ros_msgs import ENERGY_FIELDS
     n = len(ENERGY_FIELDS)
     off = len(data) - 8 * n + 8 * ENERGY_FIELDS.index('seq')
@@ -97,12 +97,16 @@ class SoakResult:
                 and all(self.lost.get(k, 1) == 0 for k in ('joint_states', 'energy')))
 
     def rss_growth_kb(self, which: int) -> tuple[float, float]:
-        """(growth over the run after the first minute or tenth, kB per minute) of 1 = sim, 2 = ana."""
+        """Return RSS growth over the second half of the run (kB, kB/min); 1 = sim, 2 = ana.
+
+        The first half holds the warm-up (imports, DDS histories filling, the analysis
+        window filling, allocator high-water marks); a leak shows in the second half.
+        """
         pts = [(t, r[which - 1]) for t, *r in self.rss_kb if r[which - 1] is not None]
         if len(pts) < 2:
             return math.nan, math.nan
-        t_skip = min(60.0, 0.1 * pts[-1][0])
-        late = [p for p in pts if p[0] >= t_skip] or pts
+        half = 0.5 * pts[-1][0]
+        late = [p for p in pts if p[0] >= half] or pts
         grow = late[-1][1] - late[0][1]
         span = late[-1][0] - late[0][0]
         return float(grow), float(grow / span * 60.0) if span > 0 else math.nan
@@ -123,7 +127,7 @@ class SoakResult:
         return d
 
     def text(self) -> str:
-        """A human-readable summary."""
+        """Return a human-readable summary."""
         lines = [f'soak: scene {self.scene}, publish_rate {self.rate:g} Hz, '
                  f'real_time_factor {self.rtf:g}, {self.duration:g} simulated s',
                  f'  wall {self.wall_s:.1f} s, achieved real-time factor '
@@ -140,7 +144,7 @@ class SoakResult:
             g, gm = self.rss_growth_kb(i)
             if pts:
                 lines.append(f'  RSS {name}: {pts[0] / 1024:.1f} -> {pts[-1] / 1024:.1f} MB '
-                             f'(max {max(pts) / 1024:.1f}); growth after warm-up '
+                             f'(max {max(pts) / 1024:.1f}); second half of the run '
                              f'{g / 1024:.2f} MB ({gm:.1f} kB/min)')
         lines.append(f'  bag {self.bag_bytes / 1e6:.1f} MB = {self.bag_mb_per_min:.1f} MB per '
                      f'wall minute')
