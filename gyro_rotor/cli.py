@@ -67,6 +67,15 @@ def main(argv: list[str] | None = None) -> int:
     except GyroRotorError as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1
+    except (OSError, UnicodeError) as err:
+        # a file that cannot be read or written (missing directory, a directory instead of
+        # a file, no permission, disk full): the message names the path
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except (OverflowError, MemoryError) as err:
+        print(f'ERROR: the numbers asked for are too large: {type(err).__name__}: {err}',
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130

@@ -124,7 +124,7 @@ def _rhs_full_vec(Y: np.ndarray, P: np.ndarray) -> np.ndarray:
     st = np.sqrt(k1 * k1 + k2 * k2)
     th = np.arctan2(st, k3)
     t2 = th * th
-    small = st < 1e-4
+    small = th < 1e-4
     ratio = np.where(small, 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0,
                      th / np.where(small, 1.0, st))
     dV = Gs - c_theta * ratio

@@ -30,7 +30,10 @@ H = (I W_1, I W_2, C_M W_3 + C_R (W_3 + Omega0 + zdot)):
     dq/dt = q * (0, W) / 2.
 
 The restraint torque uses chi from the quaternion, which is exact for |chi| < 2 pi (a
-housing wound more than a full turn against its restraint is outside every scene).
+housing wound more than a full turn against its restraint is outside every scene). The
+form is regular everywhere except theta = pi (the axis pointing straight down), where the
+twist direction w of the restraint has no limit: a run that gets there stops with an
+:class:`~gyro_rotor.errors.IntegrationError`.
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ _SERIES_LIMIT = 1e-4
 def theta_over_sin(sin_t: float, cos_t: float) -> float:
     """Return theta / sin(theta), regular at theta = 0 (series 1 + theta^2/6 + 7 theta^4/360)."""
     theta = math.atan2(sin_t, cos_t)
-    if sin_t < _SERIES_LIMIT:
+    if theta < _SERIES_LIMIT:
         t2 = theta * theta
         return 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
     return theta / sin_t
@@ -234,7 +237,7 @@ class FullModel(Model):
             k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
             st = sqrt(k1 * k1 + k2 * k2)
             th = atan2(st, k3)
-            if st < lim:
+            if th < lim:
                 t2 = th * th
                 ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
             else:

@@ -33,8 +33,13 @@ import warnings
 
 from gyro_rotor.errors import did_you_mean, ParameterError
 
-__all__ = ['RotorParams', 'DriveLaw', 'StaticallyUnstableWarning', 'PARAM_FIELDS',
+__all__ = ['RotorParams', 'DriveLaw', 'StaticallyUnstableWarning', 'PARAM_FIELDS', 'MAX_MAGNITUDE',
            'PARAM_UNITS', 'PARAM_DESCRIPTIONS']
+
+
+#: largest magnitude of any parameter in SI units: far beyond any real machine, small enough
+#: that squares and products of parameters stay finite in double precision
+MAX_MAGNITUDE = 1e12
 
 
 class StaticallyUnstableWarning(UserWarning):
@@ -98,6 +103,10 @@ class RotorParams:
             value = float(value)
             if not math.isfinite(value):
                 raise ParameterError(f'parameter {f.name} must be finite, got {value!r}')
+            if abs(value) > MAX_MAGNITUDE:
+                raise ParameterError(
+                    f'parameter {f.name} = {value!r} is outside the supported range '
+                    f'|{f.name}| <= {MAX_MAGNITUDE:g} {PARAM_UNITS[f.name]}')
             object.__setattr__(self, f.name, value)
         for name in ('A_R', 'A_M', 'C_R', 'C_M'):
             if getattr(self, name) <= 0.0:

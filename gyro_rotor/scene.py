@@ -152,6 +152,14 @@ class Scene:
         q = np.asarray(ic.quaternion, dtype=float)
         W = np.asarray(ic.omega_body, dtype=float)
         if model.name == 'full':
+            # q and -q are one orientation, but the sign carries the twist chi (|chi| < 2 pi):
+            # without initial.chi take the smaller twist (q_w >= 0); with it, the sign that
+            # gives that twist
+            if q[0] < 0 or (q[0] == 0 and q[3] < 0):
+                q = -q
+            if ic.chi is not None and abs(2.0 * math.atan2(-q[3], -q[0]) - ic.chi) < abs(
+                    2.0 * math.atan2(q[3], q[0]) - ic.chi):
+                q = -q
             y = model.state_from_body(q, W, ic.z, ic.zdot)
             if ic.chi is not None:
                 chi_q = 2.0 * math.atan2(y[3], y[0])
@@ -176,35 +184,48 @@ class Scene:
 def perturb_state(model: Model, y: np.ndarray, perturbation: Mapping[str, float]) -> np.ndarray:
     """Apply a kick (dtheta, dthetadot, dpsidot, dchi, dz, dzdot) to a state.
 
-    The kick is added to the 3-1-3 angles and rates of the current state (regular at
-    theta = 0 with the convention of :mod:`gyro_rotor.rotations`); z and zdot directly.
-    The dissipated work D is kept.
+    Full model: the orientation is turned by dtheta and dchi in the current 3-1-3 angles
+    (psi, theta + dtheta, phi_M + dchi), and the rate kick is added to the body rates,
+    W += J(psi, theta, phi_M) (dpsidot, dthetadot, 0) with J the map of
+    :func:`~gyro_rotor.rotations.body_rates_from_euler` at the (new) angles. This is
+    linear in the kick and regular at theta = 0, where the Euler rates themselves are not
+    defined: every other component of W is kept. The quaternion keeps its hemisphere, so
+    chi moves by exactly dchi. Reduced models: the same in their coordinates. z and zdot
+    are kicked directly; the dissipated work D is kept.
     """
-    from gyro_rotor.rotations import euler_from_quaternion, euler_rates_from_body
+    from gyro_rotor.rotations import (body_rates_from_euler, euler_from_quaternion,
+                                      euler_rates_from_body, quaternion_from_euler)
     for key in perturbation:
         if key not in PERTURBATION_KEYS:
             raise SceneError(_unknown(f'perturbation.{key}', [f'perturbation.{k}'
                                                               for k in PERTURBATION_KEYS]))
     d = {k: float(perturbation.get(k, 0.0)) for k in PERTURBATION_KEYS}
+    for k, v in d.items():
+        if not math.isfinite(v):
+            raise SceneError(f'perturbation.{k} must be finite, got {v!r}')
     y = np.asarray(y, dtype=float)
-    q = model.quaternion(y)
-    W = model.body_rates(y)
-    psi, theta, phi = euler_from_quaternion(q)
-    psidot, thetadot, phidot = euler_rates_from_body(theta, phi, W)
-    theta_new = float(theta) + d['dtheta']
     if model.name != 'full' and (d['dtheta'] or d['dthetadot']):
         raise SceneError(f'model {model.name} holds the axis vertical: dtheta and dthetadot '
                          f'cannot be applied')
-    new = model.state_from_euler(theta=theta_new, thetadot=float(thetadot) + d['dthetadot'],
-                                 psi=float(psi), psidot=float(psidot) + d['dpsidot'],
-                                 phi_M=float(phi) + d['dchi'], phi_M_dot=float(phidot),
-                                 z=float(y[model.iz]) + d['dz'],
+    q = model.quaternion(y)
+    W = model.body_rates(y)
+    psi, theta, phi = (float(v) for v in euler_from_quaternion(q))
+    if model.name == 'full':
+        new = np.array(y, dtype=float)
+        if d['dtheta'] or d['dchi']:
+            theta, phi = theta + d['dtheta'], phi + d['dchi']
+            new[0:4] = quaternion_from_euler(psi, theta, phi) * np.linalg.norm(q)
+        new[4:7] = W + body_rates_from_euler(psi, theta, phi, d['dpsidot'], d['dthetadot'],
+                                             0.0)
+        new[model.iz] += d['dz']
+        new[model.izd] += d['dzdot']
+        return new
+    psidot, thetadot, phidot = euler_rates_from_body(theta, phi, W)
+    new = model.state_from_euler(theta=theta, thetadot=float(thetadot), psi=psi,
+                                 psidot=float(psidot) + d['dpsidot'], phi_M=phi + d['dchi'],
+                                 phi_M_dot=float(phidot), z=float(y[model.iz]) + d['dz'],
                                  zdot=float(y[model.izd]) + d['dzdot'])
     new[model.idiss] = y[model.idiss]
-    if model.name == 'full':
-        # keep the quaternion's sign (hemisphere) so that chi stays continuous
-        if np.dot(new[:4], y[:4]) < 0:
-            new[:4] = -new[:4]
     return new
 
 
@@ -255,8 +276,8 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
     import yaml
     path = scene_path(name_or_path)
     try:
-        text = path.read_text()
-    except OSError as err:
+        text = path.read_text(encoding='utf-8')
+    except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f'cannot read scene file {path}: {err}') from err
     try:
         doc = yaml.safe_load(text)
@@ -318,6 +339,9 @@ def _typed(key: str, value: Any, where: str, *, strict_float: bool) -> Any:
                              f'parameter files are typed')
         return float(value)
     if want is int:
+        if strict_float and isinstance(value, float):
+            raise SceneError(f'{where}: {key} must be written as an integer, got {value!r}: '
+                             f'ROS 2 parameter files are typed')
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (
                 isinstance(value, float) and not value.is_integer()):
             raise SceneError(f'{where}: {key} must be an integer, got {value!r}')
@@ -371,7 +395,7 @@ def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
             raise SceneError(f'{where}: initial.quaternion needs 4 numbers [w, x, y, z]')
         if len(ini.get('omega_body', (0, 0, 0))) != 3:
             raise SceneError(f'{where}: initial.omega_body needs 3 numbers')
-        qn = math.sqrt(sum(v * v for v in ini.get('quaternion', (1, 0, 0, 0))))
+        qn = math.hypot(*ini.get('quaternion', (1, 0, 0, 0)))
         if not (math.isfinite(qn) and qn > 0):
             raise SceneError(f'{where}: initial.quaternion must be finite and non-zero')
     else:

@@ -23,15 +23,15 @@ from gyro_rotor.scene import load_scene, Scene
 import numpy as np
 
 __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
-           'CSV_COLUMNS', 'check_tolerances', 'auto_method', 'choose_method',
+           'CSV_COLUMNS', 'check_tolerances', 'auto_method',
            'SCIPY_METHODS']
 
 DEFAULT_METHOD = 'auto'
-#: stiffness indicator K_D (1/C_R + 1/C_M) [1/s] above which 'auto' takes an implicit method
-STIFF_RATE = 1e4
 DEFAULT_RTOL = 1e-11
 DEFAULT_ATOL = 1e-12
 DEFAULT_RATE = 100.0
+#: most output samples of one simulate() call (t_end x rate)
+MAX_SAMPLES = 5e7
 #: scipy solve_ivp methods, selectable by their (upper-case) names as baselines
 SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
 
@@ -122,15 +122,6 @@ def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
 
 
-def choose_method(scene: Scene) -> str:
-    """Return the scipy ``solve_ivp`` name for a scene: DOP853, or Radau where it is stiff.
-
-    Kept for callers that step with scipy (the real-time stepper); :func:`simulate` uses
-    :func:`auto_method`.
-    """
-    return 'Radau' if auto_method(scene)[0] == 'rodas4' else 'DOP853'
-
-
 def check_tolerances(rtol: float, atol: float) -> None:
     """Refuse non-positive or non-finite tolerances (scipy would only warn)."""
     for name, v in (('rtol', rtol), ('atol', atol)):
@@ -190,14 +181,22 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
     if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
         raise ParameterError(f'the initial state must be {model.n} finite numbers')
+    if t_end * rate > MAX_SAMPLES:
+        raise ParameterError(f't_end x rate = {t_end * rate:.3g} samples is more than '
+                             f'{MAX_SAMPLES:g}: lower --rate or --t-end')
     n = int(np.floor(t_end * rate + 1e-9))
     t_eval = np.arange(n + 1) / rate
     if t_eval[-1] < t_end - 1e-12:
         t_eval = np.append(t_eval, t_end)
     t0 = time.perf_counter()
     if method in METHODS:
-        res = integrate(model, y_init, (0.0, t_end), t_eval, method, rtol=rtol, atol=atol,
-                        step=step)
+        try:
+            res = integrate(model, y_init, (0.0, t_end), t_eval, method, rtol=rtol,
+                            atol=atol, step=step)
+        except ZeroDivisionError as err:
+            raise IntegrationError(
+                f'integration of scene {scene.name} failed: the axis reached theta = pi '
+                f'(pointing straight down), where the model is singular ({err})') from err
         wall = time.perf_counter() - t0
         t_s, Y, nfev, nsteps = res.t, res.y, res.nfev, res.nsteps
         status, message = res.status, res.message
@@ -208,6 +207,10 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
                             rtol=rtol, atol=atol)
         except ValueError as err:
             raise ParameterError(f'integrator {method}: {err}') from err
+        except ZeroDivisionError as err:
+            raise IntegrationError(
+                f'integration of scene {scene.name} failed: the axis reached theta = pi '
+                f'(pointing straight down), where the model is singular ({err})') from err
         wall = time.perf_counter() - t0
         t_s, Y, nfev, nsteps = sol.t, sol.y.T, int(sol.nfev), 0
         status, message = sol.status, sol.message

@@ -16,10 +16,11 @@ closed form used here is
     psidot0 = C_R Omega0 / (2 I cos th0) [1 -/+ sqrt(1 - 4 I cos th0 (G s sin th0 - c_theta th0)
                                                          / (C_R^2 Omega0^2 sin th0))].
 
-Branch 1 (minus root) is the slow precession against the rotor's sense, branch 2 (plus
-root) the fast "nutation" in the rotor's sense (the paper's text; its eq. 22 attaches the
-labels the other way round). Where the discriminant is negative there is no steady motion
-II and :class:`~gyro_rotor.errors.NoSteadyMotionError` says so.
+Branch 1 (the minus root for Omega0 > 0; in general the root of smaller |psidot0|) is the
+slow precession against the rotor's sense, branch 2 the fast "nutation" in the rotor's
+sense (the paper's text; its eq. 22 attaches the labels the other way round). Where the
+discriminant is negative there is no steady motion II and
+:class:`~gyro_rotor.errors.NoSteadyMotionError` says so.
 """
 
 from __future__ import annotations
@@ -96,14 +97,14 @@ def precession_rate_exact(p: RotorParams, theta0: float, branch: int) -> tuple[f
     if a == 0.0:
         raise NoSteadyMotionError(f'no steady motion II at theta0 = {theta0!r}: a = 0')
     root = math.sqrt(disc)
-    # branch 1: minus root (slow precession), branch 2: plus root (fast), for Omega0 > 0;
-    # q = (h + sign(h) root)/2 avoids cancellation: roots q/a and b/q.
+    # q = (h + sign(h) root)/2 avoids cancellation: the roots are q/a (the larger |psidot0|)
+    # and b/q (the smaller). Branch 1 is the slow root, branch 2 the fast one, whatever the
+    # sign of Omega0 (for Omega0 > 0 they are the minus and plus roots of the module doc).
     sgn = 1.0 if h >= 0.0 else -1.0
     qv = 0.5 * (h + sgn * root)
-    big = qv / a
-    small = b / qv if qv != 0.0 else 0.0
-    plus, minus = (big, small) if sgn > 0 else (small, big)
-    return (minus if branch == 1 else plus), disc
+    fast = qv / a
+    slow = b / qv if qv != 0.0 else 0.0
+    return (slow if branch == 1 else fast), disc
 
 
 def precession_rate_eq22(p: RotorParams, theta0: float, branch: int) -> float:
@@ -114,9 +115,12 @@ def precession_rate_eq22(p: RotorParams, theta0: float, branch: int) -> float:
     _check(theta0, branch)
     c, s = math.cos(theta0), math.sin(theta0)
     h = p.C_R * p.Omega0
+    if h == 0.0 or c == 0.0:
+        return math.nan            # the closed form divides by C_R Omega0 and cos(theta0)
     rad = 1.0 - 4.0 * c * p.I * (p.Gs * s - p.c_theta * theta0) / (h * h * s)
     if rad < 0.0:
         return math.nan
+    # the minus root is the slow one for either sign of Omega0 (sqrt(rad) > 1 when b < 0)
     sign = -1.0 if branch == 1 else 1.0
     return h / (2.0 * c * p.I) * (1.0 + sign * math.sqrt(rad))
 
@@ -126,7 +130,7 @@ def steady_motion(p: RotorParams, theta0: float = 0.0, branch: int = 1) -> Stead
     theta0 = float(theta0)
     if branch == 0:
         _check(theta0, 0)
-        return SteadyMotion(0, 0.0, 0.0, 0.0, (p.C_R * p.Omega0) ** 2)
+        return SteadyMotion(0, 0.0, 0.0, 0.0, (p.C_R * p.Omega0) * (p.C_R * p.Omega0))
     rate, disc = precession_rate_exact(p, theta0, branch)
     return SteadyMotion(branch, theta0, rate, precession_rate_eq22(p, theta0, branch), disc)
 

@@ -56,3 +56,17 @@ def test_usage_error_and_module_entry_point():
     r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'simulate', 'nosuch'],
                        capture_output=True, text=True)
     assert r.returncode == 1 and "unknown scene 'nosuch'" in r.stderr
+
+
+@pytest.mark.parametrize('argv, match', [
+    (['simulate', 'precession', '--out', '/nonexistent/dir/x.csv'], 'does not exist'),
+    (['simulate', 'precession', '--rate', '1e12'], 'samples is more than'),
+    (['steady', 'precession', '--set', 'Omega0=1e200'], 'supported range'),
+])
+def test_bad_output_and_sizes_are_refused_before_work(argv, match, capsys):
+    assert main(argv) == 1
+    assert match in capsys.readouterr().err
+
+
+def test_set_reads_exponent_notation(capsys):
+    assert main(['steady', 'precession', '--set', 'K_D=1e-3']) == 0

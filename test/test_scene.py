@@ -47,7 +47,7 @@ HEAD = 'rotor_sim:\n  ros__parameters:\n'
     (HEAD + '    initial:\n      mode: wobble\n', 'initial.mode'),
     (HEAD + '    initial:\n      mode: body\n      quaternion: [1.0, 0.0]\n', '4 numbers'),
     (HEAD + '    initial:\n      mode: body\n      theta0: 0.1\n', 'belongs to initial.mode'),
-    (HEAD + '    pole_pairs: 1.5\n', 'pole_pairs must be an integer'),
+    (HEAD + '    pole_pairs: 1.5\n', 'pole_pairs must be written as an integer'),
     ('rotor_sim: [1, 2\n', 'not valid YAML'),
     ('other_node:\n  ros__parameters: {}\n', 'no rotor_sim'),
     ('- 1\n- 2\n', 'expected a mapping'),
@@ -87,3 +87,47 @@ def test_perturbation_kick():
     assert y2[8] == pytest.approx(y[8] + 1.0)
     with pytest.raises(SceneError, match='perturbation.dzdott'):
         perturb_state(m, y, {'dzdott': 1.0})
+
+
+def test_twist_kick_beyond_pi_moves_chi_by_exactly_dchi():
+    """Regression (review): a hemisphere flip of q used to shift chi by 2 pi."""
+    s = load_scene('precession')
+    m = s.make_model()
+    y = s.initial_state(m)
+    chi0 = m.chi(y[None])[0]
+    y2 = perturb_state(m, y, {'dchi': 4.0})
+    assert m.chi(y2[None])[0] == pytest.approx(chi0 + 4.0)
+
+
+def test_kick_at_theta_zero_keeps_the_transverse_spin():
+    """Regression (review): at sin(theta) = 0 the Euler rates lose W_1, W_2."""
+    import numpy as np
+    s = load_scene('upright')
+    m = s.make_model()
+    y = np.array([1, 0, 0, 0, 0.3, 0.4, 1.0, 0, 0, 0], dtype=float)
+    assert np.array_equal(perturb_state(m, y, {})[4:7], y[4:7])
+    y2 = perturb_state(m, y, {'dthetadot': 0.05, 'dzdot': 1.0})
+    assert np.allclose(y2[4:7], [0.35, 0.4, 1.0]) and y2[8] == 1.0
+
+
+def test_body_quaternion_sign_is_the_smaller_twist(tmp_path):
+    f = write(tmp_path, HEAD + '    initial:\n      mode: body\n'
+              '      quaternion: [-1.0, 0.0, 0.0, 0.0]\n')
+    s = load_scene(f)
+    y = s.initial_state()
+    assert y[0] == 1.0
+    assert s.make_model().energy(y) == pytest.approx(s.params.G * s.params.s)
+    f = write(tmp_path, HEAD + '    initial:\n      mode: body\n'
+              '      quaternion: [-1.0, 0.0, 0.0, 0.0]\n      chi: 6.283185307179586\n', 'c.yaml')
+    assert load_scene(f).initial_state()[0] == -1.0
+
+
+def test_typed_file_refusals(tmp_path):
+    with pytest.raises(SceneError, match='pole_pairs must be written as an integer'):
+        load_scene(write(tmp_path, HEAD + '    pole_pairs: 2.0\n'))
+    f = tmp_path / 'latin1.yaml'
+    f.write_bytes(HEAD.encode() + b'    description: "K\xf6nig"\n')
+    with pytest.raises(SceneError, match='cannot read scene file'):
+        load_scene(f)
+    with pytest.raises(ParameterError, match='supported range'):
+        load_scene('precession', overrides={'Omega0': 1e200})

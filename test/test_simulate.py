@@ -96,3 +96,14 @@ def test_trajectory_outputs_and_csv(tmp_path):
 def test_bad_simulate_input(kwargs, match):
     with pytest.raises(ParameterError, match=match):
         simulate('precession', **kwargs)
+
+
+def test_axis_straight_down_is_a_clear_error(tmp_path):
+    """The one singular orientation (theta = pi) stops the run with an IntegrationError."""
+    from gyro_rotor.errors import IntegrationError
+    from gyro_rotor.scene import load_scene
+    f = tmp_path / 'down.yaml'
+    f.write_text('rotor_sim:\n  ros__parameters:\n    initial:\n      mode: body\n'
+                 '      quaternion: [0.0, 1.0, 0.0, 0.0]\n')
+    with pytest.raises(IntegrationError, match='theta = pi'):
+        simulate(load_scene(f), t_end=0.1)

@@ -85,3 +85,19 @@ def test_full_model_stays_on_solution_ii(branch):
     assert np.max(np.abs(tr.psidot - sm.psidot0)) < 1e-7 * max(1.0, abs(sm.psidot0))
     assert np.max(np.abs(tr.chi)) < 1e-8
     assert np.max(np.abs(tr.z)) < 1e-8
+
+
+def test_branches_for_a_reversed_field():
+    """Omega0 < 0 mirrors the motion: branch 1 stays the slow one, eq. (22) agrees."""
+    p = RotorParams()
+    q = p.replace(Omega0=-p.Omega0)
+    for branch in (1, 2):
+        fwd, rev = steady_motion(p, 0.1, branch), steady_motion(q, 0.1, branch)
+        assert rev.psidot0 == pytest.approx(-fwd.psidot0)
+        assert rev.relative_difference == pytest.approx(-fwd.relative_difference)
+    assert abs(steady_motion(q, 0.1, 1).psidot0) < abs(steady_motion(q, 0.1, 2).psidot0)
+
+
+def test_field_at_rest_has_an_exact_rate_and_no_closed_form():
+    sm = steady_motion(RotorParams(Omega0=0.0), 0.1, 1)
+    assert math.isfinite(sm.psidot0) and math.isnan(sm.psidot0_eq22)

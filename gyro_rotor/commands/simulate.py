@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gyro_rotor.cli_util import parse_sets
+from gyro_rotor.cli_util import check_output_file, parse_sets
 from gyro_rotor.simulate import DEFAULT_RATE, simulate
 
 HELP = 'simulate a scene (name or YAML path) and print a summary'
@@ -25,6 +25,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulation and print the summary."""
+    if args.out:
+        check_output_file(args.out, ('.csv', '.npz'))
     tr = simulate(args.scene, t_end=args.t_end, rate=args.rate, method=args.method,
                   rtol=args.rtol, atol=args.atol, overrides=parse_sets(args.set))
     if args.out:

@@ -83,7 +83,7 @@ def rhs(kind, y, P, out):
         k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
         st = math.sqrt(k1 * k1 + k2 * k2)
         th = math.atan2(st, k3)
-        if st < _SERIES_LIMIT:
+        if th < _SERIES_LIMIT:
             t2 = th * th
             ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
         else:
