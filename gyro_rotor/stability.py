@@ -39,9 +39,15 @@ import numpy as np
 __all__ = ['Mode', 'StabilityReport', 'RootLocus', 'Claim', 'ClaimsReport', 'TuneResult',
            'spectrum', 'modes', 'analyze', 'analyze_scene', 'root_locus', 'check_claims',
            'best_K_D', 'track', 'sweep', 'asymptotes', 'sensitivities', 'default_grid',
-           'scene_operating_point', 'ZERO_ROOT', 'TOL_RE_REL']
+           'scene_operating_point', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
+#: without drive stiffness (K_S = 0) the lag z is cyclic too: a second structural zero root
+ZERO_ROOT_Z = 'zero root (cyclic z: no drive stiffness)'
+#: the structural zero roots: listed, never judged
+STRUCTURAL = (ZERO_ROOT, ZERO_ROOT_Z)
+#: at most this many bisections per path point in :func:`track` (plus a fixed reserve)
+MAX_BISECTIONS_PER_POINT = 16
 #: a real part with |Re| <= TOL_RE_REL ||A0||_F is on the imaginary axis (eig noise is
 #: ~1e-14 ||A0||; the pencil keeps it there for every K_D)
 TOL_RE_REL = 1e-12
@@ -199,17 +205,60 @@ def _tol_re(lin: LinearSystem) -> float:
     return TOL_RE_REL * max(np.linalg.norm(lin.A0), 1.0)
 
 
+def _cyclic_z(lin: LinearSystem) -> int | None:
+    """Index of z if it is cyclic (K_S = 0: its column of A0 is zero), else None."""
+    if lin.params.K_S != 0.0 or 'z' not in lin.state_names:
+        return None
+    iz = lin.state_names.index('z')
+    return iz if not np.any(lin.A0[:, iz]) else None
+
+
 def spectrum(lin: LinearSystem, K_D: float, *, left: bool = False):
     """Return the eigenvalues and eigenvectors of A(K_D); K_D may be inf.
 
     Eigenvalues (n,), right eigenvectors (n, n) (columns, energy-weighted, unit norm)
     and, if ``left``, left eigenvectors (unweighted).
+
+    Without drive stiffness (K_S = 0) z is cyclic: its zero root is deflated (the
+    spectrum of A without z, then the root 0 with eigenvector e_z appended last) so that
+    it cannot make a defective cluster with the drive's slip root at K_D = 0; z carries
+    no energy then (weight sqrt(K_S) = 0), so the other weighted vectors have no z part.
+    Raises ParameterError if K_D is negative or the eigenvalues are not finite (K_D
+    beyond what double precision resolves).
     """
-    import scipy.linalg as sl
-    n = len(lin.c)
     if K_D < 0 or math.isnan(K_D):
         raise ParameterError(f'K_D must not be negative, got {K_D!r} N m s/rad')
-    big = K_D * np.linalg.norm(lin.b) * np.linalg.norm(lin.c) > np.linalg.norm(lin.A0)
+    iz = _cyclic_z(lin)
+    if iz is None:
+        out = _spectrum(lin, K_D, left)
+    else:
+        keep = [k for k in range(len(lin.c)) if k != iz]
+        red = dataclasses.replace(
+            lin, A=lin.A[np.ix_(keep, keep)], A0=lin.A0[np.ix_(keep, keep)], b=lin.b[keep],
+            c=lin.c[keep], weights=lin.weights[keep],
+            groups=tuple(lin.groups[k] for k in keep),
+            state_names=tuple(lin.state_names[k] for k in keep))
+        r = _spectrum(red, K_D, left)
+        n = len(lin.c)
+        ez = np.zeros((n, 1), dtype=complex)
+        ez[iz] = 1.0
+
+        def pad(M):
+            full = np.zeros((n, M.shape[1]), dtype=complex)
+            full[keep] = M
+            return np.hstack([full, ez])
+        out = (np.append(r[0], 0.0),) + tuple(pad(M) for M in r[1:])
+    if not np.all(np.isfinite(out[0])):
+        raise ParameterError(f'K_D = {float(K_D)!r} N m s/rad is too large for the linear '
+                             'analysis: the eigenvalues are not finite in double precision')
+    return out
+
+
+def _spectrum(lin: LinearSystem, K_D: float, left: bool):
+    import scipy.linalg as sl
+    n = len(lin.c)
+    c_norm = max(np.linalg.norm(lin.c), 1e-300)
+    big = K_D * np.linalg.norm(lin.b) > np.linalg.norm(lin.A0) / c_norm
     if not big:
         if left:
             lam, W, V = sl.eig(lin.with_K_D(K_D), left=True, right=True)
@@ -247,15 +296,27 @@ def _shares(lin: LinearSystem, Vw: np.ndarray) -> dict:
     return {g: e[groups == g].sum(axis=0) / tot for g in ('tilt', 'twist', 'drive')}
 
 
-def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> list:
-    """Names of the eigenvalues of A0 (K_D = 0) by modal energy shares (module doc)."""
+def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None) -> list:
+    """Names of the eigenvalues of A0 (K_D = 0) by modal energy shares (module doc).
+
+    ``d`` (the sensitivities d lambda/d K_D) decides which of several zero roots is the
+    structural one of psi: the one the drive damping does not move.
+    """
     from scipy.optimize import linear_sum_assignment
     n = len(lam)
     tol_im = 1e-9 * max(np.max(np.abs(lam)), 1.0)
     names: list = [None] * n
     free = list(range(n))
+    if _cyclic_z(lin) is not None:          # spectrum() appends the root of z last
+        names[n - 1] = ZERO_ROOT_Z
+        free.remove(n - 1)
     if lin.coords == 'II':
-        j0 = int(np.argmin(np.abs(lam)))
+        mag = np.abs(lam[free])
+        if d is not None:
+            near = mag <= 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
+            if np.sum(near) > 1:
+                mag = np.where(near, np.abs(np.asarray(d)[free]), np.inf)
+        j0 = free[int(np.argmin(mag))]
         names[j0] = ZERO_ROOT
         free.remove(j0)
     units = []               # lists of eigenvalue indices: a conjugate pair or a real root
@@ -298,9 +359,17 @@ def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> list:
 def _match(lam0, V0, lam1, V1):
     """Assign new eigenpairs to old ones: eigenvector overlap, eigenvalue distance."""
     from scipy.optimize import linear_sum_assignment
+    if not (np.all(np.isfinite(lam1)) and np.all(np.isfinite(V1))):
+        raise ParameterError('the eigenvalues along the path are not finite (a parameter '
+                             'beyond what double precision resolves)')
     overlap = np.abs(V0.conj().T @ V1)
-    scale = max(np.max(np.abs(lam0)), np.max(np.abs(lam1)), 1e-12)
-    D = np.abs(lam0[:, None] - lam1[None, :]) / scale
+    # the spectral scale without the one root that escapes like -K_D c^T b (which would
+    # make every other root's step look negligible); that root is measured against itself
+    a0, a1 = np.abs(lam0), np.abs(lam1)
+    scale = max(np.sort(a0)[-2] if a0.size > 1 else a0[0],
+                np.sort(a1)[-2] if a1.size > 1 else a1[0], 1e-12)
+    D = (np.abs(lam0[:, None] - lam1[None, :])
+         / np.maximum(scale, np.minimum(a0[:, None], a1[None, :])))
     cost = (1.0 - overlap) + D
     rows, cols = linear_sum_assignment(cost)
     perm = np.empty(len(lam0), dtype=int)
@@ -321,7 +390,8 @@ def track(fn: Callable[[float], tuple], s_values: Sequence[float], labels0: list
     s_values : sequence of float
         The path (monotonic); intervals where the match is ambiguous (overlap below
         ``min_overlap`` or a jump above ``max_jump`` of the spectral scale) are bisected
-        (geometrically if ``log`` and both ends are positive) up to ``max_depth`` times.
+        (geometrically if ``log`` and both ends are positive) up to ``max_depth`` times,
+        and at most :data:`MAX_BISECTIONS_PER_POINT` times per path point in all.
     labels0 : list of str
         Names of the eigenpairs of ``fn(s_values[0])``, in its order.
 
@@ -333,6 +403,9 @@ def track(fn: Callable[[float], tuple], s_values: Sequence[float], labels0: list
     s_values = [float(s) for s in s_values]
     lam, V = fn(s_values[0])
     out = [lam.copy()]
+    # a cap on the bisections of the whole path: a degenerate cluster (repeated roots
+    # whose vectors eig picks arbitrarily) must not bisect every interval to max_depth
+    budget = MAX_BISECTIONS_PER_POINT * len(s_values) + 4 * max_depth
     for s1 in s_values[1:]:
         stack = [(s1, 0)]
         cur_s = s_values[len(out) - 1]
@@ -340,12 +413,13 @@ def track(fn: Callable[[float], tuple], s_values: Sequence[float], labels0: list
             target, depth = stack[-1]
             lam1, V1 = fn(target)
             perm, (ov, jump) = _match(lam, V, lam1, V1)
-            if (ov < min_overlap or jump > max_jump) and depth < max_depth:
+            if (ov < min_overlap or jump > max_jump) and depth < max_depth and budget > 0:
                 if log and cur_s > 0 and target > 0:
                     mid = math.sqrt(cur_s * target)
                 else:
                     mid = 0.5 * (cur_s + target)
                 if mid != cur_s and mid != target:
+                    budget -= 1
                     stack.append((mid, depth + 1))
                     continue
             lam, V = lam1[perm], V1[:, perm]
@@ -361,12 +435,19 @@ def sensitivities(lin: LinearSystem) -> tuple:
 
     Eigenvalue perturbation theory: d lambda/d K_D = -(w^H b)(c^T v)/(w^H v). Where
     w^H v is tiny (a defective or repeated root) a central finite difference of the
-    tracked eigenvalue over K_D in [-h, h] replaces it.
+    tracked eigenvalue over K_D in [-h, h] replaces it. A semisimple cluster of zero roots
+    (K_S = 0 about solution II: the roots of psi and of the drive's slip) has no unique
+    eigenvectors: its basis is the one that the perturbation -K_D b c^T diagonalizes
+    (first-order degenerate perturbation theory), and d lambda/d K_D are the eigenvalues
+    of the perturbation restricted to it.
     """
     lam, Vw, W = spectrum(lin, 0.0, left=True)
     V = Vw / lin.weights[:, None]
     d = np.empty(len(lam), dtype=complex)
+    done = _zero_cluster(lin, lam, V, W, Vw, d)
     for j in range(len(lam)):
+        if j in done:
+            continue
         w, v = W[:, j], V[:, j]
         den = np.vdot(w, v)
         cond = np.linalg.norm(w) * np.linalg.norm(v) / max(abs(den), 1e-300)
@@ -380,16 +461,40 @@ def sensitivities(lin: LinearSystem) -> tuple:
     return lam, d, Vw
 
 
+def _zero_cluster(lin, lam, V, W, Vw, d) -> set:
+    """Resolve a semisimple cluster of zero roots in place (see :func:`sensitivities`).
+
+    Returns the indices handled (their ``Vw`` columns rotated, ``d`` set).
+    """
+    n = len(lam)
+    iz = _cyclic_z(lin)
+    tol = 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
+    idx = [j for j in range(n) if abs(lam[j]) <= tol and not (iz is not None and j == n - 1)]
+    if len(idx) < 2:
+        return set()
+    N, L = V[:, idx], W[:, idx]
+    G = L.conj().T @ N
+    if np.linalg.cond(G) > 1e8:        # pragma: no cover -- a defective cluster
+        return set()
+    M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
+    mu, Y = np.linalg.eig(M)
+    Vn = (N @ Y) * lin.weights[:, None]
+    Vw[:, idx] = Vn / np.maximum(np.linalg.norm(Vn, axis=0), 1e-300)
+    d[idx] = mu
+    return set(idx)
+
+
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
     """Mode objects: one per name (upper eigenvalue), or per real root of a split pair."""
     by_name: dict = {}
     for j, nm in enumerate(names):
         by_name.setdefault(nm, []).append(j)
-    tol_im = 1e-9 * max(np.max(np.abs(lam_K)), 1.0)
+    # a pair is complex beyond the scale of A0, not of the escaping root -K_D c^T b
+    tol_im = 1e-9 * max(np.linalg.norm(lin.A0), 1.0)
     out = []
     for nm, idx in by_name.items():
         lams = lam_K[idx]
-        if nm == ZERO_ROOT:
+        if nm in STRUCTURAL:
             groups = [(nm, idx[0], 'zero')]
         elif len(idx) == 2 and abs(lams[0].imag) > tol_im:
             j = idx[int(np.argmax(lams.imag))]
@@ -417,15 +522,17 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
 def _tracked_names(lin: LinearSystem, K_values: Sequence[float]):
     """Names at K_D = 0 and the eigenvalues tracked along ``K_values`` (starting at 0)."""
     lam0, d0, Vw = sensitivities(lin)
-    names = _name_at_zero(lin, lam0, Vw)
-    lam_path = track(lambda k: spectrum(lin, k), K_values, names, log=True)
+    names = _name_at_zero(lin, lam0, Vw, d0)
+    lam_path = track(lambda k: (lam0, Vw) if k == 0 else spectrum(lin, k), K_values, names,
+                     log=True)
     return names, lam0, d0, lam_path
 
 
-def _path_to(K_D: float, per_decade: int = 8) -> list:
+def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
+    """0, then a log path to K_D that starts well below the characteristic K_D."""
     if K_D <= 0:
         return [0.0]
-    lo = K_D * 1e-6
+    lo = min(K_D * 1e-6, 1e-4 * _K_ref(params))
     return [0.0] + list(np.geomspace(lo, K_D, 6 * per_decade + 1))
 
 
@@ -443,7 +550,7 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     if not (K_D >= 0 and math.isfinite(K_D)):
         raise ParameterError(f'K_D must be finite and not negative, got {K_D!r} N m s/rad')
     lin = linearize(params.replace(K_D=K_D), motion, model)
-    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D))
+    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
     lam_K = lam_path[-1]
     tol_re = _tol_re(lin)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
@@ -636,7 +743,7 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
                          'freq_hz': sorted((lam0[lam0.imag > tol_re].imag / (2 * math.pi))
                                            .tolist())})
     # (b)
-    judged = [j for j, nm in enumerate(names) if nm != ZERO_ROOT]
+    judged = [j for j, nm in enumerate(names) if nm not in STRUCTURAL]
     pos = loc.K_D > 0
     re = loc.eigenvalues[pos][:, judged].real
     worst = re.max(axis=1)
@@ -645,7 +752,7 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
     # branch returning toward its asymptote on the axis like 1/K_D)
     lam_s, d0, Vw_s = sensitivities(lin)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
-    names0 = _name_at_zero(lin, lam_s, Vw_s)
+    names0 = _name_at_zero(lin, lam_s, Vw_s, d0)
     reached = {nm for nm, dj in zip(names0, d0) if dj.real < -tol_sens}
     ok_small = np.array([names[j] in reached for j in judged])
     bad_pts = (re > tol_re) | ((re > -tol_re) & ~ok_small[None, :])
@@ -726,7 +833,7 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
         regimes.append({'regime': 'rotor-field pair real (overdamped)', 'K_D_from': K_star,
                         'K_D_to': math.inf})
     for nm in dict.fromkeys(names):
-        if nm == ZERO_ROOT:
+        if nm in STRUCTURAL:
             continue
         js = [j for j, x in enumerate(names) if x == nm]
         re_b = loc.eigenvalues[:, js].real.max(axis=1)
@@ -755,15 +862,19 @@ def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
         params = params.replace(K_S=float(K_S))
     lin = linearize(params, motion, model)
     names, lam0, d0, _ = _tracked_names(lin, [0.0])
+    lam_z, _, Vw_z = sensitivities(lin)
+
+    def fn0(k):          # the K_D = 0 basis that named the modes (zero clusters resolved)
+        return (lam_z, Vw_z) if k == 0 else spectrum(lin, k)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
     excluded = sorted({nm for j, nm in enumerate(names)
-                       if nm == ZERO_ROOT or not d0[j].real < -tol_sens})
+                       if nm in STRUCTURAL or not d0[j].real < -tol_sens})
     judged_names = {nm for nm in names if nm not in excluded}
     if not judged_names:
         raise ParameterError('no mode is reached by the drive damping: K_D cannot be tuned')
     grid = default_grid(params) if K_D_grid is None else _check_grid(K_D_grid)
     grid = grid[grid > 0]
-    lam_path = track(lambda k: spectrum(lin, k), [0.0] + list(grid), names, log=True)[1:]
+    lam_path = track(fn0, [0.0] + list(grid), names, log=True)[1:]
     judged = [j for j, nm in enumerate(names) if nm in judged_names]
 
     def rate_of(lam):
@@ -793,7 +904,7 @@ def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     slopes = ((math.log(r_best) - math.log(r_m)) / h if r_m > 0 else math.nan,
               (math.log(r_p) - math.log(r_best)) / h if r_p > 0 else math.nan)
     cur = params.K_D
-    r_cur = (rate_of(track(lambda k: spectrum(lin, k), _path_to(cur), names, log=True)[-1])
+    r_cur = (rate_of(track(fn0, _path_to(cur, params), names, log=True)[-1])
              if cur > 0 else 0.0)
     return TuneResult(K_S=params.K_S, K_D_best=K_best, rate_best=r_best,
                       tau_best=1.0 / r_best if r_best > 0 else math.inf,
@@ -832,7 +943,7 @@ def sweep(params: RotorParams, name: str, values: Sequence[float], *, theta0: fl
         return linearize(p, sm, model)
 
     lin0 = lin_at(values[0])
-    names, _, _, path0 = _tracked_names(lin0, _path_to(lin0.params.K_D))
+    names, _, _, path0 = _tracked_names(lin0, _path_to(lin0.params.K_D, lin0.params))
     # start the parameter path from the tracked state at K_D
     lam_start = path0[-1]
     lam_s, V_s = spectrum(lin0, lin0.params.K_D)

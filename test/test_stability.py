@@ -16,7 +16,7 @@ from gyro_rotor.params import RotorParams
 from gyro_rotor.scene import load_scene
 from gyro_rotor.simulate import simulate
 from gyro_rotor.stability import (analyze, analyze_scene, best_K_D, check_claims, root_locus,
-                                  sensitivities, spectrum, sweep, ZERO_ROOT)
+                                  sensitivities, spectrum, sweep, ZERO_ROOT, ZERO_ROOT_Z)
 from gyro_rotor.steady import steady_motion
 from gyro_rotor.sysid import match_eigenvalues, matrix_pencil
 import numpy as np
@@ -125,6 +125,60 @@ def test_penetration_solution_I_tilt_modes_not_reached():
     assert 'Hagedorn' in r.reason
     for name in ('housing twist', 'rotor-field coupling'):
         assert r.mode(name).reached_by_drive and r.mode(name).eigenvalue.real < 0
+
+
+@pytest.mark.parametrize('K_D', [1e9, 1e12])
+def test_modes_at_huge_K_D_stay_named_pairs(K_D):
+    # the escaping root -150 K_D must not make the nutation and the twist look real
+    r = analyze(P, steady_motion(P, 0.1, 1), K_D=K_D)
+    names = {m.name for m in r.modes}
+    assert {'nutation', 'housing twist', 'rotor-field coupling (slow real)',
+            'rotor-field coupling (fast real)', ZERO_ROOT} == names
+    nut = r.mode('nutation')
+    assert nut.kind == 'oscillatory' and nut.eigenvalue.imag > 60
+    assert r.mode('rotor-field coupling (fast real)').eigenvalue.real < -1e2 * K_D
+
+
+def test_non_finite_spectrum_is_a_parameter_error():
+    lin = linearize(P, steady_motion(P, 0.1, 1))
+    with pytest.raises(ParameterError, match='too large'):
+        spectrum(lin, 1e300)
+    with pytest.raises(ParameterError, match='too large'):
+        root_locus(lin, np.geomspace(1e-3, 1e300, 20))
+
+
+def test_no_drive_stiffness_cyclic_z_is_a_structural_zero_root():
+    # K_S = 0: z is cyclic (a second zero root for every K_D) and the drive's pair
+    # degenerates into the slip root -K_D/C_R-like real root, reached by the drive
+    import gyro_rotor.stability as st
+    p = P.replace(K_S=0.0, K_D=0.05)
+    calls = []
+    real_spectrum = st.spectrum
+
+    def counting(*a, **k):
+        calls.append(1)
+        return real_spectrum(*a, **k)
+    st.spectrum = counting
+    try:
+        r = analyze(p, steady_motion(p, 0.1, 1))
+    finally:
+        st.spectrum = real_spectrum
+    # bounded work: no interval bisected to max_depth (the old code made ~1e5 calls)
+    assert len(calls) < 2000
+    assert r.verdict == 'asymptotically stable'
+    assert {m.name for m in r.modes} == {'nutation', 'housing twist', 'rotor-field coupling',
+                                         ZERO_ROOT, ZERO_ROOT_Z}
+    slip = r.mode('rotor-field coupling')
+    assert slip.kind == 'real' and slip.reached_by_drive and slip.eigenvalue.real < 0
+    # the slip root is the drive's: it moves like K_D at small K_D
+    assert slip.dRe_dKD < 0
+    for nm in (ZERO_ROOT, ZERO_ROOT_Z):
+        m = r.mode(nm)
+        assert m.kind == 'zero' and not m.reached_by_drive and math.isinf(m.tau)
+    # the zero roots are exact eigenvalues of A (z cyclic: a zero column)
+    lam = np.linalg.eigvals(r.A)
+    assert np.sum(np.abs(lam) < 1e-9) == 2
+    assert np.min(np.abs(lam - slip.eigenvalue)) < 1e-9 * abs(slip.eigenvalue)
 
 
 def test_sensitivity_matches_finite_difference():

@@ -32,11 +32,11 @@ def run(args: argparse.Namespace) -> int:
     print(f'scene {scene.name} (model {model}), about {sm.name}: theta0 = {sm.theta0:g} rad, '
           f'psidot0 = {sm.psidot0:.9g} rad/s; K_S = {p.K_S:g}, K_D = {p.K_D:g}')
     print(f'  state: ({", ".join(r.state_names)})')
-    print(f'  {"mode":34s} {"Re [1/s]":>13s} {"Im [rad/s]":>12s} {"f [Hz]":>9s} '
+    print(f'  {"mode":40s} {"Re [1/s]":>13s} {"Im [rad/s]":>12s} {"f [Hz]":>9s} '
           f'{"zeta":>10s} {"tau [s]":>10s} {"dRe/dK_D":>11s}  reached')
     for m in r.modes:
         tau = f'{m.tau:10.4g}' if math.isfinite(m.tau) else f'{"inf":>10s}'
-        print(f'  {m.name:34s} {m.eigenvalue.real:+13.6e} {m.eigenvalue.imag:12.6f} '
+        print(f'  {m.name:40s} {m.eigenvalue.real:+13.6e} {m.eigenvalue.imag:12.6f} '
               f'{m.freq_hz:9.4f} {m.zeta:10.3e} {tau} {m.dRe_dKD:+11.4e}  '
               f'{"yes" if m.reached_by_drive else "no"}')
     print(f'  spectral abscissa {r.spectral_abscissa:+.6e} 1/s (slowest: {r.slowest_mode})')
