@@ -40,7 +40,7 @@ import dataclasses
 import math
 from typing import Any, Iterable, Mapping, Sequence
 
-from gyro_rotor.errors import AnalysisError
+from gyro_rotor.errors import AnalysisError, BagError, ParameterError
 from gyro_rotor.scene import Scene
 import numpy as np
 
@@ -388,11 +388,14 @@ class ModeCheck:
     amplitude: float
     status: str
     reached_by_drive: bool = True
+    structural: bool = False
 
     @property
     def pred_tau(self) -> float:
-        """Predicted decay time [s]."""
-        return -1.0 / self.predicted.real if self.predicted.real < 0 else math.inf
+        """Predicted decay time [s] (inf for a structural zero root: it does not decay)."""
+        if self.structural or not self.predicted.real < 0:
+            return math.inf
+        return -1.0 / self.predicted.real
 
     @property
     def meas_tau(self) -> float:
@@ -556,7 +559,7 @@ class _Segment:
         self.residual_max = 0.0
         self.slips = 0
         self.last_slip_t = -math.inf
-        self.max_index: int | None = None
+        self.well_index: int | None = None   # the well z last arrived in (hysteresis)
         self.last: Sample | None = None
         self.fit: dict = {}
 
@@ -568,6 +571,19 @@ class _Segment:
         if len(self.rows) > self.max_samples:
             del self.rows[:len(self.rows) - self.max_samples]
         self.last = s
+
+
+def _check_window(window_s) -> float:
+    """Return the fit window [s] (inf for 0, inf or None: whole segments); refuse < 0, NaN."""
+    if window_s is None:
+        return math.inf
+    try:
+        w = float(window_s)
+    except (TypeError, ValueError):
+        raise ParameterError(f'window_s must be a number of seconds, got {window_s!r}') from None
+    if math.isnan(w) or w < 0:
+        raise ParameterError(f'window_s must be >= 0 s (0 = whole segments), got {w!r}')
+    return w if w > 0 and math.isfinite(w) else math.inf
 
 
 class RotorAnalyzer:
@@ -605,7 +621,7 @@ class RotorAnalyzer:
                  blas_threads: int = 1):
         if not isinstance(scene, Scene):
             raise AnalysisError('RotorAnalyzer needs a gyro_rotor.scene.Scene')
-        self.window_s = float(window_s) if window_s and math.isfinite(window_s) else math.inf
+        self.window_s = _check_window(window_s)
         self.lyapunov_tol = float(lyapunov_tol)
         self.lyapunov_rtol = float(lyapunov_rtol)
         self.residual_warn = float(residual_warn)
@@ -708,13 +724,17 @@ class RotorAnalyzer:
         if math.isfinite(s.residual):
             seg.residual_max = max(seg.residual_max, abs(s.residual))
         # synchronism: passages of z over the potential maxima (2k+1) pi / p
+        # with hysteresis: the well index changes only once z is within pi/(2p) of the
+        # bottom of another well, so jitter on a maximum counts nothing
         p = pred.pole_pairs
         if p > 0 and math.isfinite(s.z):
-            idx = math.floor((p * s.z + math.pi) / _TWO_PI)
-            if seg.max_index is not None and idx != seg.max_index:
-                seg.slips += abs(idx - seg.max_index)
-                seg.last_slip_t = s.t
-            seg.max_index = idx
+            u = p * s.z / _TWO_PI                      # z in wells (bottoms at integers)
+            k = round(u)
+            if abs(u - k) <= 0.25:
+                if seg.well_index is not None and k != seg.well_index:
+                    seg.slips += abs(k - seg.well_index)
+                    seg.last_slip_t = s.t
+                seg.well_index = k
         seg.add(s, self._row(s, pred))
 
     def _row(self, s: Sample, pred: Prediction) -> tuple:
@@ -781,7 +801,7 @@ class RotorAnalyzer:
             modes = _check_modes(R[:, 0], R[:, 5:], pred, span)
         else:
             modes = [ModeCheck(m.name, m.eigenvalue, None, math.nan, 'not identified',
-                               m.reached_by_drive) for m in pred.modes]
+                               m.reached_by_drive, m.structural) for m in pred.modes]
         res = SegmentResult(
             index=seg.index, reason=seg.reason, scene=seg.scene.name,
             t_start=seg.t_start, t_end=last.t if last else math.nan, samples=seg.samples,
@@ -938,7 +958,7 @@ def _check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float) ->
         used.add(best)
         z, a = complex(lam[best]), float(amp[best])
         out.append(ModeCheck(m.name, ev, z, a, _status(m, z, a, amax, span),
-                             m.reached_by_drive))
+                             m.reached_by_drive, m.structural))
     order_names = [m.name for m in pred.modes]
     out.sort(key=lambda c: order_names.index(c.name))
     return out
@@ -1195,6 +1215,10 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     import warnings
 
     from gyro_rotor.bagio import BagWarning, open_bag
+    if not str(path).strip():
+        raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
+    if window_s is not None:
+        _check_window(window_s)
     from gyro_rotor.scene import load_scene, scene_from_mapping
     import yaml
     with warnings.catch_warnings(record=True) as caught:

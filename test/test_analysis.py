@@ -20,7 +20,7 @@ import sys
 
 from gyro_rotor.analysis import (ANALYSIS_FIELDS, MODE_FIELDS, RotorAnalyzer, Sample, SamplePairer,
                                  samples_from_trajectory, scene_from_sim_doc, scene_to_flat)
-from gyro_rotor.errors import AnalysisError
+from gyro_rotor.errors import AnalysisError, ParameterError
 from gyro_rotor.scene import load_scene, perturb_state, scene_from_mapping
 from gyro_rotor.simulate import simulate
 import numpy as np
@@ -238,3 +238,47 @@ def test_sample_fields_must_match():
         RotorAnalyzer('precession')
     assert isinstance(Sample(0.0, 0, 0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0).positions, tuple)
     assert np.isfinite(0.0)
+
+
+def _with_z(samples, z):
+    return [dataclasses.replace(s, z=float(zi)) for s, zi in zip(samples, z)]
+
+
+def test_pole_slips_need_arrival_in_the_next_well(upright):
+    # p = 2: wells at z = k pi, maxima at pi/2 + k pi. Jitter on a maximum is no slip
+    # (the old gross-crossing count gave 15 and 'lost synchronism'); an excursion that
+    # turns back before the next well is none either; a net slip of 3 wells counts 3
+    tr, samples = upright
+    scene = load_scene('upright', overrides={'pole_pairs': 2})
+    t = np.array([s.t for s in samples])
+    _, res = analyze(scene, _with_z(samples, math.pi / 2 + 1e-3 * np.sin(4 * math.pi * t)),
+                     window_s=0)
+    assert res.pole_slips == 0
+    assert res.current.sync_state == 'synchronous'
+    assert res.verdict != 'unstable'
+    back = 0.7 * math.pi * np.sin(math.pi * t / t[-1])          # 0 -> 0.7 pi -> 0
+    _, res = analyze(scene, _with_z(samples, back), window_s=0)
+    assert res.pole_slips == 0
+    ramp = -3 * math.pi * np.clip(t / 2.0, 0.0, 1.0)           # three wells down in 2 s
+    _, res = analyze(scene, _with_z(samples, ramp), window_s=0)
+    assert res.pole_slips == 3 and res.current.well == -3
+
+
+@pytest.mark.parametrize('window', [-1.0, math.nan, 'x'])
+def test_window_must_be_non_negative(upright, window):
+    tr, _ = upright
+    with pytest.raises(ParameterError, match='window_s'):
+        RotorAnalyzer(tr.scene, window_s=window)
+
+
+@pytest.mark.parametrize('argv,msg', [(['analyze', ''], 'path is empty'),
+                                      (['analyze', 'bags/precession', '--window', '-1'],
+                                       '--window must be >= 0'),
+                                      (['analyze', 'bags/precession', '--window', 'nan'],
+                                       '--window must be >= 0')])
+def test_analyze_cli_refuses_bad_input(argv, msg, capsys, monkeypatch):
+    from gyro_rotor import cli
+    monkeypatch.chdir(REPO)
+    assert cli.main(argv) == 1
+    out = capsys.readouterr()
+    assert msg in out.err and 'INSUFFICIENT' not in out.out

@@ -68,6 +68,24 @@ def test_bag_specifics(analyses):
     assert slip.current.well == -3
 
 
+def test_structural_zero_root_has_no_predicted_decay_time(analyses):
+    # the cyclic zero root's Re is rounding-level (~1e-15): no 'tau_pred 6e+14 s'
+    from gyro_rotor.report import text_report
+    bag = analyses['precession']
+    zero = [m for m in bag.result.current.modes if m.status == 'structural zero root']
+    assert len(zero) == 1 and math.isinf(zero[0].pred_tau)
+    line = [ln for ln in text_report(bag.result, bag).splitlines()
+            if ln.strip().startswith(zero[0].name) and ':' not in ln]
+    assert len(line) == 1 and line[0].split()[-5] == '-'
+
+
+def test_empty_bag_path_is_refused(capsys):
+    assert cli.main(['analyze', '']) == 1
+    assert 'path is empty' in capsys.readouterr().err
+    with pytest.raises(BagError, match='path is empty'):
+        analyze_bag('')
+
+
 def test_sample_bag_with_three_readers():
     """Check that mcap + mcap_ros2, rosbags AnyReader and bagio's structural reader agree."""
     from mcap.reader import make_reader

@@ -27,8 +27,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the text report; 0 whatever the verdict (1 only for bad input)."""
+    import math
+
     from gyro_rotor.analysis import analyze_bag
+    from gyro_rotor.errors import BagError, ParameterError
     from gyro_rotor.report import _clean, json_report, text_report, write_report
+    if not args.bag.strip():
+        raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
+    if args.window is not None and not args.window >= 0:
+        bad = 'NaN' if math.isnan(args.window) else repr(args.window)
+        raise ParameterError(f'--window must be >= 0 s (0 = whole segments), got {bad}')
     bag = analyze_bag(args.bag, scene=args.scene, window_s=args.window)
     sys.stdout.write(text_report(bag.result, bag))
     to_stdout = args.json == '-'

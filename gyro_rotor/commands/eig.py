@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli_util import parse_sets
+from gyro_rotor.cli_util import check_output_file, parse_sets
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.scene import load_scene
 from gyro_rotor.stability import analyze, scene_operating_point
@@ -24,6 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the mode table and the verdict."""
+    if args.json:
+        check_output_file(args.json)
     scene = load_scene(args.scene, overrides=parse_sets(args.set))
     p, sm, model = scene_operating_point(scene)
     if p.K_D < 0:   # pragma: no cover -- RotorParams refuses it already

@@ -6,12 +6,15 @@ import argparse
 import csv
 import json
 
-from gyro_rotor.cli_util import parse_sets
+from gyro_rotor.cli_util import check_output_file, parse_sets
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linearize import linearize
 from gyro_rotor.scene import load_scene
 from gyro_rotor.stability import check_claims, default_grid, root_locus, scene_operating_point
 import numpy as np
+
+#: most points of the --points grid (each is an eigen-decomposition, plus tracking)
+MAX_POINTS = 100000
 
 HELP = "root locus over K_D (the paper's figure 2), its asymptotes and claims (a) to (d)"
 
@@ -25,7 +28,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--json', default=None, metavar='FILE', help='locus, asymptotes, claims')
     p.add_argument('--kd-min', type=float, default=None, help='smallest K_D > 0 of the grid')
     p.add_argument('--kd-max', type=float, default=None, help='largest K_D of the grid')
-    p.add_argument('--points', type=int, default=281, help='points of the log grid')
+    p.add_argument('--points', type=int, default=281,
+                   help=f'points of the log grid (2 to {MAX_POINTS})')
 
 
 def _grid(args, params) -> np.ndarray | None:
@@ -37,17 +41,21 @@ def _grid(args, params) -> np.ndarray | None:
             raise ParameterError(f'{name} must be positive (K_D >= 0), got {v!r}')
     if hi <= lo:
         raise ParameterError(f'--kd-max ({hi:g}) must exceed --kd-min ({lo:g})')
-    if args.points < 2:
-        raise ParameterError(f'--points must be at least 2, got {args.points}')
+    if not 2 <= args.points <= MAX_POINTS:
+        raise ParameterError(f'--points must be from 2 to {MAX_POINTS}, got {args.points}')
     return np.concatenate([[0.0], np.geomspace(lo, hi, args.points)])
 
 
 def run(args: argparse.Namespace) -> int:
     """Compute, print the claims, write the requested files."""
+    for path in (args.csv, args.json, args.out):
+        if path:
+            check_output_file(path)
     scene = load_scene(args.scene, overrides=parse_sets(args.set))
     p, sm, model = scene_operating_point(scene)
     lin = linearize(p, sm, model)
-    cr = check_claims(lin, _grid(args, p))
+    grid = _grid(args, p)
+    cr = check_claims(lin, grid)
     loc = cr.locus
     if cr.K_D_star is not None:
         # the branch point K_D* is a square-root singularity: cluster points around it
