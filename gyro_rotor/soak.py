@@ -88,7 +88,7 @@ class SoakResult:
 
     @property
     def lost(self) -> dict:
-        """Published minus recorded, per simulator topic."""
+        """Return published minus recorded, per simulator topic."""
         return {k: self.published.get(k, 0) - self.recorded.get(k, 0) for k in SIM_TOPICS
                 if k in self.published}
 

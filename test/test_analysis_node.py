@@ -17,10 +17,9 @@ import subprocess
 import sys
 import time
 
-import pytest
-
 from gyro_rotor.analysis import analyze_bag
 from gyro_rotor.bagio import open_bag
+import pytest
 
 pytestmark = pytest.mark.ros
 

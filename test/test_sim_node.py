@@ -15,16 +15,15 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402, I100
+from gyro_rotor.ros_msgs import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
+from gyro_rotor.sim_node import RotorSimNode  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
-
-from gyro_rotor.ros_msgs import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
-from gyro_rotor.sim_node import RotorSimNode  # noqa: E402
 
 pytestmark = pytest.mark.ros
 RATE = 250.0
