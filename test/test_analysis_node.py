@@ -19,6 +19,7 @@ import time
 
 from gyro_rotor.analysis import analyze_bag
 from gyro_rotor.bagio import open_bag
+from node_helpers import wait_for_log
 import pytest
 
 pytestmark = pytest.mark.ros
@@ -31,16 +32,6 @@ def _start(args: list[str], log: Path) -> subprocess.Popen:
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     return subprocess.Popen([sys.executable, '-m', *args], stdout=open(log, 'w'),
                             stderr=subprocess.STDOUT, env=env)
-
-
-def _wait_for(log: Path, text: str, proc: subprocess.Popen, timeout: float = 40.0) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if text in log.read_text():
-            return
-        assert proc.poll() is None, log.read_text()
-        time.sleep(0.1)
-    raise AssertionError(f'no {text!r} in {log}: {log.read_text()}')
 
 
 def _stop(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 30.0) -> int:
@@ -59,7 +50,7 @@ def _record(tmp_path: Path, scene: str = 'precession'):
     bag = tmp_path / 'bag'
     an = _start(['gyro_rotor.analysis_node', '--ros-args', '-p', f'output:={bag}',
                  '-p', 'window_s:=2.0', '-p', 'min_fit_s:=1.0'], tmp_path / 'an.log')
-    _wait_for(tmp_path / 'an.log', 'recording to', an)
+    wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
     time.sleep(1.0)      # let discovery settle before the first sample
     sim = _start(['gyro_rotor.sim_node', '--ros-args', '-p', f'scene:={scene}',
                   '-p', 'real_time_factor:=1.0', '-p', f't_end:={T_END}',
@@ -112,7 +103,7 @@ def _energy_seq_three_readers(bag: Path) -> tuple[list, list, list]:
 def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
     bag, an, sim = _record(tmp_path)
     try:
-        _wait_for(tmp_path / 'sim.log', "scene 'precession'", sim)
+        wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
         # the simulator publishes from its first tick, before discovery has matched the
         # recorder (rosbag2 has the same race); so restart its run once both are up: the
         # run after the reset must be recorded completely
@@ -159,7 +150,7 @@ def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
     from gyro_rotor import cli
     bag, an, sim = _record(tmp_path)
     try:
-        _wait_for(tmp_path / 'sim.log', "scene 'precession'", sim)
+        wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
         time.sleep(0.7 * T_END)          # killed while the simulation is running
         t_kill = time.time_ns()
         an.send_signal(signal.SIGKILL)
@@ -200,7 +191,7 @@ def test_sigterm_finalizes_the_bag(tmp_path):
     an = _start(['gyro_rotor.analysis_node', '--ros-args', '-p', f'output:={bag}'],
                 tmp_path / 'an.log')
     try:
-        _wait_for(tmp_path / 'an.log', 'recording to', an)
+        wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
         time.sleep(1.0)
     finally:
         rc = _stop(an, signal.SIGTERM)

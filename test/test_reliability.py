@@ -30,6 +30,8 @@ from gyro_rotor.ros_msgs import ENERGY_FIELDS
 from gyro_rotor.scene import load_scene
 from gyro_rotor.soak import energy_seq_from_cdr
 from hypothesis import given, HealthCheck, settings, strategies as st
+import node_helpers
+from node_helpers import wait_for_log
 import numpy as np
 import pytest
 import yaml
@@ -48,7 +50,7 @@ def _start_recorder(tmp_path: Path, **params) -> tuple[NodeProcess, Path]:
     an = NodeProcess('gyro_rotor.analysis_node', {'output': str(bag), 'window_s': 2.0,
                                                   'min_fit_s': 1.0, **params},
                      stdout=log, stderr=subprocess.STDOUT, env=_env())
-    _wait_for(tmp_path / 'an.log', 'recording to', an)
+    wait_for_log(tmp_path / 'an.log', 'recording to', an)
     return an, bag
 
 
@@ -58,16 +60,6 @@ def _start_sim(tmp_path: Path, name: str, **params) -> NodeProcess:
             'stop_at_t_end': True}
     return NodeProcess('gyro_rotor.sim_node', {**base, **params}, stdout=log,
                        stderr=subprocess.STDOUT, env=_env())
-
-
-def _wait_for(log: Path, text: str, proc: NodeProcess, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if text in log.read_text():
-            return
-        assert proc.poll() is None, log.read_text()
-        time.sleep(0.1)
-    raise AssertionError(f'no {text!r} in {log}: {log.read_text()}')
 
 
 def _published(log: Path) -> dict:
@@ -90,7 +82,7 @@ def test_rtf0_records_every_message_and_the_scene_needs_no_file(tmp_path):
     sim = _start_sim(tmp_path, 'sim', scene=str(scene_file), real_time_factor=0.0,
                      publish_rate=rate, t_end=t_end, publish_clock=True)
     try:
-        _wait_for(tmp_path / 'sim.log', 'simulation time starts', sim)
+        wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim)
         scene_file.unlink()                      # the analysis must not need it
         # rtf 0: the run takes a few seconds of wall time; then the simulator idles
         deadline = time.monotonic() + 120
@@ -190,10 +182,7 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
     ex.add_node(probe)
 
     def spin_until(cond, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while not cond():
-            assert time.monotonic() < deadline
-            ex.spin_once(timeout_sec=0.02)
+        node_helpers.spin_until(ex, cond, timeout, step=0.02)
     try:
         spin_until(lambda: len(energy) > 20)
         # every value is valid for the live interface: the guard must catch the blow-up

@@ -19,6 +19,7 @@ import time
 from gyro_rotor.bagio import open_bag
 from gyro_rotor.launch import NodeProcess
 from gyro_rotor.ros_msgs import ENERGY_FIELDS
+import node_helpers
 import numpy as np
 import pytest
 
@@ -157,10 +158,7 @@ def test_time_is_monotonic_across_live_interventions():
     ex.add_node(probe)
 
     def spin_until(cond, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while not cond():
-            assert time.monotonic() < deadline
-            ex.spin_once(timeout_sec=0.01)
+        node_helpers.spin_until(ex, cond, timeout, step=0.01)
 
     def more(n=10):
         n0 = len(energy)
