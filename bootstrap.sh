@@ -19,6 +19,6 @@ fi
 "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$here/requirements-test.txt"
 "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$here"
 # compile the integrators' numba kernels into numba's cache now, not in the first node
-"$venv/bin/python" -m gyro_rotor.integrators.warmup
+"$venv/bin/python" -m gyro_rotor.numerics.integrators.warmup
 echo "$want" > "$stamp"
 echo "bootstrap: ready" >&2

@@ -25,9 +25,9 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'gyro-rotor = gyro_rotor.cli:main',
-            'rotor_sim = gyro_rotor.sim_node:main',
-            'rotor_analysis = gyro_rotor.analysis_node:main',
+            'gyro-rotor = gyro_rotor.cli.main:main',
+            'rotor_sim = gyro_rotor.ros.sim_node:main',
+            'rotor_analysis = gyro_rotor.ros.analysis_node:main',
         ],
     },
 )

@@ -13,11 +13,11 @@ T_END=${T_END:-12.0}
 for scene in "${@:-precession upright pole_slip}"; do
   for s in $scene; do
     rm -rf "$s"
-    "$PY" -m gyro_rotor.analysis_node --ros-args -p output:="$s" -p compression:=zstd \
+    "$PY" -m gyro_rotor.ros.analysis_node --ros-args -p output:="$s" -p compression:=zstd \
         -p window_s:=8.0 > "/tmp/record_$s.analysis.log" 2>&1 &
     an=$!
     sleep 3            # the recorder is up before the first sample (seq 0 is recorded)
-    "$PY" -m gyro_rotor.sim_node --ros-args -p scene:="$s" -p real_time_factor:=1.0 \
+    "$PY" -m gyro_rotor.ros.sim_node --ros-args -p scene:="$s" -p real_time_factor:=1.0 \
         -p t_end:="$T_END" -p stop_at_t_end:=true > "/tmp/record_$s.sim.log" 2>&1 &
     sim=$!
     sleep "$(python3 -c "print(float('$T_END') + 5.0)")"

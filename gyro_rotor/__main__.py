@@ -2,6 +2,6 @@
 
 import sys
 
-from gyro_rotor.cli import main
+from gyro_rotor.cli.main import main
 
 sys.exit(main())

@@ -8,7 +8,7 @@ runs, and the nodes they start as subprocesses, cannot hear each other.
 import atexit
 import os
 
-from gyro_rotor.launch import claim_domain_id
+from gyro_rotor.tools.launch import claim_domain_id
 import pytest
 
 # the same lock files as gyro_rotor.launch (demo, soak), so no two of them share a domain

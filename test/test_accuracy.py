@@ -4,9 +4,9 @@ Compared with a run at 100 times tighter tolerances over the scene's whole durat
 error is the largest angle between the two symmetry axes over the samples (and |z|).
 """
 
-from gyro_rotor.integrators import METHODS
-from gyro_rotor.scene import list_scenes
-from gyro_rotor.simulate import DEFAULT_ATOL, DEFAULT_RTOL, simulate
+from gyro_rotor.core.scene import list_scenes
+from gyro_rotor.numerics.integrators import METHODS
+from gyro_rotor.numerics.simulate import DEFAULT_ATOL, DEFAULT_RTOL, simulate
 import numpy as np
 import pytest
 

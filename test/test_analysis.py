@@ -18,11 +18,12 @@ from pathlib import Path
 import subprocess
 import sys
 
-from gyro_rotor.analysis import (ANALYSIS_FIELDS, MODE_FIELDS, RotorAnalyzer, Sample, SamplePairer,
-                                 samples_from_trajectory, scene_from_sim_doc, scene_to_flat)
+from gyro_rotor.analysis.checks import (ANALYSIS_FIELDS, MODE_FIELDS, RotorAnalyzer, Sample,
+                                        SamplePairer, samples_from_trajectory, scene_from_sim_doc,
+                                        scene_to_flat)
+from gyro_rotor.core.scene import load_scene, perturb_state, scene_from_mapping
 from gyro_rotor.errors import AnalysisError, ParameterError
-from gyro_rotor.scene import load_scene, perturb_state, scene_from_mapping
-from gyro_rotor.simulate import simulate
+from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
 
@@ -53,7 +54,7 @@ def modes_by_name(res):
 
 
 def test_import_does_not_import_rclpy():
-    code = ('import sys, gyro_rotor.analysis, gyro_rotor.report; '
+    code = ('import sys, gyro_rotor.analysis.checks, gyro_rotor.analysis.report; '
             'assert "rclpy" not in sys.modules')
     env = dict(os.environ, PYTHONPATH=str(REPO))
     subprocess.run([sys.executable, '-c', code], check=True, env=env, timeout=60)
@@ -232,7 +233,7 @@ def test_parameter_change_switches_prediction(precession):
 
 def test_sample_fields_must_match():
     with pytest.raises(AnalysisError, match='layout names'):
-        from gyro_rotor.analysis import energy_sample_fields
+        from gyro_rotor.analysis.checks import energy_sample_fields
         energy_sample_fields([1.0, 2.0], ('a',))
     with pytest.raises(AnalysisError):
         RotorAnalyzer('precession')
@@ -277,7 +278,7 @@ def test_window_must_be_non_negative(upright, window):
                                       (['analyze', 'bags/precession', '--window', 'nan'],
                                        '--window must be >= 0')])
 def test_analyze_cli_refuses_bad_input(argv, msg, capsys, monkeypatch):
-    from gyro_rotor import cli
+    import gyro_rotor.cli.main as cli
     monkeypatch.chdir(REPO)
     assert cli.main(argv) == 1
     out = capsys.readouterr()

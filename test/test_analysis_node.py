@@ -17,8 +17,8 @@ import subprocess
 import sys
 import time
 
-from gyro_rotor.analysis import analyze_bag
-from gyro_rotor.bagio import open_bag
+from gyro_rotor.analysis.checks import analyze_bag
+from gyro_rotor.bag.bagio import open_bag
 from node_helpers import wait_for_log
 import pytest
 
@@ -48,11 +48,11 @@ def _stop(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 30.0) -> i
 def _record(tmp_path: Path, scene: str = 'precession'):
     """Start the recorder, then the simulator (stopping at T_END); return both."""
     bag = tmp_path / 'bag'
-    an = _start(['gyro_rotor.analysis_node', '--ros-args', '-p', f'output:={bag}',
+    an = _start(['gyro_rotor.ros.analysis_node', '--ros-args', '-p', f'output:={bag}',
                  '-p', 'window_s:=2.0', '-p', 'min_fit_s:=1.0'], tmp_path / 'an.log')
     wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
     time.sleep(1.0)      # let discovery settle before the first sample
-    sim = _start(['gyro_rotor.sim_node', '--ros-args', '-p', f'scene:={scene}',
+    sim = _start(['gyro_rotor.ros.sim_node', '--ros-args', '-p', f'scene:={scene}',
                   '-p', 'real_time_factor:=1.0', '-p', f't_end:={T_END}',
                   '-p', 'stop_at_t_end:=true'], tmp_path / 'sim.log')
     return bag, an, sim
@@ -154,7 +154,7 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
 
 
 def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
-    from gyro_rotor import cli
+    import gyro_rotor.cli.main as cli
     bag, an, sim = _record(tmp_path)
     try:
         wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
@@ -185,7 +185,7 @@ def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
 def test_unwritable_output_is_a_clear_error_at_start(tmp_path):
     blocker = tmp_path / 'a_file'
     blocker.write_text('not a directory')
-    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.analysis_node', '--ros-args',
+    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.ros.analysis_node', '--ros-args',
                            '-p', f'output:={blocker / "bag"}'], capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 1
@@ -195,7 +195,7 @@ def test_unwritable_output_is_a_clear_error_at_start(tmp_path):
 
 def test_sigterm_finalizes_the_bag(tmp_path):
     bag = tmp_path / 'bag'
-    an = _start(['gyro_rotor.analysis_node', '--ros-args', '-p', f'output:={bag}'],
+    an = _start(['gyro_rotor.ros.analysis_node', '--ros-args', '-p', f'output:={bag}'],
                 tmp_path / 'an.log')
     try:
         wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)

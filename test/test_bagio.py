@@ -19,9 +19,10 @@ import textwrap
 import time
 import warnings
 
-from gyro_rotor.bagio import (BagError, BagWarning, BagWriter, message_definition, normalize_qos,
-                              open_bag, qos_profile_dict, recover_bag, type_hash)
-from gyro_rotor.msgdefs import DELIMITER
+from gyro_rotor.bag.bagio import (BagError, BagWarning, BagWriter, message_definition,
+                                  normalize_qos, open_bag, qos_profile_dict, recover_bag,
+                                  type_hash)
+from gyro_rotor.bag.msgdefs import DELIMITER
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 import pytest
@@ -184,7 +185,7 @@ def write_ros_bag(bag: Path, **kwargs: object) -> list[tuple[str, int, object, b
 
 
 def test_import_does_not_import_rclpy():
-    code = ('import sys, gyro_rotor.bagio, gyro_rotor.msgdefs; '
+    code = ('import sys, gyro_rotor.bag.bagio, gyro_rotor.bag.msgdefs; '
             'bad = [m for m in sys.modules if m == "rclpy" or m.endswith("_msgs")]; '
             'assert not bad, bad')
     env = dict(os.environ, PYTHONPATH=str(REPO))
@@ -503,7 +504,7 @@ SIGKILL_WRITER = textwrap.dedent("""
     from rclpy.serialization import serialize_message
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
-    from gyro_rotor.bagio import BagWriter, qos_profile_dict
+    from gyro_rotor.bag.bagio import BagWriter, qos_profile_dict
 
     writer = BagWriter(sys.argv[1], flush_interval_s=1.0)
     writer.add_topic('/joint_states', 'sensor_msgs/msg/JointState', qos_profile_dict(depth=10))

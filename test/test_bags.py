@@ -14,9 +14,9 @@ import math
 from pathlib import Path
 import shutil
 
-from gyro_rotor import cli
-from gyro_rotor.analysis import analyze_bag
-from gyro_rotor.bagio import BagWriter, open_bag
+from gyro_rotor.analysis.checks import analyze_bag
+from gyro_rotor.bag.bagio import BagWriter, open_bag
+import gyro_rotor.cli.main as cli
 from gyro_rotor.errors import AnalysisError, BagError, SceneError
 import pytest
 import yaml
@@ -70,7 +70,7 @@ def test_bag_specifics(analyses):
 
 def test_structural_zero_root_has_no_predicted_decay_time(analyses):
     # the cyclic zero root's Re is rounding-level (~1e-15): no 'tau_pred 6e+14 s'
-    from gyro_rotor.report import text_report
+    from gyro_rotor.analysis.report import text_report
     bag = analyses['precession']
     zero = [m for m in bag.result.current.modes if m.status == 'structural zero root']
     assert len(zero) == 1 and math.isinf(zero[0].pred_tau)

@@ -3,7 +3,7 @@
 import subprocess
 import sys
 
-from gyro_rotor.cli import main
+from gyro_rotor.cli.main import main
 import pytest
 
 

@@ -4,7 +4,7 @@ import json
 import subprocess
 import sys
 
-from gyro_rotor.bagio import open_bag
+from gyro_rotor.bag.bagio import open_bag
 import pytest
 
 
@@ -30,7 +30,7 @@ def test_demo_confirms_the_default_scene(tmp_path):
 
 
 def test_demo_refuses_bad_arguments(tmp_path, capsys):
-    from gyro_rotor.cli import main
+    from gyro_rotor.cli.main import main
     assert main(['demo', 'nosuch']) == 1
     assert "unknown scene 'nosuch'" in capsys.readouterr().err
     assert main(['demo', '--duration', '-1']) == 1

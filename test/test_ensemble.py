@@ -1,9 +1,9 @@
 """Ensemble mode: lockstep runs agree with single-trajectory runs; bad input refused."""
 
-from gyro_rotor.ensemble import run_ensemble
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.integrators import HAVE_NUMBA, integrate
-from gyro_rotor.scene import load_scene
+from gyro_rotor.numerics.ensemble import run_ensemble
+from gyro_rotor.numerics.integrators import HAVE_NUMBA, integrate
 import numpy as np
 import pytest
 

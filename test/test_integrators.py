@@ -2,9 +2,10 @@
 
 import math
 
+from gyro_rotor.core.scene import list_scenes, load_scene
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.integrators import choose_method, integrate, make_integrator, METHODS, tableaux
-from gyro_rotor.scene import list_scenes, load_scene
+from gyro_rotor.numerics.integrators import (choose_method, integrate, make_integrator, METHODS,
+                                             tableaux)
 import numpy as np
 import pytest
 

@@ -3,11 +3,11 @@
 import subprocess
 import sys
 
-from gyro_rotor.model import FullModel, LockedHousingModel, UprightAxisModel
-from gyro_rotor.params import RotorParams
-from gyro_rotor.rotations import (body_rates_from_euler, euler_from_quaternion,
-                                  euler_rates_from_body, quaternion_from_euler)
-from gyro_rotor.scene import load_scene
+from gyro_rotor.core.model import FullModel, LockedHousingModel, UprightAxisModel
+from gyro_rotor.core.params import RotorParams
+from gyro_rotor.core.rotations import (body_rates_from_euler, euler_from_quaternion,
+                                       euler_rates_from_body, quaternion_from_euler)
+from gyro_rotor.core.scene import load_scene
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
@@ -135,9 +135,10 @@ def test_reduced_models_are_the_full_model_restricted():
 
 def test_core_does_not_import_rclpy():
     code = ('import sys\n'
-            'import gyro_rotor, gyro_rotor.params, gyro_rotor.model, gyro_rotor.steady\n'
-            'import gyro_rotor.scene, gyro_rotor.simulate, gyro_rotor.rotations, gyro_rotor.cli\n'
-            'from gyro_rotor.simulate import simulate\n'
+            'import gyro_rotor, gyro_rotor.core.params, gyro_rotor.core.model\n'
+            'import gyro_rotor.core.steady, gyro_rotor.core.scene, gyro_rotor.core.rotations\n'
+            'import gyro_rotor.numerics.simulate, gyro_rotor.cli.main\n'
+            'from gyro_rotor.numerics.simulate import simulate\n'
             'simulate("precession", t_end=0.1)\n'
             'bad = [m for m in sys.modules\n'
             '       if m.startswith(("rclpy", "sensor_msgs", "std_msgs"))]\n'

@@ -6,7 +6,7 @@ import signal
 import subprocess
 import sys
 
-from gyro_rotor.monitor import TopicStats
+from gyro_rotor.tools.monitor import TopicStats
 import pytest
 
 
@@ -25,7 +25,7 @@ def test_topic_stats_rate_jitter_and_gaps():
 @pytest.mark.ros
 def test_monitor_sees_the_simulation_topics():
     env = dict(os.environ)
-    sim = subprocess.Popen([sys.executable, '-m', 'gyro_rotor.sim_node', '--ros-args',
+    sim = subprocess.Popen([sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args',
                             '-p', 'scene:=precession', '-p', 'real_time_factor:=1.0'],
                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                            text=True)

@@ -3,8 +3,8 @@
 import math
 import warnings
 
+from gyro_rotor.core.params import PARAM_FIELDS, RotorParams, StaticallyUnstableWarning
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.params import PARAM_FIELDS, RotorParams, StaticallyUnstableWarning
 import pytest
 
 

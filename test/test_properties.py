@@ -9,11 +9,11 @@ of another kind.
 import math
 import warnings
 
+from gyro_rotor.core.model import FullModel
+from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
+from gyro_rotor.core.scene import load_scene, scene_from_mapping, SCENE_KEYS
 from gyro_rotor.errors import GyroRotorError, ParameterError
-from gyro_rotor.model import FullModel
-from gyro_rotor.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.scene import load_scene, scene_from_mapping, SCENE_KEYS
-from gyro_rotor.simulate import simulate
+from gyro_rotor.numerics.simulate import simulate
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest

@@ -5,7 +5,8 @@ import subprocess
 import sys
 
 from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.realtime import DenseStepper, EnergyBaseline, make_stepper, Pacer, RK4Stepper
+from gyro_rotor.numerics.realtime import (DenseStepper, EnergyBaseline, make_stepper, Pacer,
+                                          RK4Stepper)
 import numpy as np
 import pytest
 
@@ -166,14 +167,14 @@ def test_energy_baseline_keeps_the_residual_continuous_across_a_jump():
 
 
 def test_realtime_does_not_import_rclpy():
-    code = 'import sys, gyro_rotor.realtime; assert "rclpy" not in sys.modules'
+    code = 'import sys, gyro_rotor.numerics.realtime; assert "rclpy" not in sys.modules'
     subprocess.run([sys.executable, '-c', code], check=True)
 
 
 def test_integrators_package_methods_behind_the_same_interface():
     pytest.importorskip('gyro_rotor.integrators')
-    from gyro_rotor.realtime import IntegratorStepper
-    from gyro_rotor.scene import load_scene
+    from gyro_rotor.numerics.realtime import IntegratorStepper
+    from gyro_rotor.core.scene import load_scene
     scene = load_scene('precession')
     model = scene.make_model()
     y0 = scene.initial_state(model)

@@ -21,14 +21,14 @@ import sys
 import time
 import warnings
 
-from gyro_rotor.analysis import analyze_bag, scene_from_sim_doc
-from gyro_rotor.bagio import BagWriter, open_bag
+from gyro_rotor.analysis.checks import analyze_bag, scene_from_sim_doc
+from gyro_rotor.bag.bagio import BagWriter, open_bag
+from gyro_rotor.core.params import PARAM_FIELDS
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
-from gyro_rotor.launch import NodeProcess
-from gyro_rotor.params import PARAM_FIELDS
-from gyro_rotor.ros_msgs import ENERGY_FIELDS
-from gyro_rotor.scene import load_scene
-from gyro_rotor.soak import energy_seq_from_cdr
+from gyro_rotor.ros.messages import ENERGY_FIELDS
+from gyro_rotor.tools.launch import NodeProcess
+from gyro_rotor.tools.soak import energy_seq_from_cdr
 from hypothesis import given, HealthCheck, settings, strategies as st
 import node_helpers
 from node_helpers import wait_for_log
@@ -47,8 +47,8 @@ def _env() -> dict:
 def _start_recorder(tmp_path: Path, **params) -> tuple[NodeProcess, Path]:
     bag = tmp_path / 'bag'
     log = open(tmp_path / 'an.log', 'w')
-    an = NodeProcess('gyro_rotor.analysis_node', {'output': str(bag), 'window_s': 2.0,
-                                                  'min_fit_s': 1.0, **params},
+    an = NodeProcess('gyro_rotor.ros.analysis_node', {'output': str(bag), 'window_s': 2.0,
+                                                      'min_fit_s': 1.0, **params},
                      stdout=log, stderr=subprocess.STDOUT, env=_env())
     wait_for_log(tmp_path / 'an.log', 'recording to', an)
     return an, bag
@@ -58,7 +58,7 @@ def _start_sim(tmp_path: Path, name: str, **params) -> NodeProcess:
     log = open(tmp_path / f'{name}.log', 'w')
     base = {'scene': 'precession', 'publish_rate': 250.0, 'wait_for_subscribers': 1,
             'stop_at_t_end': True}
-    return NodeProcess('gyro_rotor.sim_node', {**base, **params}, stdout=log,
+    return NodeProcess('gyro_rotor.ros.sim_node', {**base, **params}, stdout=log,
                        stderr=subprocess.STDOUT, env=_env())
 
 
@@ -166,7 +166,7 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Float64MultiArray
     from std_srvs.srv import Trigger
-    from gyro_rotor.sim_node import RotorSimNode
+    from gyro_rotor.ros.sim_node import RotorSimNode
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     node = RotorSimNode(context=ctx, parameter_overrides=[
@@ -247,7 +247,7 @@ def tiny_tmpfs(tmp_path):
 
 @pytest.mark.ros
 def test_full_disk_is_a_clear_error_at_start(tiny_tmpfs):
-    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.analysis_node', '--ros-args',
+    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.ros.analysis_node', '--ros-args',
                            '-p', f'output:={tiny_tmpfs / "bag"}'], capture_output=True,
                           text=True, timeout=60)
     assert proc.returncode == 1
@@ -261,7 +261,7 @@ def test_disk_full_while_recording_is_reported_not_silent(tiny_tmpfs):
     """Past the start check (lowered here), a failed write stops recording loudly."""
     import rclpy
     from std_msgs.msg import String
-    from gyro_rotor import recorder
+    import gyro_rotor.ros.recorder as recorder
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     errors = []
@@ -342,7 +342,7 @@ def test_bags_with_foreign_topics_are_analysed_or_refused_cleanly(tmp_path_facto
 def live_node():
     rclpy = pytest.importorskip('rclpy')
     from rclpy.parameter import Parameter
-    from gyro_rotor.sim_node import RotorSimNode
+    from gyro_rotor.ros.sim_node import RotorSimNode
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     node = RotorSimNode(context=ctx, parameter_overrides=[

@@ -1,7 +1,7 @@
 """Scenes: every shipped scene loads; bad scene files give clear errors."""
 
+from gyro_rotor.core.scene import list_scenes, load_scene, perturb_state
 from gyro_rotor.errors import ParameterError, SceneError
-from gyro_rotor.scene import list_scenes, load_scene, perturb_state
 import pytest
 
 SHIPPED = ['precession', 'nutation', 'upright', 'stiff_drive', 'fast_spin', 'conservative',

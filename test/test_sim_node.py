@@ -16,8 +16,8 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402, I100
-from gyro_rotor.ros_msgs import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
-from gyro_rotor.sim_node import RotorSimNode  # noqa: E402
+from gyro_rotor.ros.messages import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
+from gyro_rotor.ros.sim_node import RotorSimNode  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
@@ -259,7 +259,7 @@ def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
 def test_separate_process_publishes_and_shuts_down_cleanly(sig):
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     proc = subprocess.Popen(
-        [sys.executable, '-m', 'gyro_rotor.sim_node', '--ros-args', '-p', 'scene:=precession',
+        [sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args', '-p', 'scene:=precession',
          '-p', 'real_time_factor:=0.0'],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
     context = rclpy.context.Context()

@@ -1,7 +1,7 @@
 """simulate(): energy balance, conservation, the passage through theta = 0, reduced models."""
 
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.simulate import CSV_COLUMNS, simulate
+from gyro_rotor.numerics.simulate import CSV_COLUMNS, simulate
 import numpy as np
 import pytest
 from scipy.signal import argrelmin
@@ -101,7 +101,7 @@ def test_bad_simulate_input(kwargs, match):
 def test_axis_straight_down_is_a_clear_error(tmp_path):
     """The one singular orientation (theta = pi) stops the run with an IntegrationError."""
     from gyro_rotor.errors import IntegrationError
-    from gyro_rotor.scene import load_scene
+    from gyro_rotor.core.scene import load_scene
     f = tmp_path / 'down.yaml'
     f.write_text('rotor_sim:\n  ros__parameters:\n    initial:\n      mode: body\n'
                  '      quaternion: [0.0, 1.0, 0.0, 0.0]\n')

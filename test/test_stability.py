@@ -8,17 +8,18 @@ import math
 import subprocess
 import sys
 
-from gyro_rotor import cli
+import gyro_rotor.cli.main as cli
+from gyro_rotor.core.params import RotorParams
+from gyro_rotor.core.scene import load_scene
+from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
-                                  reduced_rhs_lagrange)
-from gyro_rotor.params import RotorParams
-from gyro_rotor.scene import load_scene
-from gyro_rotor.simulate import simulate
-from gyro_rotor.stability import (analyze, analyze_scene, best_K_D, check_claims, root_locus,
-                                  sensitivities, spectrum, sweep, ZERO_ROOT, ZERO_ROOT_Z)
-from gyro_rotor.steady import steady_motion
-from gyro_rotor.sysid import match_eigenvalues, matrix_pencil
+from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
+                                         reduced_rhs_lagrange)
+from gyro_rotor.linear.stability import (analyze, analyze_scene, best_K_D, check_claims,
+                                         root_locus, sensitivities, spectrum, sweep, ZERO_ROOT,
+                                         ZERO_ROOT_Z)
+from gyro_rotor.linear.sysid import match_eigenvalues, matrix_pencil
+from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
 
@@ -150,7 +151,7 @@ def test_non_finite_spectrum_is_a_parameter_error():
 def test_no_drive_stiffness_cyclic_z_is_a_structural_zero_root():
     # K_S = 0: z is cyclic (a second zero root for every K_D) and the drive's pair
     # degenerates into the slip root -K_D/C_R-like real root, reached by the drive
-    import gyro_rotor.stability as st
+    import gyro_rotor.linear.stability as st
     p = P.replace(K_S=0.0, K_D=0.05)
     calls = []
     real_spectrum = st.spectrum
@@ -355,7 +356,8 @@ def test_cli_locus_png(tmp_path):
 
 
 def test_stability_modules_do_not_import_rclpy_or_matplotlib():
-    code = ('import sys, gyro_rotor.stability, gyro_rotor.linearize, gyro_rotor.sysid; '
+    code = ('import sys, gyro_rotor.linear.stability, gyro_rotor.linear.linearize; '
+            'import gyro_rotor.linear.sysid; '
             'print("rclpy" in sys.modules, "matplotlib" in sys.modules)')
     res = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True)
@@ -385,8 +387,8 @@ def test_reduced_models_are_simple_and_correct():
 ])
 def test_cli_refuses_unwritable_outputs_and_huge_grids(argv, msg, tmp_path, capsys,
                                                        monkeypatch):
-    import gyro_rotor.commands.eig as eig_cmd
-    import gyro_rotor.commands.locus as locus_cmd
+    import gyro_rotor.cli.commands.eig as eig_cmd
+    import gyro_rotor.cli.commands.locus as locus_cmd
     argv = [a.replace('{tmp}', str(tmp_path)) for a in argv]
     called = []
     monkeypatch.setattr(eig_cmd, 'analyze', lambda *a, **k: called.append(1))

@@ -2,12 +2,12 @@
 
 import math
 
+from gyro_rotor.core.model import FullModel
+from gyro_rotor.core.params import RotorParams, StaticallyUnstableWarning
+from gyro_rotor.core.scene import load_scene
+from gyro_rotor.core.steady import steady_motion, steady_state
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.model import FullModel
-from gyro_rotor.params import RotorParams, StaticallyUnstableWarning
-from gyro_rotor.scene import load_scene
-from gyro_rotor.simulate import simulate
-from gyro_rotor.steady import steady_motion, steady_state
+from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
 

@@ -16,9 +16,9 @@ from pathlib import Path
 import subprocess
 import time
 
-from gyro_rotor.bagio import open_bag
-from gyro_rotor.launch import NodeProcess
-from gyro_rotor.ros_msgs import ENERGY_FIELDS
+from gyro_rotor.bag.bagio import open_bag
+from gyro_rotor.ros.messages import ENERGY_FIELDS
+from gyro_rotor.tools.launch import NodeProcess
 import node_helpers
 import numpy as np
 import pytest
@@ -50,7 +50,7 @@ def clocked_bag(tmp_path_factory):
     bag = tmp / 'bag'
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     an_log, sim_log = open(tmp / 'an.log', 'w'), open(tmp / 'sim.log', 'w')
-    an = NodeProcess('gyro_rotor.analysis_node', {'output': str(bag), 'scene': 'precession'},
+    an = NodeProcess('gyro_rotor.ros.analysis_node', {'output': str(bag), 'scene': 'precession'},
                      stdout=an_log, stderr=subprocess.STDOUT, env=env)
     sim = None
     n = int(T_END * RATE) + 1
@@ -59,7 +59,7 @@ def clocked_bag(tmp_path_factory):
         while 'recording to' not in (tmp / 'an.log').read_text():
             assert time.monotonic() < deadline and an.poll() is None
             time.sleep(0.1)
-        sim = NodeProcess('gyro_rotor.sim_node', {
+        sim = NodeProcess('gyro_rotor.ros.sim_node', {
             'scene': 'precession', 'publish_rate': RATE, 'real_time_factor': 0.0,
             't_end': T_END, 'stop_at_t_end': True, 'publish_clock': True,
             'wait_for_subscribers': 1}, stdout=sim_log, stderr=subprocess.STDOUT, env=env)
@@ -142,7 +142,7 @@ def test_time_is_monotonic_across_live_interventions():
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import Float64MultiArray
     from std_srvs.srv import SetBool, Trigger
-    from gyro_rotor.sim_node import RotorSimNode
+    from gyro_rotor.ros.sim_node import RotorSimNode
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     node = RotorSimNode(context=ctx, parameter_overrides=[

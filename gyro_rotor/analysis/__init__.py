@@ -1,0 +1,1 @@
+"""The analysis: streaming checks, predictions, the verdict, offline analysis (pure)."""

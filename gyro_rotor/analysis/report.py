@@ -1,0 +1,186 @@
+"""Reports of an analysis: text, JSON and plots (matplotlib optional).
+
+Compute in :mod:`gyro_rotor.analysis`, present here (python-control's ``damp`` vs
+``damp(doprint=True)``). Plots: E* - E*_inf on a log scale with the fitted decay of the
+last segment; identified against predicted eigenvalues on the complex plane; the state
+over time (theta, z, zdot, residual).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from gyro_rotor.analysis.checks import AnalysisResult, BagAnalysis
+import numpy as np
+
+__all__ = ['text_report', 'json_report', 'write_report', 'plot_report']
+
+
+def _f(x: Any, spec: str = '.4g') -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return '-'
+    return format(x, spec)
+
+
+def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
+    """Return a human-readable report (verdict, evidence, modes, data integrity)."""
+    p = res.prediction
+    lines = []
+    if bag is not None:
+        lines.append(f'bag: {bag.path}' + (' (TRUNCATED: read up to the damage; '
+                                           '`gyro-rotor recover BAG` repairs it)'
+                                           if bag.truncated else ''))
+        lines.append(f'scene: {res.scene} (from {bag.scene_source}); options {bag.options}')
+    lines.append(f'verdict: {res.verdict.upper()}  [{res.level}]')
+    if bag is not None and bag.live is not None:
+        lines.append(f"live verdict recorded in the bag: {bag.live.get('verdict')}")
+    lines.append(f'prediction ({p.source}, coordinates {p.coords}): {p.verdict}, spectral '
+                 f'abscissa {p.spectral_abscissa:.4g} 1/s, E*_inf = {p.E_inf:.9g} J')
+    lines.append(f'samples {res.samples}, dropped {res.dropped}, resets {res.resets}, kicks '
+                 f'{res.kicks}, time jumps {res.time_jumps}, parameter changes '
+                 f'{res.param_changes}, pole slips {res.pole_slips}')
+    lines.append('')
+    lines.append('evidence:')
+    lines += [f'  {e}' for e in res.evidence]
+    cur = res.current
+    if cur is not None:
+        lines.append('')
+        lines.append(f'modes (segment {cur.index}, window {cur.window_s:.3g} s):')
+        lines.append(f"  {'mode':26s} {'f_pred Hz':>10s} {'f_meas Hz':>10s} "
+                     f"{'tau_pred s':>11s} {'tau_meas s':>11s}  status")
+        for m in cur.modes:
+            fm = None if m.measured is None else abs(m.measured.imag) / (2 * math.pi)
+            lines.append(f'  {m.name:26s} {_f(abs(m.predicted.imag) / (2 * math.pi)):>10s} '
+                         f'{_f(fm):>10s} {_f(m.pred_tau):>11s} {_f(m.meas_tau):>11s}  '
+                         f'{m.status}')
+        if len(res.segments) > 1:
+            lines.append('')
+            lines.append('segments:')
+            for s in res.segments:
+                lines.append(f'  {s.index}: {s.reason}; t {s.t_start:.3f}..{s.t_end:.3f} s, '
+                             f'{s.samples} samples: {s.verdict}')
+    return '\n'.join(lines) + '\n'
+
+
+def json_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> dict:
+    """Return the report as a JSON-friendly dict."""
+    d = res.as_dict()
+    if bag is not None:
+        d['bag'] = {'path': bag.path, 'truncated': bag.truncated, 'topics': bag.topics,
+                    'scene_source': bag.scene_source, 'options': bag.options,
+                    'live': bag.live}
+    return d
+
+
+def _clean(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return _clean(obj.item())
+    return obj
+
+
+def write_report(bag: BagAnalysis, out_dir: str | Path | None = None,
+                 json_path: str | Path | None = None, plots: bool = True) -> list[Path]:
+    """Write report.txt, report.json and the plots; return the files written."""
+    written: list[Path] = []
+    if json_path is not None:
+        json_path = Path(json_path)
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps(_clean(json_report(bag.result, bag)), indent=1))
+        written.append(json_path)
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / 'report.txt').write_text(text_report(bag.result, bag))
+        (out / 'report.json').write_text(json.dumps(_clean(json_report(bag.result, bag)),
+                                                    indent=1))
+        written += [out / 'report.txt', out / 'report.json']
+        if plots:
+            written += plot_report(bag, out)
+    return written
+
+
+def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
+    """energy.png, eigenvalues.png and state.png (nothing if matplotlib is missing)."""
+    try:
+        import matplotlib
+        matplotlib.use('Agg')
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return []
+    out = Path(out_dir)
+    res = bag.result
+    S = bag.samples
+    t = np.array([s.t for s in S])
+    E = np.array([s.E_star for s in S])
+    files = []
+    # E* - E*_inf with the fitted decay of the last segment
+    fig, ax = plt.subplots(figsize=(7, 4))
+    dE = E - res.prediction.E_inf
+    ax.semilogy(t, np.where(dE > 0, dE, np.nan), lw=0.8, label='E* - E*_inf (data)')
+    cur = res.current
+    if cur is not None and math.isfinite(cur.energy_decay_rate) and len(t):
+        t1 = cur.t_end
+        t0 = t1 - cur.window_s
+        sel = (t >= t0) & (t <= t1)
+        sel &= dE > 0
+        if sel.any():
+            # the least-squares line of the fit: log dE = c - rate t
+            c = float(np.mean(np.log(dE[sel]) + cur.energy_decay_rate * t[sel]))
+            tt = np.linspace(t0, t1, 50)
+            ax.semilogy(tt, np.exp(c - cur.energy_decay_rate * tt), 'r--',
+                        label=f'fit: rate {cur.energy_decay_rate:.3g} 1/s')
+    ax.set_xlabel('simulation time t [s]')
+    ax.set_ylabel('E* - E*_inf [J]')
+    ax.set_title(f'{res.scene}: Lyapunov function (eq. 13), verdict {res.verdict}')
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files.append(out / 'energy.png')
+    fig.savefig(files[-1], dpi=100)
+    plt.close(fig)
+    # eigenvalues
+    fig, ax = plt.subplots(figsize=(6, 5))
+    for m in res.prediction.modes:
+        ax.plot(m.eigenvalue.real, m.eigenvalue.imag, 'kx', ms=9)
+        ax.annotate(m.name, (m.eigenvalue.real, m.eigenvalue.imag), fontsize=7,
+                    xytext=(4, 4), textcoords='offset points')
+    if cur is not None:
+        meas = [m.measured for m in cur.modes if m.measured is not None]
+        if meas:
+            ax.plot([z.real for z in meas], [z.imag for z in meas], 'o', mfc='none', ms=9,
+                    color='tab:red', label='identified')
+    ax.plot([], [], 'kx', label='predicted')
+    ax.axvline(0.0, color='0.6', lw=0.8)
+    ax.set_xlabel('Re lambda [1/s]')
+    ax.set_ylabel('Im lambda [rad/s]')
+    ax.set_title('identified vs predicted eigenvalues')
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    files.append(out / 'eigenvalues.png')
+    fig.savefig(files[-1], dpi=100)
+    plt.close(fig)
+    # state over time
+    fig, axs = plt.subplots(4, 1, figsize=(7, 7), sharex=True)
+    theta = np.array([s.positions[0] for s in S])
+    z = np.array([s.z for s in S])
+    zd = np.array([s.zdot for s in S])
+    r = np.array([s.residual for s in S])
+    labels = ('theta [rad]', 'z [rad]', 'zdot [rad/s]', 'residual [J]')
+    for a, y, lab in zip(axs, (theta, z, zd, r), labels):
+        a.plot(t, y, lw=0.7)
+        a.set_ylabel(lab, fontsize=8)
+    axs[-1].set_xlabel('simulation time t [s]')
+    axs[0].set_title(f'{res.scene}: state over time')
+    fig.tight_layout()
+    files.append(out / 'state.png')
+    fig.savefig(files[-1], dpi=100)
+    plt.close(fig)
+    return files

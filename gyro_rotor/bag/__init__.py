@@ -1,0 +1,1 @@
+"""rosbag2 MCAP I/O: message definitions, QoS text, writer, reader, recovery (pure)."""

@@ -1,0 +1,1 @@
+"""The ``gyro-rotor`` command and its subcommands."""

@@ -1,0 +1,49 @@
+"""``gyro-rotor analyze BAG``: the live node's stability checks on a recorded bag."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+HELP = ('analyze a recorded bag: Lyapunov, decay fits, eigenvalues from data vs predicted, '
+        'pole slips, verdict; text/JSON report and plots')
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of ``analyze``."""
+    p.add_argument('bag', help='bag directory (rosbag2, MCAP) or .mcap file')
+    p.add_argument('--out', default=None, metavar='DIR',
+                   help='write report.txt, report.json and plots (energy.png, '
+                        'eigenvalues.png, state.png) into DIR')
+    p.add_argument('--json', default=None, metavar='FILE',
+                   help="write the JSON report ('-': to stdout)")
+    p.add_argument('--scene', default=None,
+                   help='scene name or path (default: the one recorded in the bag)')
+    p.add_argument('--window', type=float, default=None, metavar='S',
+                   help="fit window [s] (default: the live node's; 0 = whole segments)")
+    p.add_argument('--no-plots', action='store_true', help='no plots (faster)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the text report; 0 whatever the verdict (1 only for bad input)."""
+    import math
+
+    from gyro_rotor.analysis.checks import analyze_bag
+    from gyro_rotor.errors import BagError, ParameterError
+    from gyro_rotor.analysis.report import _clean, json_report, text_report, write_report
+    if not args.bag.strip():
+        raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
+    if args.window is not None and not args.window >= 0:
+        bad = 'NaN' if math.isnan(args.window) else repr(args.window)
+        raise ParameterError(f'--window must be >= 0 s (0 = whole segments), got {bad}')
+    bag = analyze_bag(args.bag, scene=args.scene, window_s=args.window)
+    sys.stdout.write(text_report(bag.result, bag))
+    to_stdout = args.json == '-'
+    files = write_report(bag, args.out, None if to_stdout else args.json,
+                         plots=not args.no_plots)
+    if to_stdout:
+        print(json.dumps(_clean(json_report(bag.result, bag)), indent=1))
+    for f in files:
+        print(f'wrote {f}')
+    return 0

@@ -1,0 +1,165 @@
+"""``gyro-rotor bench``: work-precision benchmark of the integrators against scipy.
+
+Writes ``work_precision.csv`` (every run), ``work_precision.md`` (best wall seconds per
+simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
+and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import math
+import os
+import platform
+import sys
+import time
+
+import gyro_rotor.numerics.bench as bench
+
+HELP = 'work-precision benchmark of the integrators (and scipy) on the hard scenes'
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of ``bench``."""
+    p.add_argument('--scenes', default=','.join(bench.DEFAULT_SCENES),
+                   help='comma-separated scene specs, e.g. precession,stiff_drive@K_D=1e6')
+    p.add_argument('--quick', action='store_true', help='a short sweep (3 tolerances)')
+    p.add_argument('--repeats', type=int, default=3, help='repeats per run (median wall)')
+    p.add_argument('--out', default='bench', help='output directory (default: bench)')
+    p.add_argument('--no-scipy', action='store_true', help='skip the scipy baselines')
+    p.add_argument('--drift-t-end', type=float, default=1000.0,
+                   help='horizon of the E* drift study on conservative [s] (0 = skip)')
+
+
+def _fmt(v) -> str:
+    return '-' if v is None else f'{v:.2e}'
+
+
+def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
+    """Write the markdown report and return its text."""
+    table = bench.best_table(rows)
+    scenes = list(dict.fromkeys(r.scene for r in rows))
+    methods = list(dict.fromkeys(r.method for r in rows))
+    lines = [f'Best wall seconds per simulated second at error <= 1e-3 / 1e-6 / 1e-9 '
+             f'(error = max over samples of the symmetry-axis angle and |z| error against '
+             f'a reference; `-` = not reached within the sweep or budget). Machine: '
+             f'{platform.machine()}, {os.cpu_count()} cores, shared and noisy; '
+             f'{"quick" if args.quick else "full"} sweep, {args.repeats} repeats, '
+             f"{elapsed / 60:.1f} min. Methods in lower case are gyro_rotor's, upper case "
+             f'scipy solve_ivp.', '',
+             '| scene | ' + ' | '.join(methods) + ' |',
+             '|---|' + '---|' * len(methods)]
+    for s in scenes:
+        cells = []
+        for m in methods:
+            v = table.get((s, m))
+            cells.append('' if v is None else ' / '.join(_fmt(x) for x in v))
+        lines.append(f'| {s} | ' + ' | '.join(cells) + ' |')
+    lines += ['', 'Speed-up of the default method (auto) over the fastest scipy method at the '
+              'same error:', '', '| scene | auto | at 1e-6 | at 1e-9 |', '|---|---|---|---|']
+    from gyro_rotor.numerics.integrators import choose_method
+    for s in scenes:
+        scene, _ = bench.parse_scene_spec(s)
+        auto = choose_method(scene.params, scene.t_end)[0]
+        cells = []
+        for i in (1, 2):
+            ours = (table.get((s, auto)) or [None] * 3)[i]
+            sp = [table[(s, m)][i] for m in bench.SCIPY
+                  if (s, m) in table and table[(s, m)][i] is not None]
+            if ours is None or not sp:
+                cells.append('-')
+            else:
+                cells.append(f'{min(sp) / ours:.1f}x')
+        lines.append(f'| {s} | {auto} | ' + ' | '.join(cells) + ' |')
+    if drift:
+        cps = [c for c in (10.0, 100.0, 1000.0) if c <= args.drift_t_end]
+        lines += ['', f'Relative E* drift on conservative (K_D = 0) at '
+                  f'{", ".join(f"{c:g}" for c in cps)} s (default settings; scipy at rtol '
+                  f'1e-10):', '', '| method | ' + ' | '.join(f'{c:g} s' for c in cps)
+                  + ' | wall s |', '|---|' + '---|' * (len(cps) + 1)]
+        for m, (d, w) in drift.items():
+            lines.append(f'| {m} | ' + ' | '.join(f'{x:.1e}' for x in d) + f' | {w:.2f} |')
+    if poles:
+        ref = poles['reference']
+        lines += ['', f"Slipped poles on pole_slip at each method's default tolerance "
+                  f'(reference {ref}):', '', '| method | poles | right |', '|---|---|---|']
+        for m, n in poles.items():
+            if m != 'reference':
+                lines.append(f'| {m} | {n} | {"yes" if n == ref else "NO"} |')
+    text = '\n'.join(lines) + '\n'
+    with open(path, 'w') as fh:
+        fh.write(text)
+    return text
+
+
+def write_plot(path, rows) -> str | None:
+    """Error against wall time per scene (log-log); None if matplotlib is missing."""
+    try:
+        import matplotlib
+        matplotlib.use('Agg')
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return 'matplotlib is not installed: no plot'
+    scenes = list(dict.fromkeys(r.scene for r in rows))
+    methods = list(dict.fromkeys(r.method for r in rows))
+    ncol = 3
+    nrow = math.ceil(len(scenes) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5 * ncol, 3.6 * nrow), squeeze=False)
+    cmap = plt.get_cmap('tab10')
+    for ax, s in zip(axes.flat, scenes):
+        for i, m in enumerate(methods):
+            pts = sorted((r.wall_per_sim, r.err) for r in rows
+                         if r.scene == s and r.method == m and r.status == 0
+                         and math.isfinite(r.err) and r.err > 0)
+            if pts:
+                x, y = zip(*pts)
+                ax.loglog(x, y, 'o-' if m.islower() else 's--', color=cmap(i % 10), label=m,
+                          ms=3, lw=1)
+        ax.set_title(s, fontsize=9)
+        ax.set_xlabel('wall s per simulated s', fontsize=8)
+        ax.set_ylabel('error [rad]', fontsize=8)
+        for lev in bench.ERROR_LEVELS:
+            ax.axhline(lev, color='0.8', lw=0.5)
+    for ax in list(axes.flat)[len(scenes):]:
+        ax.axis('off')
+    axes.flat[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep and write CSV, markdown and plot."""
+    if args.repeats < 1:
+        print(f'ERROR: --repeats must be >= 1, got {args.repeats}', file=sys.stderr)
+        return 1
+    os.makedirs(args.out, exist_ok=True)
+    t0 = time.perf_counter()
+    rows = []
+    for spec in [s.strip() for s in args.scenes.split(',') if s.strip()]:
+        rows += bench.run_sweep(spec, quick=args.quick, repeats=args.repeats,
+                                scipy=not args.no_scipy, progress=print)
+    drift = (bench.energy_drift(args.drift_t_end, progress=print)
+             if args.drift_t_end > 0 else None)
+    poles = bench.pole_counts()
+    print('pole counts:', poles)
+    elapsed = time.perf_counter() - t0
+    csv_path = os.path.join(args.out, 'work_precision.csv')
+    with open(csv_path, 'w', newline='') as fh:
+        w = csv.writer(fh)
+        fields = [f.name for f in dataclasses.fields(bench.BenchRow)]
+        w.writerow(fields)
+        for r in rows:
+            w.writerow([getattr(r, f) for f in fields])
+    md = write_markdown(os.path.join(args.out, 'work_precision.md'), rows, drift, poles, args,
+                        elapsed)
+    msg = write_plot(os.path.join(args.out, 'work_precision.png'), rows)
+    print(md)
+    print(f'wrote {csv_path}, work_precision.md' + ('' if msg else ', work_precision.png')
+          + f' in {args.out} ({elapsed / 60:.1f} min)')
+    if msg:
+        print(msg)
+    return 0

@@ -1,0 +1,281 @@
+"""``gyro-rotor demo [SCENE]``: the paper's theorem, live, in one command.
+
+Starts ``rotor_sim`` and ``rotor_analysis`` as separate processes in a ROS domain of
+their own (DDS on loopback), kicks the rotor through ``~/perturb``, shows a live table
+(simulation time, E*, residual, the decay rate of E* against its predicted bound, and
+identified against predicted frequencies of each mode), records an MCAP bag under a fresh
+directory, then analyses the bag offline and ends with the verdict, the report and the
+plot paths.
+
+Exit status 0 only if the run confirms what the linear theory expects of the scene: the
+verdict of :func:`gyro_rotor.stability.analyze_scene` (asymptotically stable for the
+default scene, marginal tilt modes for ``upright``), no lost message, an energy balance
+at tolerance level, and for a sine drive law the pole-slip count of an offline reference
+simulation of the same scene. Ctrl-C ends the run cleanly with the bag finalized.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+import sys
+import time
+
+from gyro_rotor.core.scene import DEFAULT_SCENE, load_scene
+from gyro_rotor.errors import GyroRotorError, ParameterError
+
+HELP = ('live demo: simulation + analysis nodes, a kick, a live table, an MCAP bag, the '
+        'verdict with report and plots')
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Arguments of ``demo``."""
+    p.add_argument('scene', nargs='?', default=DEFAULT_SCENE, help='scene name or path')
+    p.add_argument('--duration', type=float, default=20.0,
+                   help='simulated seconds to run (default 20)')
+    p.add_argument('--rtf', type=float, default=1.0,
+                   help='real-time factor (default 1; 0 = as fast as possible)')
+    p.add_argument('--rate', type=float, default=250.0, help='publish rate [Hz]')
+    p.add_argument('--kick-at', type=float, default=None,
+                   help='simulation time of the kick [s] (default 2; none for pole_slip, '
+                        'whose start far off synchronism is the kick; <0 = no kick)')
+    p.add_argument('--out', default=None,
+                   help='output directory (default: demo_runs/<scene>_<time>)')
+    p.add_argument('--quiet', action='store_true', help='no live table')
+
+
+def _check(args: argparse.Namespace) -> None:
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ParameterError(f'--duration must be positive, got {args.duration}')
+    if not (math.isfinite(args.rtf) and args.rtf >= 0):
+        raise ParameterError(f'--rtf must be >= 0, got {args.rtf}')
+    if not (math.isfinite(args.rate) and 10 <= args.rate <= 10000):
+        raise ParameterError(f'--rate must be in 10..10000 Hz, got {args.rate}')
+
+
+class _LiveView:
+    """An rclpy node in the demo process: listens to energy and analysis, kicks."""
+
+    def __init__(self, domain_id: int):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import Float64MultiArray, String
+        from std_srvs.srv import Trigger
+        self.ctx = rclpy.context.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node('gyro_rotor_demo', context=self.ctx)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.energy: dict = {}
+        self.analysis: dict = {}
+        self.modes: list = []
+        self.verdict = ''
+        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.node.create_subscription(Float64MultiArray, 'energy', self._on_energy, qos)
+        self.node.create_subscription(Float64MultiArray, 'analysis', self._on_analysis, 10)
+        self.node.create_subscription(Float64MultiArray, 'analysis_modes', self._on_modes, 10)
+        self.node.create_subscription(String, 'analysis_verdict', self._on_verdict, latched)
+        self.perturb = self.node.create_client(Trigger, '/rotor_sim/perturb')
+        self._trigger = Trigger
+
+    @staticmethod
+    def _labelled(msg) -> dict:
+        labels = msg.layout.dim[0].label.split(',') if msg.layout.dim else []
+        return dict(zip(labels, msg.data))
+
+    def _on_energy(self, msg) -> None:
+        self.energy = self._labelled(msg)
+
+    def _on_analysis(self, msg) -> None:
+        self.analysis = self._labelled(msg)
+
+    def _on_modes(self, msg) -> None:
+        if len(msg.layout.dim) < 2:
+            return
+        names = msg.layout.dim[0].label.split(',')
+        cols = msg.layout.dim[1].label.split(',')
+        n = len(cols)
+        self.modes = [(name, dict(zip(cols, msg.data[i * n:(i + 1) * n])))
+                      for i, name in enumerate(names)]
+
+    def _on_verdict(self, msg) -> None:
+        self.verdict = msg.data
+
+    def spin(self, seconds: float) -> None:
+        """Process callbacks for about ``seconds``."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
+
+    def kick(self, timeout: float = 5.0) -> str:
+        """Call /rotor_sim/perturb; return its message."""
+        if not self.perturb.wait_for_service(timeout_sec=timeout):
+            return 'perturb service not available'
+        fut = self.perturb.call_async(self._trigger.Request())
+        end = time.monotonic() + timeout
+        while not fut.done() and time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=0.05)
+        return fut.result().message if fut.done() and fut.result() else 'no answer'
+
+    def close(self) -> None:
+        """Shut the node down."""
+        import rclpy
+        self.ex.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def _mode_cell(row: dict) -> str:
+    pred = row.get('pred_im', math.nan) / (2 * math.pi)
+    meas = row.get('meas_im', math.nan) / (2 * math.pi)
+    m = '-' if not math.isfinite(meas) else f'{abs(meas):.3f}'
+    return f'{abs(pred):.3f}/{m}'
+
+
+def _line(view: _LiveView) -> str:
+    e, a = view.energy, view.analysis
+    t = e.get('t_sim', math.nan)
+    cells = [f'{t:7.2f}', f'{e.get("E_star", math.nan):11.7f}',
+             f'{e.get("residual", math.nan):9.1e}',
+             f'{a.get("energy_decay_rate", math.nan):9.4f}',
+             f'{a.get("decay_rate_bound", math.nan):9.4f}',
+             f'{int(a["pole_slips"]) if "pole_slips" in a else "-":>5}']
+    modes = '  '.join(f'{name.split(" ")[0][:9]} {_mode_cell(row)}'
+                      for name, row in view.modes if 'zero' not in name)
+    return '  '.join(cells) + '  ' + modes + f'  {view.verdict.split(":")[0]}'
+
+
+HEADER = ('  t [s]       E* [J]  residual  E* decay   >= bound  slips  modes: predicted/'
+          'identified frequency [Hz]  live verdict')
+
+
+def expected_outcome(scene, duration: float) -> dict:
+    """Return what linear theory (and, for a sine law, a reference simulation) expects."""
+    from gyro_rotor.linear.stability import analyze_scene
+    exp = {'verdict': analyze_scene(scene).verdict, 'pole_slips': None}
+    if scene.params.pole_pairs:
+        from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
+        from gyro_rotor.numerics.simulate import simulate
+        tr = simulate(scene, t_end=duration, rate=250.0)
+        ref = RotorAnalyzer(scene, window_s=0)
+        ref.add_many(samples_from_trajectory(tr))
+        exp['pole_slips'] = ref.result().pole_slips
+    return exp
+
+
+def run(args: argparse.Namespace) -> int:  # noqa: C901 -- one linear story
+    """Run the demo; 0 if the run confirms the expected behaviour of the scene."""
+    from gyro_rotor.analysis.checks import analyze_bag
+    from gyro_rotor.tools.launch import claim_domain_id, NodeProcess
+    from gyro_rotor.analysis.report import text_report, write_report
+    _check(args)
+    scene = load_scene(args.scene)
+    kick_at = args.kick_at
+    if kick_at is None:
+        kick_at = -1.0 if scene.params.pole_pairs else min(2.0, args.duration / 4)
+    stamp = time.strftime('%Y%m%d-%H%M%S')
+    out = Path(args.out) if args.out else Path('demo_runs') / f'{scene.name}_{stamp}'
+    if out.exists() and any(out.iterdir()):
+        raise ParameterError(f'output directory {out} exists and is not empty')
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ParameterError(f'cannot create output directory {out}: {err}') from err
+    bag = out / 'bag'
+    scene_arg = scene.path or args.scene
+    print(f'gyro_rotor demo: scene {scene.name} ({scene.description})')
+    exp = expected_outcome(scene, args.duration)
+    print(f'expected (linear stability): {exp["verdict"]}'
+          + (f'; pole slips {exp["pole_slips"]} (reference simulation)'
+             if exp['pole_slips'] is not None else ''))
+    claim = claim_domain_id()
+    logs = {n: open(out / f'{n}.log', 'w') for n in ('rotor_sim', 'rotor_analysis')}
+    procs = []
+    view = None
+    interrupted = False
+    try:
+        print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {bag}')
+        procs.append(NodeProcess('gyro_rotor.ros.analysis_node', {
+            'output': str(bag), 'scene': str(scene_arg)}, domain_id=claim.domain_id,
+            stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis']))
+        view = _LiveView(claim.domain_id)
+        view.spin(1.0)
+        procs.append(NodeProcess('gyro_rotor.ros.sim_node', {
+            'scene': str(scene_arg), 'real_time_factor': float(args.rtf),
+            'publish_rate': float(args.rate), 't_end': float(args.duration),
+            'stop_at_t_end': True, 'wait_for_subscribers': 1}, domain_id=claim.domain_id,
+            stdout=logs['rotor_sim'], stderr=logs['rotor_sim']))
+        if not args.quiet:
+            print(HEADER)
+        kicked = kick_at < 0
+        next_print = time.monotonic()
+        deadline = time.monotonic() + 120.0 + (args.duration / args.rtf if args.rtf else 0)
+        last_t = -1.0
+        while True:
+            view.spin(0.1)
+            t = view.energy.get('t_sim', -1.0)
+            if not kicked and t >= kick_at:
+                print(f'  kick at t = {t:.2f} s: {view.kick()}')
+                kicked = True
+            if not args.quiet and time.monotonic() >= next_print and t > last_t:
+                print(_line(view), flush=True)
+                next_print = time.monotonic() + 1.0
+                last_t = t
+            if t >= args.duration - 0.5 / args.rate:
+                break
+            for p in procs:
+                if p.poll() is not None:
+                    raise GyroRotorError(f'{p.module} exited early with status {p.poll()}; '
+                                         f'see {out}')
+            if time.monotonic() > deadline:
+                raise GyroRotorError(f'the simulation did not reach t = {args.duration} s in '
+                                     f'time (last t = {t:.3f} s); see {out}/rotor_sim.log')
+        view.spin(1.5)     # let the analysis take the last samples
+        if not args.quiet:
+            print(_line(view))
+    except KeyboardInterrupt:
+        interrupted = True
+        print('\ninterrupted: stopping the nodes, finalizing the bag', file=sys.stderr)
+    finally:
+        codes = {p.module: p.stop() for p in reversed(procs)}
+        if view is not None:
+            view.close()
+        claim.release()
+        for f in logs.values():
+            f.close()
+    bad_exit = {m: c for m, c in codes.items() if c not in (0, -2)}
+    if not bag.exists():
+        raise GyroRotorError(f'no bag was recorded; see {out}/rotor_analysis.log')
+    ana = analyze_bag(str(bag))
+    files = write_report(ana, out / 'report', None, plots=True)
+    res = ana.result
+    print()
+    print(text_report(res, ana))
+    checks = []
+    checks.append((res.verdict == exp['verdict'],
+                   f'verdict {res.verdict!r}, expected {exp["verdict"]!r}'))
+    checks.append((res.dropped == 0, f'{res.dropped} messages lost'))
+    resid = max((s.residual_max for s in res.segments), default=math.nan)
+    checks.append((math.isfinite(resid) and resid < 1e-6,
+                   f'max |energy-balance residual| {resid:.3g} J'))
+    if exp['pole_slips'] is not None:
+        checks.append((res.pole_slips == exp['pole_slips'] and res.pole_slips > 0,
+                       f'pole slips {res.pole_slips}, reference {exp["pole_slips"]}'))
+    checks.append((not bad_exit, f'node exit codes {codes}'))
+    print('checks:')
+    for ok, text in checks:
+        print(f'  [{"ok" if ok else "FAILED"}] {text}')
+    print(f'bag:    {bag}')
+    print(f'report: {out / "report" / "report.txt"}')
+    for f in files:
+        if str(f).endswith('.png'):
+            print(f'plot:   {f}')
+    if interrupted:
+        return 130
+    ok = all(c for c, _ in checks)
+    print(f'RESULT: {"CONFIRMED" if ok else "NOT CONFIRMED"}: {res.verdict}')
+    return 0 if ok else 1

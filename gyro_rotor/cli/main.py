@@ -1,0 +1,85 @@
+"""The ``gyro-rotor`` command line: ``main(argv) -> int``; one module per subcommand.
+
+Subcommands live in :mod:`gyro_rotor.cli.commands` (``add_arguments`` and ``run``); this
+module only dispatches and turns a :class:`~gyro_rotor.errors.GyroRotorError` (or a bad
+argument) into ``ERROR: ...`` on stderr and exit status 1 (2 for usage errors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from gyro_rotor.errors import GyroRotorError
+
+#: subcommand name -> module in gyro_rotor.cli.commands (listed in the order of --help)
+COMMANDS = {
+    'demo': 'demo',
+    'simulate': 'simulate',
+    'steady': 'steady',
+    'scenes': 'scenes',
+    'eig': 'eig',
+    'locus': 'locus',
+    'tune': 'tune',
+    'bench': 'bench',
+    'analyze': 'analyze',
+    'monitor': 'monitor',
+    'recover': 'recover',
+    'soak': 'soak',
+    'rt-bench': 'rt_bench',
+}
+
+
+def _load(name: str):
+    try:
+        return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
+    except ModuleNotFoundError as err:
+        if err.name == f'gyro_rotor.cli.commands.{COMMANDS[name]}':
+            return None
+        raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the argparse parser with every available subcommand."""
+    parser = argparse.ArgumentParser(
+        prog='gyro-rotor',
+        description='Magnus (1980) gyrostat on a synchronous drive: simulate, analyse, '
+                    'record, demo.')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
+    sub.required = True
+    for name in COMMANDS:
+        mod = _load(name)
+        if mod is None:
+            continue
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except GyroRotorError as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except (OSError, UnicodeError) as err:
+        # a file that cannot be read or written (missing directory, a directory instead of
+        # a file, no permission, disk full): the message names the path
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except (OverflowError, MemoryError) as err:
+        print(f'ERROR: the numbers asked for are too large: {type(err).__name__}: {err}',
+              file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print('interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""The physics: parameters, rotations, the models, steady motions and scenes (pure)."""

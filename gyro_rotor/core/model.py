@@ -1,0 +1,425 @@
+"""Equations of motion of the gyrostat on a synchronous drive, singularity-free.
+
+Three models, each a class with the same interface, so that a scene models only what it
+needs (docs/model.md sections 2 to 4; Magnus 1980, eqs. 18, 19, 23):
+
+``full``            :class:`FullModel`, 4 DOF: stator orientation as a quaternion q (body to
+                    space), stator body rates W, rotor angle z relative to the field, and
+                    its rate. State (10): ``q_w q_x q_y q_z W_1 W_2 W_3 z zdot D``.
+``upright_axis``    :class:`UprightAxisModel`, 2 DOF: the axis locked vertical (theta = 0);
+                    housing twist chi and rotor. State (5): ``chi chidot z zdot D``.
+``locked_housing``  :class:`LockedHousingModel`, 1 DOF: the paper's "arretiertes System",
+                    rotor on its drive only. State (3): ``z zdot D``.
+
+In every model ``z = phi - Omega0 t`` (eq. 7), the rotor angle relative to the rotating
+field, so the equations are autonomous, and the last state ``D`` is the work dissipated by
+the drive damping, ``dD/dt = K_D zdot^2``. Then (docs/model.md section 4)
+
+    r(t) = E*(t) - E*(0) + D(t)
+
+is zero along exact solutions (eq. 17 with the exact nonlinear law) and measures the
+integration error live.
+
+Full model (docs/model.md section 3). With k the vertical in body axes (cos theta = k_3),
+H = (I W_1, I W_2, C_M W_3 + C_R (W_3 + Omega0 + zdot)):
+
+    I dW_1/dt = M_1 - W_2 (H_3 - I W_3),    I dW_2/dt = M_2 + W_1 (H_3 - I W_3),
+    C_M dW_3/dt = M_3 - Q,                  C_R (dW_3/dt + d^2z/dt^2) = Q,
+    M = -(dV/dcos theta) (e_3 x k) - c_psi chi w,   w = (k_1/(1+k_3), k_2/(1+k_3), 1),
+    dV/dcos theta = G s - c_theta theta/sin theta,  chi = 2 atan2(q_z, q_w),
+    dq/dt = q * (0, W) / 2.
+
+The restraint torque uses chi from the quaternion, which is exact for |chi| < 2 pi (a
+housing wound more than a full turn against its restraint is outside every scene). The
+form is regular everywhere except theta = pi (the axis pointing straight down), where the
+twist direction w of the restraint has no limit: a run that gets there stops with an
+:class:`~gyro_rotor.errors.IntegrationError`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+from gyro_rotor.core.params import RotorParams
+from gyro_rotor.core.rotations import (axis_from_quaternion, body_rates_from_euler,
+                                       euler_from_quaternion, euler_rates_from_body,
+                                       quaternion_from_euler, tilt, twist)
+import numpy as np
+
+__all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
+           'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin']
+
+_SERIES_LIMIT = 1e-4
+
+
+def theta_over_sin(sin_t: float, cos_t: float) -> float:
+    """Return theta / sin(theta), regular at theta = 0 (series 1 + theta^2/6 + 7 theta^4/360)."""
+    theta = math.atan2(sin_t, cos_t)
+    if theta < _SERIES_LIMIT:
+        t2 = theta * theta
+        return 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
+    return theta / sin_t
+
+
+def drive_torque(p: RotorParams, z, zdot):
+    """Drive torque Q on the rotor (eq. 23, or its sine law with p = pole_pairs).
+
+    Q = -K_S z - K_D zdot  (linear),   Q = -(K_S/p) sin(p z) - K_D zdot  (p pole pairs).
+    """
+    if p.pole_pairs == 0:
+        return -p.K_S * z - p.K_D * zdot
+    pp = p.pole_pairs
+    return -(p.K_S / pp) * np.sin(pp * z) - p.K_D * zdot
+
+
+def drive_potential(p: RotorParams, z):
+    """U(z): K_S z^2/2 (linear) or (K_S/p^2)(1 - cos p z) (p pole pairs)."""
+    if p.pole_pairs == 0:
+        return 0.5 * p.K_S * np.square(z)
+    pp = p.pole_pairs
+    return (p.K_S / pp ** 2) * (1.0 - np.cos(pp * z))
+
+
+class Model:
+    """Common interface of the models (see module doc); subclasses fill in the physics."""
+
+    name = ''
+    state_names: tuple = ()
+    #: index of z, zdot and D in the state vector
+    iz = izd = idiss = -1
+
+    def __init__(self, params: RotorParams):
+        if not isinstance(params, RotorParams):
+            raise TypeError('params must be a RotorParams')
+        self.params = params
+        self.rhs = self.make_rhs()
+
+    @property
+    def n(self) -> int:
+        """Size of the state vector."""
+        return len(self.state_names)
+
+    def make_rhs(self) -> Callable[[float, np.ndarray], np.ndarray]:
+        """Return ``f(t, y) -> dy/dt`` (ndarray), with the parameters bound as floats."""
+        fl = self.make_rhs_list()
+
+        def rhs(t, y):
+            return np.array(fl(t, y.tolist()))
+        return rhs
+
+    def make_rhs_list(self) -> Callable[[float, list], list]:  # pragma: no cover
+        """Return a plain-float right-hand side ``f(t, y_list) -> list``."""
+        raise NotImplementedError
+
+    # -- energy ----------------------------------------------------------------------------
+    def energy(self, Y) -> np.ndarray:  # pragma: no cover
+        """Lyapunov function E* (eq. 13 for this scene) of states Y (rows or one state)."""
+        raise NotImplementedError
+
+    def energy_rate(self, Y) -> np.ndarray:
+        """dE*/dt = -K_D zdot^2 along exact solutions (eq. 17)."""
+        Y = np.asarray(Y, dtype=float)
+        return -self.params.K_D * Y[..., self.izd] ** 2
+
+    def residual(self, Y, E0: float | None = None) -> np.ndarray:
+        """Energy-balance residual r = E* - E*(0) + D (docs/model.md section 4).
+
+        ``E0`` is E*(0) + D(0), by default taken from the first row of ``Y``.
+        """
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        E = self.energy(Y)
+        if E0 is None:
+            E0 = E[0] + Y[0, self.idiss]
+        return E - E0 + Y[:, self.idiss]
+
+    # -- outputs ---------------------------------------------------------------------------
+    def quaternion(self, Y) -> np.ndarray:  # pragma: no cover
+        """Stator quaternions of the states Y."""
+        raise NotImplementedError
+
+    def body_rates(self, Y) -> np.ndarray:  # pragma: no cover
+        """Stator body angular velocity of states Y."""
+        raise NotImplementedError
+
+    def quaternion_norm_error(self, Y) -> np.ndarray:
+        """|q| - 1 (zero for the reduced models, whose orientation is exact)."""
+        Y = np.asarray(Y, dtype=float)
+        return np.zeros(Y.shape[:-1])
+
+    def outputs(self, t, Y) -> dict:
+        """Return the derived outputs of a trajectory (time ``t`` shape (m,), states ``Y`` (m, n)).
+
+        Returns a dict of arrays: ``quaternion`` (m, 4), ``omega_body`` (m, 3), ``axis``
+        (m, 3) symmetry axis in space, ``theta``, ``psi``, ``phi_M``, ``phi_R`` (3-1-3
+        angles, outputs only), their rates ``thetadot``, ``psidot``, ``phi_M_dot``,
+        ``phi_R_dot``, ``chi``, ``z``, ``zdot``, ``Q`` (drive torque), ``E_star``,
+        ``dE_dt``, ``dissipation`` (K_D zdot^2), ``residual`` and ``qnorm_error``.
+        """
+        p = self.params
+        t = np.asarray(t, dtype=float)
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        q = self.quaternion(Y)
+        W = self.body_rates(Y)
+        psi, theta, phi_M = euler_from_quaternion(q)
+        psi = np.unwrap(psi) if psi.ndim else psi
+        phi_M = np.unwrap(phi_M) if phi_M.ndim else phi_M
+        chi = self.chi(Y)
+        psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, W)
+        z, zdot = Y[:, self.iz], Y[:, self.izd]
+        phi = z + p.Omega0 * t
+        E = self.energy(Y)
+        return {
+            't': t, 'quaternion': q, 'omega_body': W, 'axis': axis_from_quaternion(q),
+            'theta': theta, 'psi': psi, 'phi_M': phi_M, 'phi_R': phi + phi_M,
+            'thetadot': thetadot, 'psidot': psidot, 'phi_M_dot': phi_M_dot,
+            'phi_R_dot': zdot + p.Omega0 + phi_M_dot, 'chi': chi, 'z': z, 'zdot': zdot,
+            'Q': drive_torque(p, z, zdot), 'E_star': E, 'dE_dt': self.energy_rate(Y),
+            'dissipation': p.K_D * zdot ** 2, 'residual': self.residual(Y),
+            'qnorm_error': self.quaternion_norm_error(Y),
+        }
+
+    def chi(self, Y) -> np.ndarray:
+        """Twist chi = phi_M + psi of the housing (continuous along a trajectory)."""
+        return twist(self.quaternion(Y))
+
+    def generalized_forces(self, Y) -> np.ndarray:
+        """Generalized forces (Q_theta, Q_psi, Q_phi_R, Q_phi_M) of eqs. (19, 23), (m, 4).
+
+        Q_theta = G s sin(theta) - c_theta theta, Q_psi = -c_psi chi, Q_phi_R = Q,
+        Q_phi_M = -c_psi chi - Q (the drive reaction on the stator).
+        """
+        p = self.params
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        theta = tilt(self.quaternion(Y))
+        chi = self.chi(Y)
+        Q = drive_torque(p, Y[:, self.iz], Y[:, self.izd])
+        return np.stack([p.Gs * np.sin(theta) - p.c_theta * theta, -p.c_psi * chi, Q,
+                         -p.c_psi * chi - Q], axis=-1)
+
+    def state_from_euler(self, theta=0.0, thetadot=0.0, psi=0.0, psidot=0.0, phi_M=0.0,
+                         phi_M_dot=0.0, z=0.0, zdot=0.0) -> np.ndarray:  # pragma: no cover
+        """State vector from 3-1-3 angles and rates of the stator and the rotor's z, zdot."""
+        raise NotImplementedError
+
+    def to_full(self, Y) -> np.ndarray:
+        """Return the equivalent state(s) of the full model (for comparisons)."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        q = self.quaternion(Y)
+        W = self.body_rates(Y)
+        return np.column_stack([q, W, Y[:, self.iz], Y[:, self.izd], Y[:, self.idiss]])
+
+
+class FullModel(Model):
+    """The full nonlinear 4-DOF gyrostat with the drive (quaternion form, see module doc)."""
+
+    name = 'full'
+    state_names = ('q_w', 'q_x', 'q_y', 'q_z', 'W_1', 'W_2', 'W_3', 'z', 'zdot', 'D')
+    iz, izd, idiss = 7, 8, 9
+
+    def make_rhs_list(self):
+        """Plain-float right-hand side of the full model (no numpy per call)."""
+        p = self.params
+        I, C_R, C_M = p.I, p.C_R, p.C_M
+        Gs, c_theta, c_psi = p.Gs, p.c_theta, p.c_psi
+        K_S, K_D, Omega0 = p.K_S, p.K_D, p.Omega0
+        pp = p.pole_pairs
+        K_Sp = K_S / pp if pp else 0.0
+        inv_I, inv_CR, inv_CM = 1.0 / I, 1.0 / C_R, 1.0 / C_M
+        atan2, sqrt, sin = math.atan2, math.sqrt, math.sin
+        lim = _SERIES_LIMIT
+
+        def f(t, y):
+            qw, qx, qy, qz, W1, W2, W3, z, zd, _ = y
+            n = qw * qw + qx * qx + qy * qy + qz * qz
+            k1 = 2.0 * (qx * qz - qw * qy) / n
+            k2 = 2.0 * (qy * qz + qw * qx) / n
+            k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
+            st = sqrt(k1 * k1 + k2 * k2)
+            th = atan2(st, k3)
+            if th < lim:
+                t2 = th * th
+                ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
+            else:
+                ratio = th / st
+            dV = Gs - c_theta * ratio
+            tw = c_psi * 2.0 * atan2(qz, qw)
+            tw_k = tw / (1.0 + k3)
+            M1 = dV * k2 - tw_k * k1
+            M2 = -dV * k1 - tw_k * k2
+            if pp:
+                Q = -K_Sp * sin(pp * z) - K_D * zd
+            else:
+                Q = -K_S * z - K_D * zd
+            g = C_M * W3 + C_R * (W3 + Omega0 + zd) - I * W3   # H_3 - I W_3
+            dW3 = (-tw - Q) * inv_CM
+            return [0.5 * (-qx * W1 - qy * W2 - qz * W3),
+                    0.5 * (qw * W1 + qy * W3 - qz * W2),
+                    0.5 * (qw * W2 + qz * W1 - qx * W3),
+                    0.5 * (qw * W3 + qx * W2 - qy * W1),
+                    (M1 - W2 * g) * inv_I,
+                    (M2 + W1 * g) * inv_I,
+                    dW3,
+                    zd,
+                    Q * inv_CR - dW3,
+                    K_D * zd * zd]
+        return f
+
+    def energy(self, Y):
+        """E* = I (W_1^2+W_2^2)/2 + C_M W_3^2/2 + C_R (zdot+W_3)^2/2 + U(z) + V (eq. 13)."""
+        p = self.params
+        Y = np.asarray(Y, dtype=float)
+        W1, W2, W3, z, zd = (Y[..., i] for i in (4, 5, 6, 7, 8))
+        q = Y[..., 0:4]
+        theta = tilt(q)
+        chi = 2.0 * np.arctan2(q[..., 3], q[..., 0])
+        V = p.Gs * np.cos(theta) + 0.5 * p.c_theta * theta ** 2 + 0.5 * p.c_psi * chi ** 2
+        return (0.5 * p.I * (W1 ** 2 + W2 ** 2) + 0.5 * p.C_M * W3 ** 2
+                + 0.5 * p.C_R * (zd + W3) ** 2 + drive_potential(p, z) + V)
+
+    def quaternion(self, Y):
+        """Stator quaternion, as integrated (not renormalized)."""
+        return np.asarray(Y, dtype=float)[..., 0:4]
+
+    def body_rates(self, Y):
+        """Stator body rates W."""
+        return np.asarray(Y, dtype=float)[..., 4:7]
+
+    def quaternion_norm_error(self, Y):
+        """|q| - 1 of the integrated quaternion."""
+        return np.linalg.norm(self.quaternion(Y), axis=-1) - 1.0
+
+    def state_from_euler(self, theta=0.0, thetadot=0.0, psi=0.0, psidot=0.0, phi_M=0.0,
+                         phi_M_dot=0.0, z=0.0, zdot=0.0):
+        """State from 3-1-3 angles and rates (regular at theta = 0)."""
+        q = quaternion_from_euler(psi, theta, phi_M)
+        W = body_rates_from_euler(psi, theta, phi_M, psidot, thetadot, phi_M_dot)
+        return np.concatenate([q, W, [z, zdot, 0.0]]).astype(float)
+
+    def state_from_body(self, quaternion, omega_body, z=0.0, zdot=0.0) -> np.ndarray:
+        """State from a stator quaternion (w, x, y, z; normalized here) and body rates."""
+        q = np.asarray(quaternion, dtype=float)
+        q = q / np.linalg.norm(q)
+        return np.concatenate([q, np.asarray(omega_body, dtype=float), [z, zdot, 0.0]])
+
+
+class UprightAxisModel(Model):
+    """Axis locked vertical: housing twist chi and rotor, 2 DOF (state chi chidot z zdot D).
+
+    C_M chi'' = -c_psi chi - Q,   C_R (chi'' + z'') = Q.  This is the full model restricted
+    to theta = 0, W = (0, 0, chidot); it stands for the limit c_theta -> infinity.
+    """
+
+    name = 'upright_axis'
+    state_names = ('chi', 'chidot', 'z', 'zdot', 'D')
+    iz, izd, idiss = 2, 3, 4
+
+    def make_rhs_list(self):
+        """Plain-float right-hand side."""
+        p = self.params
+        C_R, C_M, c_psi, K_S, K_D, pp = p.C_R, p.C_M, p.c_psi, p.K_S, p.K_D, p.pole_pairs
+        K_Sp = K_S / pp if pp else 0.0
+        sin = math.sin
+
+        def f(t, y):
+            chi, chid, z, zd, _ = y
+            Q = (-K_Sp * sin(pp * z) if pp else -K_S * z) - K_D * zd
+            chidd = (-c_psi * chi - Q) / C_M
+            return [chid, chidd, zd, Q / C_R - chidd, K_D * zd * zd]
+        return f
+
+    def energy(self, Y):
+        """E* at theta = 0: C_M chidot^2/2 + C_R (zdot + chidot)^2/2 + U + G s + c_psi chi^2/2."""
+        p = self.params
+        Y = np.asarray(Y, dtype=float)
+        chi, chid, z, zd = Y[..., 0], Y[..., 1], Y[..., 2], Y[..., 3]
+        return (0.5 * p.C_M * chid ** 2 + 0.5 * p.C_R * (zd + chid) ** 2
+                + drive_potential(p, z) + p.Gs + 0.5 * p.c_psi * chi ** 2)
+
+    def quaternion(self, Y):
+        """Rotation by chi about the vertical."""
+        chi = np.asarray(Y, dtype=float)[..., 0]
+        zero = np.zeros_like(chi)
+        return np.stack([np.cos(chi / 2), zero, zero, np.sin(chi / 2)], axis=-1)
+
+    def body_rates(self, Y):
+        """W = (0, 0, chidot)."""
+        chid = np.asarray(Y, dtype=float)[..., 1]
+        zero = np.zeros_like(chid)
+        return np.stack([zero, zero, chid], axis=-1)
+
+    def chi(self, Y):
+        """Twist chi, a state of this model."""
+        return np.asarray(Y, dtype=float)[..., 0]
+
+    def state_from_euler(self, theta=0.0, thetadot=0.0, psi=0.0, psidot=0.0, phi_M=0.0,
+                         phi_M_dot=0.0, z=0.0, zdot=0.0):
+        """State from angles; theta and thetadot must be 0 for this model."""
+        if theta != 0.0 or thetadot != 0.0:
+            raise ValueError('the upright_axis model holds theta = 0: theta and thetadot '
+                             'must be 0')
+        return np.array([psi + phi_M, psidot + phi_M_dot, z, zdot, 0.0])
+
+
+class LockedHousingModel(Model):
+    """Housing locked (the paper's "arretiertes System"): rotor on its drive, 1 DOF.
+
+    C_R z'' = Q (eq. 8): a damped oscillator about synchronism (eqs. 9, 10) for the linear
+    law, a damped pendulum (pole slips) for the sine law. State z zdot D.
+    """
+
+    name = 'locked_housing'
+    state_names = ('z', 'zdot', 'D')
+    iz, izd, idiss = 0, 1, 2
+
+    def make_rhs_list(self):
+        """Plain-float right-hand side."""
+        p = self.params
+        C_R, K_S, K_D, pp = p.C_R, p.K_S, p.K_D, p.pole_pairs
+        K_Sp = K_S / pp if pp else 0.0
+        sin = math.sin
+
+        def f(t, y):
+            z, zd, _ = y
+            Q = (-K_Sp * sin(pp * z) if pp else -K_S * z) - K_D * zd
+            return [zd, Q / C_R, K_D * zd * zd]
+        return f
+
+    def energy(self, Y):
+        """E* = C_R zdot^2/2 + U(z) + G s (housing at rest, axis vertical)."""
+        p = self.params
+        Y = np.asarray(Y, dtype=float)
+        return 0.5 * p.C_R * Y[..., 1] ** 2 + drive_potential(p, Y[..., 0]) + p.Gs
+
+    def quaternion(self, Y):
+        """Identity (housing locked)."""
+        Y = np.asarray(Y, dtype=float)
+        q = np.zeros(Y.shape[:-1] + (4,))
+        q[..., 0] = 1.0
+        return q
+
+    def body_rates(self, Y):
+        """Zero (housing locked)."""
+        Y = np.asarray(Y, dtype=float)
+        return np.zeros(Y.shape[:-1] + (3,))
+
+    def chi(self, Y):
+        """Zero (housing locked)."""
+        return np.zeros(np.asarray(Y, dtype=float).shape[:-1])
+
+    def state_from_euler(self, theta=0.0, thetadot=0.0, psi=0.0, psidot=0.0, phi_M=0.0,
+                         phi_M_dot=0.0, z=0.0, zdot=0.0):
+        """State from angles; the housing angles are ignored (locked)."""
+        return np.array([z, zdot, 0.0])
+
+
+MODELS = {cls.name: cls for cls in (FullModel, UprightAxisModel, LockedHousingModel)}
+
+
+def make_model(name: str, params: RotorParams) -> Model:
+    """Make the model registered under ``name`` ('full', 'upright_axis', 'locked_housing')."""
+    try:
+        cls = MODELS[name]
+    except KeyError:
+        raise ValueError(f"unknown model '{name}'; valid: {', '.join(MODELS)}") from None
+    return cls(params)

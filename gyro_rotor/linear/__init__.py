@@ -1,0 +1,1 @@
+"""Linear analysis: linearization, stability, the paper's claims, root locus (pure)."""

@@ -1,0 +1,1 @@
+"""Numerics: integrators, simulate, ensemble, real-time pacing and benchmarks (pure)."""

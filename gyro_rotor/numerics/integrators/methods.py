@@ -1,0 +1,345 @@
+"""The integration methods (data + one kernel each), the registry and the driver.
+
+==========  =====  ========  ==================================================================
+name        order  kind      properties
+==========  =====  ========  ==================================================================
+rk4         4      explicit  classical Runge-Kutta, fixed step (the real-time node's stepper)
+rk8         8      explicit  DOP853's 8th-order formula at a fixed step (no error control)
+dop853      8(5,3) explicit  adaptive, embedded error estimate, 7th-order dense output
+gauss6      6      implicit  3-stage Gauss-Legendre collocation, fixed step: symmetric and
+                             symplectic, keeps |q| = 1 exactly (quadratic invariant); E* error
+                             stays bounded over long conservative runs instead of drifting
+rodas4      4(3)   implicit  Rosenbrock, L-stable and stiffly accurate, adaptive; Jacobian by
+                             central differences each step; for the stiff drive (large K_D)
+==========  =====  ========  ==================================================================
+
+Every method runs on the singularity-free state of :mod:`gyro_rotor.model`; the inner
+loops are the compiled kernels of :mod:`gyro_rotor.integrators.kernels`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from gyro_rotor.core.model import Model
+from gyro_rotor.errors import ParameterError
+from gyro_rotor.numerics.integrators import kernels, tableaux as tb
+from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
+import numpy as np
+
+__all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'METHODS', 'integrate',
+           'choose_method', 'STIFF_RATIO', 'LONG_CONSERVATIVE']
+
+#: 'auto' takes the stiff method when the drive's damping rate exceeds the fastest
+#: oscillation rate by this factor (explicit steps would be bounded by stability, not error)
+STIFF_RATIO = 20.0
+#: 'auto' takes the structure-preserving method for K_D = 0 runs at least this long [s]
+LONG_CONSERVATIVE = 100.0
+
+
+class ExplicitRK(Integrator):
+    """Fixed-step explicit Runge-Kutta with a class-level tableau ``A, B, C``."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        n = self.model.n
+        self._K = np.empty((self.B.shape[0], n))
+        self._ytmp = np.empty(n)
+        self._ynew = np.empty(n)
+
+    def _step_impl(self, t_limit):
+        h = self.h
+        clipped = self.t + h * (1.0 + 1e-9) >= t_limit
+        if clipped:
+            h = t_limit - self.t
+        kernels.rk_step(self.kind, self.P, self.y, self.f, h, self.A, self.B, self._K,
+                        self._ytmp, self._ynew)
+        self.nfev += self.B.shape[0] - 1
+        y = self._ynew.copy()
+        f = self._rhs(y)
+        self.project(y, f)
+        self.y, self.f = y, f
+        self.t = t_limit if clipped else self.t + h
+        return True, None
+
+    def _run(self, t_eval, Y, counts):
+        return kernels.rk_run(self.kind, self.P, self.y, self.t, t_eval, self.h, self.A,
+                              self.B, self.renormalize, self.max_steps - self.nsteps, Y,
+                              counts)
+
+
+class RK4(ExplicitRK):
+    """Classical Runge-Kutta, order 4, fixed step (default step 0.02 / model rate)."""
+
+    name = 'rk4'
+    order = 4
+    step_factor = 0.02
+    A, B, C = tb.RK4_A, tb.RK4_B, tb.RK4_C
+
+
+class RK8(ExplicitRK):
+    """DOP853's 8th-order formula (12 stages) at a fixed step (default 0.2 / model rate)."""
+
+    name = 'rk8'
+    order = 8
+    step_factor = 0.2
+    A = np.ascontiguousarray(tb.DOP853_A[:12, :12])
+    B, C = tb.DOP853_B, tb.DOP853_C[:12]
+
+
+class DOP853(Integrator):
+    """Dormand-Prince 8(5,3): adaptive, error control in the RMS norm, dense output.
+
+    References: Hairer, Norsett, Wanner I, sec. II.10; scipy's DOP853 (same control).
+    """
+
+    name = 'dop853'
+    order = 8
+    adaptive = True
+    default_rtol = 1e-10
+    default_atol = 1e-12
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        n = self.model.n
+        self._K = np.empty((16, n))
+        self._F = np.empty((7, n))
+        self._ytmp = np.empty(n)
+        self._ynew = np.empty(n)
+        self._fnew = np.empty(n)
+        self._y_old = None
+        self._f_old = None
+        self._h_next = 0.0
+
+    def _step_impl(self, t_limit):
+        if self._h_next <= 0.0:
+            self._h_next = kernels.initial_step(self.kind, self.P, self.y, self.f, self.rtol,
+                                                self.atol, 7, self.h_max, self._ytmp,
+                                                self._fnew)
+            self.nfev += 1
+        h = min(self._h_next, self.h_max)
+        while True:
+            if h < 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):
+                return False, STATUS_MESSAGES[-1]
+            clipped = self.t + h >= t_limit
+            if clipped:
+                h = t_limit - self.t
+            err = kernels.dop853_step(self.kind, self.P, self.y, self.f, h, self.rtol,
+                                      self.atol, tb.DOP853_A, tb.DOP853_B, tb.DOP853_E3,
+                                      tb.DOP853_E5, self._K, self._ytmp, self._ynew,
+                                      self._fnew)
+            self.nfev += 12
+            if math.isfinite(err) and err <= 1.0:
+                break
+            self.nrejected += 1
+            h *= (max(kernels.MIN_FACTOR, kernels.SAFETY * err ** (-1.0 / 8.0))
+                  if math.isfinite(err) else kernels.MIN_FACTOR)
+        y, f = self._ynew.copy(), self._fnew.copy()
+        self.project(y, f)
+        self._y_old, self._f_old, self._h_old = self.y, self.f, h
+        self._t_old_step = self.t
+        self._dense_ready = False
+        self.y, self.f = y, f
+        self.t = t_limit if clipped else self.t + h
+        fac = (kernels.MAX_FACTOR if err == 0.0
+               else min(kernels.MAX_FACTOR, kernels.SAFETY * err ** (-1.0 / 8.0)))
+        self._h_next = max(h * fac, self._h_next if clipped else 0.0)
+        return True, None
+
+    def dense_output(self, t: float) -> np.ndarray:
+        """State at ``t`` inside the last step (7th-order interpolant, 3 more evaluations)."""
+        if self._y_old is None:
+            raise RuntimeError('Dense output is available only after a step.')
+        t0, h = self._t_old_step, self._h_old
+        if not (t0 <= t <= self.t):
+            raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
+        if not self._dense_ready:
+            kernels.dop853_dense(self.kind, self.P, self._y_old, self.y, self._f_old, self.f,
+                                 h, tb.DOP853_A, tb.DOP853_C, tb.DOP853_D, self._K,
+                                 self._ytmp, self._F)
+            self.nfev += 3
+            self._dense_ready = True
+        out = np.empty(self.model.n)
+        kernels.dense_eval(self._F, self._y_old, (t - t0) / h, out)
+        return out
+
+    def _run(self, t_eval, Y, counts):
+        return kernels.dop853_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
+                                  self.atol, self.h_max, self._h_next, self.renormalize,
+                                  self.max_steps - self.nsteps, tb.DOP853_A, tb.DOP853_B,
+                                  tb.DOP853_C, tb.DOP853_D, tb.DOP853_E3, tb.DOP853_E5, Y,
+                                  counts)
+
+
+class Gauss6(Integrator):
+    """3-stage Gauss-Legendre collocation, order 6, fixed step (default 0.1 / model rate).
+
+    Symmetric and symplectic; preserves quadratic invariants exactly, so |q| = 1 needs no
+    projection. Stages by fixed-point iteration to round-off (a step too large for that
+    to converge fails the run with status -4). Not for stiff scenes.
+    References: Hairer, Lubich, Wanner, Geometric Numerical Integration, sec. II.1.3.
+    """
+
+    name = 'gauss6'
+    order = 6
+    implicit = True
+    renormalize = False
+    step_factor = 0.1
+    max_iter = 60
+    A, B, C = tb.GAUSS6_A, tb.GAUSS6_B, tb.GAUSS6_C
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        n = self.model.n
+        self._K = np.empty((3, n))
+        self._ytmp = np.empty(n)
+        self._ynew = np.empty(n)
+
+    def _step_impl(self, t_limit):
+        h = self.h
+        clipped = self.t + h * (1.0 + 1e-9) >= t_limit
+        if clipped:
+            h = t_limit - self.t
+        ne = kernels.gauss_step(self.kind, self.P, self.y, self.f, h, self.A, self.B,
+                                self._K, self._ytmp, self._ynew, self.max_iter)
+        if ne < 0:
+            return False, STATUS_MESSAGES[-4]
+        self.nfev += ne
+        self.y = self._ynew.copy()
+        self.f = self._rhs(self.y)
+        self.t = t_limit if clipped else self.t + h
+        return True, None
+
+    def _run(self, t_eval, Y, counts):
+        return kernels.gauss_run(self.kind, self.P, self.y, self.t, t_eval, self.h, self.A,
+                                 self.B, self.max_steps - self.nsteps, self.max_iter, Y,
+                                 counts)
+
+
+class Rodas4(Integrator):
+    """RODAS4 (Hairer and Wanner II, sec. IV.7): Rosenbrock 4(3), L-stable, adaptive.
+
+    Linear solves only (no Newton iteration): one LU of W = I/(h gamma) - J per step, J by
+    central differences. Cost does not grow with the stiffness K_D (1/C_R + 1/C_M).
+    """
+
+    name = 'rodas4'
+    order = 4
+    adaptive = True
+    implicit = True
+    default_rtol = 1e-9
+    default_atol = 1e-11
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        n = self.model.n
+        self._K = np.empty((6, n))
+        self._J = np.empty((n, n))
+        self._W = np.empty((n, n))
+        self._piv = np.zeros(n, dtype=np.int64)
+        self._buf = [np.empty(n) for _ in range(5)]
+        self._h_next = 0.0
+
+    def _step_impl(self, t_limit):
+        ytmp, fa, fb, ynew, rb = self._buf
+        if self._h_next <= 0.0:
+            self._h_next = kernels.initial_step(self.kind, self.P, self.y, self.f, self.rtol,
+                                                self.atol, 3, self.h_max, ytmp, fa)
+            self.nfev += 1
+        self.nfev += kernels.fd_jacobian(self.kind, self.P, self.y, self._J, ytmp, fa, fb)
+        self.njev += 1
+        h = min(self._h_next, self.h_max)
+        while True:
+            if h < 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):
+                return False, STATUS_MESSAGES[-1]
+            clipped = self.t + h >= t_limit
+            h_try = t_limit - self.t if clipped else h
+            err = kernels.rodas_step(self.kind, self.P, self.y, self.f, self._J, h_try,
+                                     self.rtol, self.atol, tb.RODAS4_A, tb.RODAS4_C,
+                                     tb.RODAS4_M, tb.RODAS4_GAMMA, self._K, ytmp, ynew,
+                                     self._W, self._piv, rb)
+            self.nfev += 5
+            if math.isfinite(err) and err <= 1.0:
+                break
+            self.nrejected += 1
+            h = h_try * (max(kernels.MIN_FACTOR, kernels.SAFETY * err ** -0.25)
+                         if math.isfinite(err) else kernels.MIN_FACTOR)
+        y = ynew.copy()
+        f = self._rhs(y)
+        self.project(y, f)
+        self.y, self.f = y, f
+        self.t = t_limit if clipped else self.t + h_try
+        fac = 6.0 if err == 0.0 else min(6.0, kernels.SAFETY * err ** -0.25)
+        fac = max(kernels.MIN_FACTOR, fac)
+        self._h_next = max(h_try * fac, h) if clipped else h_try * fac
+        return True, None
+
+    def _run(self, t_eval, Y, counts):
+        return kernels.rodas_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
+                                 self.atol, self.h_max, self._h_next, self.renormalize,
+                                 self.max_steps - self.nsteps, tb.RODAS4_A, tb.RODAS4_C,
+                                 tb.RODAS4_M, tb.RODAS4_GAMMA, Y, counts)
+
+
+METHODS: dict[str, type[Integrator]] = {
+    cls.name: cls for cls in (RK4, RK8, DOP853, Gauss6, Rodas4)}
+
+
+def choose_method(params, t_end: float = 0.0) -> tuple[str, str]:
+    """Return the automatic choice for a scene: ``(method name, reason)``.
+
+    - rodas4 when the drive's damping rate K_D (1/C_R + 1/C_M) (a real root of the
+      linearization, docs/model.md section 7) exceeds the fastest oscillation by STIFF_RATIO:
+      an explicit method would need steps near its inverse;
+    - gauss6 for conservative runs (K_D = 0) of LONG_CONSERVATIVE seconds or more: its E*
+      error stays bounded where other methods drift;
+    - dop853 otherwise: the cheapest per accuracy on the non-stiff scenes.
+    """
+    inv_c = 1.0 / params.C_R + 1.0 / params.C_M
+    stiff = params.K_D * inv_c
+    osc = max(params.C_R * abs(params.Omega0) / params.I, math.sqrt(params.K_S * inv_c),
+              math.sqrt(abs(params.c_theta - params.Gs) / params.I),
+              math.sqrt(params.c_psi / params.C_M), 1.0)
+    if stiff > STIFF_RATIO * osc:
+        return 'rodas4', (f'stiff: the drive damping root K_D (1/C_R + 1/C_M) = {stiff:.3g} '
+                          f'1/s is {stiff / osc:.3g} times the fastest oscillation '
+                          f'({osc:.3g} rad/s); an L-stable implicit method steps by accuracy')
+    if params.K_D == 0.0 and t_end >= LONG_CONSERVATIVE:
+        return 'gauss6', (f'conservative (K_D = 0) over {t_end:g} s: a symplectic method keeps '
+                          f'the E* error bounded')
+    return 'dop853', (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest oscillation '
+                      f'{osc:.3g} rad/s): adaptive explicit order 8 is the cheapest')
+
+
+def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
+                    t_bound: float = math.inf, **kwargs) -> Integrator:
+    """Make an integrator from the registry by name ('auto' uses :func:`choose_method`)."""
+    if method == 'auto':
+        method = choose_method(model.params, t_bound - t0)[0]
+    try:
+        cls = METHODS[method]
+    except KeyError:
+        raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
+                             f"{', '.join(METHODS)}") from None
+    return cls(model, y0, t0, t_bound, **kwargs)
+
+
+def integrate(model: Model, y0, t_span, t_eval=None, method: str = 'auto', *,
+              rtol: float | None = None, atol: float | None = None,
+              step: float | None = None, max_steps: int = 50_000_000) -> IntegrationResult:
+    """Integrate ``model`` over ``t_span`` in one compiled loop, sampled at ``t_eval``.
+
+    ``t_eval`` defaults to the two ends. A numerical failure is reported in the result's
+    ``status``/``message`` (samples up to the failure), not raised.
+    """
+    t0, t1 = (float(v) for v in t_span)
+    if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+        raise ParameterError(f't_span must be two finite times with t1 > t0, got {t_span!r}')
+    solver = make_integrator(method, model, y0, t0, t1, rtol=rtol, atol=atol, step=step,
+                             max_steps=max_steps)
+    te = np.array([t0, t1]) if t_eval is None else np.asarray(t_eval, dtype=float)
+    return solver.run(te)

@@ -1,0 +1,494 @@
+"""Real-time pacing of a simulation: pure Python, no rclpy (unit-testable with a fake clock).
+
+The simulation node calls :meth:`Pacer.tick` from a steady-clock timer with the current
+steady (monotonic) clock reading. The pacer then advances the integrator **exactly** to
+
+    t_target = t_sim0 + rtf (now - wall0)
+
+however many timer ticks rcl skipped (it measures elapsed time, never assumes one step
+per tick), and returns the states on the output grid ``t_k = k / sample_rate`` that it
+passed on the way. So every simulated second carries exactly ``sample_rate`` samples,
+whatever the wall-clock timing was, and a consumer can prove from the sample index that
+none was dropped.
+
+If the simulation cannot keep up (a tick would have to catch up more than
+``max_catch_up`` wall seconds of simulation), the catch-up is capped, the tick counted as
+*capped* and the lost simulated time accumulated; the time base is then re-anchored, so
+simulation time falls behind ``rtf`` times wall time visibly (the achieved real-time
+factor drops) rather than silently. A tick whose own work took longer than the timer
+period counts as an *overrun*.
+
+With ``rtf = 0`` ("as fast as possible") each tick advances by a fixed chunk of
+``chunk_samples`` output samples.
+
+The integrators behind the pacer share the minimal interface of :class:`Stepper`
+(``t``, ``y``, ``nfev``, ``advance_to(t)``, ``method``): :class:`DenseStepper` wraps a scipy
+``OdeSolver`` class (DOP853 by default) and reaches ``t_target`` with its dense output;
+:class:`RK4Stepper` is a fixed-step classical Runge-Kutta with a final partial step.
+:func:`make_stepper` picks one by name, and uses :mod:`gyro_rotor.integrators` when that
+module provides the method.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Callable, Protocol
+
+from gyro_rotor.errors import IntegrationError, ParameterError
+import numpy as np
+
+__all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
+           'resolve_method', 'Pacer', 'Sample',
+           'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL', 'DEFAULT_RK4_STEP',
+           'EnergyBaseline']
+
+#: scipy OdeSolver classes :class:`DenseStepper` accepts by name
+SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
+#: default tolerances of the adaptive methods (as gyro_rotor.simulate)
+DEFAULT_RTOL = 1e-11
+DEFAULT_ATOL = 1e-12
+#: default step of the fixed-step RK4 [s]
+DEFAULT_RK4_STEP = 2.5e-4
+#: relative slack when comparing grid times with a target time
+_GRID_EPS = 1e-9
+
+Rhs = Callable[[float, np.ndarray], np.ndarray]
+
+
+class Stepper(Protocol):
+    """What the pacer needs from an integrator."""
+
+    method: str
+    t: float
+    y: np.ndarray
+    nfev: int
+
+    def advance_to(self, t_target: float) -> np.ndarray:
+        """Integrate to exactly ``t_target`` (>= t) and return y(t_target)."""
+
+
+def _check_finite(t: float, y: np.ndarray, method: str) -> None:
+    if not np.all(np.isfinite(y)):
+        raise IntegrationError(f'{method}: the state became non-finite at t = {t:.9g} s')
+
+
+class DenseStepper:
+    """A scipy ``OdeSolver`` (e.g. DOP853) stepping freely, sampled with its dense output.
+
+    The solver takes its own steps (independent of the targets); a target inside the last
+    step is read from the step's interpolant, as ``solve_ivp(t_eval=...)`` does. The last
+    good state stays available when a step fails or produces non-finite values
+    (:class:`~gyro_rotor.errors.IntegrationError` is raised, the stepper is then dead).
+    """
+
+    def __init__(self, fun: Rhs, t0: float, y0: np.ndarray, method: str = 'DOP853',
+                 rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL):
+        import scipy.integrate
+        if method not in SCIPY_METHODS:
+            raise ParameterError(f"unknown integrator '{method}'; valid: "
+                                 f"{', '.join(SCIPY_METHODS)}, rk4")
+        for name, v in (('rtol', rtol), ('atol', atol)):
+            if not (math.isfinite(v) and v > 0):
+                raise ParameterError(f'{name} must be positive and finite, got {v!r}')
+        self.method = method
+        self.rtol, self.atol = float(rtol), float(atol)
+        y0 = np.array(y0, dtype=float)
+        _check_finite(t0, y0, method)
+        self._solver = getattr(scipy.integrate, method)(fun, float(t0), y0, np.inf,
+                                                        rtol=rtol, atol=atol)
+        self.t = float(t0)
+        self.y = y0
+        self._dense = None
+        self._dense_t = None
+        self.failed = False
+
+    @property
+    def nfev(self) -> int:
+        """Right-hand side evaluations so far."""
+        return int(self._solver.nfev)
+
+    def advance_to(self, t_target: float) -> np.ndarray:
+        """Integrate to exactly ``t_target`` and return y(t_target)."""
+        s = self._solver
+        if self.failed:
+            raise IntegrationError(f'{self.method}: the integrator failed earlier')
+        if t_target < self.t:
+            raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
+        while s.t < t_target:
+            msg = s.step()
+            if s.status == 'failed' or not np.all(np.isfinite(s.y)):
+                self.failed = True
+                raise IntegrationError(f'{self.method}: step failed at t = {s.t:.9g} s'
+                                       + (f': {msg}' if msg else ': non-finite state'))
+        if s.t == t_target:
+            y = s.y.copy()
+        else:
+            if self._dense_t != s.t:
+                self._dense = s.dense_output()
+                self._dense_t = s.t
+            y = self._dense(t_target)
+        _check_finite(t_target, y, self.method)
+        self.t, self.y = float(t_target), y
+        return y
+
+
+class RK4Stepper:
+    """Classical fixed-step Runge-Kutta of order 4 with a final partial step to the target."""
+
+    def __init__(self, fun: Rhs, t0: float, y0: np.ndarray, step_size: float = DEFAULT_RK4_STEP):
+        if not (math.isfinite(step_size) and step_size > 0):
+            raise ParameterError(f'step_size must be positive and finite, got {step_size!r}')
+        self.method = 'rk4'
+        self.fun = fun
+        self.h = float(step_size)
+        self.t = float(t0)
+        self.y = np.array(y0, dtype=float)
+        _check_finite(self.t, self.y, self.method)
+        self.nfev = 0
+
+    def _step(self, h: float) -> None:
+        f, t, y = self.fun, self.t, self.y
+        k1 = f(t, y)
+        k2 = f(t + h / 2, y + h / 2 * k1)
+        k3 = f(t + h / 2, y + h / 2 * k2)
+        k4 = f(t + h, y + h * k3)
+        self.nfev += 4
+        y_new = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        _check_finite(t + h, y_new, self.method)
+        self.y = y_new
+
+    def advance_to(self, t_target: float) -> np.ndarray:
+        """Full steps of ``h`` while they fit, then one partial step landing on t_target."""
+        if t_target < self.t:
+            raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
+        while t_target - self.t > self.h * (1 + _GRID_EPS):
+            self._step(self.h)
+            self.t += self.h
+        rest = t_target - self.t
+        if rest > 0:
+            self._step(rest)
+        self.t = float(t_target)
+        return self.y
+
+
+class IntegratorStepper:
+    """Adapter of a :mod:`gyro_rotor.integrators` method to the :class:`Stepper` interface.
+
+    Its ``advance_to`` clips the last step onto the target; a failed status becomes an
+    :class:`~gyro_rotor.errors.IntegrationError`, with the last good state kept in
+    ``t, y``.
+    """
+
+    def __init__(self, integrator):
+        self.integrator = integrator
+        self.method = integrator.name
+        self.rtol = integrator.rtol
+        self.atol = integrator.atol
+        self.t = float(integrator.t)
+        self.y = np.array(integrator.y, dtype=float)
+
+    @property
+    def nfev(self) -> int:
+        """Right-hand side evaluations so far."""
+        return int(self.integrator.nfev)
+
+    def advance_to(self, t_target: float) -> np.ndarray:
+        """Integrate to exactly ``t_target`` and return y(t_target)."""
+        if t_target < self.t:
+            raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
+        status = self.integrator.advance_to(t_target)
+        y = np.array(self.integrator.y, dtype=float)
+        if status == 'failed' or not np.all(np.isfinite(y)):
+            raise IntegrationError(f'{self.method}: failed near t = '
+                                   f'{self.integrator.t:.9g} s: {self.integrator.message}')
+        self.t, self.y = float(t_target), y
+        return y
+
+
+def _integrators():
+    """Return the METHODS registry and make_integrator of gyro_rotor.integrators, if present."""
+    try:
+        from gyro_rotor.numerics.integrators import make_integrator, METHODS
+    except ImportError:
+        return None, None
+    return METHODS, make_integrator
+
+
+def resolve_method(method: str, params, t_end: float = math.inf) -> tuple[str, str]:
+    """'auto' -> (method, reason): gyro_rotor.integrators' choice, else scipy's DOP853/Radau."""
+    if method != 'auto':
+        return method, 'requested'
+    methods, _ = _integrators()
+    if methods is not None:
+        from gyro_rotor.numerics.integrators import choose_method
+        return choose_method(params, t_end)
+    stiff = params.K_D * (1.0 / params.C_R + 1.0 / params.C_M)
+    return ('Radau', 'stiff drive') if stiff > 1e4 else ('DOP853', 'non-stiff')
+
+
+def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: float = 0.0,
+                 atol: float = 0.0, step_size: float = 0.0, model=None) -> Stepper:
+    """Make a stepper by name.
+
+    With ``model`` given, a method of :mod:`gyro_rotor.integrators` (``rk4``, ``rk8``,
+    ``dop853``, ``gauss6``, ``rodas4``); otherwise, or for the scipy names (``DOP853``,
+    ``Radau``, ...), scipy's OdeSolver with dense output; ``rk4`` falls back to
+    :class:`RK4Stepper`. Zero tolerances or step size mean the method's default.
+    """
+    methods, make_integrator = _integrators()
+    if model is not None and methods is not None and method in methods:
+        try:
+            integ = make_integrator(method, model, y0, t0, math.inf, rtol=rtol or None,
+                                    atol=atol or None, step=step_size or None)
+        except ValueError as err:
+            raise ParameterError(str(err)) from err
+        return IntegratorStepper(integ)
+    if method == 'rk4':
+        return RK4Stepper(fun, t0, y0, step_size or DEFAULT_RK4_STEP)
+    if method in SCIPY_METHODS:
+        return DenseStepper(fun, t0, y0, method, rtol or DEFAULT_RTOL, atol or DEFAULT_ATOL)
+    valid = ['auto', *(methods or ['rk4']), *SCIPY_METHODS]
+    raise ParameterError(f"unknown integrator '{method}'; valid: {', '.join(valid)}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Sample:
+    """One output sample: grid index k (t = k / sample_rate) and the state there."""
+
+    k: int
+    t: float
+    y: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class WindowStats:
+    """Pacing figures over a window of wall time (see :meth:`Pacer.take_window`)."""
+
+    wall: float              # wall seconds in the window (not paused)
+    sim: float               # simulated seconds advanced in the window
+    achieved_rtf: float      # sim / wall (nan if the window is empty)
+    ticks: int
+    samples: int
+    overruns: int            # ticks whose work took longer than the period
+    capped: int              # ticks whose catch-up was capped (sim time lost)
+    lost_sim_time: float     # simulated seconds given up by capping
+    interval_mean: float     # mean wall interval between ticks [s]
+    interval_std: float      # its standard deviation (tick jitter) [s]
+    interval_max: float
+    interval_p99: float      # 99th percentile of the interval [s]
+    busy_mean: float         # mean wall time of a tick's work [s]
+    busy_max: float
+
+
+class Pacer:
+    """Advance a :class:`Stepper` in step with a steady clock (see module doc).
+
+    Parameters
+    ----------
+    stepper : Stepper
+        The integrator; ``stepper.t`` is the current simulation time.
+    sample_rate : float
+        Output grid rate [Hz]: samples at ``t_k = k / sample_rate`` (the publish rate).
+    rtf : float
+        Real-time factor (simulated seconds per wall second); 0 = as fast as possible.
+    max_catch_up : float
+        Most wall seconds of simulation one tick may catch up [s].
+    period : float
+        The timer period [s], to count overruns (default 1 / sample_rate).
+    chunk_samples : int
+        Samples per tick with ``rtf = 0``.
+    t_end : float or None
+        Stop at this simulation time (the pacer then idles; ``finished`` is true).
+    """
+
+    def __init__(self, stepper: Stepper, sample_rate: float, rtf: float = 1.0,
+                 max_catch_up: float = 0.25, period: float | None = None,
+                 chunk_samples: int = 1, t_end: float | None = None):
+        if not (math.isfinite(sample_rate) and sample_rate > 0):
+            raise ParameterError(f'sample_rate must be positive, got {sample_rate!r}')
+        if not (math.isfinite(max_catch_up) and max_catch_up > 0):
+            raise ParameterError(f'max_catch_up must be positive, got {max_catch_up!r}')
+        if chunk_samples < 1:
+            raise ParameterError(f'chunk_samples must be >= 1, got {chunk_samples!r}')
+        self.sample_rate = float(sample_rate)
+        self.max_catch_up = float(max_catch_up)
+        self.period = float(period) if period else 1.0 / self.sample_rate
+        self.chunk_samples = int(chunk_samples)
+        self.t_end = t_end
+        self.rtf = 0.0
+        self.set_rtf(rtf, None)
+        self.paused = False
+        self.finished = False
+        self.stepper = stepper
+        self._k_next = self._first_k(stepper.t)
+        self._anchor: tuple[float, float] | None = None     # (wall0, t_sim0)
+        self._last_tick: float | None = None
+        self._tick_start = 0.0
+        # totals
+        self.ticks = self.samples = self.overruns = self.capped = 0
+        self.lost_sim_time = 0.0
+        self._reset_window(None)
+
+    # -- control ---------------------------------------------------------------------------
+    def _first_k(self, t: float) -> int:
+        """Index of the first grid point at or after t."""
+        return int(math.ceil(t * self.sample_rate - _GRID_EPS))
+
+    def grid_time(self, k: int) -> float:
+        """t_k = k / sample_rate."""
+        return k / self.sample_rate
+
+    def set_rtf(self, rtf: float, now: float | None) -> None:
+        """Change the real-time factor (re-anchors the time base at ``now``)."""
+        if not (math.isfinite(rtf) and rtf >= 0):
+            raise ParameterError(f'real_time_factor must be >= 0 and finite, got {rtf!r}')
+        self.rtf = float(rtf)
+        if now is not None and getattr(self, 'stepper', None) is not None:
+            self._anchor = (now, self.stepper.t)
+
+    def restart(self, stepper: Stepper, now: float | None = None) -> None:
+        """Continue with a new stepper (reset, kick, parameter change) from its t."""
+        self.stepper = stepper
+        self._k_next = self._first_k(stepper.t)
+        self.finished = self.t_end is not None and stepper.t >= self.t_end
+        if now is not None and self._anchor is not None:
+            self._anchor = (now, stepper.t)
+
+    def pause(self, now: float) -> None:
+        """Stop advancing; ticks are still counted."""
+        self.paused = True
+
+    def resume(self, now: float) -> None:
+        """Continue from the current simulation time (re-anchored at ``now``)."""
+        if self.paused:
+            self.paused = False
+            self._anchor = (now, self.stepper.t)
+            self._window_wall0 = now
+            self._window_t0 = self.stepper.t
+            self._last_tick = None
+
+    # -- stepping --------------------------------------------------------------------------
+    def tick(self, now: float) -> list[Sample]:
+        """Advance to the target time for steady-clock reading ``now``; return grid samples.
+
+        Raises :class:`~gyro_rotor.errors.IntegrationError` from the stepper (its last good
+        state remains ``stepper.t, stepper.y``).
+        """
+        self._tick_start = now
+        if self._last_tick is not None:
+            dt = now - self._last_tick
+            self._w_intervals.append(dt)
+        self._last_tick = now
+        self.ticks += 1
+        self._w_ticks += 1
+        if self._window_wall0 is None:
+            self._window_wall0, self._window_t0 = now, self.stepper.t
+        if self.paused or self.finished:
+            return []
+        st = self.stepper
+        if self.rtf > 0:
+            if self._anchor is None:
+                self._anchor = (now, st.t)
+            wall0, t0 = self._anchor
+            t_target = t0 + self.rtf * (now - wall0)
+            cap = self.rtf * self.max_catch_up
+            if t_target - st.t > cap:
+                self.capped += 1
+                self._w_capped += 1
+                lost = t_target - st.t - cap
+                self.lost_sim_time += lost
+                self._w_lost += lost
+                t_target = st.t + cap
+                self._anchor = (now, t_target)
+        else:
+            t_target = self.grid_time(self._k_next + self.chunk_samples - 1)
+        if self.t_end is not None and t_target >= self.t_end:
+            t_target = self.t_end
+            self.finished = True
+        if t_target < st.t:
+            t_target = st.t
+        out = []
+        slack = _GRID_EPS / self.sample_rate
+        while True:
+            tk = self.grid_time(self._k_next)
+            if tk > t_target + slack:
+                break
+            tk = max(tk, st.t)
+            y = st.advance_to(tk)
+            out.append(Sample(self._k_next, tk, np.array(y, copy=True)))
+            self._k_next += 1
+        if t_target > st.t:
+            st.advance_to(t_target)
+        self.samples += len(out)
+        self._w_samples += len(out)
+        return out
+
+    def end_tick(self, now: float) -> None:
+        """Record the end of a tick's work (for overrun and busy-time figures)."""
+        busy = now - self._tick_start
+        self._w_busy.append(busy)
+        if self.rtf > 0 and busy > self.period:
+            self.overruns += 1
+            self._w_overruns += 1
+
+    # -- statistics ------------------------------------------------------------------------
+    def _reset_window(self, now: float | None) -> None:
+        self._window_wall0 = now
+        self._window_t0 = self.stepper.t if getattr(self, 'stepper', None) else 0.0
+        self._w_intervals: list[float] = []
+        self._w_busy: list[float] = []
+        self._w_ticks = self._w_samples = self._w_overruns = self._w_capped = 0
+        self._w_lost = 0.0
+
+    def take_window(self, now: float) -> WindowStats:
+        """Figures since the last call (or the start) and a fresh window."""
+        wall = 0.0 if self._window_wall0 is None else now - self._window_wall0
+        sim = self.stepper.t - self._window_t0
+        iv = np.array(self._w_intervals) if self._w_intervals else np.array([math.nan])
+        busy = np.array(self._w_busy) if self._w_busy else np.array([math.nan])
+        stats = WindowStats(
+            wall=wall, sim=sim,
+            achieved_rtf=(sim / wall) if wall > 0 and not self.paused else math.nan,
+            ticks=self._w_ticks, samples=self._w_samples, overruns=self._w_overruns,
+            capped=self._w_capped, lost_sim_time=self._w_lost,
+            interval_mean=float(np.mean(iv)), interval_std=float(np.std(iv)),
+            interval_max=float(np.max(iv)), interval_p99=float(np.percentile(iv, 99)),
+            busy_mean=float(np.mean(busy)),
+            busy_max=float(np.max(busy)))
+        self._reset_window(now)
+        return stats
+
+
+class EnergyBaseline:
+    """Bookkeeping of the energy-balance residual r = E* + D - E_ref across interventions.
+
+    Along an undisturbed solution E* + D is constant (eq. 17), so r measures the
+    integration error only. An intervention (a parameter change such as K_S, a kick, a
+    reset) changes E* at an instant without any integration error; :meth:`rebase` moves
+    E_ref by that jump so that r stays continuous across it.
+    """
+
+    def __init__(self, energy: Callable[[np.ndarray], float], idiss: int, y0: np.ndarray):
+        self.idiss = idiss
+        self.restart(energy, y0)
+        self.jumps = 0
+
+    def restart(self, energy: Callable[[np.ndarray], float], y0: np.ndarray) -> None:
+        """Start a new baseline E_ref = E*(y0) + D(y0) (reset)."""
+        self.energy = energy
+        self.E_ref = float(energy(y0)) + float(y0[self.idiss])
+
+    def rebase(self, energy_new: Callable[[np.ndarray], float], y_new: np.ndarray,
+               y_old: np.ndarray) -> float:
+        """Account for a jump from (old energy, y_old) to (new energy, y_new); return it."""
+        jump = float(energy_new(y_new)) - float(self.energy(y_old))
+        self.E_ref += jump
+        self.energy = energy_new
+        self.jumps += 1
+        return jump
+
+    def residual(self, y: np.ndarray, E: float | None = None) -> float:
+        """Return the residual r = E*(y) + D(y) - E_ref."""
+        E = float(self.energy(y)) if E is None else E
+        return E + float(y[self.idiss]) - self.E_ref

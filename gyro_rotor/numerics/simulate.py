@@ -1,0 +1,222 @@
+"""Simulation driver: a scene in, a :class:`Trajectory` out (pure Python, no rclpy).
+
+``simulate(scene)`` integrates the scene's model from its initial condition and samples
+the solution at ``rate`` Hz. The integrator is chosen per scene by default
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.integrators`, RODAS4 where
+the drive damping makes the scene stiff, Gauss6 for long conservative runs), at
+tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
+symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
+run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
+override, and scipy's ``solve_ivp`` methods stay selectable by their names.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Any, Mapping
+
+from gyro_rotor.core.model import Model
+from gyro_rotor.core.scene import load_scene, Scene
+from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.numerics.integrators import choose_method as choose_integrator, integrate, METHODS
+import numpy as np
+
+__all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
+           'CSV_COLUMNS', 'check_tolerances', 'auto_method',
+           'SCIPY_METHODS']
+
+DEFAULT_METHOD = 'auto'
+DEFAULT_RTOL = 1e-11
+DEFAULT_ATOL = 1e-12
+DEFAULT_RATE = 100.0
+#: most output samples of one simulate() call (t_end x rate)
+MAX_SAMPLES = 5e7
+#: scipy solve_ivp methods, selectable by their (upper-case) names as baselines
+SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
+
+CSV_COLUMNS = ('t', 'theta', 'psi', 'phi_R', 'phi_M', 'thetadot', 'psidot', 'phi_R_dot',
+               'phi_M_dot', 'axis_x', 'axis_y', 'axis_z', 'chi', 'z', 'zdot', 'Q', 'E_star',
+               'dE_dt', 'residual', 'qnorm_error')
+
+
+@dataclasses.dataclass
+class Trajectory:
+    """A sampled solution: times ``t`` (m,), states ``y`` (m, n) and derived outputs."""
+
+    scene: Scene
+    model: Model
+    t: np.ndarray
+    y: np.ndarray
+    out: dict
+    method: str
+    rtol: float
+    atol: float
+    nfev: int
+    nsteps: int
+    wall_time: float
+    success: bool = True
+    message: str = ''
+    #: why 'auto' chose this method ('' when the method was given)
+    method_reason: str = ''
+
+    def __getattr__(self, name: str) -> Any:
+        out = self.__dict__.get('out')
+        if out is not None and name in out:
+            return out[name]
+        raise AttributeError(name)
+
+    @property
+    def max_abs_residual(self) -> float:
+        """Return max |r(t)| over the samples."""
+        return float(np.max(np.abs(self.out['residual'])))
+
+    @property
+    def max_qnorm_drift(self) -> float:
+        """Return max ||q| - 1| over the samples."""
+        return float(np.max(np.abs(self.out['qnorm_error'])))
+
+    def columns(self) -> dict:
+        """Return the CSV columns as arrays (see CSV_COLUMNS)."""
+        o = self.out
+        cols = {k: o[k] for k in CSV_COLUMNS if k in o}
+        cols['axis_x'], cols['axis_y'], cols['axis_z'] = o['axis'].T
+        return {k: np.asarray(cols[k]) for k in CSV_COLUMNS}
+
+    def save(self, path: str) -> None:
+        """Write a CSV (header row) or NPZ file, by the suffix of ``path``."""
+        cols = self.columns()
+        if str(path).endswith('.npz'):
+            np.savez_compressed(path, y=self.y, state_names=np.array(self.model.state_names),
+                                **cols)
+        elif str(path).endswith('.csv'):
+            data = np.column_stack([cols[k] for k in CSV_COLUMNS])
+            np.savetxt(path, data, delimiter=',', header=','.join(CSV_COLUMNS), comments='',
+                       fmt='%.17g')
+        else:
+            raise ParameterError(f'--out must end in .csv or .npz, got {path}')
+
+    def summary(self) -> dict:
+        """Numbers for a printed summary."""
+        o = self.out
+        return {
+            'scene': self.scene.name, 'model': self.model.name, 'method': self.method,
+            'rtol': self.rtol, 'atol': self.atol, 't_end': float(self.t[-1]),
+            'samples': len(self.t), 'theta_end': float(o['theta'][-1]),
+            'psidot_end': float(o['psidot'][-1]), 'chi_end': float(o['chi'][-1]),
+            'z_end': float(o['z'][-1]), 'zdot_end': float(o['zdot'][-1]),
+            'E_star_first': float(o['E_star'][0]), 'E_star_last': float(o['E_star'][-1]),
+            'max_abs_residual': self.max_abs_residual,
+            'max_qnorm_drift': self.max_qnorm_drift, 'nfev': self.nfev,
+            'nsteps': self.nsteps, 'wall_time': self.wall_time,
+            'method_reason': self.method_reason,
+        }
+
+
+def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
+    """Return the integrator for this scene and the reason (method 'auto').
+
+    See :func:`gyro_rotor.integrators.choose_method`: RODAS4 where the drive damping makes
+    the scene stiff, Gauss6 for long conservative runs, DOP853 otherwise.
+    """
+    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
+
+
+def check_tolerances(rtol: float, atol: float) -> None:
+    """Refuse non-positive or non-finite tolerances (scipy would only warn)."""
+    for name, v in (('rtol', rtol), ('atol', atol)):
+        if not (np.isfinite(v) and v > 0):
+            raise ParameterError(f'{name} must be positive and finite, got {v!r}')
+
+
+def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
+             rate: float = DEFAULT_RATE, method: str = DEFAULT_METHOD,
+             rtol: float | None = None, atol: float | None = None,
+             overrides: Mapping[str, Any] | None = None,
+             y0: np.ndarray | None = None, step: float | None = None) -> Trajectory:
+    """Integrate a scene and return its sampled trajectory.
+
+    Parameters
+    ----------
+    scene : Scene or str
+        A loaded scene, or a scene name / path for :func:`~gyro_rotor.scene.load_scene`.
+    t_end : float, optional
+        Duration [s]; default the scene's ``t_end``.
+    rate : float
+        Sample rate of the output [Hz] (the integrator's steps are independent of it).
+    method : str
+        'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
+        method of :mod:`gyro_rotor.integrators` (rk4, rk8, dop853, gauss6, rodas4) or a
+        scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
+    rtol, atol : float, optional
+        Tolerances of adaptive methods.
+    step : float, optional
+        Step of the fixed-step methods (rk4, rk8, gauss6) [s]; default from the model's
+        fastest rate.
+    overrides : mapping, optional
+        Flat scene keys to change (e.g. ``{'K_D': 0.1}``), validated like the file.
+    y0 : ndarray, optional
+        Initial state instead of the scene's.
+    """
+    if isinstance(scene, Scene):
+        if overrides:
+            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
+    else:
+        scene = load_scene(scene, overrides=overrides)
+    t_end = scene.t_end if t_end is None else float(t_end)
+    if not (np.isfinite(t_end) and t_end > 0):
+        raise ParameterError(f't_end must be positive and finite, got {t_end!r}')
+    if not (np.isfinite(rate) and rate > 0):
+        raise ParameterError(f'rate must be positive and finite, got {rate!r}')
+    rtol = DEFAULT_RTOL if rtol is None else float(rtol)
+    atol = DEFAULT_ATOL if atol is None else float(atol)
+    check_tolerances(rtol, atol)
+    reason = ''
+    if method == 'auto':
+        method, reason = auto_method(scene, t_end)
+    if method not in METHODS and method not in SCIPY_METHODS:
+        raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
+                             f"{', '.join(METHODS)}, {', '.join(SCIPY_METHODS)}")
+    model = scene.make_model()
+    y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
+    if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
+        raise ParameterError(f'the initial state must be {model.n} finite numbers')
+    if t_end * rate > MAX_SAMPLES:
+        raise ParameterError(f't_end x rate = {t_end * rate:.3g} samples is more than '
+                             f'{MAX_SAMPLES:g}: lower --rate or --t-end')
+    n = int(np.floor(t_end * rate + 1e-9))
+    t_eval = np.arange(n + 1) / rate
+    if t_eval[-1] < t_end - 1e-12:
+        t_eval = np.append(t_eval, t_end)
+    t0 = time.perf_counter()
+    if method in METHODS:
+        try:
+            res = integrate(model, y_init, (0.0, t_end), t_eval, method, rtol=rtol,
+                            atol=atol, step=step)
+        except ZeroDivisionError as err:
+            raise IntegrationError(
+                f'integration of scene {scene.name} failed: the axis reached theta = pi '
+                f'(pointing straight down), where the model is singular ({err})') from err
+        wall = time.perf_counter() - t0
+        t_s, Y, nfev, nsteps = res.t, res.y, res.nfev, res.nsteps
+        status, message = res.status, res.message
+    else:
+        from scipy.integrate import solve_ivp
+        try:
+            sol = solve_ivp(model.rhs, (0.0, t_end), y_init, method=method, t_eval=t_eval,
+                            rtol=rtol, atol=atol)
+        except ValueError as err:
+            raise ParameterError(f'integrator {method}: {err}') from err
+        except ZeroDivisionError as err:
+            raise IntegrationError(
+                f'integration of scene {scene.name} failed: the axis reached theta = pi '
+                f'(pointing straight down), where the model is singular ({err})') from err
+        wall = time.perf_counter() - t0
+        t_s, Y, nfev, nsteps = sol.t, sol.y.T, int(sol.nfev), 0
+        status, message = sol.status, sol.message
+    if status < 0 or not np.all(np.isfinite(Y)):
+        raise IntegrationError(f'integration of scene {scene.name} with {method} failed at '
+                               f't = {t_s[-1] if t_s.size else 0.0}: {message}')
+    return Trajectory(scene=scene, model=model, t=t_s, y=Y, out=model.outputs(t_s, Y),
+                      method=method, rtol=rtol, atol=atol, nfev=int(nfev), nsteps=int(nsteps),
+                      wall_time=wall, success=True, message=message, method_reason=reason)

@@ -1,0 +1,258 @@
+"""``rotor_analysis``: records the simulation to MCAP and checks its stability live.
+
+A thin adapter around :class:`gyro_rotor.recorder.BagRecorder` (raw subscriptions, the exact
+bytes into a rosbag2 MCAP bag) and :class:`gyro_rotor.analysis.AnalysisSession` (the same
+checks as ``gyro-rotor analyze BAG``). The received bytes of ``energy``, ``joint_states`` and
+the simulation node's ``~/scene`` document are deserialized once and fed to the analysis.
+
+Parameters: ``output`` (bag directory; default a fresh ``bags_out/rotor_<time>``),
+``record`` (bool, default true), ``compression`` (none | zstd | lz4), ``scene`` (name or
+path; empty = take it from the simulation node's latched ``/<sim_node>/scene`` document,
+which follows live parameter changes), ``sim_node`` (default ``rotor_sim``), ``window_s``
+(sliding fit window, default 8 s), ``min_fit_s`` (2 s), ``period`` (publication period of
+the results, 1 s).
+
+Publishes ``analysis`` (std_msgs/Float64MultiArray, one dimension labelled with
+:data:`~gyro_rotor.analysis.ANALYSIS_LABEL`), ``analysis_modes`` (2-D: a row per predicted
+mode, dim[0] labelled with the mode names, dim[1] with
+:data:`~gyro_rotor.analysis.MODE_LABEL`), ``analysis_verdict`` (std_msgs/String) and
+``/diagnostics``. On SIGINT/SIGTERM the bag is finalized, with the final live result as the
+MCAP metadata record ``gyro_rotor.live_result``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+from diagnostic_msgs.msg import DiagnosticArray
+from gyro_rotor.analysis.checks import (ANALYSIS_FIELDS, ANALYSIS_LABEL, AnalysisSession,
+                                        MODE_FIELDS, MODE_LABEL, scene_to_flat)
+from gyro_rotor.core.scene import load_scene
+from gyro_rotor.errors import GyroRotorError
+import gyro_rotor.ros.messages as ros_msgs
+from gyro_rotor.ros.recorder import BagRecorder, check_writable, default_bag_path, sim_topics
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+import yaml
+
+__all__ = ['RotorAnalysisNode', 'main', 'OWN_TOPICS']
+
+#: the node's own output topics (recorded as well)
+OWN_TOPICS = {'analysis': 'std_msgs/msg/Float64MultiArray',
+              'analysis_modes': 'std_msgs/msg/Float64MultiArray',
+              'analysis_verdict': 'std_msgs/msg/String'}
+_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+_LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def _float_range(lo: float, hi: float) -> list:
+    return [FloatingPointRange(from_value=lo, to_value=hi, step=0.0)]
+
+
+class RotorAnalysisNode(Node):
+    """Recorder and live stability checks (see module doc)."""
+
+    def __init__(self, node_name: str = 'rotor_analysis', **kwargs):
+        # every entity costs time in each wait of rclpy's executor, and the node must keep
+        # up with 5 topics at 250 Hz: no parameter services (the parameters are read-only)
+        kwargs.setdefault('start_parameter_services', False)
+        super().__init__(node_name, **kwargs)
+        p = self.declare_parameter
+        output = p('output', '', ParameterDescriptor(
+            description='bag directory to create (default bags_out/rotor_<time>)',
+            read_only=True)).value
+        compression = p('compression', 'none', ParameterDescriptor(
+            description='MCAP chunk compression: none (as rosbag2), zstd or lz4',
+            read_only=True)).value
+        self.record = p('record', True, ParameterDescriptor(
+            description='record a bag', read_only=True)).value
+        scene_name = p('scene', '', ParameterDescriptor(
+            description="scene name or path; '' = from the sim node's ~/scene document",
+            read_only=True)).value
+        self.sim_node = p('sim_node', 'rotor_sim', ParameterDescriptor(
+            description='name of the simulation node', read_only=True)).value
+        window = p('window_s', 8.0, ParameterDescriptor(
+            description='sliding window of the decay and mode fits [s] (0 = whole run)',
+            floating_point_range=_float_range(0.0, 1e6), read_only=True)).value
+        min_fit = p('min_fit_s', 2.0, ParameterDescriptor(
+            description='shortest window to fit [s]',
+            floating_point_range=_float_range(0.1, 1e6), read_only=True)).value
+        period = p('period', 1.0, ParameterDescriptor(
+            description='period of the published results [s]',
+            floating_point_range=_float_range(0.05, 3600.0), read_only=True)).value
+        self.options = {'window_s': float(window), 'min_fit_s': float(min_fit)}
+        scene = load_scene(scene_name) if scene_name else None
+        self.session = AnalysisSession(scene, **self.options)
+        self.errors: list[str] = []
+        self.last_result = None
+
+        topics = sim_topics(self.sim_node)
+        self.scene_topic = self.resolve_topic_name(f'{self.sim_node}/scene')
+        self.energy_topic = self.resolve_topic_name('energy')
+        self.joints_topic = self.resolve_topic_name('joint_states')
+        self.pub_analysis = self.create_publisher(Float64MultiArray, 'analysis', _QOS)
+        self.pub_modes = self.create_publisher(Float64MultiArray, 'analysis_modes', _QOS)
+        self.pub_verdict = self.create_publisher(String, 'analysis_verdict', _LATCHED)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', _QOS)
+        self.recorder = None
+        if self.record:
+            path = default_bag_path() if not output else output
+            check_writable(path)
+            meta = {'gyro_rotor.analysis': {
+                'options': json.dumps(self.options), 'sim_node': self.sim_node,
+                'scene_parameter': scene_name}}
+            if scene is not None:
+                meta['gyro_rotor.scene'] = {'name': scene.name,
+                                            'flat': yaml.safe_dump(scene_to_flat(scene))}
+            self.recorder = BagRecorder(self, path, {**topics, **OWN_TOPICS},
+                                        metadata=meta, on_message=self._on_bytes,
+                                        compression=compression, on_error=self._error,
+                                        latched=(f'{self.sim_node}/scene',
+                                                 'analysis_verdict'))
+            self.get_logger().info(f'recording to {self.recorder.path}')
+        else:
+            deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+            self.create_subscription(Float64MultiArray, 'energy',
+                                     self.session.on_energy, deep)
+            self.create_subscription(JointState, 'joint_states', self.session.on_joints, deep)
+            self.create_subscription(String, f'{self.sim_node}/scene',
+                                     lambda m: self._on_scene(m.data), _LATCHED)
+        self._scene_recorded = scene is not None
+        self.create_timer(float(period), self.publish_results)
+
+    # -- input ----------------------------------------------------------------------------
+    def _on_bytes(self, topic: str, data: bytes) -> None:
+        try:
+            if topic == self.energy_topic:
+                self.session.on_energy(deserialize_message(data, Float64MultiArray))
+            elif topic == self.joints_topic:
+                self.session.on_joints(deserialize_message(data, JointState))
+            elif topic == self.scene_topic:
+                self._on_scene(deserialize_message(data, String).data)
+        except GyroRotorError as err:
+            self._error(str(err))
+
+    def _on_scene(self, text: str) -> None:
+        try:
+            scene = self.session.on_scene_doc(text)
+        except GyroRotorError as err:
+            self._error(f'scene document of {self.sim_node}: {err}')
+            return
+        if self.recorder is not None and not self._scene_recorded:
+            self.recorder.add_metadata('gyro_rotor.scene', {
+                'name': scene.name, 'flat': yaml.safe_dump(scene_to_flat(scene)),
+                'document': text})
+            self._scene_recorded = True
+
+    def _error(self, text: str) -> None:
+        if text not in self.errors:
+            self.errors.append(text)
+            self.get_logger().error(text)
+
+    # -- output ---------------------------------------------------------------------------
+    def publish_results(self) -> None:
+        """Evaluate and publish analysis, analysis_modes, analysis_verdict, /diagnostics."""
+        try:
+            res = self.session.result()
+        except GyroRotorError as err:
+            self._publish_diag('STALE', str(err), {})
+            return
+        self.last_result = res
+        vec = res.analysis_vector()
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label=ANALYSIS_LABEL, size=len(vec),
+                                              stride=len(vec))]
+        msg.data = vec
+        self.pub_analysis.publish(msg)
+        names, rows = res.mode_matrix()
+        mm = Float64MultiArray()
+        ncol = len(MODE_FIELDS)
+        mm.layout.dim = [MultiArrayDimension(label=','.join(names), size=len(rows),
+                                             stride=len(rows) * ncol),
+                         MultiArrayDimension(label=MODE_LABEL, size=ncol, stride=ncol)]
+        mm.data = [float(v) for row in rows for v in row]
+        self.pub_modes.publish(mm)
+        self.pub_verdict.publish(String(data=f'{res.verdict}: ' + '; '.join(res.evidence[:2])))
+        values = dict(zip(ANALYSIS_FIELDS, vec))
+        values['verdict'] = res.verdict
+        for i, line in enumerate(res.evidence):
+            values[f'evidence_{i}'] = line
+        for i, err in enumerate(self.errors[-3:]):
+            values[f'error_{i}'] = err
+        level = 'ERROR' if self.errors and res.level == 'OK' else res.level
+        self._publish_diag(level, res.verdict, values)
+
+    def _publish_diag(self, level: str, message: str, values: dict) -> None:
+        t = self.get_clock().now().nanoseconds
+        clean = {k: (v if not (isinstance(v, float) and math.isnan(v)) else 'nan')
+                 for k, v in values.items()}
+        self.pub_diag.publish(ros_msgs.diagnostic_array(
+            ros_msgs.stamp(int(t)), f'{self.get_name()}: stability', level, message, clean,
+            hardware_id=f'scene:{self.session.scene.name if self.session.scene else "?"}'))
+
+    def finalize(self) -> None:
+        """Write the final live result into the bag and close it (idempotent)."""
+        if self.recorder is None or self.recorder.writer.closed:
+            return
+        try:
+            self.session.finish()
+            res = self.session.result()
+            self.recorder.add_metadata('gyro_rotor.live_result', {
+                'verdict': res.verdict, 'samples': str(res.samples),
+                'dropped': str(res.dropped), 'json': json.dumps(res.as_dict())})
+        except GyroRotorError as err:
+            self.recorder.add_metadata('gyro_rotor.live_result', {'error': str(err)})
+        finally:
+            self.recorder.close()
+
+    def destroy_node(self):
+        """Finalize the bag, then destroy the node."""
+        self.finalize()
+        return super().destroy_node()
+
+
+def _on_sigterm(signum, frame):
+    """SIGTERM as SIGINT: leave spin() and finalize the bag (rclpy 7.1.6 here does not)."""
+    raise KeyboardInterrupt
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until SIGINT/SIGTERM; the bag is finalized on the way out."""
+    import signal
+    # before rclpy.init: rclpy's own handler chains to the handler it finds installed
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    rclpy.init(args=args)
+    node = None
+    status = 0
+    try:
+        node = RotorAnalysisNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except GyroRotorError as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        status = 1
+    finally:
+        if node is not None:
+            try:
+                node.destroy_node()
+            except GyroRotorError as err:
+                print(f'ERROR: {err}', file=sys.stderr)
+                status = 1
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

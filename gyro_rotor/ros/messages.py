@@ -1,0 +1,153 @@
+"""Conversions from model outputs (numpy) to ROS 2 messages for the simulation node.
+
+The only module besides the nodes that imports message types. Every function is a pure
+conversion: the caller passes simulation time in seconds (or integer nanoseconds) and SI
+values; nothing here integrates or decides.
+
+``energy`` layout (std_msgs/Float64MultiArray, one dimension, see :data:`ENERGY_FIELDS`)::
+
+    data = [t_sim, E_star, dE_dt, dissipation, residual, z, zdot, seq, D, k]
+    layout.dim[0] = {label: 't_sim,E_star,...,k', size: 10, stride: 10}
+
+t_sim [s] is the sample's simulation time (the same as the paired ``joint_states``
+header stamp), E_star [J] (eq. 13), dE_dt = -K_D zdot^2 [W] (eq. 17), dissipation =
+K_D zdot^2 [W], residual = E* + D - E_ref [J] (docs/model.md section 4), z [rad], zdot [rad/s],
+seq = the node's sample counter (0, 1, 2, ... over the node's life, never reset, so a gap
+proves a lost message), D [J] = dissipated work since the last reset, and k = the grid
+index of the sample (t_sim = k / publish_rate, restarts at 0 on reset).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, PoseStamped, Vector3Stamped
+import numpy as np
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from visualization_msgs.msg import Marker
+
+__all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'LEVELS', 'stamp', 'joint_state', 'energy_array',
+           'axis_vector', 'stator_pose', 'axis_marker', 'diagnostic_array', 'clock',
+           'text', 'ENERGY_LABEL']
+
+#: joint order of ``joint_states`` (3-1-3 angles of the paper; the rotor's phi_R)
+JOINT_NAMES = ('theta', 'psi', 'phi_R', 'phi_M')
+#: fields of the ``energy`` array, in order
+ENERGY_FIELDS = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
+                 'D', 'k')
+ENERGY_LABEL = ','.join(ENERGY_FIELDS)
+#: diagnostic levels as the byte constants the message needs (never plain ints)
+LEVELS = {'OK': DiagnosticStatus.OK, 'WARN': DiagnosticStatus.WARN,
+          'ERROR': DiagnosticStatus.ERROR, 'STALE': DiagnosticStatus.STALE}
+
+
+def stamp(t: float | int) -> Time:
+    """builtin_interfaces/Time from seconds (float) or nanoseconds (int)."""
+    ns = t if isinstance(t, int) else int(round(float(t) * 1e9))
+    if ns < 0:
+        raise ValueError(f'stamp must not be negative, got {t!r}')
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _wrap(a: float) -> float:
+    """Angle in (-pi, pi]."""
+    w = math.remainder(a, 2 * math.pi)
+    return math.pi if w == -math.pi else w
+
+
+def joint_state(t: Time, positions, velocities, efforts) -> JointState:
+    """Build a JointState with JOINT_NAMES; angles wrapped to (-pi, pi] (theta in [0, pi])."""
+    msg = JointState()
+    msg.header.stamp = t
+    msg.name = list(JOINT_NAMES)
+    msg.position = [_wrap(float(a)) for a in positions]
+    msg.velocity = [float(v) for v in velocities]
+    msg.effort = [float(e) for e in efforts]
+    return msg
+
+
+def energy_array(values: Mapping[str, float]) -> Float64MultiArray:
+    """Float64MultiArray of ENERGY_FIELDS (see module doc); every field must be given."""
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=ENERGY_LABEL, size=len(ENERGY_FIELDS),
+                                          stride=len(ENERGY_FIELDS))]
+    msg.layout.data_offset = 0
+    msg.data = [float(values[f]) for f in ENERGY_FIELDS]
+    return msg
+
+
+def axis_vector(t: Time, frame_id: str, axis) -> Vector3Stamped:
+    """Return the stator's symmetry axis e_3 in space axes (unit vector)."""
+    msg = Vector3Stamped()
+    msg.header.stamp = t
+    msg.header.frame_id = frame_id
+    msg.vector.x, msg.vector.y, msg.vector.z = (float(v) for v in axis)
+    return msg
+
+
+def stator_pose(t: Time, frame_id: str, q) -> PoseStamped:
+    """Stator orientation (body to space) from (w, x, y, z), normalized; position F = 0."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q)
+    msg = PoseStamped()
+    msg.header.stamp = t
+    msg.header.frame_id = frame_id
+    o = msg.pose.orientation
+    o.w, o.x, o.y, o.z = (float(v) for v in q)
+    return msg
+
+
+def axis_marker(t: Time, frame_id: str, axis, length: float = 0.3,
+                ns: str = 'rotor_axis') -> Marker:
+    """Build an ARROW from the fixed point F along the symmetry axis (RViz, Foxglove)."""
+    m = Marker()
+    m.header.stamp = t
+    m.header.frame_id = frame_id
+    m.ns = ns
+    m.id = 0
+    m.type = Marker.ARROW
+    m.action = Marker.ADD
+    a = np.asarray(axis, dtype=float) * length
+    m.points = [Point(x=0.0, y=0.0, z=0.0), Point(x=float(a[0]), y=float(a[1]), z=float(a[2]))]
+    m.scale.x = 0.01 * length / 0.3     # shaft diameter
+    m.scale.y = 0.02 * length / 0.3     # head diameter
+    m.scale.z = 0.04 * length / 0.3     # head length
+    m.color.r, m.color.g, m.color.b, m.color.a = 0.9, 0.3, 0.1, 1.0
+    m.frame_locked = False
+    return m
+
+
+def diagnostic_array(t: Time, name: str, level: str, message: str,
+                     values: Mapping[str, object], hardware_id: str = '') -> DiagnosticArray:
+    """Build a DiagnosticArray with one status; ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
+    st = DiagnosticStatus()
+    st.level = LEVELS[level]
+    st.name = name
+    st.message = message
+    st.hardware_id = hardware_id
+    st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()]
+    msg = DiagnosticArray()
+    msg.header.stamp = t
+    msg.status = [st]
+    return msg
+
+
+def _fmt(v: object) -> str:
+    if isinstance(v, float):
+        return f'{v:.9g}'
+    return str(v)
+
+
+def clock(t: Time) -> Clock:
+    """rosgraph_msgs/Clock at simulation time t."""
+    return Clock(clock=t)
+
+
+def text(s: str) -> String:
+    """std_msgs/String."""
+    return String(data=s)

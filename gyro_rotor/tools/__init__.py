@@ -1,0 +1,1 @@
+"""Tools around the nodes: process launching, soak runs, the monitor."""

@@ -1,0 +1,60 @@
+"""The house of layers (gyro_rotor/__init__.py): who may import whom, checked on the source.
+
+Every module of the package is parsed (not imported); each ``import``/``from`` of a
+gyro_rotor module is checked against the layer order, and rclpy only in the ROS layers.
+"""
+
+import ast
+from pathlib import Path
+
+import gyro_rotor
+import pytest
+
+PKG = Path(gyro_rotor.__file__).resolve().parent
+ORDER = {name: i for i, name in enumerate(gyro_rotor.LAYERS)}
+
+
+def _layer(module: str) -> str | None:
+    """Return the layer of a dotted gyro_rotor module name (None: below every layer)."""
+    parts = module.split('.')
+    return parts[1] if len(parts) > 1 and parts[1] in ORDER else None
+
+
+def _imports(path: Path) -> list[tuple[int, str]]:
+    tree = ast.parse(path.read_text(), str(path))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.append((node.lineno, node.module))
+            if node.module == 'gyro_rotor':
+                out += [(node.lineno, f'gyro_rotor.{a.name}') for a in node.names]
+    return out
+
+
+MODULES = sorted(p for p in PKG.rglob('*.py') if '__pycache__' not in p.parts)
+
+
+def test_every_module_is_in_a_layer():
+    """Only the package's own entry files and errors.py live outside the layers."""
+    loose = {p.name for p in MODULES if p.parent == PKG}
+    assert loose <= {'__init__.py', '__main__.py', 'errors.py'}
+
+
+@pytest.mark.parametrize('path', MODULES, ids=[str(p.relative_to(PKG)) for p in MODULES])
+def test_layer_rule(path):
+    """No pure layer imports rclpy; no module imports from a layer above its own."""
+    rel = path.relative_to(PKG).with_suffix('')
+    own = rel.parts[0] if len(rel.parts) > 1 else None
+    if rel.name == '__main__':          # ``python -m gyro_rotor``: the top, like the cli
+        own = 'cli'
+    own_rank = ORDER.get(own, -1)
+    for line, name in _imports(path):
+        if name.split('.')[0] in ('rclpy', 'launch', 'launch_ros'):
+            assert own in gyro_rotor.ROS_LAYERS, f'{rel}:{line} imports {name} in a pure layer'
+        if name.startswith('gyro_rotor.'):
+            layer = _layer(name)
+            if layer is not None:
+                assert ORDER[layer] <= own_rank, \
+                    f'{rel}:{line} ({own or "top"}) imports {name} from the higher layer {layer}'
