@@ -1,0 +1,47 @@
+"""Launch rotor_sim on a scene, with the centrifuge's robot description (and RViz).
+
+    ros2 launch gyro_rotor sim.launch.py scene:=precession rviz:=true
+
+Arguments: ``scene`` (a shipped scene name; its parameter file
+``share/gyro_rotor/config/<scene>.yaml`` configures rotor_sim), ``robot_description``
+(true: robot_state_publisher turns ``joint_states`` into TF with
+``share/gyro_rotor/urdf/centrifuge.urdf``; only meaningful for the centrifuge scenes),
+``rviz`` (start RViz2 with ``share/gyro_rotor/rviz/gyro_rotor.rviz``).
+rotor_sim publishes ``/clock`` (simulation time); every other node here runs with
+``use_sim_time`` so that its TF and displays follow the simulated time.
+"""
+
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    """Return the description: rotor_sim, robot_state_publisher, RViz2 (optional)."""
+    share = get_package_share_directory('gyro_rotor')
+    with open(os.path.join(share, 'urdf', 'centrifuge.urdf')) as f:
+        urdf = f.read()
+    scene = LaunchConfiguration('scene')
+    return LaunchDescription([
+        DeclareLaunchArgument('scene', default_value='precession',
+                              description='shipped scene (config/<scene>.yaml)'),
+        DeclareLaunchArgument('robot_description', default_value='true',
+                              description='publish TF of the centrifuge from joint_states'),
+        DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
+        Node(package='gyro_rotor', executable='rotor_sim', name='rotor_sim', output='screen',
+             parameters=[PathJoinSubstitution([share, 'config', [scene, '.yaml']]),
+                         {'publish_clock': True}]),
+        Node(package='robot_state_publisher', executable='robot_state_publisher',
+             name='robot_state_publisher', output='screen',
+             condition=IfCondition(LaunchConfiguration('robot_description')),
+             parameters=[{'robot_description': urdf, 'use_sim_time': True}]),
+        Node(package='rviz2', executable='rviz2', name='rviz2', output='screen',
+             condition=IfCondition(LaunchConfiguration('rviz')),
+             arguments=['-d', os.path.join(share, 'rviz', 'gyro_rotor.rviz')],
+             parameters=[{'use_sim_time': True}]),
+    ])

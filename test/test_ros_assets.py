@@ -1,0 +1,296 @@
+"""The files a ROS 2 install uses beside the nodes: URDF, launch files, RViz and Foxglove.
+
+``ros2 launch``, robot_state_publisher and RViz cannot run here (not installable from the
+PyPI wheels), so these tests check what can be checked without them: the URDF's joints are
+the ``joint_states`` names and its forward kinematics is the model's 3-1-3 convention; the
+launch files, imported against stub ``launch``/``launch_ros`` modules, start executables
+that exist, with files that setup.py installs; RViz and Foxglove configs name topics the
+nodes publish.
+"""
+
+import ast
+from glob import glob
+import json
+import math
+from pathlib import Path
+import runpy
+import sys
+import types
+import xml.etree.ElementTree as ET
+
+from gyro_rotor.core.rotations import axis_from_quaternion, quaternion_from_euler
+import numpy as np
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+URDF = REPO / 'urdf' / 'centrifuge.urdf'
+#: joint_states names, as rotor_sim publishes them (gyro_rotor.ros.messages.JOINT_NAMES;
+#: read from the source so that this test does not need rclpy)
+JOINT_NAMES = ast.literal_eval(next(
+    line.split('=', 1)[1] for line in (REPO / 'gyro_rotor/ros/messages.py').read_text()
+    .splitlines() if line.startswith('JOINT_NAMES')))
+
+
+# -- the URDF ---------------------------------------------------------------------------
+def _rpy(r, p, y):
+    """URDF rpy: fixed-axis roll, pitch, yaw, R = Rz(y) Ry(p) Rx(r)."""
+    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
+                              math.cos(y), math.sin(y))
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _axis_angle(axis, a):
+    """Rodrigues' rotation about the unit vector ``axis`` by ``a``."""
+    k = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
+
+
+def _joints():
+    root = ET.parse(URDF).getroot()
+    out = {}
+    for j in root.findall('joint'):
+        origin = j.find('origin')
+        xyz = [float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None
+                                  else '0 0 0').split()]
+        rpy = [float(v) for v in (origin.get('rpy', '0 0 0') if origin is not None
+                                  else '0 0 0').split()]
+        axis = [float(v) for v in j.find('axis').get('xyz').split()]
+        out[j.get('name')] = {'type': j.get('type'), 'parent': j.find('parent').get('link'),
+                              'child': j.find('child').get('link'), 'xyz': xyz,
+                              'rpy': rpy, 'axis': axis}
+    return root, out
+
+
+def _link_rotation(joints, link, q):
+    """World rotation of ``link`` at joint positions ``q`` (a dict), by walking the chain."""
+    by_child = {j['child']: (name, j) for name, j in joints.items()}
+    chain = []
+    while link in by_child:
+        name, j = by_child[link]
+        chain.append((name, j))
+        link = j['parent']
+    R = np.eye(3)
+    for name, j in reversed(chain):
+        R = R @ _rpy(*j['rpy']) @ _axis_angle(j['axis'], q[name])
+    return R, link
+
+
+def test_urdf_joints_are_the_joint_states_names():
+    root, joints = _joints()
+    assert root.tag == 'robot'
+    assert set(joints) == set(JOINT_NAMES)
+    links = {ln.get('name') for ln in root.findall('link')}
+    for j in joints.values():
+        assert j['parent'] in links and j['child'] in links
+        assert j['xyz'] == [0.0, 0.0, 0.0]          # every joint turns about F
+    assert joints['theta']['type'] == 'revolute'
+    assert all(joints[n]['type'] == 'continuous' for n in ('psi', 'phi_R', 'phi_M'))
+
+
+def test_urdf_forward_kinematics_is_the_models_3_1_3_convention():
+    """Housing = Rz(psi) Rx(theta) Rz(phi_M), rotor likewise with phi_R; axis e_3; 1e-12."""
+    _, joints = _joints()
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        psi, phi_R, phi_M = rng.uniform(-math.pi, math.pi, 3)
+        theta = rng.uniform(0.0, math.pi)
+        q = {'psi': psi, 'theta': theta, 'phi_R': phi_R, 'phi_M': phi_M}
+        for link, phi in (('housing', phi_M), ('rotor', phi_R)):
+            R, root = _link_rotation(joints, link, q)
+            assert root == 'world'
+            w, x, y, z = quaternion_from_euler(psi, theta, phi)
+            R_model = np.array([
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+            assert np.max(np.abs(R - R_model)) < 1e-12
+            axis = axis_from_quaternion(quaternion_from_euler(psi, theta, phi))
+            assert np.max(np.abs(R[:, 2] - axis)) < 1e-12
+
+
+def test_urdf_fails_on_a_wrong_convention():
+    """The kinematics check can fail: a 3-2-3 chain (theta about y) is caught."""
+    _, joints = _joints()
+    joints['theta']['axis'] = [0.0, 1.0, 0.0]
+    R, _ = _link_rotation(joints, 'housing', {'psi': 0.3, 'theta': 0.4, 'phi_R': 0.0,
+                                              'phi_M': 0.2})
+    axis = axis_from_quaternion(quaternion_from_euler(0.3, 0.4, 0.2))
+    assert np.max(np.abs(R[:, 2] - axis)) > 1e-3
+
+
+# -- the launch files, against stub launch modules --------------------------------------
+class _Entity:
+    """A recorded launch action or substitution: its class name, args and kwargs."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+    def items(self):          # launch_arguments={...}.items() is passed through
+        return self.kwargs.items()
+
+
+def _stub_modules(share: Path) -> dict:
+    names = {
+        'launch': ['LaunchDescription'],
+        'launch.actions': ['DeclareLaunchArgument', 'IncludeLaunchDescription'],
+        'launch.conditions': ['IfCondition', 'UnlessCondition'],
+        'launch.substitutions': ['LaunchConfiguration', 'PathJoinSubstitution', 'Command'],
+        'launch.launch_description_sources': ['PythonLaunchDescriptionSource'],
+        'launch_ros.actions': ['Node'],
+        'launch_ros.parameter_descriptions': ['ParameterValue'],
+        'launch_ros.substitutions': ['FindPackageShare'],
+    }
+    mods = {}
+    for mod, classes in names.items():
+        m = types.ModuleType(mod)
+        for c in classes:
+            setattr(m, c, type(c, (_Entity,), {}))
+        mods[mod] = m
+    mods['launch_ros'] = types.ModuleType('launch_ros')
+    aip = types.ModuleType('ament_index_python')
+    pk = types.ModuleType('ament_index_python.packages')
+    pk.get_package_share_directory = lambda pkg: str(share) if pkg == 'gyro_rotor' else \
+        pytest.fail(f'share directory of {pkg} asked for')
+    mods['ament_index_python'], mods['ament_index_python.packages'] = aip, pk
+    return mods
+
+
+def _installed_share(tmp_path: Path) -> Path:
+    """share/gyro_rotor as setup.py's data_files install it (copied from the source tree)."""
+    tree = ast.parse((REPO / 'setup.py').read_text())
+    data = next(kw.value for node in ast.walk(tree) if isinstance(node, ast.Call)
+                for kw in node.keywords if kw.arg == 'data_files')
+    share = tmp_path / 'share' / 'gyro_rotor'
+    for entry in data.elts:
+        dest, files = entry.elts
+        dest_txt = ast.unparse(dest)
+        if 'package_name' not in dest_txt:
+            continue
+        sub = [e.value for e in dest.args[2:]] if isinstance(dest, ast.Call) else []
+        pattern = ast.unparse(files)
+        paths = (glob(str(REPO / files.args[0].value)) if isinstance(files, ast.Call)
+                 else [str(REPO / p) for p in ast.literal_eval(pattern)])
+        target = share.joinpath(*sub)
+        target.mkdir(parents=True, exist_ok=True)
+        for p in paths:
+            (target / Path(p).name).write_bytes(Path(p).read_bytes())
+    return share
+
+
+def _console_scripts() -> set:
+    tree = ast.parse((REPO / 'setup.py').read_text())
+    ep = next(kw.value for node in ast.walk(tree) if isinstance(node, ast.Call)
+              for kw in node.keywords if kw.arg == 'entry_points')
+    scripts = ast.literal_eval(ep)['console_scripts']
+    return {s.split('=')[0].strip() for s in scripts}
+
+
+def _walk(entity):
+    yield entity
+    values = list(entity.args) + list(entity.kwargs.values()) if isinstance(entity, _Entity) \
+        else list(entity) if isinstance(entity, (list, tuple)) \
+        else list(entity.values()) if isinstance(entity, dict) else []
+    for v in values:
+        if isinstance(v, (_Entity, list, tuple, dict)):
+            yield from _walk(v)
+
+
+@pytest.fixture
+def launch_env(tmp_path, monkeypatch):
+    share = _installed_share(tmp_path)
+    for name, mod in _stub_modules(share).items():
+        monkeypatch.setitem(sys.modules, name, mod)
+    return share
+
+
+LAUNCH_FILES = sorted(p.name for p in (REPO / 'launch').glob('*.launch.py'))
+
+
+def test_the_launch_files_are_installed(launch_env):
+    assert set(LAUNCH_FILES) >= {'sim.launch.py', 'analysis.launch.py', 'gyro_rotor.launch.py'}
+    assert sorted(p.name for p in (launch_env / 'launch').iterdir()) == LAUNCH_FILES
+    assert (launch_env / 'urdf' / 'centrifuge.urdf').is_file()
+    assert (launch_env / 'rviz' / 'gyro_rotor.rviz').is_file()
+    assert (launch_env / 'config' / 'precession.yaml').is_file()
+
+
+@pytest.mark.parametrize('name', LAUNCH_FILES)
+def test_launch_file_starts_existing_executables_with_installed_files(name, launch_env):
+    ld = runpy.run_path(str(launch_env / 'launch' / name))['generate_launch_description']()
+    assert type(ld).__name__ == 'LaunchDescription'
+    entities = list(_walk(ld))
+    nodes = [e for e in entities if type(e).__name__ == 'Node']
+    includes = [e for e in entities if type(e).__name__ == 'PythonLaunchDescriptionSource']
+    args = {e.args[0] for e in entities if type(e).__name__ == 'DeclareLaunchArgument'}
+    used = {e.args[0] for e in entities if type(e).__name__ == 'LaunchConfiguration'}
+    assert used <= args, f'{name}: undeclared launch arguments {used - args}'
+    assert nodes or includes
+    scripts = _console_scripts()
+    for n in nodes:
+        if n.kwargs['package'] == 'gyro_rotor':
+            assert n.kwargs['executable'] in scripts
+        else:
+            assert n.kwargs['package'] in ('robot_state_publisher', 'rviz2')
+    for inc in includes:
+        assert Path(inc.args[0]).is_file()
+        assert Path(inc.args[0]).parent == launch_env / 'launch'
+    for e in entities:           # every literal path into the share directory exists
+        if isinstance(e, str) and e.startswith(str(launch_env)):
+            assert Path(e).exists(), e
+    for e in entities:
+        if type(e).__name__ == 'PathJoinSubstitution':
+            parts = e.args[0]
+            assert parts[0] == str(launch_env) and parts[1] == 'config'
+
+
+def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
+    path = launch_env / 'launch' / 'sim.launch.py'
+    ld = runpy.run_path(str(path))['generate_launch_description']()
+    nodes = {n.kwargs['executable']: n for n in _walk(ld) if type(n).__name__ == 'Node'}
+    rsp = nodes['robot_state_publisher'].kwargs['parameters'][0]
+    assert rsp['robot_description'] == URDF.read_text()
+    assert rsp['use_sim_time'] is True
+    assert {'publish_clock': True} in nodes['rotor_sim'].kwargs['parameters']
+
+
+# -- RViz and Foxglove ------------------------------------------------------------------
+def _published_topics() -> set:
+    """Topic names that the nodes create publishers for (read from their source)."""
+    topics = set()
+    for path in (REPO / 'gyro_rotor' / 'ros').glob('*.py'):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, 'attr', '') == \
+                    'create_publisher' and len(node.args) >= 2 and \
+                    isinstance(node.args[1], ast.Constant):
+                topics.add('/' + node.args[1].value.lstrip('/'))
+    return topics
+
+
+def test_rviz_config_shows_the_robot_and_the_axis():
+    cfg = yaml.safe_load((REPO / 'rviz' / 'gyro_rotor.rviz').read_text())
+    vm = cfg['Visualization Manager']
+    assert vm['Global Options']['Fixed Frame'] == 'world'
+    displays = {d['Class']: d for d in vm['Displays']}
+    assert displays['rviz_default_plugins/RobotModel']['Description Topic']['Value'] == \
+        '/robot_description'
+    assert displays['rviz_default_plugins/Marker']['Topic']['Value'] in _published_topics()
+
+
+def test_foxglove_layout_plots_published_topics():
+    layout = json.loads((REPO / 'foxglove' / 'gyro_rotor_layout.json').read_text())
+    panels = layout['configById']
+
+    def leaves(node):
+        return [node] if isinstance(node, str) else leaves(node['first']) + \
+            leaves(node['second'])
+    assert set(leaves(layout['layout'])) == set(panels)
+    published = _published_topics()
+    paths = [p['value'] for cfg in panels.values() for p in cfg.get('paths', [])]
+    assert any(p.startswith('/energy.data[1]') for p in paths)      # E*
+    for p in paths:
+        assert p.split('.')[0] in published
+    assert panels['RawMessages!verdict']['topicPath'] in published
