@@ -35,7 +35,7 @@ def test_steady_prints_both_branches(capsys):
     (['steady', 'precession', '--set', 'c_theta=1.0', '--set', 'Omega0=10.0',
       '--theta0', '0.5'], 'discriminant'),
 ])
-@pytest.mark.filterwarnings('ignore::gyro_rotor.params.StaticallyUnstableWarning')
+@pytest.mark.filterwarnings('ignore::gyro_rotor.core.params.StaticallyUnstableWarning')
 def test_bad_input_exits_non_zero_with_message(argv, match, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 1

@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 pytestmark = pytest.mark.filterwarnings(
-    'ignore::gyro_rotor.params.StaticallyUnstableWarning')
+    'ignore::gyro_rotor.core.params.StaticallyUnstableWarning')
 
 pos = st.floats(1e-3, 10.0)
 nonneg = st.floats(0.0, 100.0)
