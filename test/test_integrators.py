@@ -52,6 +52,7 @@ def test_rodas4_is_stiffly_accurate():
     ('rk4', 4, 2e-3, {}), ('rk8', 8, 2e-2, {}), ('gauss6', 6, 1e-2, {}),
     ('rodas4', 4, 4e-3, {'rtol': 1e3, 'atol': 1e3}),      # huge tolerances: fixed steps
     ('dop853', 8, 2e-2, {'rtol': 1e3, 'atol': 1e3}),
+    ('split8', 8, 1e-2, {}),
 ])
 def test_empirical_order(method, order, h, extra):
     """Halving the step divides the error (max over 5 samples) by about 2^order."""
@@ -71,9 +72,12 @@ def test_empirical_order(method, order, h, extra):
 def _cases():
     for name in list_scenes():
         stiff = name in STIFF
+        full = load_scene(name).model == 'full'
         for method in METHODS:
             if stiff and method != 'rodas4':
                 continue          # explicit and fixed-point methods are not for K_D = 1e4
+            if method == 'split8' and not full:
+                continue          # the splitting's sub-flows are those of the full model
             yield name, method
 
 
@@ -117,6 +121,40 @@ def test_gauss6_energy_error_bounded_not_drifting():
     assert np.max(np.abs(m.quaternion_norm_error(r.y))) < 1e-13   # no projection needed
 
 
+def test_split8_energy_error_bounded_not_drifting():
+    """Symplectic splitting on the conservative scene: E* error tiny and not growing."""
+    sc, m, y0 = _setup('conservative')
+    te = np.linspace(0, 200.0, 41)
+    r = integrate(m, y0, (0, 200.0), te, 'split8', step=5e-3)
+    assert r.success, r.message
+    E = m.energy(r.y)
+    dev = np.abs(E - E[0]) / abs(E[0])
+    assert dev.max() < 1e-12
+    assert dev[21:].max() <= 2.0 * dev[1:21].max() + 1e-14   # no drift
+    assert np.max(np.abs(m.quaternion_norm_error(r.y))) < 1e-13
+    # dop853 at the same cost drifts: its E* error grows with time
+    d = integrate(m, y0, (0, 200.0), te, 'dop853', rtol=1e-9, atol=1e-11)
+    Ed = np.abs(m.energy(d.y) - E[0]) / abs(E[0])
+    assert Ed[-1] > 1.5 * Ed[20] > 0.0
+
+
+def test_split8_needs_the_full_model():
+    _, m, y0 = _setup('locked_housing')
+    with pytest.raises(ParameterError, match='full model'):
+        integrate(m, y0, (0, 1.0), None, 'split8')
+
+
+def test_stiff_method_step_count_independent_of_kd():
+    """rodas4 on stiff_drive at K_D = 1e2, 1e4, 1e6: the same number of steps (+-10 %)."""
+    steps = []
+    for kd in (1e2, 1e4, 1e6):
+        sc, m, y0 = _setup('stiff_drive', K_D=kd)
+        r = integrate(m, y0, (0, sc.t_end), None, 'rodas4', rtol=1e-8, atol=1e-10)
+        assert r.success, r.message
+        steps.append(r.nsteps)
+    assert max(steps) <= 1.1 * min(steps), steps
+
+
 def test_stiff_method_completes_kd_1e6_within_step_budget():
     sc, m, y0 = _setup('stiff_drive', K_D=1e6)
     assert choose_method(sc.params)[0] == 'rodas4'
@@ -132,7 +170,9 @@ def test_stiff_method_completes_kd_1e6_within_step_budget():
 def test_auto_choice():
     assert choose_method(load_scene('precession').params)[0] == 'dop853'
     assert choose_method(load_scene('stiff_drive').params)[0] == 'rodas4'
-    assert choose_method(load_scene('conservative').params, 1000.0)[0] == 'gauss6'
+    assert choose_method(load_scene('conservative').params, 1000.0)[0] == 'split8'
+    assert choose_method(load_scene('conservative').params, 1000.0, 'upright_axis')[0] == \
+        'gauss6'           # split8's sub-flows are the full model's
     assert 'stiff' in choose_method(load_scene('stiff_drive').params)[1]
 
 

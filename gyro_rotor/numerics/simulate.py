@@ -119,7 +119,8 @@ def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     See :func:`gyro_rotor.integrators.choose_method`: RODAS4 where the drive damping makes
     the scene stiff, Gauss6 for long conservative runs, DOP853 otherwise.
     """
-    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
+    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
+                             scene.model)
 
 
 def check_tolerances(rtol: float, atol: float) -> None:
