@@ -53,9 +53,12 @@ def test_rodas4_is_stiffly_accurate():
     ('rodas4', 4, 4e-3, {'rtol': 1e3, 'atol': 1e3}),      # huge tolerances: fixed steps
     ('dop853', 8, 2e-2, {'rtol': 1e3, 'atol': 1e3}),
     ('split8', 8, 1e-2, {}),
+    ('radau9', 9, 1e-2, {'rtol': 1e3, 'atol': 1e3}),
 ])
-def test_empirical_order(method, order, h, extra):
+def test_empirical_order(method, order, h, extra, monkeypatch):
     """Halving the step divides the error (max over 5 samples) by about 2^order."""
+    # radau9 solves its stages to round-off here (else the iteration's error would show)
+    monkeypatch.setattr(METHODS['radau9'], 'iter_rtol_max', 1e-14)
     _, m, y0 = _setup('precession')
     te = np.linspace(0, 0.4, 5)
     ref = integrate(m, y0, (0, 0.4), te, 'dop853', rtol=1e-14, atol=1e-16).y
@@ -74,7 +77,7 @@ def _cases():
         stiff = name in STIFF
         full = load_scene(name).model == 'full'
         for method in METHODS:
-            if stiff and method != 'rodas4':
+            if stiff and method not in ('rodas4', 'radau9'):
                 continue          # explicit and fixed-point methods are not for K_D = 1e4
             if method == 'split8' and not full:
                 continue          # the splitting's sub-flows are those of the full model
@@ -144,21 +147,37 @@ def test_split8_needs_the_full_model():
         integrate(m, y0, (0, 1.0), None, 'split8')
 
 
-def test_stiff_method_step_count_independent_of_kd():
-    """rodas4 on stiff_drive at K_D = 1e2, 1e4, 1e6: the same number of steps (+-10 %)."""
+@pytest.mark.parametrize('method', ['radau9', 'rodas4'])
+def test_stiff_method_step_count_independent_of_kd(method):
+    """On stiff_drive at K_D = 1e2, 1e4, 1e6: the same number of steps (+-10 %).
+
+    The drive damping root K_D (1/C_R + 1/C_M) goes from 1.5e4 to 1.5e8 1/s; an explicit
+    method's steps would grow with it.
+    """
     steps = []
     for kd in (1e2, 1e4, 1e6):
         sc, m, y0 = _setup('stiff_drive', K_D=kd)
-        r = integrate(m, y0, (0, sc.t_end), None, 'rodas4', rtol=1e-8, atol=1e-10)
+        r = integrate(m, y0, (0, sc.t_end), None, method, rtol=1e-8, atol=1e-10)
         assert r.success, r.message
         steps.append(r.nsteps)
     assert max(steps) <= 1.1 * min(steps), steps
 
 
+def test_radau9_accurate_on_stiff_drive_at_every_kd():
+    """radau9 against a tight rodas4 reference: axis and z to 1e-8 at its default tolerance."""
+    for kd in (1e2, 1e4, 1e6):
+        sc, m, y0 = _setup('stiff_drive', K_D=kd)
+        te = np.linspace(0, sc.t_end, 21)
+        ref = integrate(m, y0, (0, sc.t_end), te, 'rodas4', rtol=1e-13, atol=1e-15).y
+        r = integrate(m, y0, (0, sc.t_end), te, 'radau9')
+        assert r.success, r.message
+        assert np.max(np.abs(r.y[:, :9] - ref[:, :9])) < 1e-8, kd
+
+
 def test_stiff_method_completes_kd_1e6_within_step_budget():
     sc, m, y0 = _setup('stiff_drive', K_D=1e6)
-    assert choose_method(sc.params)[0] == 'rodas4'
-    r = integrate(m, y0, (0, sc.t_end), None, 'rodas4', max_steps=5000)
+    assert choose_method(sc.params)[0] == 'radau9'
+    r = integrate(m, y0, (0, sc.t_end), None, 'radau9', max_steps=5000)
     assert r.success, r.message
     scale = float(np.max(np.abs(m.energy(r.y))))
     assert abs(m.residual(r.y)[-1]) < 1e-6 * scale
@@ -169,7 +188,7 @@ def test_stiff_method_completes_kd_1e6_within_step_budget():
 
 def test_auto_choice():
     assert choose_method(load_scene('precession').params)[0] == 'dop853'
-    assert choose_method(load_scene('stiff_drive').params)[0] == 'rodas4'
+    assert choose_method(load_scene('stiff_drive').params)[0] == 'radau9'
     assert choose_method(load_scene('conservative').params, 1000.0)[0] == 'split8'
     assert choose_method(load_scene('conservative').params, 1000.0, 'upright_axis')[0] == \
         'gauss6'           # split8's sub-flows are the full model's

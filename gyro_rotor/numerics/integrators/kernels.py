@@ -65,9 +65,14 @@ BUDGET = int(Status.BUDGET)
 NOCONV = int(Status.NO_CONVERGENCE)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rhs(kind, y, P, out):
-    """dy/dt of model ``kind`` at state ``y`` into ``out`` (the functions of core.model)."""
+    """dy/dt of model ``kind`` at state ``y`` into ``out`` (the functions of core.model).
+
+    Compiled with numpy's error model: a division by zero (a state with q = 0, or the axis
+    exactly at theta = pi) gives inf or nan, which the loops report as a non-finite state
+    (status -2) or a rejected step, never as an exception out of a run.
+    """
     if kind == 0:
         full_rhs(y, P, out)
     elif kind == 1:
