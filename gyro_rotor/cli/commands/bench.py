@@ -4,8 +4,8 @@ Writes ``work_precision.csv`` (every run), ``work_precision.md`` (best wall seco
 simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
 and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
 by default a new directory ``bench-YYYYmmdd-HHMMSS``: the committed results in ``bench/``
-are replaced only when ``--out bench`` is given. ``--quick`` is a smoke run of well under a
-minute (3 scenes, 2 tolerances, the methods auto picks and dop853, 2 scipy baselines, 1
+are replaced only when ``--out bench`` is given. ``--quick`` is a smoke run of under a
+minute (3 scenes, 2 tolerances, the methods auto picks and dop853, scipy's LSODA, 1
 repeat, 100-s drift study, no pole counts).
 """
 
