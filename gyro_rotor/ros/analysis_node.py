@@ -27,8 +27,8 @@ import math
 import sys
 
 from diagnostic_msgs.msg import DiagnosticArray
-from gyro_rotor.analysis.checks import (ANALYSIS_FIELDS, ANALYSIS_LABEL, AnalysisSession,
-                                        MODE_FIELDS, MODE_LABEL, scene_to_flat)
+from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FIELDS, MODE_LABEL
+from gyro_rotor.analysis.session import AnalysisSession, scene_to_flat
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.ros.messages as ros_msgs
@@ -181,15 +181,15 @@ class RotorAnalysisNode(Node):
                          MultiArrayDimension(label=MODE_LABEL, size=ncol, stride=ncol)]
         mm.data = [float(v) for row in rows for v in row]
         self.pub_modes.publish(mm)
-        self.pub_verdict.publish(String(data=f'{res.verdict}: ' + '; '.join(res.evidence[:2])))
+        self.pub_verdict.publish(String(data=f'{res.verdict}: {res.reason}'))
         values = dict(zip(ANALYSIS_FIELDS, vec))
-        values['verdict'] = res.verdict
+        values['verdict'] = str(res.verdict)
         for i, line in enumerate(res.evidence):
             values[f'evidence_{i}'] = line
         for i, err in enumerate(self.errors[-3:]):
             values[f'error_{i}'] = err
         level = 'ERROR' if self.errors and res.level == 'OK' else res.level
-        self._publish_diag(level, res.verdict, values)
+        self._publish_diag(level, str(res.verdict), values)
 
     def _publish_diag(self, level: str, message: str, values: dict) -> None:
         t = self.get_clock().now().nanoseconds
@@ -207,7 +207,7 @@ class RotorAnalysisNode(Node):
             self.session.finish()
             res = self.session.result()
             self.recorder.add_metadata('gyro_rotor.live_result', {
-                'verdict': res.verdict, 'samples': str(res.samples),
+                'verdict': str(res.verdict), 'samples': str(res.samples),
                 'dropped': str(res.dropped), 'json': json.dumps(res.as_dict())})
         except GyroRotorError as err:
             self.recorder.add_metadata('gyro_rotor.live_result', {'error': str(err)})
