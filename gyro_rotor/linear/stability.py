@@ -33,6 +33,7 @@ from typing import Callable, Sequence
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
+from gyro_rotor.linear.claims import Claim
 from gyro_rotor.linear.linearize import linearize, LinearSystem
 import numpy as np
 
@@ -121,17 +122,6 @@ class StabilityReport:
 
 
 @dataclasses.dataclass(frozen=True)
-class Claim:
-    """One of the paper's claims (a) to (d): whether it holds, why, and its numbers."""
-
-    key: str
-    statement: str
-    holds: bool
-    detail: str
-    data: dict
-
-
-@dataclasses.dataclass(frozen=True)
 class ClaimsReport:
     """Claims (a) to (d), K_D* (coupling pair meets on the real axis) and the regimes."""
 
@@ -140,6 +130,7 @@ class ClaimsReport:
     breakaway: float | None
     regimes: list
     locus: RootLocus | None = dataclasses.field(default=None, repr=False)
+    meetings: list = dataclasses.field(default_factory=list)
 
     @property
     def all_hold(self) -> bool:
@@ -709,141 +700,33 @@ def root_locus(lin: LinearSystem, K_D_grid=None) -> RootLocus:
                      zero_labels=zlab, fast_label=names[fast], fast_gain=gain)
 
 
-def _real_count(lin, K, tol_im) -> int:
-    lam, _ = spectrum(lin, K)
-    return int(np.sum(np.abs(lam.imag) <= tol_im))
-
-
 def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
-    """Check the paper's claims (a) to (d) for this linearization (any scene).
+    """Check the paper's claims (a) to (d) for this linearization, by their meaning.
 
-    (a) at K_D = 0 all roots on the imaginary axis: the expected number of undamped
-    oscillations (3 about II) plus the zero root(s); (b) for every K_D > 0 of the grid all
-    non-zero roots in the open left half plane; (c) as K_D -> infinity the nutation and
-    one coupling (the housing twist) return to the imaginary axis; (d) the other coupling
-    pair (rotor-field) meets on the negative real axis at K_D* and splits, one root
-    toward 0, the other toward -infinity.
+    See :mod:`gyro_rotor.linear.claims` (one function per claim, on a
+    :class:`~gyro_rotor.linear.claims.DriveSystem`; no claim looks at mode names).
+    ``K_D_star``/``breakaway`` are the last meeting of a pair on the real axis (the one
+    that splits toward 0 and -infinity); ``meetings`` holds all of them.
     """
+    from gyro_rotor.linear import claims as cl
     loc = root_locus(lin, K_D_grid)
-    tol_re = _tol_re(lin)
-    names = loc.labels
-    lam0 = loc.eigenvalues[0] if loc.K_D[0] == 0 else spectrum(lin, 0.0)[0]
-    claims = {}
-    # (a)
-    on_axis = np.abs(lam0.real) <= tol_re
-    zero_n = int(np.sum(np.abs(lam0) <= tol_re))
-    osc_n = int(np.sum(on_axis & (lam0.imag > tol_re)))
-    exp = EXPECTED_AT_ZERO[lin.coords]
-    claims['a'] = Claim('a', 'at K_D = 0: undamped oscillations plus the zero root',
-                        bool(np.all(on_axis) and (osc_n, zero_n) == exp),
-                        f'{osc_n} undamped oscillations and {zero_n} zero root(s) '
-                        f'(expected {exp[0]} and {exp[1]}); max |Re| = '
-                        f'{np.max(np.abs(lam0.real)):.2e} 1/s',
-                        {'oscillations': osc_n, 'zero_roots': zero_n,
-                         'freq_hz': sorted((lam0[lam0.imag > tol_re].imag / (2 * math.pi))
-                                           .tolist())})
-    # (b)
-    judged = [j for j, nm in enumerate(names) if nm not in STRUCTURAL]
-    pos = loc.K_D > 0
-    re = loc.eigenvalues[pos][:, judged].real
-    worst = re.max(axis=1)
-    # |Re| below the resolution counts as in the left half plane only for a mode that the
-    # drive reaches (d Re/d K_D < 0 at K_D = 0, then Re ~ K_D dRe/dK_D: tiny K_D, or a
-    # branch returning toward its asymptote on the axis like 1/K_D)
-    lam_s, d0, Vw_s = sensitivities(lin)
-    tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
-    names0 = _name_at_zero(lin, lam_s, Vw_s, d0)
-    reached = {nm for nm, dj in zip(names0, d0) if dj.real < -tol_sens}
-    ok_small = np.array([names[j] in reached for j in judged])
-    bad_pts = (re > tol_re) | ((re > -tol_re) & ~ok_small[None, :])
-    bad = bad_pts.any(axis=1)
-    unresolved = int(np.sum((np.abs(re) <= tol_re) & ok_small[None, :]))
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        j = judged[int(np.argmax(re[i]))]
-        detail = (f'fails: at K_D = {loc.K_D[pos][i]:.4g} the {names[j]} root has Re = '
-                  f'{re[i].max():+.3e} 1/s (not < -{tol_re:.1e}); not in the open left '
-                  f'half plane: '
-                  f'{sorted({names[judged[k]] for k in np.where(bad_pts[i])[0]})}')
-    else:
-        detail = (f'holds on {int(pos.sum())} K_D values from {loc.K_D[pos][0]:.3g} to '
-                  f'{loc.K_D[-1]:.3g}: max Re = {worst.max():.3e} 1/s'
-                  + (f' ({unresolved} roots of reached modes within the resolution '
-                     f'{tol_re:.1e} of the axis)' if unresolved else ''))
-    claims['b'] = Claim('b', 'for every K_D > 0 all non-zero roots in the left half plane',
-                        not bool(np.any(bad)), detail,
-                        {'max_re': float(worst.max()), 'tol_re': tol_re,
-                         'unresolved': unresolved})
-    # (c)
-    returning = [loc.zero_labels[k] for k, z in enumerate(loc.zeros)
-                 if abs(z.real) <= tol_re and abs(z.imag) > tol_re]
-    ret_names = sorted(set(returning))
-    want = {'nutation', 'housing twist'} if lin.coords in ('II', 'I') else {'housing twist'}
-    if lin.coords == 'locked':
-        want = set()
-    c_holds = want.issubset(ret_names) and 'rotor-field coupling' not in ret_names
-    zfreq = {nm: abs(z.imag) / (2 * math.pi) for nm, z in zip(loc.zero_labels, loc.zeros)
-             if abs(z.imag) > tol_re}
-    claims['c'] = Claim('c', 'K_D -> infinity: the nutation and one coupling root return to '
-                        'the imaginary axis', bool(c_holds),
-                        f'branches ending on the imaginary axis: {ret_names} at '
-                        + ', '.join(f'{k} {v:.4f} Hz' for k, v in zfreq.items()),
-                        {'returning': ret_names, 'asymptote_freq_hz': zfreq})
-    # (d) K_D*: the rotor-field pair meets on the real axis
-    tol_im = 1e-7 * max(np.max(np.abs(lam0)), 1.0)
-    Ks = loc.K_D
-    cols = [j for j, nm in enumerate(names) if nm == 'rotor-field coupling']
-    K_star = lam_star = None
-    if len(cols) == 2:
-        imag = np.abs(loc.eigenvalues[:, cols].imag).max(axis=1)
-        real_idx = np.where((imag <= tol_im) & (Ks > 0))[0]
-        if real_idx.size and real_idx[0] > 0:
-            i = int(real_idx[0])
-            lo, hi = Ks[i - 1], Ks[i]
-            n_before = _real_count(lin, lo, tol_im)
-            for _ in range(60):
-                mid = math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
-                if _real_count(lin, mid, tol_im) > n_before:
-                    hi = mid
-                else:
-                    lo = mid
-                if hi - lo <= 1e-12 * hi:
-                    break
-            K_star = hi
-            lam_h = spectrum(lin, hi)[0]
-            reals = lam_h[np.abs(lam_h.imag) <= tol_im]
-            lam_star = float(reals[np.argmin(np.abs(reals - np.mean(
-                loc.eigenvalues[i, cols].real)))].real)
-    ends = [loc.zero_labels[k] for k, z in enumerate(loc.zeros) if abs(z) <= tol_re]
-    d_holds = (K_star is not None and lam_star is not None and lam_star < 0
-               and loc.fast_label == 'rotor-field coupling' and 'rotor-field coupling' in ends)
-    claims['d'] = Claim('d', 'the rotor-field pair meets on the negative real axis at K_D* '
-                        'and splits: one root toward 0, one toward -infinity', bool(d_holds),
-                        (f'K_D* = {K_star:.6g} N m s/rad, meeting at lambda = {lam_star:.6g} '
-                         f'1/s; fast branch: {loc.fast_label} (-> -{loc.fast_gain:.6g} K_D); '
-                         f'branches ending at 0: {ends}') if K_star is not None else
-                        f'no meeting on the real axis within the grid (fast branch: '
-                        f'{loc.fast_label}; ending at 0: {ends})',
-                        {'K_D_star': K_star, 'lambda_star': lam_star,
-                         'fast_label': loc.fast_label, 'ending_at_zero': ends})
+    sys = cl.drive_system(lin)
+    path = loc.eigenvalues if loc.K_D[0] == 0 else np.vstack(
+        [spectrum(lin, 0.0)[0][None, :], loc.eigenvalues])
+    K = loc.K_D if loc.K_D[0] == 0 else np.concatenate([[0.0], loc.K_D])
+    claim_d, meets = cl.claim_d(sys, K, path)
+    claims = {'a': cl.claim_a(sys), 'b': cl.claim_b(sys, K, path, loc.labels),
+              'c': cl.claim_c(sys, float(K[-1])), 'd': claim_d}
+    K_star = meets[-1].K_D if meets else None
+    lam_star = meets[-1].lam if meets else None
     regimes = []
     if K_star is not None:
-        regimes.append({'regime': 'all roots oscillatory (rotor-field pair complex)',
+        regimes.append({'regime': 'the pair that meets last is complex (oscillatory)',
                         'K_D_from': 0.0, 'K_D_to': K_star})
-        regimes.append({'regime': 'rotor-field pair real (overdamped)', 'K_D_from': K_star,
+        regimes.append({'regime': 'that pair real (overdamped)', 'K_D_from': K_star,
                         'K_D_to': math.inf})
-    for nm in dict.fromkeys(names):
-        if nm in STRUCTURAL:
-            continue
-        js = [j for j, x in enumerate(names) if x == nm]
-        re_b = loc.eigenvalues[:, js].real.max(axis=1)
-        i = int(np.argmin(re_b))
-        if 0 < i < len(Ks) - 1 and nm != 'rotor-field coupling' and -re_b[i] > tol_re:
-            regimes.append({'regime': f'{nm}: decay grows with K_D, then falls back',
-                            'K_D_from': 0.0, 'K_D_to': float(Ks[i]),
-                            'max_decay_rate': float(-re_b[i])})
     return ClaimsReport(claims=claims, K_D_star=K_star, breakaway=lam_star, regimes=regimes,
-                        locus=loc)
+                        locus=loc, meetings=meets)
 
 
 # -- the best K_D ----------------------------------------------------------------------------
