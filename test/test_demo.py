@@ -23,8 +23,18 @@ def test_demo_confirms_the_default_scene(tmp_path):
     assert bag.topics['/energy'].count == bag.topics['/joint_states'].count
     assert not bag.truncated
     report = json.loads((out / 'report' / 'report.json').read_text())
-    assert report['verdict'] == 'asymptotically stable'
-    assert report['dropped'] == 0 and report['kicks'] == 1
+    assert report['verdict'] == 'asymptotically stable' and report['confirmed']
+    assert report['dropped'] == 0 and report['unpaired'] == 0 and report['kicks'] == 1
+    assert {c['name']: c['status'] for c in report['criteria']} == {
+        'Lyapunov': 'PASS', 'energy balance': 'PASS', 'decay': 'PASS', 'modes': 'PASS',
+        'data': 'PASS'}
+    # the live table: no NaN anywhere, and once the first window is fitted (the decay
+    # column filled) it stays filled
+    rows = [ln for ln in r.stdout.splitlines() if ln[:9].strip().replace('.', '').isdigit()]
+    assert rows and not any('nan' in ln for ln in rows), rows
+    decay = [ln.split()[3] for ln in rows]
+    first = next(i for i, d in enumerate(decay) if d != '-')
+    assert all(d != '-' for d in decay[first:]), rows
     for png in ('energy.png', 'eigenvalues.png', 'state.png'):
         assert (out / 'report' / png).stat().st_size > 1000
 

@@ -160,7 +160,8 @@ def _line(view: _LiveView) -> str:
              _num(a.get('decay_rate_bound', nan), '9.4f'),
              f'{int(a["pole_slips"]) if "pole_slips" in a else "-":>5}', f'{marks:6s}']
     modes = '  '.join(f'{name.split(" ")[0][:9]} {_mode_cell(row)}'
-                      for name, row in view.modes if 'zero' not in name)
+                      for name, row in view.modes
+                      if 'zero' not in name and math.isfinite(row.get('pred_im', math.nan)))
     return '  '.join(cells) + '  ' + modes + f'  {view.verdict.split(":")[0]}'
 
 
