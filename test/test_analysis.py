@@ -288,7 +288,7 @@ def test_analyze_cli_refuses_bad_input(argv, msg, capsys, monkeypatch):
 # -- every criterion of the verdict can fail (issue 11) -----------------------------------------
 @pytest.fixture(scope='module')
 def kicked():
-    """The default scene, 12 s, analysed over an 8 s window: every criterion passes."""
+    """Simulate the default scene for 12 s (over an 8 s window every criterion passes)."""
     tr = simulate('precession', t_end=12.0, rate=250.0)
     return tr, samples_from_trajectory(tr)
 
