@@ -149,7 +149,7 @@ def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
                     label=f'fit with the predicted rates: E*_inf = {E_inf:.9g} J, '
                           f'rate {_f(fit.rate, ".3g")} 1/s')
     ax.set_xlabel('simulation time t [s]')
-    ax.set_ylabel('E* - E*_inf [J]')
+    ax.set_ylabel('E* - E*_inf [J] (E*_inf fitted)')
     ax.set_title(f'{res.scene}: Lyapunov function (eq. 13), verdict {res.verdict}')
     ax.legend(fontsize=8)
     fig.tight_layout()

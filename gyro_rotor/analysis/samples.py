@@ -57,20 +57,20 @@ class SamplePairer:
     messages are released in their arrival order (publication order, ``seq``), each as
     soon as its joint state is there, so nothing is lost however far apart the topics are.
 
-    Data loss is counted, never silent: an energy message whose joint state does not come
-    while more than ``keep`` newer joint states wait (each topic arrives in order, so it
-    was lost) is released with NaN joints and counted in :attr:`unpaired_energy`; a joint
-    state that can no longer be paired (its energy was lost or already released) counts
-    in :attr:`unpaired_joints`. ``max_pending`` bounds the memory: beyond it the oldest
-    waiting message is given up the same way.
+    Data loss is counted, never silent: an energy message whose joint state has not come
+    while more than ``keep`` joint states wait (each topic arrives in publication order, so
+    those came later: its own was lost) is released with NaN joints and counted in
+    :attr:`unpaired_energy`; a joint state that arrived before the one just paired was
+    left without its energy message and counts in :attr:`unpaired_joints`. Only arrival
+    order is used, never the order of the stamps (a reset starts t_sim again at 0).
+    ``max_pending`` bounds the memory: beyond it the oldest waiting message is given up.
     """
 
     def __init__(self, keep: int = 64, max_pending: int = 1_000_000):
         self.keep = int(keep)
         self.max_pending = int(max_pending)
         self._energy: collections.deque = collections.deque()     # (stamp, fields)
-        self._joints: dict[int, tuple] = {}
-        self._released = -1        # stamp of the last released sample
+        self._joints: dict[int, tuple] = {}                        # in arrival order
         self.unpaired_energy = 0
         self.unpaired_joints = 0
 
@@ -92,13 +92,13 @@ class SamplePairer:
     def add_joints(self, stamp_ns: int, positions, velocities) -> list[Sample]:
         """Add a joint state; return the samples completed."""
         stamp = int(stamp_ns)
-        if stamp <= self._released:
-            self.unpaired_joints += 1           # its energy was released without it
-            return []
+        if stamp in self._joints:            # a stamp again (a restarted run): the old is lost
+            del self._joints[stamp]
+            self.unpaired_joints += 1
         self._joints[stamp] = (tuple(float(v) for v in positions),
                                tuple(float(v) for v in velocities))
         if len(self._joints) > self.max_pending:
-            del self._joints[min(self._joints)]
+            del self._joints[next(iter(self._joints))]
             self.unpaired_joints += 1
         return self._release()
 
@@ -106,15 +106,19 @@ class SamplePairer:
         out = []
         while self._energy:
             stamp, fields = self._energy[0]
-            joints = self._joints.pop(stamp, None)
-            if joints is None:
-                newer = len(self._joints) if len(self._joints) <= self.keep else sum(
-                    1 for s in self._joints if s > stamp)
-                if newer <= self.keep and len(self._energy) <= self.max_pending:
-                    break
+            joints = None
+            if stamp in self._joints:
+                # joint states that arrived before this one lost their energy message
+                while (first := next(iter(self._joints))) != stamp:
+                    del self._joints[first]
+                    self.unpaired_joints += 1
+                joints = self._joints.pop(stamp)
+            elif len(self._joints) <= self.keep and len(self._energy) <= self.max_pending:
+                break
+            else:
                 self.unpaired_energy += 1
             self._energy.popleft()
-            out.append(self._make(stamp, fields, joints))
+            out.append(self._make(fields, joints))
         return out
 
     def flush(self) -> list[Sample]:
@@ -124,21 +128,12 @@ class SamplePairer:
             stamp, fields = self._energy.popleft()
             joints = self._joints.pop(stamp, None)
             self.unpaired_energy += joints is None
-            out.append(self._make(stamp, fields, joints))
+            out.append(self._make(fields, joints))
         self.unpaired_joints += len(self._joints)
         self._joints.clear()
         return out
 
-    def _make(self, stamp: int, e: dict, joints: tuple | None) -> Sample:
-        self._released = max(self._released, stamp)
-        # joint states older than this one lost their energy message
-        # (joint states arrive in order: the oldest waiting ones are first in the dict)
-        while self._joints:
-            first = next(iter(self._joints))
-            if first >= stamp:
-                break
-            del self._joints[first]
-            self.unpaired_joints += 1
+    def _make(self, e: dict, joints: tuple | None) -> Sample:
         pos, vel = joints if joints is not None else (None, None)
         nan4 = (math.nan,) * 4
         return Sample(t=e['t_sim'], seq=int(e['seq']), k=int(e.get('k', -1)),
