@@ -108,7 +108,9 @@ def test_upright_tilt_modes_are_expected_marginal(upright):
 
 
 def test_pole_slips_counted_and_synchronism_state():
-    tr = simulate('pole_slip', t_end=10.0, rate=250.0)
+    # 14 s: at 10 s the fit of E*_inf after the slips is still too uncertain (+- 0.027 J)
+    # to tell the decay rate from its bound (decay NOT YET: insufficient data)
+    tr = simulate('pole_slip', t_end=14.0, rate=250.0)
     samples = samples_from_trajectory(tr)
     p = tr.scene.params.pole_pairs
     wells = round(p * tr.z[-1] / (2 * math.pi))
@@ -397,3 +399,23 @@ def test_pairer_counts_a_lost_joint_state(kicked):
     p, out = _pair(order, samples)
     assert len(out) == 300 and p.unpaired_energy == 1 and p.unpaired_joints == 0
     assert math.isnan(out[100].positions[0]) and out[101].positions == samples[101].positions
+
+
+@pytest.mark.parametrize('scene,verdict', [
+    ('precession', 'asymptotically stable'), ('nutation', 'asymptotically stable'),
+    ('stiff_drive', 'asymptotically stable'), ('fast_spin', 'asymptotically stable'),
+    ('upright', 'marginal'), ('pole_slip', 'marginal'), ('conservative', 'marginal')])
+def test_every_shipped_scene_confirmed_where_the_linear_theory_says(scene, verdict):
+    from gyro_rotor.linear.stability import analyze_scene
+    tr = simulate(scene, t_end=14.0, rate=250.0)
+    _, res = analyze(tr.scene, samples_from_trajectory(tr), window_s=8.0)
+    assert analyze_scene(tr.scene).verdict == verdict
+    assert res.verdict == verdict and res.confirmed, res.evidence
+    if verdict == 'marginal' and scene != 'conservative':
+        # solution I: the tilt modes stay undamped, as predicted
+        st = {m.name: str(m.status) for m in res.judged.modes}
+        assert st['nutation'] == st['precession'] == 'expected marginal'
+    if scene == 'pole_slip':
+        assert res.pole_slips == 3 and str(res.criterion('synchronism').status) == 'PASS'
+    # never asymptotically stable without drive damping
+    assert scene != 'conservative' or res.verdict != 'asymptotically stable'

@@ -313,7 +313,8 @@ class RotorAnalyzer:
         out = [crit.lyapunov(segs, self.lyapunov_tol, self.lyapunov_rtol),
                crit.energy_balance(segs, self.residual_warn)]
         if judged is not None:
-            out += [crit.decay(judged, judged_pred(self, judged), self.min_fit_s),
+            out += [crit.decay(judged, judged_pred(self, judged), self.min_fit_s,
+                               self._resolution(judged)),
                     crit.modes(judged, self.min_fit_s)]
         out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite))
         if judged is not None:
@@ -338,6 +339,10 @@ class RotorAnalyzer:
         seg = self.segments[-1]
         return (seg.pred.pole_pairs > 0 and seg.last is not None
                 and seg.last.t - seg.last_slip_t <= self.sync_hold_s)
+
+    def _resolution(self, seg: SegmentResult) -> float:
+        """Spread of E* [J] below which E* counts as constant (the Lyapunov tolerance)."""
+        return self.lyapunov_tol + self.lyapunov_rtol * abs(seg.E_last)
 
     def _window(self, seg: _Segment) -> np.ndarray:
         R = np.asarray(seg.rows, dtype=float)
@@ -389,7 +394,8 @@ class RotorAnalyzer:
             pole_slips=seg.slips, sync_state=sync_state, well=well,
             verdict=Verdict.INSUFFICIENT_DATA, evidence=[], energy_fit=e_fit,
             unexplained=unexplained, non_finite=not (last and math.isfinite(last.E_star)))
-        res.criteria = [crit.decay(res, pred, self.min_fit_s), crit.modes(res, self.min_fit_s)]
+        res.criteria = [crit.decay(res, pred, self.min_fit_s, self._resolution(res)),
+                        crit.modes(res, self.min_fit_s)]
         sync = crit.synchronism(res, pred)
         if sync is not None:
             res.criteria.append(sync)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+from gyro_rotor.analysis.decay import RESOLVABLE
 from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.results import SegmentResult
 from gyro_rotor.analysis.verdict import (Criterion, CriterionName, decay_rate_bound, fmt_rate,
@@ -17,9 +18,11 @@ __all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism'
            'FIT_RTOL', 'RATE_RTOL']
 
 #: the fit of E*(t) with the predicted rates must leave at most this rms residual, relative
-#: to the spread of E* over the window (measured on a demo bag of the default scene, 8 s
-#: windows: 3e-4 .. 9e-3 with the right prediction (1.3e-2 over the whole 18 s segment),
-#: 0.13 .. 0.67 with a prediction for K_D = 0.02 or 0.3 instead of 0.05)
+#: to the spread of E* over the window. Measured on a demo bag of the default scene: 4e-6 to
+#: 2.3e-5 over 8 s windows with the right prediction (1.3e-2 over the whole 18 s segment,
+#: where the kick's nonlinearity shows; 0.022 on pole_slip after three slips), 0.033 with
+#: the prediction for K_D = 0.02 (its twist rate then disagrees: the modes criterion fails)
+#: and 0.23 for K_D = 0.3 instead of 0.05
 FIT_RTOL = 0.05
 #: the measured decay rate may fall short of the bound by this fraction (the bound holds
 #: for the linearization; the kicked motion is slightly nonlinear)
@@ -60,8 +63,12 @@ def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
                      f'{warn:.1g} J)', nums)
 
 
-def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
-    """E* approaches its fitted limit at least as fast as the slowest predicted mode allows."""
+def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float,
+          resolution: float = 1e-8) -> Criterion:
+    """E* approaches its fitted limit at least as fast as the slowest predicted mode allows.
+
+    ``resolution`` [J]: a spread of E* over the window below it is integration noise.
+    """
     bound = decay_rate_bound(pred.decaying_abscissa)
     fit = seg.energy_fit
     nums = {'bound': bound, 'window_s': seg.window_s}
@@ -70,9 +77,18 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
         return Criterion(name, Status.NOT_YET, f'window {seg.window_s:.3g} s too short to fit '
                          f'(need {min_fit_s:g} s)', nums)
     nums.update(rate=fit.rate, rate_lo=fit.rate_lo, rate_hi=fit.rate_hi, E_inf=fit.E_inf,
+                spread=fit.spread, trend=fit.trend,
                 E_inf_sigma=fit.E_inf_sigma, rel_residual=fit.rel_residual)
     head = (f'E*_inf = {fit.E_inf:.9g} +- {fit.E_inf_sigma:.2g} J (fitted, predicted '
             f'{pred.E_inf:.9g} J); ')
+    if fit.spread <= resolution:
+        # E* constant within the integrator's tolerance: nothing to fit
+        if not math.isfinite(bound):
+            return Criterion(name, Status.PASS, f'E* constant (spread {fit.spread:.2g} J <= '
+                             f'{resolution:.2g} J) as predicted: no mode decays', nums)
+        return Criterion(name, Status.NOT_YET, f'E* - E*_inf below the resolution (spread '
+                         f'{fit.spread:.2g} J <= {resolution:.2g} J): decay not measurable in '
+                         f'this window', nums)
     if fit.rel_residual > FIT_RTOL:
         return Criterion(name, Status.FAIL, head + f'E*(t) does not follow the predicted '
                          f'rates: rms residual {fit.rel_residual:.3g} of its spread '
@@ -81,6 +97,13 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
         return Criterion(name, Status.NOT_YET, head + 'no decaying mode predicted', nums)
     rate = (f'E* - E*_inf decays at {fmt_rate(fit.rate)} (interval '
             f'{fit.rate_lo:.4g} .. {fit.rate_hi:.4g}), bound 2|alpha| = {bound:.4g} 1/s')
+    if bound * seg.window_s < RESOLVABLE:
+        # the slowest predicted decay changes E* by < 5 % over the window: not measurable
+        # here; E*(t) following the predicted rates (above) is what the window can show
+        return Criterion(name, Status.PASS, head + f'E*(t) follows the predicted rates (rms '
+                         f'residual {fit.rel_residual:.2g} of its spread); the bound 2|alpha| '
+                         f'= {bound:.4g} 1/s is below the resolution of this window; ' + rate,
+                         nums)
     need = bound * (1.0 - RATE_RTOL)
     if not math.isfinite(fit.rate):
         return Criterion(name, Status.NOT_YET, head + 'E* - E*_inf not resolved above the '

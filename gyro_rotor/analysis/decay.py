@@ -25,9 +25,10 @@ _TWO_PI = 2.0 * math.pi
 
 __all__ = ['EnergyFit', 'fit_energy', 'envelope_decay_rate', 'SIGMAS']
 
-#: a non-oscillating term whose exponent times the window is below this is indistinguishable
-#: from a constant within the window: it is merged into E_inf (its decay is not measurable)
-RESOLVABLE = 0.5
+#: a non-oscillating term whose exponent times the window is below this changes by less than
+#: 5 % over the window, nearly collinear with a constant: it is merged into E_inf (the
+#: nutation about solution II, 2 |Re| = 0.0035 1/s over 8 s: 0.028)
+RESOLVABLE = 0.05
 #: E_inf is varied by this many standard errors for the rate interval
 SIGMAS = 2.0
 #: a term decaying by more than exp(-MAX_DECADES_E) over the window is no column (it is an
@@ -46,13 +47,17 @@ class EnergyFit:
     rate_lo: float
     rate_hi: float
     rel_residual: float
+    spread: float
+    trend: float
+    span: float
     exponents: tuple
     coef: tuple
 
     def curve(self, t: np.ndarray) -> np.ndarray:
         """Return the fitted E*(t) (E_inf plus the predicted terms)."""
-        X = _basis(np.asarray(t, dtype=float) - self.t0, self.exponents)
-        return self.E_inf + X @ np.asarray(self.coef)
+        tau = np.asarray(t, dtype=float) - self.t0
+        X = _basis(tau, self.exponents)
+        return self.E_inf + self.trend * (tau - self.span) + X @ np.asarray(self.coef)
 
 
 def _exponents(eigs: Sequence[complex]) -> list[complex]:
@@ -94,7 +99,8 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex]) -> EnergyF
 
     ``eigs`` are the predicted eigenvalues with Im >= 0 (one of each conjugate pair),
     without the structural zero roots. Non-oscillating terms too slow to resolve in the
-    window (:data:`RESOLVABLE`) are merged into E_inf; terms that die within the window
+    window (:data:`RESOLVABLE`) are merged into E_inf plus a straight line (``trend``, J/s,
+    E_inf being their value at the window's end); terms that die within the window
     (exponent times span below -:data:`MAX_EXPONENT`) are left out. The standard error of
     E_inf is that of ordinary least squares (residuals taken as independent: an
     underestimate for correlated noise, so the rate interval is not wider than it should be).
@@ -104,33 +110,40 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex]) -> EnergyF
     t0 = float(t[0])
     tau = t - t0
     span = float(tau[-1]) if len(tau) else 0.0
-    mus = [mu for mu in _exponents(eigs) if mu.real * span > -MAX_EXPONENT
-           and not (abs(mu.imag) * span < _TWO_PI and abs(mu.real) * span < RESOLVABLE)]
-    X = np.column_stack([np.ones_like(tau), _basis(tau, mus)])
+    alive = [mu for mu in _exponents(eigs) if mu.real * span > -MAX_EXPONENT]
+    slow = [mu for mu in alive if abs(mu.imag) * span < _TWO_PI
+            and abs(mu.real) * span < RESOLVABLE]
+    mus = [mu for mu in alive if mu not in slow]
+    # the slow terms merged into E_inf: their first order, a straight line, stays a column
+    # (measured from the window's end, so that E_inf is the slow part's value there)
+    cols = [np.ones_like(tau)] + ([tau - span] if slow else [])
+    X = np.column_stack(cols + [_basis(tau, mus)])
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
     Xs = X / scale
-    coef, _, rank, sv = np.linalg.lstsq(Xs, E - E[-1], rcond=1e-12)
-    fit = Xs @ coef
-    res = (E - E[-1]) - fit
+    coef, _, rank, _ = np.linalg.lstsq(Xs, E - E[-1], rcond=1e-12)
+    res = (E - E[-1]) - Xs @ coef
     dof = max(len(E) - rank, 1)
     s2 = float(res @ res) / dof
     # covariance of the scaled coefficients via the pseudo-inverse (rank-revealing SVD)
-    U, S, Vt = np.linalg.svd(Xs, full_matrices=False)
+    _, S, Vt = np.linalg.svd(Xs, full_matrices=False)
     keep = S > 1e-12 * S[0]
     cov00 = float(np.sum((Vt[keep, 0] / S[keep]) ** 2)) * s2
-    E_inf = float(coef[0] / scale[0] + E[-1])
-    sigma = math.sqrt(max(cov00, 0.0)) / scale[0]
+    coef = coef / scale
+    E_inf = float(coef[0] + E[-1])
+    trend = float(coef[1]) if slow else 0.0
+    sigma = math.sqrt(max(cov00, 0.0))
     spread = float(np.std(E))
     rel = float(np.sqrt(np.mean(res * res)) / spread) if spread > 0 else 0.0
-    rate = _log_slope_rate(t, E - E_inf)
-    lo = _log_slope_rate(t, E - (E_inf - SIGMAS * sigma))    # a lower limit: slower decay
-    hi = _log_slope_rate(t, E - (E_inf + SIGMAS * sigma))
+    dE = E - E_inf - trend * (tau - span)
+    rate = _log_slope_rate(t, dE)
+    lo = _log_slope_rate(t, dE + SIGMAS * sigma)    # a lower limit: slower decay
+    hi = _log_slope_rate(t, dE - SIGMAS * sigma)
     if not math.isfinite(hi) and math.isfinite(rate):
         hi = math.inf           # E_inf + 2 sigma reaches the data: any faster rate fits
     return EnergyFit(t0=t0, E_inf=E_inf, E_inf_sigma=sigma, rate=rate, rate_lo=lo,
-                     rate_hi=hi, rel_residual=rel, exponents=tuple(mus),
-                     coef=tuple(float(c) for c in coef[1:] / scale[1:]))
+                     rate_hi=hi, rel_residual=rel, spread=spread, trend=trend, span=span,
+                     exponents=tuple(mus), coef=tuple(float(c) for c in coef[len(cols):]))
 
 
 def envelope_decay_rate(t: np.ndarray, D: np.ndarray, freqs_hz: Sequence[float]) -> float:
