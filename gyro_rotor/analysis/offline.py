@@ -52,7 +52,6 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     SceneError
         The scene named in the bag is unknown (and the bag carries no parameters).
     """
-    import json
     import warnings
 
     from gyro_rotor.bag.bagio import BagWarning, open_bag
@@ -60,8 +59,6 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
         raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
     if window_s is not None:
         check_window(window_s)
-    from gyro_rotor.core.scene import load_scene, scene_from_mapping
-    import yaml
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter('always', BagWarning)
         reader = open_bag(path)
@@ -74,37 +71,11 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
                             f'(std_msgs/msg/Float64MultiArray) and joint_states '
                             f'(sensor_msgs/msg/JointState); found {found or "no topics"}')
     scene_topic = _find_topic(reader.topics, 'scene', 'std_msgs/msg/String')
-    meta_opts = {}
-    if 'gyro_rotor.analysis' in reader.metadata:
-        try:
-            meta_opts = json.loads(reader.metadata['gyro_rotor.analysis'].get('options', '{}'))
-        except ValueError:
-            meta_opts = {}
-    opts = {**meta_opts, **options}
+    meta_opts = _json_record(reader, 'gyro_rotor.analysis', 'options', {})
+    opts = {**(meta_opts if isinstance(meta_opts, dict) else {}), **options}
     if window_s is not None:
         opts['window_s'] = window_s
-    fixed: Scene | None = None
-    base = None
-    source = ''
-    if isinstance(scene, Scene):
-        fixed, source = scene, 'given'
-    elif scene:
-        fixed, source = load_scene(scene), f'given ({scene})'
-    elif 'gyro_rotor.scene' in reader.metadata:
-        rec = reader.metadata['gyro_rotor.scene']
-        try:
-            flat = yaml.safe_load(rec.get('flat', ''))
-        except yaml.YAMLError as err:
-            raise AnalysisError(f'{path}: the scene record is not YAML: {err}') from err
-        if not isinstance(flat, dict):
-            raise AnalysisError(f'{path}: the gyro_rotor.scene record holds no parameters')
-        base = scene_from_mapping(flat, strict_float=False)
-        source = f"bag metadata (scene '{base.name}')"
-    elif scene_topic is not None:
-        source = f'scene documents on {scene_topic}'
-    else:
-        raise AnalysisError(f'{path}: the bag names no scene (no gyro_rotor.scene metadata, '
-                            f'no ~/scene topic); pass one with --scene')
+    fixed, base, source = _scene_source(path, reader, scene, scene_topic)
     session = AnalysisSession(fixed if fixed is not None else base, base=base,
                               keep_series=True, **opts)
     if fixed is None and base is not None:
@@ -125,15 +96,47 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     live = None
     if 'gyro_rotor.live_result' in reader.metadata:
         rec = reader.metadata['gyro_rotor.live_result']
-        live = {'verdict': rec.get('verdict'), 'error': rec.get('error')}
-        if rec.get('json'):
-            try:
-                live = json.loads(rec['json'])
-            except ValueError:
-                pass
+        live = _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
+            'verdict': rec.get('verdict'), 'error': rec.get('error')}
     result = session.result()
     if problems:
         result.evidence.extend(problems)
     return BagAnalysis(path=str(path), result=result, live=live, samples=session.series,
                        topics={t: i.count for t, i in reader.topics.items()},
                        truncated=reader.truncated, scene_source=source, options=opts)
+
+
+def _json_record(reader, name: str, key: str, default):
+    """Return the JSON value ``key`` of metadata record ``name`` (``default`` if absent)."""
+    import json
+    text = reader.metadata.get(name, {}).get(key)
+    if not text:
+        return default
+    try:
+        return json.loads(text)
+    except ValueError:
+        return default
+
+
+def _scene_source(path, reader, scene, scene_topic) -> tuple:
+    """Return (fixed scene, base scene, where from) for :func:`analyze_bag`."""
+    from gyro_rotor.core.scene import load_scene, scene_from_mapping
+    import yaml
+    if isinstance(scene, Scene):
+        return scene, None, 'given'
+    if scene:
+        return load_scene(scene), None, f'given ({scene})'
+    if 'gyro_rotor.scene' in reader.metadata:
+        rec = reader.metadata['gyro_rotor.scene']
+        try:
+            flat = yaml.safe_load(rec.get('flat', ''))
+        except yaml.YAMLError as err:
+            raise AnalysisError(f'{path}: the scene record is not YAML: {err}') from err
+        if not isinstance(flat, dict):
+            raise AnalysisError(f'{path}: the gyro_rotor.scene record holds no parameters')
+        base = scene_from_mapping(flat, strict_float=False)
+        return None, base, f"bag metadata (scene '{base.name}')"
+    if scene_topic is not None:
+        return None, None, f'scene documents on {scene_topic}'
+    raise AnalysisError(f'{path}: the bag names no scene (no gyro_rotor.scene metadata, '
+                        f'no ~/scene topic); pass one with --scene')
