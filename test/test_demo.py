@@ -51,3 +51,17 @@ def test_demo_refuses_bad_arguments(tmp_path, capsys):
     assert main(['demo', '--out', str(busy)]) == 1
     assert 'not empty' in capsys.readouterr().err
     assert (busy / 'x').read_text() == 'keep me'
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_demo_exit_status_follows_the_verdict(tmp_path):
+    # 2 s with the kick at 0.5 s: the segment after the kick is shorter than the 2 s a fit
+    # needs, so decay and modes stay NOT YET: insufficient data, NOT CONFIRMED, status 1
+    out = tmp_path / 'short'
+    r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'demo', '--duration', '2',
+                        '--out', str(out), '--quiet'], capture_output=True, text=True,
+                       timeout=240)
+    assert r.returncode == 1, r.stdout[-3000:] + r.stderr[-3000:]
+    assert 'RESULT: NOT CONFIRMED: insufficient data' in r.stdout
+    assert '[NOT YET] decay' in r.stdout and 'Traceback' not in r.stderr

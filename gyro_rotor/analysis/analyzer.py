@@ -333,7 +333,8 @@ class RotorAnalyzer:
                    and m.status is ModeStatus.DISAGREES and m.measured.real > 0]
         unstable = bool(growing) or judged.deviation_decay_rate < -0.05 or (
             self.segments and self._evaluated_sync_lost())
-        return combine(criteria, pred.verdict, diverged=diverged, unstable=bool(unstable))
+        return combine(criteria, pred.verdict, diverged=diverged, unstable=bool(unstable),
+                       marginal_modes=tuple(m.name for m in pred.marginal_modes))
 
     def _evaluated_sync_lost(self) -> bool:
         seg = self.segments[-1]
@@ -402,7 +403,8 @@ class RotorAnalyzer:
         res.verdict, reason = combine(res.criteria, pred.verdict,
                                       diverged=res.non_finite
                                       or res.residual_max > self.diverge_residual,
-                                      unstable=sync_state is SyncState.LOST)
+                                      unstable=sync_state is SyncState.LOST,
+                                      marginal_modes=tuple(m.name for m in pred.marginal_modes))
         res.evidence = [reason] + [c.line() for c in res.criteria]
         return res
 

@@ -126,12 +126,13 @@ class Criterion:
 
 
 def combine(criteria: list[Criterion], predicted: str, *, diverged: bool = False,
-            unstable: bool = False) -> tuple[Verdict, str]:
+            unstable: bool = False, marginal_modes: tuple = ()) -> tuple[Verdict, str]:
     """Return the verdict of the criteria and a sentence naming what decided it.
 
     ``predicted`` is the verdict of the linear theory (``'asymptotically stable'`` or
     ``'marginal'`` can be confirmed); ``diverged``/``unstable`` are what the data showed
-    beyond any criterion (a non-finite E*, slips that keep coming, growing modes).
+    beyond any criterion (a non-finite E*, slips that keep coming, growing modes);
+    ``marginal_modes`` names the modes the drive does not reach (for a marginal verdict).
     """
     failed = [c.name for c in criteria if c.status is Status.FAIL]
     missing = [c.name for c in criteria if c.status is Status.NOT_YET]
@@ -146,7 +147,9 @@ def combine(criteria: list[Criterion], predicted: str, *, diverged: bool = False
     if missing:
         return Verdict.INSUFFICIENT_DATA, f'not yet decided: {", ".join(missing)}'
     if predicted == Verdict.MARGINAL:
-        return Verdict.MARGINAL, 'every criterion passed; marginal as predicted'
+        return Verdict.MARGINAL, ('every criterion passed; marginal as predicted: '
+                                  + (', '.join(marginal_modes) or 'modes')
+                                  + ' not reached by the drive (undamped)')
     if predicted != Verdict.ASYMPTOTICALLY_STABLE:
         return Verdict.NOT_CONFIRMED, (f'every criterion passed, but the linear theory '
                                        f'predicts {predicted}')
