@@ -19,7 +19,8 @@ import time
 
 from gyro_rotor.analysis.checks import analyze_bag
 from gyro_rotor.bag.bagio import open_bag
-from node_helpers import wait_for_log
+from gyro_rotor.ros.messages import ENERGY_FIELDS
+from node_helpers import bag_on_disk, wait_for_log, wait_until
 import pytest
 
 pytestmark = pytest.mark.ros
@@ -45,17 +46,36 @@ def _stop(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 30.0) -> i
         raise
 
 
-def _record(tmp_path: Path, scene: str = 'precession'):
-    """Start the recorder, then the simulator (stopping at T_END); return both."""
+def _record(tmp_path: Path, scene: str = 'precession', t_end: float = T_END):
+    """Start the recorder, then the simulator (stopping at ``t_end``); return both.
+
+    The simulator holds its time at 0 until the recorder's subscriptions matched
+    (``wait_for_subscribers``), then logs 'simulation time starts'.
+    """
     bag = tmp_path / 'bag'
     an = _start(['gyro_rotor.ros.analysis_node', '--ros-args', '-p', f'output:={bag}',
                  '-p', 'window_s:=2.0', '-p', 'min_fit_s:=1.0'], tmp_path / 'an.log')
     wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
-    time.sleep(1.0)      # let discovery settle before the first sample
     sim = _start(['gyro_rotor.ros.sim_node', '--ros-args', '-p', f'scene:={scene}',
-                  '-p', 'real_time_factor:=1.0', '-p', f't_end:={T_END}',
-                  '-p', 'stop_at_t_end:=true'], tmp_path / 'sim.log')
+                  '-p', 'real_time_factor:=1.0', '-p', f't_end:={t_end}',
+                  '-p', 'stop_at_t_end:=true', '-p', 'wait_for_subscribers:=1'],
+                 tmp_path / 'sim.log')
     return bag, an, sim
+
+
+def _energy_k(data: bytes) -> tuple[int, int]:
+    """(seq, k) of a serialized energy message: its float64 array ends the CDR."""
+    import struct
+    n = len(ENERGY_FIELDS)
+    row = struct.unpack_from(f'<{n}d', data, len(data) - 8 * n)
+    return int(row[ENERGY_FIELDS.index('seq')]), int(row[ENERGY_FIELDS.index('k')])
+
+
+def _published(log: Path) -> dict:
+    import json
+    import re
+    found = re.findall(r'published counts: (\{.*\})', log.read_text())
+    return json.loads(found[-1]) if found else {}
 
 
 def _reset_sim(timeout: float = 20.0) -> None:
@@ -103,15 +123,22 @@ def _energy_seq_three_readers(bag: Path) -> tuple[list, list, list]:
 def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
     bag, an, sim = _record(tmp_path)
     try:
-        wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
-        # the simulator publishes from its first tick, before discovery has matched the
-        # recorder (rosbag2 has the same race); so restart its run once both are up: the
-        # run after the reset must be recorded completely
-        time.sleep(1.5)
+        wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim, timeout=40.0)
+        # restart the run once both are up (the node's ~/reset): the run after the reset
+        # must be recorded completely, and the analysis must count it as one reset
         _reset_sim()
-        time.sleep(T_END + 1.5)          # T_END at real time, then the sim idles
+        n = int(T_END * RATE) + 1
+
+        def run_complete():
+            ks = [_energy_k(d)[1] for _, d in bag_on_disk(bag, '/energy')]
+            return any(ks[i] < ks[i - 1] for i in range(1, len(ks))) and ks[-1] == n - 1
+        wait_until(run_complete, 'the run after the reset on disk', an, timeout=60.0)
         assert _stop(sim) == 0
-        time.sleep(1.5)                  # the last results are published
+        published = _published(tmp_path / 'sim.log')
+        # the recorder took every published message (all on disk) before it is stopped
+        for topic in ('energy', 'joint_states'):
+            wait_until(lambda: len(bag_on_disk(bag, f'/{topic}')) == published[topic],
+                       f'all {published[topic]} {topic} messages on disk', an)
     finally:
         _stop(sim)
         rc = _stop(an)
@@ -155,10 +182,13 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
 
 def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
     import gyro_rotor.cli.main as cli
-    bag, an, sim = _record(tmp_path)
+    bag, an, sim = _record(tmp_path, t_end=60.0)
     try:
-        wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
-        time.sleep(0.7 * T_END)          # killed while the simulation is running
+        # killed while the simulation is running (it would run for a minute), as soon as
+        # the recorder has written a chunk with some energy messages
+        wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim, timeout=40.0)
+        wait_until(lambda: len(bag_on_disk(bag, '/energy')) >= 25,
+                   'a flushed chunk with energy messages', an, timeout=60.0)
         t_kill = time.time_ns()
         an.send_signal(signal.SIGKILL)
         an.wait(timeout=10)
