@@ -172,6 +172,12 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
         by_name['/energy']['topic_metadata']['offered_qos_profiles']
     assert by_name['/energy']['topic_metadata']['offered_qos_profiles'][0]['reliability'] \
         == 'reliable'
+    # the type hash the publisher announced in the graph (the same RIHS01 as the share files)
+    from gyro_rotor.bag.msgdefs import type_hash
+    want = type_hash('std_msgs/msg/Float64MultiArray')
+    assert want.startswith('RIHS01_')
+    assert reader.channel_metadata['/energy']['topic_type_hash'] == want
+    assert by_name['/energy']['topic_metadata']['type_description_hash'] == want
     # the live result is in the bag, and the offline analysis reproduces it
     off = analyze_bag(bag)
     assert off.live is not None and off.live['samples'] == len(seq)

@@ -78,6 +78,7 @@ METADATA_VERSION = 9
 #: ``{sec, nsec}`` of ``RMW_DURATION_INFINITE`` as rosbag2 records it from the graph.
 INFINITE_DURATION = {'sec': 9223372036, 'nsec': 854775807}
 _MAGIC = b'\x89MCAP0\r\n'
+_U64 = 2**64
 _LIBRARY = f'gyro_rotor.bagio {__version__}; mcap-python {mcap.__version__}'
 _METADATA_YAML = 'metadata.yaml'
 # Policy names indexed by their rmw enum value (rmw/types.h; names of rmw_qos_*_to_str).
@@ -479,24 +480,36 @@ class BagWriter:
         BagError
             If the bag is closed, the topic unknown, a time invalid or the file unwritable.
         """
-        self._check_open(f'write to {topic!r}')
+        # the recorder's hot path (1000s of messages per second): plain ints and bytes pass
+        # with two comparisons; anything else is checked by _time_ns and converted
+        if self._closed:
+            self._check_open(f'write to {topic!r}')
         channel_id = self._channels.get(topic)
         if channel_id is None:
             raise BagError(f'unknown topic {topic!r} in {self.path}; call add_topic() first')
-        log_time = _time_ns('log_time_ns', log_time_ns)
-        publish_time = log_time if publish_time_ns is None else _time_ns('publish_time_ns',
-                                                                         publish_time_ns)
-        if not isinstance(data, (bytes, bytearray, memoryview)):
-            raise BagError(f'data for {topic!r} must be bytes, not {type(data).__name__}')
-        self._sequence[topic] += 1
+        log_time = (log_time_ns if type(log_time_ns) is int and 0 <= log_time_ns < _U64
+                    else _time_ns('log_time_ns', log_time_ns))
+        if publish_time_ns is None:
+            publish_time = log_time
+        elif type(publish_time_ns) is int and 0 <= publish_time_ns < _U64:
+            publish_time = publish_time_ns
+        else:
+            publish_time = _time_ns('publish_time_ns', publish_time_ns)
+        if type(data) is not bytes:
+            if not isinstance(data, (bytearray, memoryview)):
+                raise BagError(f'data for {topic!r} must be bytes, not {type(data).__name__}')
+            data = bytes(data)
+        seq = self._sequence[topic] + 1
+        self._sequence[topic] = seq
         try:
-            self._writer.add_message(channel_id, log_time, bytes(data), publish_time,
-                                     sequence=self._sequence[topic])
+            self._writer.add_message(channel_id, log_time, data, publish_time, sequence=seq)
         except OSError as err:
             raise BagError(f'cannot write to {self.mcap_path}: {err.strerror or err}') from err
         self._topics[topic].count += 1
-        self._start = log_time if self._start is None else min(self._start, log_time)
-        self._end = log_time if self._end is None else max(self._end, log_time)
+        if self._start is None or log_time < self._start:
+            self._start = log_time
+        if self._end is None or log_time > self._end:
+            self._end = log_time
         now = time.monotonic()
         if self._chunk_t0 is None:
             self._chunk_t0 = now
