@@ -198,7 +198,9 @@ def run(args: argparse.Namespace) -> int:  # noqa: C901 -- one linear story
     view = None
     interrupted = False
     try:
-        print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {bag}')
+        print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {bag}\n'
+              f'watch it from another terminal: gyro-rotor monitor --domain-id '
+              f'{claim.domain_id}', flush=True)
         procs.append(NodeProcess('gyro_rotor.ros.analysis_node', {
             'output': str(bag), 'scene': str(scene_arg)}, domain_id=claim.domain_id,
             stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis']))
