@@ -100,6 +100,36 @@ def _reset_sim(timeout: float = 20.0) -> None:
         rclpy.shutdown(context=context)
 
 
+def _parameters(node: str, wanted: list[str], timeout: float = 30.0):
+    """Names (list_parameters) and values (get_parameters) of ``node``, by its services."""
+    import rclpy
+    from rcl_interfaces.srv import GetParameters, ListParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import parameter_value_to_python
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    try:
+        client_node = rclpy.create_node('test_param_client', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(client_node)
+        answers = []
+        for srv, name, req in ((ListParameters, 'list_parameters', ListParameters.Request()),
+                               (GetParameters, 'get_parameters',
+                                GetParameters.Request(names=wanted))):
+            client = client_node.create_client(srv, f'{node}/{name}')
+            assert client.wait_for_service(timeout_sec=timeout), name
+            future = client.call_async(req)
+            executor.spin_until_future_complete(future, timeout_sec=timeout)
+            assert future.done(), name
+            answers.append(future.result())
+        executor.shutdown()
+        client_node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+    return (list(answers[0].result.names),
+            [parameter_value_to_python(v) for v in answers[1].values])
+
+
 def _energy_seq_three_readers(bag: Path) -> tuple[list, list, list]:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
@@ -178,6 +208,10 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
     assert want.startswith('RIHS01_')
     assert reader.channel_metadata['/energy']['topic_type_hash'] == want
     assert by_name['/energy']['topic_metadata']['type_description_hash'] == want
+    # no directory of the recording machine in the metadata: the scene is named relative
+    # to the package's share directory
+    doc = yaml.safe_load(reader.metadata['gyro_rotor.scene']['document'])
+    assert doc['path'] == 'config/precession.yaml'
     # the live result is in the bag, and the offline analysis reproduces it
     off = analyze_bag(bag)
     assert off.live is not None and off.live['samples'] == len(seq)
@@ -235,9 +269,13 @@ def test_sigterm_finalizes_the_bag(tmp_path):
                 tmp_path / 'an.log')
     try:
         wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
-        time.sleep(1.0)
+        # the node spins (its parameter services answer) before it gets SIGTERM
+        names, values = _parameters('/rotor_analysis', ['window_s', 'output'])
     finally:
         rc = _stop(an, signal.SIGTERM)
+    # ros2 param list/get see the node's parameters (issue 16)
+    assert {'output', 'window_s', 'min_fit_s', 'scene', 'record'} <= set(names)
+    assert values == [8.0, str(bag)]
     assert rc == 0, (tmp_path / 'an.log').read_text()
     reader = open_bag(bag)
     assert not reader.truncated

@@ -26,7 +26,8 @@ from typing import NamedTuple
 
 __all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'ENERGY_LABEL', 'ANALYSIS_FIELDS', 'ANALYSIS_LABEL',
            'MODE_FIELDS', 'MODE_LABEL', 'SIM_TOPICS', 'ANALYSIS_TOPICS', 'Topic', 'QOS',
-           'sim_topics', 'array_labels', 'energy_from_cdr', 'joints_from_cdr', 'EnergyRow',
+           'sim_topics', 'scene_ref', 'scene_doc_for_bag',
+           'array_labels', 'energy_from_cdr', 'joints_from_cdr', 'EnergyRow',
            'JointRow', 'CdrError']
 
 #: joint order of ``joint_states`` (3-1-3 angles of the paper; the rotor's phi_R)
@@ -101,6 +102,37 @@ QOS = {
     'monitor': {'history': 'keep_last', 'depth': 200, 'reliability': 'best_effort',
                 'durability': 'volatile'},
 }
+
+
+def scene_ref(path) -> str:
+    """Name a scene file without the recording machine's directories.
+
+    A shipped scene is named relative to the package's share directory
+    (``config/precession.yaml``), any other file by its file name alone; ``''`` for none.
+    """
+    from pathlib import Path
+
+    from gyro_rotor.core.scene import config_dirs
+    if not path:
+        return ''
+    p = Path(path).resolve()
+    for d in config_dirs():
+        if p.parent == d.resolve():
+            return f'config/{p.name}'
+    return p.name
+
+
+def scene_doc_for_bag(text: str) -> str:
+    """Return a ``~/scene`` document with its ``path`` as :func:`scene_ref` names it."""
+    import yaml
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+    if not isinstance(doc, dict) or not doc.get('path'):
+        return text
+    doc['path'] = scene_ref(doc['path'])
+    return yaml.safe_dump(doc, sort_keys=False)
 
 
 def array_labels(dims) -> list[list[str]]:
