@@ -119,3 +119,18 @@ def test_module_entry_point_from_the_folder_that_holds_the_checkout(tmp_path):
                        cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and 'Traceback' not in r.stderr, r.stderr
     assert r.stderr.startswith('ERROR: no_such_bag: no such bag'), r.stderr
+
+
+def test_soak_load_starts_busy_processes_and_stops_them(capsys):
+    import time
+    from gyro_rotor.tools.soak import CpuLoad, read_cpu_s
+    with CpuLoad(2) as load:
+        pids = [p.pid for p in load.procs]
+        assert len(pids) == 2
+        deadline = time.monotonic() + 30
+        while not all((read_cpu_s(pid) or 0) > 0.05 for pid in pids):
+            assert time.monotonic() < deadline, 'the busy processes use no CPU'
+            time.sleep(0.05)
+    assert all(read_cpu_s(pid) is None for pid in pids)        # stopped and reaped
+    assert main(['soak', '--load', '-1', '--duration', '1']) == 1
+    assert '--load must be >= 0' in capsys.readouterr().err
