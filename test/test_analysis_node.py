@@ -154,8 +154,14 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
     bag, an, sim = _record(tmp_path)
     try:
         wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim, timeout=40.0)
-        # restart the run once both are up (the node's ~/reset): the run after the reset
-        # must be recorded completely, and the analysis must count it as one reset
+        # restart the run (the node's ~/reset) once the first run is longer than the window
+        # in which the analysis pairs energy with joint_states by stamp (PAIRER_KEEP): a
+        # shorter run's unpaired samples would meet the new run's samples of the same stamps.
+        # The run after the reset must be recorded completely, and the analysis must count
+        # it as one reset.
+        from gyro_rotor.tools.soak import PAIRER_KEEP
+        wait_until(lambda: len(bag_on_disk(bag, '/energy')) > 2 * PAIRER_KEEP,
+                   'the first run on disk beyond the pairing window', an, timeout=60.0)
         _reset_sim()
         n = int(T_END * RATE) + 1
 
