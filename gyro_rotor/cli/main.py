@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from gyro_rotor.errors import GyroRotorError
@@ -63,9 +64,18 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args._run(args) or 0)
+        status = int(args._run(args) or 0)
+        sys.stdout.flush()      # inside the try: a closed pipe is handled below
+        return status
     except GyroRotorError as err:
         print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # the reader of stdout went away (`gyro-rotor ... | head`): not an error of ours.
+        # As the Python docs advise: point stdout at devnull so that the flush at exit does
+        # not fail again, and exit quietly.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
         return 1
     except (OSError, UnicodeError) as err:
         # a file that cannot be read or written (missing directory, a directory instead of

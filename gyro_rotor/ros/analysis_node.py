@@ -29,6 +29,8 @@ import sys
 from diagnostic_msgs.msg import DiagnosticArray
 from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FIELDS, MODE_LABEL
 from gyro_rotor.analysis.session import AnalysisSession, scene_to_flat
+from gyro_rotor.bag.wire import (CdrError, energy_from_cdr, joints_from_cdr,
+                                 scene_doc_for_bag, scene_ref)
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.ros.messages as ros_msgs
@@ -63,9 +65,9 @@ class RotorAnalysisNode(Node):
     """Recorder and live stability checks (see module doc)."""
 
     def __init__(self, node_name: str = 'rotor_analysis', **kwargs):
-        # every entity costs time in each wait of rclpy's executor, and the node must keep
-        # up with 5 topics at 250 Hz: no parameter services (the parameters are read-only)
-        kwargs.setdefault('start_parameter_services', False)
+        # parameter services on (ros2 param list/get see the read-only parameters): the
+        # recorder drains its subscriptions per callback, so six more services in the
+        # executor's wait set cost little
         super().__init__(node_name, **kwargs)
         p = self.declare_parameter
         output = p('output', '', ParameterDescriptor(
@@ -110,7 +112,7 @@ class RotorAnalysisNode(Node):
             check_writable(path)
             meta = {'gyro_rotor.analysis': {
                 'options': json.dumps(self.options), 'sim_node': self.sim_node,
-                'scene_parameter': scene_name}}
+                'scene_parameter': scene_ref(scene_name) if '/' in scene_name else scene_name}}
             if scene is not None:
                 meta['gyro_rotor.scene'] = {'name': scene.name,
                                             'flat': yaml.safe_dump(scene_to_flat(scene))}
@@ -133,13 +135,13 @@ class RotorAnalysisNode(Node):
     # -- input ----------------------------------------------------------------------------
     def _on_bytes(self, topic: str, data: bytes) -> None:
         try:
-            if topic == self.energy_topic:
-                self.session.on_energy(deserialize_message(data, Float64MultiArray))
+            if topic == self.energy_topic:      # decoded by layout, not by rclpy: 3x faster
+                self.session.on_energy(energy_from_cdr(data))
             elif topic == self.joints_topic:
-                self.session.on_joints(deserialize_message(data, JointState))
+                self.session.on_joints(joints_from_cdr(data))
             elif topic == self.scene_topic:
                 self._on_scene(deserialize_message(data, String).data)
-        except GyroRotorError as err:
+        except (GyroRotorError, CdrError) as err:
             self._error(str(err))
 
     def _on_scene(self, text: str) -> None:
@@ -151,7 +153,7 @@ class RotorAnalysisNode(Node):
         if self.recorder is not None and not self._scene_recorded:
             self.recorder.add_metadata('gyro_rotor.scene', {
                 'name': scene.name, 'flat': yaml.safe_dump(scene_to_flat(scene)),
-                'document': text})
+                'document': scene_doc_for_bag(text)})
             self._scene_recorded = True
 
     def _error(self, text: str) -> None:

@@ -258,7 +258,9 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, bool]:
     interrupted = False
     codes: dict = {}
     try:
-        print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {out / "bag"}')
+        print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {out / "bag"}\n'
+              f'watch it from another terminal: gyro-rotor monitor --domain-id '
+              f'{claim.domain_id}', flush=True)
         procs += _start_nodes(args, scene_arg, out, claim.domain_id, logs)
         view = _LiveView(claim.domain_id)
         view.spin(1.0)
