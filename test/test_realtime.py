@@ -172,7 +172,7 @@ def test_realtime_does_not_import_rclpy():
 
 
 def test_integrators_package_methods_behind_the_same_interface():
-    pytest.importorskip('gyro_rotor.integrators')
+    pytest.importorskip('gyro_rotor.numerics.integrators')
     from gyro_rotor.numerics.realtime import IntegratorStepper
     from gyro_rotor.core.scene import load_scene
     scene = load_scene('precession')
