@@ -125,7 +125,7 @@ def test_energy_layout_effort_and_lyapunov(rig):
     n0 = len(rig.energy)
     rig.spin_until(lambda: len(rig.energy) - n0 >= 100)
     rows = rig.energy_rows(n0)
-    p = rig.node.scene.params
+    p = rig.node.sim.scene.params
     z, zdot = rows[:, F['z']], rows[:, F['zdot']]
     np.testing.assert_allclose(rows[:, F['dissipation']], p.K_D * zdot ** 2, rtol=1e-12)
     np.testing.assert_allclose(rows[:, F['dE_dt']], -rows[:, F['dissipation']])
@@ -160,15 +160,15 @@ def test_perturb_and_reset_services(rig):
     node = rig.node
     assert rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=True)).success
     y0, t0 = node.stepper.y.copy(), node.stepper.t
-    E_ref0 = node.baseline.E_ref
+    E_ref0 = node.sim.baseline.E_ref
     res = rig.call(Trigger, '/rotor_sim/perturb', Trigger.Request())
     assert res.success, res.message
     y1 = node.stepper.y
     assert node.stepper.t == t0
     assert y1[8] == pytest.approx(y0[8] + 1.0)                 # perturbation.dzdot = 1.0
     assert y1[9] == y0[9]                                       # dissipated work kept
-    jump = float(node.model.energy(y1) - node.model.energy(y0))
-    assert node.baseline.E_ref - E_ref0 == pytest.approx(jump, rel=1e-12, abs=1e-15)
+    jump = float(node.sim.model.energy(y1) - node.sim.model.energy(y0))
+    assert node.sim.baseline.E_ref - E_ref0 == pytest.approx(jump, rel=1e-12, abs=1e-15)
     assert rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False)).success
     n0 = len(rig.energy)
     rig.spin_until(lambda: len(rig.energy) - n0 >= 20)
@@ -211,16 +211,16 @@ def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
         (result,) = node.set_parameters([Parameter(name, value=value)])
         assert not result.successful
         assert word in result.reason
-    assert node.scene.params.K_D == 0.05 and node.scene.params.A_R == 0.05
+    assert node.sim.scene.params.K_D == 0.05 and node.sim.scene.params.A_R == 0.05
     # K_S: E* jumps by (K_S' - K_S) z^2 / 2, the residual baseline moves with it
     y = node.stepper.y.copy()
-    E_ref = node.baseline.E_ref
+    E_ref = node.sim.baseline.E_ref
     (result,) = node.set_parameters([Parameter('K_S', value=40.0)])
     assert result.successful, result.reason
-    assert node.scene.params.K_S == 40.0 and node.model.params.K_S == 40.0
-    assert node.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
+    assert node.sim.scene.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
+    assert node.sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
                                                         abs=1e-15)
-    seq_change = node.seq          # samples from here on were computed with K_S = 40
+    seq_change = node.sim.seq          # samples from here on were computed with K_S = 40
     rig.spin_until(lambda: rig.energy[-1].data[F['seq']] > seq_change + 20)
     rows = rig.energy_rows()
     rows = rows[rows[:, F['seq']] >= seq_change]
@@ -239,7 +239,7 @@ def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
     (result,) = node.set_parameters([Parameter('max_residual', value=0.0)])
     assert result.successful
     rig.spin_until(lambda: node.diverged is not None)
-    t_stop = node._last[0]
+    t_stop = node.sim.last[0]
     n0 = len(rig.diags)
     rig.spin_until(lambda: len(rig.diags) > n0)
     st = rig.diags[-1].status[0]
@@ -247,7 +247,7 @@ def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
     n1 = len(rig.energy)
     rig.spin_for(0.2)
     assert all(m.data[F['t_sim']] <= t_stop for m in rig.energy[n1:])
-    assert np.all(np.isfinite(node._last[1]))
+    assert np.all(np.isfinite(node.sim.last[1]))
     node.set_parameters([Parameter('max_residual', value=1.0)])
     assert rig.call(Trigger, '/rotor_sim/reset', Trigger.Request()).success
     n2 = len(rig.energy)
