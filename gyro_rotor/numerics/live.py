@@ -369,8 +369,15 @@ class LiveSimulation:
             raise ParameterError('diverged: reset first')
         y_old = self.stepper.y.copy()
         y = perturb_state(self.model, y_old, self.perturbation)
+        try:       # the new stepper first: a state the model cannot evaluate changes nothing
+            stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
+        except GyroRotorError:
+            raise
+        except Exception as err:  # noqa: B902 -- e.g. the model's singularity at theta = pi
+            raise ParameterError(f'kick refused: {_describe(err)}') from err
         jump = self.baseline.rebase(self.model.energy, y, y_old)
-        self._restart_stepper(y)
+        self.stepper = stepper
+        self.pacer.restart(stepper, self.clock())
         return (f'kicked at t = {self.stepper.t:.6f} s with {self.perturbation}; E* changed '
                 f'by {jump:.6g} J')
 

@@ -409,9 +409,16 @@ class Pacer:
             self._anchor = (now, self.stepper.t)
 
     def restart(self, stepper: Stepper, now: float | None = None) -> None:
-        """Continue with a new stepper (reset, kick, parameter change) from its t."""
+        """Continue with a new stepper (reset, kick, parameter change) from its t.
+
+        Continuing at the same time (a kick or a parameter change right on a grid point,
+        as every tick at rtf 0 ends) does not repeat that grid point's sample.
+        """
+        k = self._first_k(stepper.t)
+        if stepper.t >= self.stepper.t:
+            k = max(k, self._k_next)
         self.stepper = stepper
-        self._k_next = self._first_k(stepper.t)
+        self._k_next = k
         self.finished = self.t_end is not None and stepper.t >= self.t_end
         if now is not None and self._anchor is not None:
             self._anchor = (now, stepper.t)
@@ -476,7 +483,7 @@ class Pacer:
         try:
             self._advance(t_target, out, deadline)
         except WorkBudgetExceeded:
-            self._cut(t_target, deadline)
+            self._cut(t_target, max(now, deadline))
         self.samples += len(out)
         self._w_samples += len(out)
         return out
@@ -493,11 +500,13 @@ class Pacer:
             y = st.advance_to(tk, deadline)
             out.append(Sample(self._k_next, tk, np.array(y, copy=True)))
             self._k_next += 1
+            if st.t < t_target and _over(deadline):      # (steps that end on the grid)
+                raise WorkBudgetExceeded(st.method)
         if t_target > st.t:
             st.advance_to(t_target, deadline)
 
-    def _cut(self, t_target: float, deadline: float) -> None:
-        """Book a tick stopped by its budget: the rest of its target is lost time."""
+    def _cut(self, t_target: float, when: float) -> None:
+        """Book a tick stopped by its budget (at about ``when``): the rest of its target is lost."""
         self.cut = True
         self.finished = False
         self.budget_cuts += 1
@@ -506,7 +515,7 @@ class Pacer:
             lost = t_target - self.stepper.t
             self.lost_sim_time += lost
             self._w_lost += lost
-            self._anchor = (deadline, self.stepper.t)
+            self._anchor = (when, self.stepper.t)
 
     def end_tick(self, now: float) -> None:
         """Record the end of a tick's work (for overrun and busy-time figures)."""
