@@ -146,6 +146,7 @@ class LiveSimulation:
         #: the last work-budget event (a method switch), for the diagnostics
         self.switch = ''
         self._auto = False          # after a budget switch: 'auto' instead of cfg['integrator']
+        self._switched: Stepper | None = None      # the stepper a budget switch made
         self.start(scene.initial_state(self.model))
 
     # -- state -------------------------------------------------------------------------------
@@ -305,8 +306,11 @@ class LiveSimulation:
             except Exception as err:  # noqa: B902 -- the divergence guard
                 return self._diverge(_describe(err))
             self.switch = f'{what}: switched to {self.stepper.method} ({reason})'
+            self._switched = self.stepper
             self._log(Level.WARN, self.switch)
-        elif not self.switch.startswith(what.split(' at t = ')[0]):
+        elif self.stepper is not self._switched and \
+                not self.switch.startswith(what.split(' at t = ')[0]):
+            # (the method a switch chose keeps that message: its first ticks may be slow too)
             self.switch = f"{what}: {cur} is auto's choice already; simulation time falls " \
                           'behind real time'
             self._log(Level.WARN, self.switch)
