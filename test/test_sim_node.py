@@ -219,7 +219,7 @@ def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
     assert result.successful, result.reason
     assert node.sim.scene.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
     assert node.sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
-                                                        abs=1e-15)
+                                                            abs=1e-15)
     seq_change = node.sim.seq          # samples from here on were computed with K_S = 40
     rig.spin_until(lambda: rig.energy[-1].data[F['seq']] > seq_change + 20)
     rows = rig.energy_rows()

@@ -506,7 +506,7 @@ class Pacer:
             st.advance_to(t_target, deadline)
 
     def _cut(self, t_target: float, when: float) -> None:
-        """Book a tick stopped by its budget (at about ``when``): the rest of its target is lost."""
+        """Book a tick stopped by its budget at ``when``; the rest of its target is lost."""
         self.cut = True
         self.finished = False
         self.budget_cuts += 1
