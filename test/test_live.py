@@ -161,12 +161,16 @@ def test_work_budget_switches_to_autos_method_and_says_so():
     sim, events = make_sim(time.monotonic, budget=-1.0, integrator='dop853',
                            real_time_factor=0.0)
     sim.tick()
+    assert sim.pacer.cut and sim.switch == ''       # one cut may be a kernel's first load
+    sim.tick()
     assert sim.pacer.cut and sim.stepper.method == 'dop853'   # dop853 is auto's choice here
     assert "auto's choice already" in sim.switch
     sim.check({'K_D': 1e5})
     sim.apply({'K_D': 1e5})                         # stiff: the drive damping root 1.5e7 1/s
     assert sim.stepper.method == 'dop853'           # the user's method, until it is too slow
     t0 = sim.stepper.t
+    sim.tick()
+    assert sim.stepper.method == 'dop853'
     sim.tick()
     auto, reason = resolve_method('auto', sim.model.params)
     assert auto != 'dop853' and sim.stepper.method == auto      # rodas4 today
@@ -175,7 +179,7 @@ def test_work_budget_switches_to_autos_method_and_says_so():
     assert (Level.WARN, sim.switch) in events
     level, msg, values = sim.diagnostics()
     assert level == Level.WARN and 'work budget' in msg and f'switched to {auto}' in msg
-    assert values['integrator'] == auto and values['budget_cuts'] == 2
+    assert values['integrator'] == auto and values['budget_cuts'] == 4
     assert values['integrator_reason'].startswith('work budget')
     sim.apply({'real_time_factor': 2.0})            # a restart keeps auto's method ...
     sim.perturb()

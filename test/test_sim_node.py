@@ -290,3 +290,38 @@ def test_separate_process_publishes_and_shuts_down_cleanly(sig):
         rclpy.shutdown(context=context)
     assert proc.returncode == 0, err
     assert 'Traceback' not in err, err
+
+
+@pytest.mark.parametrize('arg, expected', [
+    ('K_D:=1', 'parameter K_D: 1 (integer) is not a double in [0, 1e+09] (write 1.0)'),
+    ('A_R:=-0.05', 'parameter A_R: -0.05 is out of range: expected a double in [0, 1e+06]'),
+    ('publish_rate:=fast', "parameter publish_rate: 'fast' (string) is not a double in "
+                           '[1, 10000]'),
+    ('pole_pairs:=1.5', 'parameter pole_pairs: 1.5 (double) is not an integer in [0, 64]'),
+    ('stop_at_t_end:=1', 'parameter stop_at_t_end: 1 (integer) is not true or false'),
+    ('A_R:=0.0', "parameters of scene 'precession': inertia A_R must be positive"),
+    ('integrator:=euler', "unknown integrator 'euler'"),
+    ('scene:=no_such_scene', "unknown scene 'no_such_scene'"),
+    ('K_D', "Couldn't parse parameter override rule: '-p K_D'"),
+])
+def test_bad_start_up_parameter_is_one_error_line_and_exit_status_1(arg, expected):
+    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args', '-p',
+                           arg], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1, proc.stderr
+    errors = [line for line in proc.stderr.splitlines() if line.startswith('ERROR:')]
+    assert len(errors) == 1 and expected in errors[0], proc.stderr
+    assert 'Traceback' not in proc.stderr and 'published counts' not in proc.stderr
+
+
+def test_live_change_of_the_wrong_type_names_parameter_value_and_type(rig):
+    for name, value, reason in (
+            ('K_S', 'stiff', "parameter K_S: 'stiff' (string) is not a double in [0, 1e+09]"),
+            ('K_S', 30, 'parameter K_S: 30 (integer) is not a double in [0, 1e+09] (write '
+                        '30.0)'),
+            ('stop_at_t_end', 1.0, 'parameter stop_at_t_end: 1.0 (double) is not true or '
+                                   'false'),
+            ('K_S', -1.0, 'K_S')):
+        (result,) = rig.node.set_parameters([Parameter(name, value=value)])
+        assert not result.successful and reason in result.reason, result.reason
+    assert rig.node.sim.scene.params.K_S == 20.0
+    assert rig.node.get_parameter('K_S').value == 20.0

@@ -11,7 +11,8 @@ declares parameters, services and timers and copies the arrays of a
   absolute spin: zdot jumps by -delta Omega0, the field angle stays continuous) and moves
   the baseline of the residual by the jump of E* (eq. 13);
 * **ticks** (:meth:`LiveSimulation.tick`) with a work budget: a tick stops after
-  ``budget`` seconds of work (see the pacer's module doc); when that happens the method
+  ``budget`` seconds of work (see the pacer's module doc); when that happens in
+  ``CUTS_TO_SWITCH`` consecutive ticks of one stepper, the method
   that ``auto`` would choose for the current parameters
   (:func:`~gyro_rotor.numerics.realtime.resolve_method`) takes over, if it is not the
   one running already, and the diagnostics say so;
@@ -48,12 +49,15 @@ from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, r
                                           Stepper)
 import numpy as np
 
-__all__ = ['LiveSimulation', 'SampleBlock', 'Level', 'TICK_BUDGET', 'FAST_CHUNK',
+__all__ = ['LiveSimulation', 'SampleBlock', 'Level', 'TICK_BUDGET', 'CUTS_TO_SWITCH', 'FAST_CHUNK',
            'STEPPER_KEYS', 'ENERGY_COLUMNS']
 
 #: most wall seconds of integration work in one tick; a tick that needs more is cut
 #: (services are answered between ticks, so this bounds their latency)
 TICK_BUDGET = 0.04
+#: a stepper counts as too slow after this many consecutive cut ticks (the first tick of a
+#: method may include loading or compiling its kernels)
+CUTS_TO_SWITCH = 2
 #: with real_time_factor 0, each tick advances this much simulated time [s] (whole samples)
 FAST_CHUNK = 0.04
 #: node keys whose change rebuilds the integrator at the current state
@@ -153,6 +157,7 @@ class LiveSimulation:
     def start(self, y0: np.ndarray) -> None:
         """(Re)start at t = 0 from y0."""
         self.stepper = self._new_stepper(self.model, 0.0, y0, self.cfg)
+        self._cuts = 0              # consecutive ticks of this stepper cut by the budget
         self.baseline = EnergyBaseline(self.model.energy, self.model.idiss, y0)
         self._field = (0.0, 0.0)     # (t_c, field angle at t_c) for phi_R
         self.pacer = Pacer(self.stepper, self.cfg['publish_rate'],
@@ -178,8 +183,13 @@ class LiveSimulation:
                             step_size=cfg['step_size'], model=model)
 
     def _restart_stepper(self, y: np.ndarray) -> None:
-        self.stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
-        self.pacer.restart(self.stepper, self.clock())
+        self._use(self._new_stepper(self.model, self.stepper.t, y, self.cfg))
+
+    def _use(self, stepper: Stepper) -> None:
+        """Continue with a new stepper at its t (its budget cuts are counted afresh)."""
+        self.stepper = stepper
+        self._cuts = 0
+        self.pacer.restart(stepper, self.clock())
 
     def _field_angle(self, t: float) -> float:
         t_c, a_c = self._field
@@ -288,7 +298,8 @@ class LiveSimulation:
         except Exception as err:  # noqa: B902 -- the divergence guard
             self._diverge(_describe(err))
         self.pacer.end_tick(self.clock())
-        if self.pacer.cut and not self.diverged:
+        self._cuts = self._cuts + 1 if self.pacer.cut else 0
+        if self._cuts >= CUTS_TO_SWITCH and not self.diverged:
             self._over_budget()
         return block
 
@@ -380,8 +391,7 @@ class LiveSimulation:
         except Exception as err:  # noqa: B902 -- e.g. the model's singularity at theta = pi
             raise ParameterError(f'kick refused: {_describe(err)}') from err
         jump = self.baseline.rebase(self.model.energy, y, y_old)
-        self.stepper = stepper
-        self.pacer.restart(stepper, self.clock())
+        self._use(stepper)
         return (f'kicked at t = {self.stepper.t:.6f} s with {self.perturbation}; E* changed '
                 f'by {jump:.6g} J')
 

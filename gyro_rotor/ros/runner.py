@@ -31,6 +31,7 @@ def _raise_interrupt(signum, frame):
 
 def _error(err: BaseException) -> int:
     text = str(err).splitlines()[0] if str(err) else type(err).__name__
+    text = text.split(', at /')[0]          # rcl appends its source locations
     print(f'ERROR: {text}', file=sys.stderr, flush=True)
     return 1
 

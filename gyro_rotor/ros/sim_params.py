@@ -12,12 +12,13 @@ the right type).
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
 from gyro_rotor.core.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, PERTURBATION_KEYS,
                                    Scene, scene_from_mapping, SCENE_KEYS)
-from gyro_rotor.errors import ParameterError
+from gyro_rotor.errors import GyroRotorError, ParameterError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -42,7 +43,7 @@ NODE_RANGES = {
 READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers'}
 _TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
           str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
-_TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double (write 1.0, not 1)',
+_TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double',
                Parameter.Type.INTEGER: 'an integer', Parameter.Type.BOOL: 'true or false',
                Parameter.Type.STRING: 'a string',
                Parameter.Type.DOUBLE_ARRAY: 'a list of doubles such as [1.0, 0.0]'}
@@ -76,8 +77,10 @@ def type_error(param: Parameter) -> str | None:
     expected = _TYPES[SCENE_KEYS[param.name]] if param.name in SCENE_KEYS else None
     if expected is None or param.type_ == expected:
         return None
+    hint = (f' (write {float(param.value)!r})' if expected == Parameter.Type.DOUBLE
+            and param.type_ == Parameter.Type.INTEGER else '')
     return (f'parameter {param.name}: {param.value!r} ({param.type_.name.lower()}) is not '
-            f'{_expected(param.name)}')
+            f'{_expected(param.name)}{hint}')
 
 
 def _declare(node: Node, name: str, value, doc: str, read_only: bool = False):
@@ -138,9 +141,14 @@ def declare_parameters(node: Node) -> tuple[Scene, dict, dict]:
         if k != 'use_sim_time':
             flat[k] = _declare(node, k, base.node.get(k, default),
                                doc + ('' if k in READ_ONLY else '; live'), k in READ_ONLY)
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore')
-        scene = scene_from_mapping(flat, path=base.path, strict_float=False)
+    try:           # the scene file loaded: what fails now comes from the parameters
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            scene = scene_from_mapping(flat, strict_float=False)
+    except GyroRotorError as err:
+        raise ParameterError(f"parameters of scene '{base.name}': "
+                             f"{str(err).removeprefix('scene: ')}") from None
+    scene = dataclasses.replace(scene, path=base.path)
     cfg = {k: flat[k] for k in NODE_KEYS if k != 'use_sim_time'}
     perturbation = {k: flat[f'perturbation.{k}'] for k in PERTURBATION_KEYS}
     return scene, cfg, perturbation
