@@ -328,7 +328,7 @@ def test_live_stiff_change_keeps_services_answering_and_switches_the_method():
     Without the work budget, the first tick after the change would integrate up to
     max_catch_up = 0.25 s of simulated time with dop853, which needs about 17 s of wall
     time here (measured: 0.06 s simulated in 3 s). With it, every tick stops after
-    TICK_BUDGET = 40 ms of work, so a service call is answered between two ticks; the
+    TICK_BUDGET = 25 ms of work, so a service call is answered between two ticks; the
     bound asserted (2 s) is a generous functional one: far below the unbudgeted tick.
     """
     from diagnostic_msgs.msg import DiagnosticStatus

@@ -54,7 +54,7 @@ __all__ = ['LiveSimulation', 'SampleBlock', 'Level', 'TICK_BUDGET', 'CUTS_TO_SWI
 
 #: most wall seconds of integration work in one tick; a tick that needs more is cut
 #: (services are answered between ticks, so this bounds their latency)
-TICK_BUDGET = 0.04
+TICK_BUDGET = 0.025
 #: a stepper counts as too slow after this many consecutive cut ticks (the first tick of a
 #: method may include loading or compiling its kernels)
 CUTS_TO_SWITCH = 2

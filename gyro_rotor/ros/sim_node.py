@@ -134,7 +134,8 @@ class RotorSimNode(Node):
         self.published = dict.fromkeys(_TOPICS, 0)
         self.acks = AckWindow((self.pub['joint_states'], self.pub['energy']), self.get_logger())
         self._t_clock: float | None = None
-        self.create_service(Trigger, '~/reset', self._service(self.sim.reset, self._on_reset))
+        self.create_service(Trigger, '~/reset', self._service(self.sim.reset,
+                                                                 self._publish_scene))
         self.create_service(Trigger, '~/perturb', self._service(self.sim.perturb))
         self.create_service(SetBool, '~/pause', self._service(self.sim.pause))
         self._waiting = cfg['wait_for_subscribers'] > 0
@@ -278,9 +279,6 @@ class RotorSimNode(Node):
     def _publish_scene(self) -> None:
         text = yaml.safe_dump(self.sim.scene_doc(), sort_keys=False)
         self.pub['scene'].publish(ros_msgs.text(text))
-
-    def _on_reset(self) -> None:
-        self._publish_scene()
 
     def _service(self, action, after=None):
         """Wrap a simulation action as a service callback (Trigger or SetBool)."""
