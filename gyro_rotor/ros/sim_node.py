@@ -134,8 +134,8 @@ class RotorSimNode(Node):
         self.published = dict.fromkeys(_TOPICS, 0)
         self.acks = AckWindow((self.pub['joint_states'], self.pub['energy']), self.get_logger())
         self._t_clock: float | None = None
-        self.create_service(Trigger, '~/reset', self._service(self.sim.reset,
-                                                                 self._publish_scene))
+        reset = self._service(self.sim.reset, self._publish_scene)
+        self.create_service(Trigger, '~/reset', reset)
         self.create_service(Trigger, '~/perturb', self._service(self.sim.perturb))
         self.create_service(SetBool, '~/pause', self._service(self.sim.pause))
         self._waiting = cfg['wait_for_subscribers'] > 0
