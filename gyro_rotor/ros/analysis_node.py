@@ -35,10 +35,9 @@ from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.ros.messages as ros_msgs
 from gyro_rotor.ros.recorder import BagRecorder, check_writable, default_bag_path, sim_topics
+from gyro_rotor.ros.runner import run_node
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-import rclpy
 from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -237,38 +236,9 @@ class RotorAnalysisNode(Node):
         return super().destroy_node()
 
 
-def _on_sigterm(signum, frame):
-    """SIGTERM as SIGINT: leave spin() and finalize the bag (rclpy 7.1.6 here does not)."""
-    raise KeyboardInterrupt
-
-
 def main(args: list[str] | None = None) -> int:
     """Run the node until SIGINT/SIGTERM; the bag is finalized on the way out."""
-    import signal
-    # before rclpy.init: rclpy's own handler chains to the handler it finds installed
-    signal.signal(signal.SIGTERM, _on_sigterm)
-    rclpy.init(args=args)
-    node = None
-    status = 0
-    try:
-        node = RotorAnalysisNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except GyroRotorError as err:
-        print(f'ERROR: {err}', file=sys.stderr)
-        status = 1
-    finally:
-        if node is not None:
-            try:
-                node.destroy_node()
-            except GyroRotorError as err:
-                print(f'ERROR: {err}', file=sys.stderr)
-                status = 1
-        rclpy.try_shutdown()
-    return status
+    return run_node(RotorAnalysisNode, args)
 
 
 if __name__ == '__main__':
