@@ -115,17 +115,16 @@ class RotorSimNode(Node):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         #: the simulation (everything but ROS)
         self.sim = LiveSimulation(scene, cfg, perturbation, log=self._log)
-        pub = self.create_publisher
-        self.pub = {'joint_states': pub(JointState, 'joint_states', STATE_QOS),
-                    'energy': pub(Float64MultiArray, 'energy', STATE_QOS),
+        self.pub = {'joint_states': self.create_publisher(JointState, 'joint_states', STATE_QOS),
+                    'energy': self.create_publisher(Float64MultiArray, 'energy', STATE_QOS),
                     # one message per tick: as deep as the state topics, so that a recorder
                     # busy with those does not lose them (depth 10 lost 0.2 % at 1000 Hz)
-                    'axis': pub(Vector3Stamped, 'axis', STATE_QOS),
-                    'stator_pose': pub(PoseStamped, 'stator_pose', STATE_QOS),
-                    'axis_marker': pub(Marker, 'axis_marker', STATE_QOS),
-                    'diagnostics': pub(DiagnosticArray, '/diagnostics', 10),
-                    'clock': pub(ClockMsg, '/clock', STATE_QOS),
-                    'scene': pub(String, '~/scene', _LATCHED)}
+                    'axis': self.create_publisher(Vector3Stamped, 'axis', STATE_QOS),
+                    'stator_pose': self.create_publisher(PoseStamped, 'stator_pose', STATE_QOS),
+                    'axis_marker': self.create_publisher(Marker, 'axis_marker', STATE_QOS),
+                    'diagnostics': self.create_publisher(DiagnosticArray, '/diagnostics', 10),
+                    'clock': self.create_publisher(ClockMsg, '/clock', STATE_QOS),
+                    'scene': self.create_publisher(String, '~/scene', _LATCHED)}
         # reused for every sample (publish serializes synchronously)
         self._msg_joints = ros_msgs.joint_state(ros_msgs.stamp(0), (0.0,) * 4, (0.0,) * 4,
                                                 (0.0,) * 4)
