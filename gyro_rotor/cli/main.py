@@ -11,6 +11,7 @@ import argparse
 import importlib
 import sys
 
+from gyro_rotor.cli.commands import general
 from gyro_rotor.errors import GyroRotorError
 
 #: subcommand name -> module in gyro_rotor.cli.commands (listed in the order of --help)
@@ -28,6 +29,8 @@ COMMANDS = {
     'recover': 'recover',
     'soak': 'soak',
     'rt-bench': 'rt_bench',
+    'campbell': 'campbell',
+    'bench-general': 'bench_general',
 }
 
 
@@ -54,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
+        general.extend_parser(name, p)
         p.set_defaults(_run=mod.run)
     return parser
 
@@ -63,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if args.command in general.RUNNERS and general.handles(getattr(args, 'scene', None)):
+            return int(general.RUNNERS[args.command](args) or 0)   # a general scene
         return int(args._run(args) or 0)
     except GyroRotorError as err:
         print(f'ERROR: {err}', file=sys.stderr)

@@ -60,17 +60,25 @@ class GeneralLinear:
     m: int
     fast_rates: np.ndarray
     K_each: np.ndarray
+    A_cons: np.ndarray
+    b_all: np.ndarray
+    c_all: np.ndarray
+    K_all: np.ndarray
 
     def A_scene(self) -> np.ndarray:
-        """Return A with every varied drive at its own K_D (the scene's spectrum)."""
-        return self.A0 - self.b @ np.diag(self.K_each) @ self.c.T
+        """Return A with every drive at its own K_D (the scene's spectrum)."""
+        return self.A_cons - self.b_all @ np.diag(self.K_all) @ self.c_all.T
+
+    def A_common(self, K: float) -> np.ndarray:
+        """Return A with every drive at the same K_D = K."""
+        return self.A_cons - K * (self.b_all @ self.c_all.T)
 
     def A(self, K: float) -> np.ndarray:
-        """Return A(K) for drive damping K of the drives varied."""
+        """Return the matrix for drive damping K of the drives varied."""
         return self.A0 - K * (self.b @ self.c.T)
 
     def eig(self, K: float) -> np.ndarray:
-        """Eigenvalues of A(K)."""
+        """Return the eigenvalues of A(K)."""
         return np.linalg.eigvals(self.A(K))
 
 
@@ -82,6 +90,7 @@ def _parts(model: GeneralModel, y: np.ndarray):
 
 
 def _A0(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:
+    """A0 (varied drives undamped), b, c of the varied drives, A_locked, fast rates, A_cons."""
     n, m, N = model.n, model.m, model.N
     Mbar, Fq, Fv = _parts(model, y)
     Gx = np.zeros((N, N))
@@ -91,23 +100,25 @@ def _A0(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:
     for k, d in enumerate(drives):
         p = d.pole_pairs
         Gx[n + k, n + k] = -d.K_S * (math.cos(p * z[k]) if p else 1.0)
+    Minv = np.linalg.inv(Mbar)
+    A_cons = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
+    for k, d in enumerate(drives):
         if k not in which:
             Gv[n + k, n + k] -= d.K_D
-    Minv = np.linalg.inv(Mbar)
     A0 = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
     E = np.zeros((N, len(which)))
     for j, k in enumerate(which):
         E[n + k, j] = 1.0
     b = np.vstack([np.zeros((N, len(which))), Minv @ E])
     c = np.vstack([np.zeros((N, len(which))), E])
-    Mqq = Mbar[:n, :n]
-    if n:
-        Mi = np.linalg.inv(Mqq)
-        A_locked = np.block([[np.zeros((n, n)), np.eye(n)], [Mi @ Fq[:n], Mi @ Fv[:n, :n]]])
-    else:
-        A_locked = np.zeros((0, 0))
+    # the locked system: z of the varied drives held at 0 (their rows and columns removed)
+    keep = [i for i in range(N) if i - n not in which]
+    Mi = np.linalg.inv(Mbar[np.ix_(keep, keep)]) if keep else np.zeros((0, 0))
+    r = len(keep)
+    A_locked = np.block([[np.zeros((r, r)), np.eye(r)],
+                         [Mi @ Gx[np.ix_(keep, keep)], Mi @ Gv[np.ix_(keep, keep)]]])
     fast = np.linalg.eigvalsh(Minv[np.ix_([n + k for k in which], [n + k for k in which])])
-    return A0, b, c, A_locked, fast
+    return A0, b, c, A_locked, fast, A_cons
 
 
 def linearize_scene(scene: GeneralScene, *, drive: str | None = None,
@@ -127,7 +138,9 @@ def linearize_scene(scene: GeneralScene, *, drive: str | None = None,
         raise ParameterError(f"unknown rotor '{drive}'; rotors of {system.name}: "
                              f"{', '.join(system.rotors)}")
     y0 = scene.steady_state(model)
-    A0, b, c, A_locked, fast = _A0(model, y0, system.drives, which)
+    A0, b, c, A_locked, fast, A_cons = _A0(model, y0, system.drives, which)
+    everyone = list(range(system.m))
+    _, b_all, c_all, *_ = _A0(model, y0, system.drives, everyone)
     if np.any(np.asarray(scene.steady_qdot) != 0):
         y1 = y0.copy()
         y1[:model.n] += 0.37 * np.asarray(scene.steady_qdot)
@@ -143,7 +156,9 @@ def linearize_scene(scene: GeneralScene, *, drive: str | None = None,
     names = tuple(coords) + tuple(f'z_{r}' for r in system.rotors) + tuple(
         f'{q}_dot' for q in coords) + tuple(f'zdot_{r}' for r in system.rotors)
     return GeneralLinear(A0=A0, b=b, c=c, K_D=float(Ks.max()), A_locked=A_locked, names=names,
-                         n=model.n, m=model.m, fast_rates=fast, K_each=Ks)
+                         n=model.n, m=model.m, fast_rates=fast, K_each=Ks, A_cons=A_cons,
+                         b_all=b_all, c_all=c_all,
+                         K_all=np.array([d.K_D for d in system.drives]))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,7 +187,7 @@ def modes(lin: GeneralLinear, K: float | None = None) -> list[Mode]:
     A root is unreached when it is one of the K = 0 roots whose eigenvector has no zdot
     part (the PBH test); those stay where they are for every K.
     """
-    A = lin.A_scene() if K is None else lin.A(K)
+    A = lin.A_scene() if K is None else lin.A_common(K)
     un, zeros, scale = _unreached(lin)
     lam, V = np.linalg.eig(A)
     out = []
@@ -180,7 +195,7 @@ def modes(lin: GeneralLinear, K: float | None = None) -> list[Mode]:
         v = V[:, i] / np.linalg.norm(V[:, i])
         zero = abs(value) <= 1e-7 * scale
         unreached = bool(un.size) and float(np.min(np.abs(un - value))) <= 1e-7 * scale and \
-            float(np.abs(lin.c.T @ v).max()) <= REACH_TOL
+            float(np.abs(lin.c_all.T @ v).max()) <= REACH_TOL
         if zero:
             label = f'zero root (cyclic {_dominant(lin, v)})'
         else:
@@ -191,13 +206,13 @@ def modes(lin: GeneralLinear, K: float | None = None) -> list[Mode]:
 
 def _unreached(lin: GeneralLinear) -> tuple[np.ndarray, np.ndarray, float]:
     """Non-zero roots at K = 0 whose eigenvectors have no zdot part, zero roots, scale."""
-    lam0, V0 = np.linalg.eig(lin.A0)
+    lam0, V0 = np.linalg.eig(lin.A_cons)
     scale = _scale(lam0)
     zero = np.abs(lam0) <= 1e-7 * scale
     un = []
     for i in np.flatnonzero(~zero):
         v = V0[:, i] / np.linalg.norm(V0[:, i])
-        if float(np.abs(lin.c.T @ v).max()) <= REACH_TOL:
+        if float(np.abs(lin.c_all.T @ v).max()) <= REACH_TOL:
             un.append(lam0[i])
     return np.array(un, dtype=complex), lam0[zero], scale
 
@@ -257,10 +272,9 @@ def meetings(lin: GeneralLinear, K_grid=None) -> tuple[list, int]:
             else:
                 lo = mid
         lam_lo = lin.eig(lo)
-        pair = lam_lo[np.argsort(-np.abs(lam_lo.imag) / np.maximum(np.abs(lam_lo), 1e-300))]
+        # the pair about to meet: the complex root with the smallest imaginary part
         cand = [x for x in lam_lo if x.imag > 0 and x.real < 0]
-        lam_hi = lin.eig(hi)
-        best = min(cand, key=lambda x: np.min(np.abs(lam_hi - x.real))) if cand else pair[0]
+        best = min(cand, key=lambda x: x.imag) if cand else complex(np.nan)
         found.append(Meeting(K_star=float(0.5 * (lo + hi)), point=float(best.real),
                              bracket=float((hi - lo) / hi)))
     return found, int(net)
@@ -281,8 +295,8 @@ def _claim_c(lin: GeneralLinear, scale: float) -> tuple[bool, dict]:
         slow_idx = np.argsort(np.abs(rest))[:m] if m else []
         slow = rest[slow_idx]
         others = np.delete(rest, slow_idx)
-        ok &= bool(np.all(fast.real < -0.5 * K * mu) and np.all(np.abs(fast.imag) <= 1e-6 *
-                                                                 np.abs(fast)))
+        ok &= bool(np.all(fast.real < -0.5 * K * mu))
+        ok &= bool(np.all(np.abs(fast.imag) <= 1e-6 * np.abs(fast)))
         ok &= bool(np.all(np.abs(slow) <= 1e-3 * scale))
         d = max((float(np.min(np.abs(locked - x))) for x in others), default=0.0)
         d = max(d, max((float(np.min(np.abs(others - x))) for x in locked), default=0.0))
@@ -294,16 +308,16 @@ def _claim_c(lin: GeneralLinear, scale: float) -> tuple[bool, dict]:
 
 def check_claims(lin: GeneralLinear, K: float | None = None) -> GeneralClaims:
     """Check claims (a) to (d) (module doc); K defaults to the scene's K_D (> 0 needed)."""
-    lam0 = np.linalg.eigvals(lin.A0)
+    lam0 = np.linalg.eigvals(lin.A_cons)
     scale = _scale(lam0)
     tol = REL_AXIS * scale
     a = bool(np.all(np.abs(lam0.real) <= tol))
     un, zeros, _ = _unreached(lin)
-    if K is None and np.all(lin.K_each > 0):
+    if K is None and np.all(lin.K_all > 0):
         A, K = lin.A_scene(), lin.K_D
     else:
         K = K if K is not None and K > 0 else 1e-3 * scale / float(lin.fast_rates.min())
-        A = lin.A(K)
+        A = lin.A_common(K)
     lam = np.linalg.eigvals(A)
     on_axis = np.abs(lam.real) <= tol
     zero_K = np.abs(lam) <= 1e-7 * scale
@@ -373,8 +387,7 @@ def campbell(scene: GeneralScene, Omega0_values, *, orders=(1, 2)) -> Campbell:
     return Campbell(Omega0=values, frequencies=F, decay=np.array(decay), critical=crit)
 
 
-def solve_steady(scene: GeneralScene, *, max_iter: int = 50) -> tuple[np.ndarray, np.ndarray,
-                                                                       float]:
+def solve_steady(scene: GeneralScene, *, max_iter: int = 50) -> tuple:
     """Newton for (q, z) with qdot = steady.qdot held: the accelerations vanish.
 
     Returns (q, z, largest |acceleration|) from the scene's steady guess.

@@ -218,9 +218,12 @@ def _read(path: Path) -> dict:
     return flatten(section['ros__parameters'])
 
 
-def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None = None) -> \
-        GeneralScene:
-    """Load a general scene (module doc); ``overrides`` use the flat dotted keys."""
+def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None = None, *,
+                       check: bool = True) -> GeneralScene:
+    """Load a general scene (module doc); ``overrides`` use the flat dotted keys.
+
+    ``check=False`` skips the steadiness check (for the command that solves for one).
+    """
     path = general_scene_path(name_or_path)
     where = f'scene file {path}'
     flat = _read(path)
@@ -279,7 +282,8 @@ def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None =
     _check_mass(scene, model, scene.initial_state(model), 'initial', where)
     if any(k.startswith('steady.') for k in vals):
         _check_mass(scene, model, scene.steady_state(model), 'steady', where)
-        check_steady(scene, model, where)
+        if check:
+            check_steady(scene, model, where)
     return scene
 
 
