@@ -85,12 +85,12 @@ class RotorSystem:
 
     @property
     def n(self) -> int:
-        """Number of carrier coordinates q."""
+        """Return the number of carrier coordinates q."""
         return len(self.coordinates)
 
     @property
     def m(self) -> int:
-        """Number of rotors."""
+        """Return the number of rotors."""
         return len(self.rotors)
 
     def q_symbols(self) -> tuple:
