@@ -67,9 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        if args.command in general.RUNNERS and general.handles(getattr(args, 'scene', None)):
-            return int(general.RUNNERS[args.command](args) or 0)   # a general scene
-        return int(args._run(args) or 0)
+        status = general.dispatch(args)   # a general scene (with a system key)?
+        return int(args._run(args) or 0) if status is None else status
     except GyroRotorError as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1

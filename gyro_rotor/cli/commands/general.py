@@ -15,7 +15,7 @@ from gyro_rotor.cli.util import check_output_file, parse_sets
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
-__all__ = ['handles', 'extend_parser', 'RUNNERS', 'csv_columns']
+__all__ = ['handles', 'extend_parser', 'dispatch', 'RUNNERS', 'csv_columns']
 
 
 def handles(scene) -> bool:
@@ -245,3 +245,15 @@ def tune(args) -> int:
 
 
 RUNNERS = {'simulate': simulate, 'steady': steady, 'eig': eig, 'locus': locus, 'tune': tune}
+
+
+def dispatch(args) -> int | None:
+    """Run the general form of ``args.command`` for a general scene; None for the others."""
+    if args.command not in RUNNERS:
+        return None
+    if handles(getattr(args, 'scene', None)):
+        return int(RUNNERS[args.command](args) or 0)
+    if getattr(args, 'drive', None) is not None:
+        raise ParameterError('--drive is for general scenes (with a system key); the '
+                             'centrifuge has one drive')
+    return None
