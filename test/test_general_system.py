@@ -369,3 +369,17 @@ def test_campbell_marks_critical_speeds(tmp_path, capsys):
     doc = json.loads(out.read_text())
     assert doc['critical_speeds'] and len(doc['frequencies_hz']) == 60
     assert main(['campbell', 'precession']) == 1
+
+
+def test_expression_undefined_at_the_state_is_one_error_line(tmp_path, capsys):
+    path = _write_scene(tmp_path, _doc(mass_matrix=[['1 + sqrt(x)']]),
+                        {'initial': {'q': [-1.0]}})
+    assert main(['simulate', path]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'not defined at q = [-1.0]' in err
+
+
+def test_singular_coordinates_are_refused(capsys):
+    assert main(['simulate', 'centrifuge_euler', '--set', 'initial.q=[0.0, 0.0, 0.0]']) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'not positive definite at the initial state' in err

@@ -83,10 +83,7 @@ class GeneralLinear:
 
 
 def _parts(model: GeneralModel, y: np.ndarray):
-    Mbar, Fq, Fv = (np.array(a, dtype=float).reshape(s) for a, s in zip(
-        model.compiled.module.lin(y, model.P),
-        ((model.N, model.N), (model.N, model.n), (model.N, model.N))))
-    return Mbar, Fq, Fv
+    return model.lin(y)
 
 
 def _A0(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:

@@ -75,6 +75,21 @@ class GeneralModel:
         self.compiled.rhs(np.asarray(y, dtype=float), self.P, out)
         return out
 
+    def lin(self, y) -> tuple:
+        """(Mbar, dF/dq, dF/dv) at the state y as arrays (exact derivatives, no drive terms).
+
+        Raises :class:`ParameterError` where an expression of the system is not defined
+        (a square root or logarithm of a negative number, a division by zero).
+        """
+        N, n = self.N, self.n
+        try:
+            parts = self.compiled.module.lin(np.asarray(y, dtype=float), self.P)
+        except (ValueError, ZeroDivisionError, OverflowError) as err:
+            raise ParameterError(f'system {self.system.name}: an expression is not defined at '
+                                 f'q = {np.asarray(y)[:n].tolist()}: {err}') from None
+        return tuple(np.array(a, dtype=float).reshape(s)
+                     for a, s in zip(parts, ((N, N), (N, n), (N, N))))
+
     def energy(self, Y) -> np.ndarray:
         """E* (eq. 13) of one state or of rows of states."""
         Y = np.asarray(Y, dtype=float)

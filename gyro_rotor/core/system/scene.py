@@ -289,12 +289,12 @@ def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None =
 
 def _check_mass(scene: GeneralScene, model: GeneralModel, y: np.ndarray, what: str,
                 where: str) -> None:
-    Mbar = np.array(model.compiled.module.lin(y, model.P)[0], dtype=float)
+    Mbar = model.lin(y)[0]
     w = np.linalg.eigvalsh(Mbar) if Mbar.size else np.ones(1)
     if not (np.all(np.isfinite(w)) and w.min() > 1e-12 * max(1.0, abs(w).max())):
         raise SceneError(f'{where}: the mass matrix of system {scene.system.name} (with the '
                          f'rotors) is not positive definite at the {what} state q = '
-                         f'{list(y[:model.n])} (eigenvalues {w.tolist()}): a singular point '
+                         f'{y[:model.n].tolist()} (eigenvalues {w.tolist()}): a singular point '
                          f'of the coordinates or a bad constant')
 
 
