@@ -28,6 +28,8 @@ COMMANDS = {
     'recover': 'recover',
     'soak': 'soak',
     'rt-bench': 'rt_bench',
+    'sweep': 'sweep',
+    'sweep-bench': 'sweep_bench',
 }
 
 
