@@ -32,6 +32,8 @@ COMMANDS = {
     'rt-bench': 'rt_bench',
     'campbell': 'campbell',
     'bench-general': 'bench_general',
+    'sweep': 'sweep',
+    'sweep-bench': 'sweep_bench',
 }
 
 
