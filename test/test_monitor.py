@@ -59,7 +59,7 @@ def test_array_values_names_numbers_by_the_messages_own_labels():
 @pytest.mark.ros
 def test_monitor_labels_analysis_modes_by_row_and_column():
     """The analysis node's 2-D analysis_modes: a line per mode, each number under its column."""
-    from gyro_rotor.bag.wire import MODE_FIELDS, MODE_LABEL
+    from gyro_rotor.analysis.results import MODE_FIELDS, MODE_LABEL
     from gyro_rotor.cli.commands.monitor import Monitor
     from gyro_rotor.tools.monitor import TopicStats
     from rclpy.serialization import serialize_message

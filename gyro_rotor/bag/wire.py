@@ -6,11 +6,12 @@ the bag reader and the tools all take the layouts from here.
 * **Topics** (:data:`SIM_TOPICS`, :data:`ANALYSIS_TOPICS`): relative names as the nodes
   publish them (resolved in the node's namespace), with their ROS types.
 * **Column orders**: ``joint_states`` names :data:`JOINT_NAMES`; the ``energy`` array holds
-  :data:`ENERGY_FIELDS` (its one dimension is labelled :data:`ENERGY_LABEL`); ``analysis``
-  holds :data:`ANALYSIS_FIELDS`; ``analysis_modes`` is a matrix, a row per mode (dim[0]
-  labelled with the mode names, comma separated) and a column per :data:`MODE_FIELDS`
-  (dim[1] labelled :data:`MODE_LABEL`). A reader takes the labels from the message itself
-  (:func:`array_labels`), so that a change of layout cannot be misread.
+  :data:`ENERGY_FIELDS` (its one dimension is labelled :data:`ENERGY_LABEL`). The analysis'
+  own arrays depend on its criteria, so their columns are defined beside them
+  (``gyro_rotor.analysis.results``: ``ANALYSIS_FIELDS``, ``MODE_FIELDS``); ``analysis_modes``
+  is a matrix, a row per mode (dim[0] labelled with the mode names, comma separated). A
+  reader takes the labels from the message itself (:func:`array_labels`), so that a change
+  of layout cannot be misread.
 * **QoS** (:data:`QOS`): the offered profiles in rosbag2's version 9 form (the form the bag
   metadata stores); ``gyro_rotor.ros.qos`` turns them into rclpy profiles.
 * **Fast decoders** of the two high-rate topics from their CDR bytes
@@ -24,9 +25,8 @@ from enum import StrEnum
 import struct
 from typing import NamedTuple
 
-__all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'ENERGY_LABEL', 'ANALYSIS_FIELDS', 'ANALYSIS_LABEL',
-           'MODE_FIELDS', 'MODE_LABEL', 'SIM_TOPICS', 'ANALYSIS_TOPICS', 'Topic', 'QOS',
-           'sim_topics', 'scene_ref', 'scene_doc_for_bag',
+__all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'ENERGY_LABEL', 'SIM_TOPICS', 'ANALYSIS_TOPICS',
+           'Topic', 'QOS', 'sim_topics', 'scene_ref', 'scene_doc_for_bag',
            'array_labels', 'energy_from_cdr', 'joints_from_cdr', 'EnergyRow',
            'JointRow', 'CdrError']
 
@@ -36,17 +36,6 @@ JOINT_NAMES = ('theta', 'psi', 'phi_R', 'phi_M')
 ENERGY_FIELDS = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
                  'D', 'k')
 ENERGY_LABEL = ','.join(ENERGY_FIELDS)
-#: fields of the ``analysis`` array, in order
-ANALYSIS_FIELDS = (
-    't_sim', 'segment', 'samples', 'dropped', 'resets', 'kicks', 'time_jumps',
-    'E_star', 'E_inf', 'lyapunov_max_increase', 'lyapunov_violations', 'residual_max',
-    'energy_decay_rate', 'deviation_decay_rate', 'spectral_abscissa', 'decay_rate_bound',
-    'pole_slips', 'sync_state', 'well', 'verdict', 'modes_matched', 'window_s')
-ANALYSIS_LABEL = ','.join(ANALYSIS_FIELDS)
-#: columns of the ``analysis_modes`` matrix (one row per predicted mode)
-MODE_FIELDS = ('pred_re', 'pred_im', 'meas_re', 'meas_im', 'pred_tau', 'meas_tau',
-               'amplitude', 'status')
-MODE_LABEL = ','.join(MODE_FIELDS)
 
 
 class Topic(StrEnum):
