@@ -1,4 +1,4 @@
-"""Pure tests of gyro_rotor.realtime (no ROS): pacing with a fake steady clock."""
+"""Pure tests of gyro_rotor.numerics.realtime (no ROS): pacing with a fake steady clock."""
 
 import math
 import subprocess

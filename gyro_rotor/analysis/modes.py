@@ -24,7 +24,7 @@ _TWO_PI = 2.0 * math.pi
 def identify_modes(Y: np.ndarray, dt: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     """Continuous-time eigenvalues and amplitudes of multichannel samples.
 
-    A thin wrapper of :func:`gyro_rotor.sysid.matrix_pencil` (channels normalized to unit
+    A thin wrapper of :func:`gyro_rotor.linear.sysid.matrix_pencil` (channels normalized to unit
     rms); the amplitude of an eigenvalue is the rms over channels of its residues, in
     units of each channel's rms.
 

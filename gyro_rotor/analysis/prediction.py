@@ -85,8 +85,8 @@ def _steady_state(scene: Scene) -> np.ndarray:
 def predict(scene: Scene) -> Prediction:
     """Predicted eigenvalues, named modes and verdict of a scene's steady motion.
 
-    Uses :func:`gyro_rotor.stability.analyze_scene` when present, else the eigenvalues of
-    :func:`gyro_rotor.linearize.linearize` with modes named by their dominant coordinate
+    Uses :func:`gyro_rotor.linear.stability.analyze_scene` when present, else the eigenvalues of
+    :func:`gyro_rotor.linear.linearize.linearize` with modes named by their dominant coordinate
     group (tilt, twist, drive; weighted to energy units).
     """
     model = scene.make_model()

@@ -12,7 +12,7 @@ Format decisions (each checked against the rosbag2 Jazzy sources and the readers
 * **MCAP records** (ros2/rosbag2 ``jazzy:rosbag2_storage_mcap/src/mcap_storage.cpp``,
   ``create_topic`` and ``update_metadata``): header profile ``ros2``; one schema per type,
   named by the type (``sensor_msgs/msg/JointState``), encoding ``ros2msg``, data the full
-  definition text of :func:`gyro_rotor.msgdefs.message_definition`; one channel per topic,
+  definition text of :func:`gyro_rotor.bag.msgdefs.message_definition`; one channel per topic,
   message encoding ``cdr``, metadata ``offered_qos_profiles`` (a YAML string) and
   ``topic_type_hash`` (RIHS01 or ``''``); a metadata record ``rosbag2`` with key
   ``serialized_metadata`` (the YAML of the bag metadata, version 9) written at close. The

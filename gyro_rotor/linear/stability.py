@@ -1,6 +1,6 @@
 """Linear stability of the steady motions: modes, root locus over K_D, the paper's claims.
 
-Built on :mod:`gyro_rotor.linearize`, where ``A(K_D) = A0 - K_D b c^T``: the drive damping
+Built on :mod:`gyro_rotor.linear.linearize`, where ``A(K_D) = A0 - K_D b c^T``: the drive damping
 is a rank-one feedback of the rotor's lag rate, so the root locus over K_D is a classic
 one. At K_D = 0 the roots are those of A0; as K_D -> infinity, n - 1 roots tend to the
 zeros of c^T (sI - A0)^-1 b (the motion with the rotor locked to the stator) and one
@@ -346,7 +346,7 @@ def scene_operating_point(scene) -> tuple:
 
 
 def analyze_scene(scene) -> StabilityReport:
-    """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.scene.Scene`)."""
+    """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.core.scene.Scene`)."""
     from gyro_rotor.core.scene import load_scene, Scene
     if not isinstance(scene, Scene):
         scene = load_scene(scene)

@@ -33,7 +33,7 @@ The integrators behind the pacer share the minimal interface of :class:`Stepper`
 ``y``, ``nfev``, ``advance_to(t, deadline)``, ``method``): :class:`DenseStepper` wraps a scipy
 ``OdeSolver`` class (DOP853 by default) and reaches ``t_target`` with its dense output;
 :class:`RK4Stepper` is a fixed-step classical Runge-Kutta with a final partial step.
-:func:`make_stepper` picks one by name, and uses :mod:`gyro_rotor.integrators` when that
+:func:`make_stepper` picks one by name, and uses :mod:`gyro_rotor.numerics.integrators` when that
 module provides the method.
 """
 
@@ -54,7 +54,7 @@ __all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_s
 
 #: scipy OdeSolver classes :class:`DenseStepper` accepts by name
 SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
-#: default tolerances of the adaptive methods (as gyro_rotor.simulate)
+#: default tolerances of the adaptive methods (as gyro_rotor.numerics.simulate)
 DEFAULT_RTOL = 1e-11
 DEFAULT_ATOL = 1e-12
 #: default step of the fixed-step RK4 [s]
@@ -216,7 +216,7 @@ class RK4Stepper:
 
 
 class IntegratorStepper:
-    """Adapter of a :mod:`gyro_rotor.integrators` method to the :class:`Stepper` interface.
+    """Adapter of a :mod:`gyro_rotor.numerics.integrators` method to :class:`Stepper`.
 
     Its ``advance_to`` clips the last step onto the target; a failed status, or an
     arithmetic exception of the compiled right-hand side, becomes an
@@ -265,7 +265,7 @@ class IntegratorStepper:
 
 
 def _integrators():
-    """Return the METHODS registry and make_integrator of gyro_rotor.integrators, if present."""
+    """Return METHODS and make_integrator of gyro_rotor.numerics.integrators, if present."""
     try:
         from gyro_rotor.numerics.integrators import make_integrator, METHODS
     except ImportError:
@@ -274,7 +274,7 @@ def _integrators():
 
 
 def resolve_method(method: str, params, t_end: float = math.inf) -> tuple[str, str]:
-    """'auto' -> (method, reason): gyro_rotor.integrators' choice, else scipy's DOP853/Radau."""
+    """'auto' -> (method, reason): the integrators' choice, else scipy's DOP853/Radau."""
     if method != 'auto':
         return method, 'requested'
     methods, _ = _integrators()
@@ -289,7 +289,7 @@ def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: floa
                  atol: float = 0.0, step_size: float = 0.0, model=None) -> Stepper:
     """Make a stepper by name.
 
-    With ``model`` given, a method of :mod:`gyro_rotor.integrators` (``rk4``, ``rk8``,
+    With ``model`` given, a method of :mod:`gyro_rotor.numerics.integrators` (``rk4``, ``rk8``,
     ``dop853``, ``gauss6``, ``rodas4``); otherwise, or for the scipy names (``DOP853``,
     ``Radau``, ...), scipy's OdeSolver with dense output; ``rk4`` falls back to
     :class:`RK4Stepper`. Zero tolerances or step size mean the method's default.

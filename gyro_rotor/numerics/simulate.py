@@ -2,7 +2,7 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.integrators`, RODAS4 where
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`, RODAS4 where
 the drive damping makes the scene stiff, Gauss6 for long conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
@@ -116,7 +116,7 @@ class Trajectory:
 def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    See :func:`gyro_rotor.integrators.choose_method`: RODAS4 where the drive damping makes
+    See :func:`gyro_rotor.numerics.integrators.choose_method`: RODAS4 where the drive damping makes
     the scene stiff, Gauss6 for long conservative runs, DOP853 otherwise.
     """
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
@@ -139,14 +139,14 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     Parameters
     ----------
     scene : Scene or str
-        A loaded scene, or a scene name / path for :func:`~gyro_rotor.scene.load_scene`.
+        A loaded scene, or a scene name / path for :func:`~gyro_rotor.core.scene.load_scene`.
     t_end : float, optional
         Duration [s]; default the scene's ``t_end``.
     rate : float
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.integrators` (rk4, rk8, dop853, gauss6, rodas4) or a
+        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
         Tolerances of adaptive methods.

@@ -1,7 +1,7 @@
 """``rotor_analysis``: records the simulation to MCAP and checks its stability live.
 
 A thin adapter around :class:`gyro_rotor.recorder.BagRecorder` (raw subscriptions, the exact
-bytes into a rosbag2 MCAP bag) and :class:`gyro_rotor.analysis.AnalysisSession` (the same
+bytes into a rosbag2 MCAP bag) and :class:`gyro_rotor.analysis.session.AnalysisSession` (the same
 checks as ``gyro-rotor analyze BAG``). The received bytes of ``energy``, ``joint_states`` and
 the simulation node's ``~/scene`` document are deserialized once and fed to the analysis.
 
@@ -13,9 +13,9 @@ which follows live parameter changes), ``sim_node`` (default ``rotor_sim``), ``w
 the results, 1 s).
 
 Publishes ``analysis`` (std_msgs/Float64MultiArray, one dimension labelled with
-:data:`~gyro_rotor.analysis.ANALYSIS_LABEL`), ``analysis_modes`` (2-D: a row per predicted
+:data:`~gyro_rotor.analysis.results.ANALYSIS_LABEL`), ``analysis_modes`` (2-D: a row per predicted
 mode, dim[0] labelled with the mode names, dim[1] with
-:data:`~gyro_rotor.analysis.MODE_LABEL`), ``analysis_verdict`` (std_msgs/String) and
+:data:`~gyro_rotor.analysis.results.MODE_LABEL`), ``analysis_verdict`` (std_msgs/String) and
 ``/diagnostics``. On SIGINT/SIGTERM the bag is finalized, with the final live result as the
 MCAP metadata record ``gyro_rotor.live_result``.
 """

@@ -3,7 +3,7 @@
 Runs ``rotor_sim`` and ``rotor_analysis`` (recording) as processes for ``--duration``
 simulated seconds at ``--rate`` and prints messages published vs recorded per topic,
 memory growth, the achieved real-time factor and the bag size per minute
-(:func:`gyro_rotor.soak.run_soak`). ``--find-max-rate`` runs short soaks at increasing
+(:func:`gyro_rotor.tools.soak.run_soak`). ``--find-max-rate`` runs short soaks at increasing
 rates instead and reports the highest rate without loss on this machine. ``--load`` runs
 a busy process (``yes > /dev/null``) per core beside the nodes for the whole run. The figures go
 to ``OUT/soak.json`` as well. Exit status 0 only if nothing was lost.

@@ -56,7 +56,7 @@ def pack_params(p) -> np.ndarray:
 
 @njit(cache=True)
 def rhs(kind, y, P, out):
-    """dy/dt of model ``kind`` at state ``y`` into ``out`` (see gyro_rotor.model)."""
+    """dy/dt of model ``kind`` at state ``y`` into ``out`` (see gyro_rotor.core.model)."""
     C_R = P[1]
     C_M = P[2]
     c_psi = P[5]

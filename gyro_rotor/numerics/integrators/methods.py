@@ -13,8 +13,8 @@ rodas4      4(3)   implicit  Rosenbrock, L-stable and stiffly accurate, adaptive
                              central differences each step; for the stiff drive (large K_D)
 ==========  =====  ========  ==================================================================
 
-Every method runs on the singularity-free state of :mod:`gyro_rotor.model`; the inner
-loops are the compiled kernels of :mod:`gyro_rotor.integrators.kernels`.
+Every method runs on the singularity-free state of :mod:`gyro_rotor.core.model`; the inner
+loops are the compiled kernels of :mod:`gyro_rotor.numerics.integrators.kernels`.
 """
 
 from __future__ import annotations
