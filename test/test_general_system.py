@@ -38,7 +38,8 @@ def _doc(**changes):
 
 # -- the expression parser ---------------------------------------------------------------------
 @pytest.mark.parametrize('text, expected', [
-    ('k*x**2/2', Y * X ** 2 / 2), ('-x**2', -X ** 2), ('2**-1', sympy.Rational(1, 2)),
+    ('k*x**2/2', Y * X ** 2 / 2), ('pi*x', sympy.pi * X), ('-x**2', -X ** 2),
+    ('2**-1', sympy.Rational(1, 2)),
     ('sin(x) + cos(x)*tan(x) - exp(x)/log(k) + sqrt(k)',
      sympy.sin(X) + sympy.cos(X) * sympy.tan(X) - sympy.exp(X) / sympy.log(Y) + sympy.sqrt(Y)),
     ('1.5e-3*(x + 1)', sympy.Float(1.5e-3) * (X + 1)), (3, sympy.Integer(3)),
@@ -57,6 +58,7 @@ def test_parser_builds_the_expression(text, expected):
     ('x/0', 'division by zero'),
     ('log(-1)', 'not a finite real number'),
     ('sqrt(-4)', 'not a finite real number'),
+    ('sqrt(pi - 4)', 'not a finite real number'),
     ('9**9**9', 'not a finite real number'),
     ('1e999', 'not finite'),
     ('sin(x', "expected '\\)'"),

@@ -69,10 +69,15 @@ def test_serial_result_is_a_pull_in_map(serial_result):
 
 
 def test_serial_and_local_cluster_agree(serial_result, cluster2, tmp_path):
-    """The same blocks on 2 worker processes give the same numbers (1e-12, in fact bitwise)."""
+    """2 worker processes, by client or by address, give the serial numbers (to 1e-12)."""
     r = run_sweep(_spec(), tmp_path / 'dask', executor=Executor.LOCAL, client=cluster2)
     assert r.workers == 2 and sorted(r.blocks_run) == list(range(6))
     _assert_same(serial_result, _columns(tmp_path / 'dask'))
+    # the same cluster reached by its address, as --scheduler ADDRESS does
+    r = run_sweep(_spec(), tmp_path / 'addr', executor=Executor.ADDRESS,
+                  scheduler=cluster2.scheduler.address)
+    assert r.workers == 2 and sorted(r.blocks_run) == list(range(6))
+    _assert_same(serial_result, _columns(tmp_path / 'addr'))
 
 
 def test_worker_killed_mid_sweep(serial_result, tmp_path):
@@ -160,6 +165,21 @@ def test_bad_grid_is_an_error_before_any_work(grid, message, tmp_path, capsys):
     """One ERROR line naming the problem, exit status 1, nothing written."""
     out = tmp_path / 'never'
     assert main(['sweep', 'pole_slip', '--grid', grid, '--out', str(out), '--serial']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and message in err and err.count('\n') == 1, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize('extra, message', [
+    (['--metrics', 'well,speed'], "unknown metric 'speed'"),
+    (['--workers', '0'], '--workers must be positive'),
+    (['--t-end', '-1'], '--t-end must be positive'),
+])
+def test_bad_options_are_errors_before_any_work(extra, message, tmp_path, capsys):
+    """Bad --metrics, --workers, --t-end: one ERROR line, exit 1, nothing written."""
+    out = tmp_path / 'never'
+    assert main(['sweep', 'pole_slip', '--grid', 'K_D=0.1:1:3', '--out', str(out)]
+                + extra) == 1
     err = capsys.readouterr().err
     assert err.startswith('ERROR: ') and message in err and err.count('\n') == 1, err
     assert not out.exists()

@@ -185,16 +185,28 @@ class BlockResult:
 
 
 def _setup_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int):
-    """Scenes, initial states and set-up errors of the points of a block."""
+    """Scenes, initial states and set-up errors of the points of a block.
+
+    The scene's other keys were checked with :meth:`SweepGrid.check`; a point changes
+    only its parameters (validated by :class:`RotorParams`, one object per distinct set)
+    and its initial condition (validated by ``Scene.initial_state``).
+    """
+    base = scene_from_mapping(dict(spec.base), strict_float=False)
     scenes: list = [None] * n
     Y0: list = [None] * n
     msg = [''] * n
+    params: dict = {}
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
         for j in range(n):
+            ch = grid.overrides(coords, j)
+            pc = tuple((k, v) for k, v in ch.items() if k in PARAM_FIELDS)
+            ic = {k.split('.', 1)[1]: v for k, v in ch.items() if k.startswith('initial.')}
             try:
-                sc = scene_from_mapping({**spec.base, **grid.overrides(coords, j)},
-                                        strict_float=False)
+                if pc not in params:
+                    params[pc] = base.params.replace(**dict(pc))
+                sc = dataclasses.replace(base, params=params[pc],
+                                         initial=dataclasses.replace(base.initial, **ic))
                 scenes[j], Y0[j] = sc, sc.initial_state()
             except (GyroRotorError, ZeroDivisionError, ValueError) as err:
                 msg[j] = f'set-up: {err}'

@@ -9,7 +9,7 @@ functions sin, cos, tan, exp, log, sqrt of one argument::
     power := atom ('**' unary)?             (right associative: -x**2 = -(x**2))
     atom  := NUMBER | NAME | FUNC '(' expr ')' | '(' expr ')'
 
-The text is tokenized and parsed here by recursive descent, and the sympy expression is
+NAME is a coordinate, a constant or ``pi``. The text is tokenized and parsed here by recursive descent, and the sympy expression is
 built node by node from :class:`sympy.Symbol` objects that this module creates: nothing of
 the file is ever evaluated as Python (no ``eval``, no ``sympy.parse_expr``). Numbers are
 folded in floating point, so that ``9**9**9`` costs nothing and a result that is not a
@@ -169,6 +169,8 @@ class _Parser:
                 return _apply(value, arg, col)
             if value in self.names:
                 return self.names[value]
+            if value == 'pi':
+                return sympy.pi
             hint = did_you_mean(value, list(self.names) + list(FUNCTIONS))
             raise _Refusal(col, f"unknown name '{value}'{hint}")
         if kind is TokenKind.OP and value == '(':
@@ -184,6 +186,13 @@ class _Parser:
 def _finite(result, col: int, what: str):
     if result.has(sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I):
         raise _Refusal(col, f'{what} is not a finite real number')
+    if not result.free_symbols:         # a constant such as sqrt(pi - 4): its value
+        try:
+            v = complex(result.evalf())
+        except (TypeError, ValueError, OverflowError):
+            raise _Refusal(col, f'{what} is not a finite real number') from None
+        if v.imag != 0 or not math.isfinite(v.real):
+            raise _Refusal(col, f'{what} is not a finite real number')
     return result
 
 
