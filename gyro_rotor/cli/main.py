@@ -38,12 +38,8 @@ COMMANDS = {
 
 
 def _load(name: str):
-    try:
-        return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
-    except ModuleNotFoundError as err:
-        if err.name == f'gyro_rotor.cli.commands.{COMMANDS[name]}':
-            return None
-        raise
+    """Import the module of subcommand ``name`` (a registered command must exist)."""
+    return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -56,8 +52,6 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMANDS:
         mod = _load(name)
-        if mod is None:
-            continue
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
         general.extend_parser(name, p)

@@ -121,7 +121,7 @@ def _estimate(extra: dict, n: int) -> tuple[float, float]:
 
 
 def bench_table(rows: list, extra: dict, load: tuple) -> str:
-    """The benchmark as a Markdown text (tables and the estimate)."""
+    """Return the benchmark as a Markdown text (tables and the estimate)."""
     spec = extra['spec']
     lines = [f'Pull-in sweep of pole_slip, {spec.n_points} points ({" x ".join(spec.grid)}), '
              f't_end {spec.t_end:g} s, RK4 step {spec.step:.4g} s ({spec.steps_per_trajectory} '

@@ -9,7 +9,8 @@ functions sin, cos, tan, exp, log, sqrt of one argument::
     power := atom ('**' unary)?             (right associative: -x**2 = -(x**2))
     atom  := NUMBER | NAME | FUNC '(' expr ')' | '(' expr ')'
 
-NAME is a coordinate, a constant or ``pi``. The text is tokenized and parsed here by recursive descent, and the sympy expression is
+NAME is a coordinate, a constant or ``pi``. The text is tokenized and parsed here by
+recursive descent, and the sympy expression is
 built node by node from :class:`sympy.Symbol` objects that this module creates: nothing of
 the file is ever evaluated as Python (no ``eval``, no ``sympy.parse_expr``). Numbers are
 folded in floating point, so that ``9**9**9`` costs nothing and a result that is not a
