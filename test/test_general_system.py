@@ -15,7 +15,7 @@ from gyro_rotor.core.system.system_file import list_systems, load_system, system
 from gyro_rotor.errors import SystemFileError
 from gyro_rotor.linear.general import check_claims, linearize_scene, modes
 from gyro_rotor.linear.linearize import linearize
-from gyro_rotor.linear.stability import check_claims as centrifuge_claims
+from gyro_rotor.linear.locus import check_claims as centrifuge_claims
 from gyro_rotor.numerics.integrators.methods import integrate
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
