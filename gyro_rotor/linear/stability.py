@@ -21,6 +21,7 @@ noise (:data:`TOL_SENS_REL` times the largest sensitivity).
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
 from typing import Sequence
 
@@ -34,20 +35,37 @@ from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # no
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
-__all__ = ['Mode', 'StabilityReport', 'spectrum', 'modes', 'analyze', 'analyze_scene',
+__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'spectrum', 'modes', 'analyze',
+           'analyze_scene',
            'track', 'sweep', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
 
 
 # -- data -------------------------------------------------------------------------------------
+class Stability(enum.StrEnum):
+    """The linear theory's verdict about a steady motion (:func:`analyze`)."""
+
+    ASYMPTOTICALLY_STABLE = 'asymptotically stable'
+    MARGINAL = 'marginal'
+    UNSTABLE = 'unstable'
+
+
+class ModeKind(enum.StrEnum):
+    """What a mode is: a conjugate pair, a real root, or the structural zero root."""
+
+    OSCILLATORY = 'oscillatory'
+    REAL = 'real'
+    ZERO = 'zero'
+
+
 @dataclasses.dataclass(frozen=True)
 class Mode:
     """One mode: a conjugate pair (upper eigenvalue given) or a real root.
 
     ``freq_hz`` = |Im lambda|/(2 pi); ``zeta`` = -Re lambda/|lambda|; ``tau`` = -1/Re lambda
     [s] (inf if Re >= 0); ``dRe_dKD`` = d Re(lambda)/d K_D at K_D = 0 [1/(N m s^2/rad)];
-    ``reached_by_drive``: that sensitivity is strictly negative; ``kind`` 'oscillatory',
-    'real' or 'zero' (the structural zero root).
+    ``reached_by_drive``: that sensitivity is strictly negative; ``kind`` a
+    :class:`ModeKind` (ZERO: the structural zero root).
     """
 
     name: str
@@ -57,7 +75,7 @@ class Mode:
     tau: float
     reached_by_drive: bool
     dRe_dKD: float
-    kind: str
+    kind: ModeKind
     eigenvalue_K_D0: complex
 
     def as_dict(self) -> dict:
@@ -81,7 +99,7 @@ class StabilityReport:
     modes: list
     spectral_abscissa: float
     slowest_mode: str
-    verdict: str
+    verdict: Stability
     marginal_modes: list
     reason: str
     A: np.ndarray = dataclasses.field(repr=False)
@@ -160,27 +178,28 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
     for nm, idx in by_name.items():
         lams = lam_K[idx]
         if nm in STRUCTURAL:
-            groups = [(nm, idx[0], 'zero')]
+            groups = [(nm, idx[0], ModeKind.ZERO)]
         elif len(idx) == 2 and abs(lams[0].imag) > tol_im:
             j = idx[int(np.argmax(lams.imag))]
-            groups = [(nm, j, 'oscillatory')]
+            groups = [(nm, j, ModeKind.OSCILLATORY)]
         elif len(idx) == 2:
             slow, fast = sorted(idx, key=lambda i: -lam_K[i].real)
-            groups = [(f'{nm} (slow real)', slow, 'real'), (f'{nm} (fast real)', fast, 'real')]
+            groups = [(f'{nm} (slow real)', slow, ModeKind.REAL),
+                      (f'{nm} (fast real)', fast, ModeKind.REAL)]
         else:
-            groups = [(nm, j, 'real') for j in idx]
+            groups = [(nm, j, ModeKind.REAL) for j in idx]
         for label, j, kind in groups:
             lamv = complex(lam_K[j])
             dre = float(d0[j].real)
-            reached = kind != 'zero' and dre < -tol_sens
+            reached = kind != ModeKind.ZERO and dre < -tol_sens
             re = lamv.real
-            zeta = -re / abs(lamv) if abs(re) > tol_re and kind != 'zero' else 0.0
+            zeta = -re / abs(lamv) if abs(re) > tol_re and kind != ModeKind.ZERO else 0.0
             out.append(Mode(
                 name=label, eigenvalue=lamv, freq_hz=abs(lamv.imag) / (2 * math.pi),
                 zeta=zeta,
                 tau=(-1.0 / re) if re < -tol_re else math.inf, reached_by_drive=reached,
                 dRe_dKD=dre, kind=kind, eigenvalue_K_D0=complex(lam0[j])))
-    out.sort(key=lambda m: (m.kind == 'zero', -m.eigenvalue.real))
+    out.sort(key=lambda m: (m.kind == ModeKind.ZERO, -m.eigenvalue.real))
     return out
 
 
@@ -227,17 +246,17 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     tol_re = _tol_re(lin)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
     ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens)
-    judged = [m for m in ms if m.kind != 'zero']
+    judged = [m for m in ms if m.kind != ModeKind.ZERO]
     absc = max((m.eigenvalue.real for m in judged), default=-math.inf)
     slowest = max(judged, key=lambda m: m.eigenvalue.real).name if judged else ''
     unstable = [m for m in judged if m.eigenvalue.real > tol_re]
     marginal = [m for m in judged if abs(m.eigenvalue.real) <= tol_re]
     if unstable:
-        verdict = 'unstable'
+        verdict = Stability.UNSTABLE
         reason = 'growing: ' + ', '.join(f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)'
                                          for m in unstable)
     elif marginal:
-        verdict = 'marginal'
+        verdict = Stability.MARGINAL
         parts = []
         for m in marginal:
             why = ('no drive damping (K_D = 0)' if K_D == 0 and m.reached_by_drive
@@ -247,7 +266,7 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
             parts.append(f'{m.name}: {why}')
         reason = '; '.join(parts)
     else:
-        verdict = 'asymptotically stable'
+        verdict = Stability.ASYMPTOTICALLY_STABLE
         reason = (f'every root except the cyclic zero root has Re < 0; slowest: {slowest} '
                   f'(Re = {absc:.4g} 1/s)' if lin.coords == 'II' else
                   f'every root has Re < 0; slowest: {slowest} (Re = {absc:.4g} 1/s)')
