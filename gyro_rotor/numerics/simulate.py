@@ -19,6 +19,7 @@ from typing import Any, Mapping
 from gyro_rotor.core.model import Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 from gyro_rotor.numerics.integrators import choose_method as choose_integrator, integrate, METHODS
 import numpy as np
 
@@ -27,13 +28,9 @@ __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_
            'SCIPY_METHODS']
 
 DEFAULT_METHOD = 'auto'
-DEFAULT_RTOL = 1e-11
-DEFAULT_ATOL = 1e-12
 DEFAULT_RATE = 100.0
 #: most output samples of one simulate() call (t_end x rate)
 MAX_SAMPLES = 5e7
-#: scipy solve_ivp methods, selectable by their (upper-case) names as baselines
-SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
 
 CSV_COLUMNS = ('t', 'theta', 'psi', 'phi_R', 'phi_M', 'thetadot', 'psidot', 'phi_R_dot',
                'phi_M_dot', 'axis_x', 'axis_y', 'axis_z', 'chi', 'z', 'zdot', 'Q', 'E_star',
