@@ -93,41 +93,78 @@ def test_random_text_gives_clean_refusal_or_valid_system(text):
 
 
 # -- the system file -------------------------------------------------------------------------
-@pytest.mark.parametrize('changes, match', [
-    ({'mass_matrix': [['1', '0']]}, r'mass_matrix\[0\] \(row 0\) must be a list of 1'),
-    ({'mass_matrix': [['1'], ['1']]}, 'mass_matrix must be a list of 1 rows, got 2'),
+# every bad system file: (changes, the fragments the one ERROR line must hold: the key, the
+# row/column or index, the offending text)
+BAD_SYSTEM_FILES = [
+    ({'mass_matrix': [['1', '0']]},
+     ['mass_matrix[0] (row 0) must be a list of 1 entries', "['1', '0']"]),
+    ({'mass_matrix': [['1'], ['1']]},
+     ['mass_matrix must be a list of 1 rows, got 2', "[['1'], ['1']]"]),
+    ({'mass_matrix': '1'}, ['mass_matrix must be a list of 1 rows', "'1'"]),
     ({'coordinates': ['x', 'w'], 'mass_matrix': [['1', 'x'], ['0', '1']],
-      'guidance': [['1', '0']]}, "not symmetric: row 0, column 1 is 'x'"),
-    ({'mass_matrix': [['1 + q']]}, r'mass_matrix\[0\]\[0\] \(row 0, column 0\): unknown '
-                                   r"name 'q' at column 5 of '1 \+ q'"),
-    ({'guidance': [['1'], ['0']]}, 'guidance must be a list of 1 rows'),
-    ({'guidance': [['1', '0']]}, r'guidance\[0\] \(row 0\) must be a list of 1'),
-    ({'rotor_inertia': ['1', '2']}, 'rotor_inertia must be a list of 1 entries'),
-    ({'rotor_inertia': ['x']}, "rotor_inertia\\[0\\]: unknown name 'x'"),
-    ({'rotor_inertia': ['-1']}, 'must be a positive number'),
-    ({'drives': []}, 'drives must be a list of 1 entries'),
-    ({'drives': [{'K_S': 1.0, 'K_D': 0.1}]}, r'drives\[0\]: Omega0 is missing'),
-    ({'drives': [{'K_S': 1.0, 'K_D': -0.1, 'Omega0': 1.0}]}, 'must not be negative'),
-    ({'drives': [{'K_S': 1.0, 'K_D': 0.1, 'Omega0': 1.0, 'pole_pairs': 1.5}]}, 'pole_pairs'),
-    ({'drives': [{'K_S': 1.0, 'KD': 0.1, 'Omega0': 1.0}]}, "did you mean 'K_D'"),
-    ({'potentail': 'x'}, "unknown key 'potentail'; did you mean 'potential'"),
-    ({'rotors': []}, 'at least 1 name'),
-    ({'coordinates': ['x', 'x']}, 'appears twice'),
-    ({'coordinates': ['sin']}, 'reserved'),
-    ({'constants': {'k': 'two'}}, 'constants.k: expected a number'),
-    ({'constants': {'x': 1.0}}, "the name 'x' is used twice"),
-])
-def test_bad_system_file_names_key_and_text(changes, match):
-    with pytest.raises(SystemFileError, match=match) as err:
-        system_from_mapping(_doc(**changes), 'bad.yaml')
-    assert 'system file bad.yaml' in str(err.value)
+      'guidance': [['1', '0']]},
+     ['mass_matrix is not symmetric', "row 0, column 1 is 'x'", "row 1, column 0 is '0'"]),
+    ({'mass_matrix': [['1 + q']]},
+     ['mass_matrix[0][0] (row 0, column 0)', "unknown name 'q' at column 5", "'1 + q'"]),
+    ({'guidance': [['1'], ['0']]}, ['guidance must be a list of 1 rows', "[['1'], ['0']]"]),
+    ({'guidance': [['1', '0']]}, ['guidance[0] (row 0) must be a list of 1', "['1', '0']"]),
+    ({'guidance': [['foo(x)']]},
+     ['guidance[0][0] (row 0, column 0)', "unknown name 'foo' at column 1", "'foo(x)'"]),
+    ({'rotor_inertia': ['1', '2']}, ['rotor_inertia must be a list of 1 entries', "['1', '2']"]),
+    ({'rotor_inertia': ['x']}, ['rotor_inertia[0]', "unknown name 'x' at column 1"]),
+    ({'rotor_inertia': ['-1']}, ["rotor_inertia[0] = '-1'", 'must be a positive number']),
+    ({'potential': 'k*x^2'},
+     ['potential', "unexpected character '^'", 'at column 4', "'k*x^2'"]),
+    ({'potential': "__import__('os')"},
+     ['potential', 'unexpected character "\'" at column 12', "__import__('os')"]),
+    ({'potential': 'k*x**2/2 + eval(x)'},
+     ['potential', "unknown name 'eval' at column 12", "'k*x**2/2 + eval(x)'"]),
+    ({'potential': 'x.real'}, ['potential', "unexpected character '.' at column 2"]),
+    ({'potential': 'sin(x'}, ['potential', "expected ')'", "'sin(x'"]),
+    ({'drives': []}, ['drives must be a list of 1 entries', 'got 0: []']),
+    ({'drives': [{'K_S': 1.0, 'K_D': 0.1}]}, ['drives[0]: Omega0 is missing']),
+    ({'drives': [{'K_S': 1.0, 'K_D': -0.1, 'Omega0': 1.0}]},
+     ['drives[0]', 'must not be negative', 'K_D = -0.1']),
+    ({'drives': [{'K_S': 1.0, 'K_D': 0.1, 'Omega0': 1.0, 'pole_pairs': 1.5}]},
+     ['drives[0].pole_pairs', 'got 1.5']),
+    ({'drives': [{'K_S': 1.0, 'KD': 0.1, 'Omega0': 1.0}]},
+     ["drives[0]: unknown key 'KD'", "did you mean 'K_D'"]),
+    ({'drives': [{'K_S': 'x', 'K_D': 0.1, 'Omega0': 1.0}]}, ['drives[0].K_S', "'x'"]),
+    ({'potentail': 'x'}, ["unknown key 'potentail'", "did you mean 'potential'"]),
+    ({'rotors': []}, ['rotors: at least 1 name']),
+    ({'coordinates': ['x', 'x']}, ['coordinates[1]', "'x' appears twice"]),
+    ({'coordinates': ['sin']}, ['coordinates[0]', "'sin' is reserved"]),
+    ({'coordinates': 'x'}, ['coordinates: expected a list of names', "'x'"]),
+    ({'constants': {'k': 'two'}}, ['constants.k: expected a number', "'two'"]),
+    ({'constants': {'k': 2.0, 'x': 1.0}}, ["the name 'x' is in coordinates and in constants"]),
+    ({'rotors': ['x']}, ["the name 'x' is in rotors and in coordinates"]),
+    ({'name': 'a b'}, ['name must be a name', "'a b'"]),
+]
 
 
-def test_missing_key_is_named():
+@pytest.mark.parametrize('changes, fragments', BAD_SYSTEM_FILES)
+def test_bad_system_file_is_one_error_line_naming_file_key_and_text(tmp_path, capsys, changes,
+                                                                    fragments):
+    path = _write_scene(tmp_path, _doc(**changes), {})
+    assert main(['eig', path]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and err.count('\n') == 1 and 'Traceback' not in err
+    assert f'system file {tmp_path / "sys.yaml"}:' in err, err
+    for fragment in fragments:
+        assert fragment in err, (fragment, err)
+
+
+@pytest.mark.parametrize('key', ['name', 'coordinates', 'rotors', 'constants', 'mass_matrix',
+                                 'rotor_inertia', 'guidance', 'potential', 'drives'])
+def test_missing_key_is_named(tmp_path, capsys, key):
     doc = _doc()
-    del doc['potential']
-    with pytest.raises(SystemFileError, match='the key potential is missing'):
+    del doc[key]
+    with pytest.raises(SystemFileError, match=f'the key {key} is missing'):
         system_from_mapping(doc, 'bad.yaml')
+    path = _write_scene(tmp_path, doc, {})
+    assert main(['simulate', path]) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and f'sys.yaml: the key {key} is missing' in err
 
 
 def test_shipped_systems_and_scenes_load():
