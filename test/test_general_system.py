@@ -422,3 +422,128 @@ def test_singular_coordinates_are_refused(capsys):
     assert main(['simulate', 'centrifuge_euler', '--set', 'initial.q=[0.0, 0.0, 0.0]']) == 1
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'not positive definite at the initial state' in err
+
+
+# -- scene keys ----------------------------------------------------------------------------------
+def test_scene_overrides_reach_the_system(tmp_path):
+    params = {'K_S': 3.0, 'Omega0': 200.0, 'pole_pairs': 2,
+              'drive': {'R2': {'K_D': 0.7, 'Omega0': 150.0}},
+              'constants': {'c_a': 55.0}, 't_end': 1.5}
+    path = tmp_path / 'scene.yaml'
+    path.write_text(yaml.safe_dump({'rotor_sim': {'ros__parameters': {
+        'system': 'twin_gimbal', **params}}}))
+    scene = load_general_scene(str(path), overrides={'drive.R1.K_D': 0.4})
+    d1, d2 = scene.system.drives
+    assert (d1.K_S, d1.K_D, d1.Omega0, d1.pole_pairs) == (3.0, 0.4, 200.0, 2)
+    assert (d2.K_S, d2.K_D, d2.Omega0, d2.pole_pairs) == (3.0, 0.7, 150.0, 2)
+    assert scene.system.constants['c_a'] == 55.0 and scene.t_end == 1.5
+    assert scene.system.constants['J_g'] == load_system('twin_gimbal').constants['J_g']
+    # the numbers reach the equations: alpha'' = -c_a alpha / J_alpha at rest with z = 0
+    model = scene.make_model()
+    f0 = model.rhs(0.0, model.state([0.1, 0, 0], [0, 0, 0], [0, 0], [0, 0]))
+    ref = GeneralModel(load_system('twin_gimbal'))
+    f1 = ref.rhs(0.0, ref.state([0.1, 0, 0], [0, 0, 0], [0, 0], [0, 0]))
+    assert f0[3] / f1[3] == pytest.approx(55.0 / 40.0, rel=1e-12)
+
+
+def test_initial_state_is_taken_from_the_scene():
+    scene = load_general_scene('twin_gimbal')
+    y0 = scene.initial_state()
+    assert y0.tolist() == [0.02, 0.05, -0.03, 0.0, 0.2, 0.0, 0.01, 0.0, 0.5, -0.3, 0.0]
+
+
+def test_non_steady_motion_names_its_size_and_the_steady_command(tmp_path, capsys):
+    path = _write_scene(tmp_path, _doc(), {'steady': {'q': [0.3]}})
+    for command in (['eig', path], ['locus', path], ['simulate', path, '--t-end', '0.1']):
+        assert main(command) == 1
+        err = capsys.readouterr().err
+        assert err.count('\n') == 1 and 'x_ddot = -0.6' in err, err
+        assert f'`gyro-rotor steady {path}` solves for one from this guess' in err
+    assert main(['steady', path]) == 0
+    out = capsys.readouterr().out
+    assert 'x_ddot = -0.6' in out and 'steady motion (Newton' in out and 'q = [0.0' in out
+
+
+def test_steady_command_without_equilibrium_exits_1(tmp_path, capsys):
+    path = _write_scene(tmp_path, _doc(potential='k*x'), {})
+    assert main(['steady', path]) == 1
+    assert 'no steady motion found' in capsys.readouterr().out
+
+
+# -- eig, locus, tune, campbell ----------------------------------------------------------------
+def test_eig_json_has_eigenvalues_and_reached(tmp_path):
+    import json
+    out = tmp_path / 'e.json'
+    assert main(['eig', 'twin_gimbal', '--json', str(out)]) == 0
+    doc = json.loads(out.read_text())
+    lam = np.array([complex(*x) for x in doc['eigenvalues']])
+    ref = np.linalg.eigvals(linearize_scene(load_general_scene('twin_gimbal')).A_scene())
+    assert len(lam) == 10 and np.abs(np.sort_complex(lam) - np.sort_complex(ref)).max() < 1e-9
+    assert len(doc['modes']) == 10 and all(isinstance(x['reached'], bool) for x in doc['modes'])
+    assert all(x['reached'] for x in doc['modes'])   # twin_gimbal: every mode damped
+
+
+def test_zero_roots_of_cyclic_coordinates_are_named():
+    ms = modes(linearize_scene(load_general_scene('centrifuge_euler')))
+    zeros = sorted(x.name for x in ms if x.structural_zero)
+    assert zeros == ['zero root (cyclic phi_M)', 'zero root (cyclic psi)']
+    assert not any(x.reached for x in ms if x.structural_zero)
+
+
+def _pair_is_complex(lin, K, point, scale):
+    lam = lin.eig(K)
+    near = lam[np.abs(lam - point) < 1e-2 * scale]
+    return bool(np.any(np.abs(near.imag) > 1e-6 * abs(point)))
+
+
+@pytest.mark.parametrize('drive', [None, 'R1', 'R2'])
+def test_locus_K_D_star_is_a_double_root_to_1e_8(tmp_path, drive):
+    """On each side of every K* (1e-7 relative, ten times the claimed precision) the pair is
+    complex before and real after: the meeting is located to better than 1e-7."""
+    import json
+    out = tmp_path / 'l.json'
+    args = ['locus', 'twin_gimbal', '--json', str(out), '--points', '10']
+    assert main(args + (['--drive', drive] if drive else [])) == 0
+    doc = json.loads(out.read_text())
+    lin = linearize_scene(load_general_scene('twin_gimbal'), drive=drive)
+    assert doc['drive'] == drive and doc['claims'] == dict.fromkeys('abcd', True)
+    assert len(doc['K_D_star']) == (2 if drive is None else 1)
+    scale = float(np.abs(lin.eig(0.0)).max())
+    for K, point in zip(doc['K_D_star'], doc['meeting_points']):
+        assert point < 0
+        assert _pair_is_complex(lin, K * (1 - 1e-7), point, scale)
+        assert not _pair_is_complex(lin, K * (1 + 1e-7), point, scale)
+
+
+def test_locus_unknown_drive_is_one_error_line(capsys):
+    assert main(['locus', 'twin_gimbal', '--drive', 'R3']) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and "unknown rotor 'R3'" in err and 'R1, R2' in err
+
+
+def test_tune_finds_a_better_common_K_D(capsys):
+    assert main(['tune', 'twin_gimbal']) == 0
+    out = capsys.readouterr().out
+    best = float(out.split('slowest reached mode decays at ')[1].split()[0])
+    at_scene = float(out.split('slowest reached decay ')[1].split()[0])
+    assert best > at_scene > 0
+
+
+def test_campbell_critical_speeds_are_crossings(tmp_path):
+    import json
+    out = tmp_path / 'c.json'
+    assert main(['campbell', 'twin_gimbal', '--points', '80', '--json', str(out)]) == 0
+    doc = json.loads(out.read_text())
+    F, W = np.array(doc['frequencies_hz']), np.array(doc['Omega0'])
+    assert F.shape == np.array(doc['decay_rates']).shape == (80, 5)
+    assert doc['critical_speeds']
+    scene = load_general_scene('twin_gimbal')
+    ref = scene.system.drives[0].Omega0
+    for c in doc['critical_speeds']:
+        f = c['Omega0'] / ref
+        drives = [d.replace(Omega0=d.Omega0 * f) for d in scene.system.drives]
+        import dataclasses
+        sc = dataclasses.replace(scene, system=scene.system.with_drives(drives))
+        lam = np.linalg.eigvals(linearize_scene(sc).A_scene())
+        target = c['order'] * c['Omega0'] / (2 * math.pi)
+        assert np.min(np.abs(lam.imag / (2 * math.pi) - target)) < 1e-2 * target, c
