@@ -276,11 +276,12 @@ def test_centrifuge_euler_eigenvalues_and_K_D_star_match_quaternion_checker():
     scale = np.abs(lam_ref).max()
     big = lambda v: np.sort_complex(v[np.abs(v) > 1e-6 * scale])  # noqa: E731
     assert len(big(lam)) == len(big(lam_ref)) == 6
-    assert np.abs(big(lam) - big(lam_ref)).max() <= 1e-9 * scale
+    assert np.all(np.abs(big(lam) - big(lam_ref)) <= 1e-9 * np.abs(big(lam_ref)))
     claims = check_claims(lin)
     star = centrifuge_claims(ref).K_D_star
     assert len(claims.meetings) == 1
-    assert abs(claims.meetings[0].K_star - star) <= 1e-7 * star
+    # both checkers locate K* to 1e-8 relative: they agree to the sum of their brackets
+    assert abs(claims.meetings[0].K_star - star) <= 2e-8 * star
 
 
 # -- the claims -------------------------------------------------------------------------------
