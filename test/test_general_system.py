@@ -12,10 +12,11 @@ from gyro_rotor.core.system.expression import parse_expression
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.scene import list_general_scenes, load_general_scene
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
-from gyro_rotor.errors import SystemFileError
+from gyro_rotor.errors import ParameterError, SystemFileError
 from gyro_rotor.linear.general import check_claims, linearize_scene, modes
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.stability import check_claims as centrifuge_claims
+from gyro_rotor.numerics.general import integrate as integrate_general, run_ensemble
 from gyro_rotor.numerics.integrators.methods import integrate
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
@@ -237,12 +238,12 @@ def test_residual_and_conservation(name):
     model = scene.make_model()
     te = np.linspace(0.0, 2.0, 201)
     y0 = scene.initial_state(model)
-    run = model.integrate(y0, te, rtol=1e-11, atol=1e-13)
+    run = integrate_general(model, y0, te, rtol=1e-11, atol=1e-13)
     E0 = model.energy(y0)
     assert run.y[-1, -1] > 1e-6 * E0                     # the drives did dissipate
     assert np.abs(model.residual(run.y)).max() < 1e-8 * E0
     cons = scene.with_drives(K_D=0.0).make_model()
-    run0 = cons.integrate(y0, te, rtol=1e-11, atol=1e-13)
+    run0 = integrate_general(cons, y0, te, rtol=1e-11, atol=1e-13)
     E = cons.energy(run0.y)
     assert np.abs(E - E[0]).max() < 1e-8 * E0
     assert run0.y[-1, -1] == 0.0
@@ -256,7 +257,7 @@ def test_centrifuge_euler_agrees_with_quaternion_model():
          'phi_M_dot': -0.7, 'z': 0.05, 'zdot': 0.4}
     y0 = model.state([e['theta'], e['psi'], e['phi_M']],
                      [e['thetadot'], e['psidot'], e['phi_M_dot']], [e['z']], [e['zdot']])
-    run = model.integrate(y0, [0.0, 2.0], rtol=1e-13, atol=1e-14)
+    run = integrate_general(model, y0, [0.0, 2.0], method='dop853', rtol=1e-13, atol=1e-14)
     ref = integrate(full, full.state_from_euler(**e), (0.0, 2.0), [0.0, 2.0], method='dop853',
                     rtol=1e-13, atol=1e-14)
     y = run.y[-1]
@@ -499,8 +500,10 @@ def _pair_is_complex(lin, K, point, scale):
 
 @pytest.mark.parametrize('drive', [None, 'R1', 'R2'])
 def test_locus_K_D_star_is_a_double_root_to_1e_8(tmp_path, drive):
-    """On each side of every K* (1e-7 relative, ten times the claimed precision) the pair is
-    complex before and real after: the meeting is located to better than 1e-7."""
+    """Check each K* as a double root: the pair is complex just before, real just after.
+
+    Both sides at 1e-7 relative (ten times the claimed precision of 1e-8).
+    """
     import json
     out = tmp_path / 'l.json'
     args = ['locus', 'twin_gimbal', '--json', str(out), '--points', '10']
@@ -535,7 +538,7 @@ def test_campbell_critical_speeds_are_crossings(tmp_path):
     out = tmp_path / 'c.json'
     assert main(['campbell', 'twin_gimbal', '--points', '80', '--json', str(out)]) == 0
     doc = json.loads(out.read_text())
-    F, W = np.array(doc['frequencies_hz']), np.array(doc['Omega0'])
+    F = np.array(doc['frequencies_hz'])
     assert F.shape == np.array(doc['decay_rates']).shape == (80, 5)
     assert doc['critical_speeds']
     scene = load_general_scene('twin_gimbal')
@@ -548,3 +551,74 @@ def test_campbell_critical_speeds_are_crossings(tmp_path):
         lam = np.linalg.eigvals(linearize_scene(sc).A_scene())
         target = c['order'] * c['Omega0'] / (2 * math.pi)
         assert np.min(np.abs(lam.imag / (2 * math.pi) - target)) < 1e-2 * target, c
+
+
+# -- the project's integrators and the ensemble run general systems ----------------------------
+# method: (keyword arguments, largest state difference to dop853 at rtol 1e-13 after 0.5 s)
+GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),
+                'rodas4': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),
+                'rk4': ({'step': 2e-4}, 1e-5), 'rk8': ({'step': 2e-4}, 1e-10),
+                'gauss6': ({'step': 2e-4}, 1e-10)}
+
+
+@pytest.mark.parametrize('name', SHIPPED)
+def test_every_general_method_runs_every_shipped_system(name):
+    from gyro_rotor.numerics.general import METHODS
+    assert set(METHODS) == set(GENERAL_RUNS)
+    scene = load_general_scene(name)
+    model = scene.make_model()
+    y0 = scene.initial_state(model)
+    te = np.linspace(0.0, 0.5, 6)
+    ref = integrate_general(model, y0, te, method='dop853', rtol=1e-13, atol=1e-15).y
+    for method, (kwargs, tol) in GENERAL_RUNS.items():
+        run = integrate_general(model, y0, te, method=method, **kwargs)
+        assert run.method == method and run.y.shape == ref.shape
+        assert np.abs(run.y - ref).max() < tol, method
+        assert np.abs(model.residual(run.y)).max() < 1e-8 * model.energy(y0), method
+
+
+def test_general_kernels_are_compiled_for_the_function_type_only():
+    """Check that one compiled loop serves every system (numba caches it on disk).
+
+    The kernels never see a system's own dispatcher type, only the first-class function
+    type RHS_TYPE; the generated module holds no integrator.
+    """
+    from gyro_rotor.core.system.codegen import RHS_TYPE
+    from gyro_rotor.numerics.integrators import kernels
+    for name in SHIPPED:
+        scene = load_general_scene(name)
+        model = scene.make_model()
+        assert not hasattr(model.compiled.module, 'run')    # no integrator is generated
+        integrate_general(model, scene.initial_state(model), [0.0, 0.01], method='dop853')
+    from numba.core import types
+    kinds = {sig[0] for sig in kernels.dop853_run.signatures}
+    assert {k for k in kinds if not isinstance(k, types.Integer)} == \
+        {types.FunctionType(RHS_TYPE)}, kinds
+
+
+def test_ensemble_runs_a_general_system_with_its_own_numbers_per_trajectory():
+    scene = load_general_scene('twin_gimbal')
+    model = scene.make_model()
+    y0 = scene.initial_state(model)
+    systems = [scene.system, scene.with_drives(K_D=0.3).system,
+               scene.system.with_constants({'c_a': 60.0})]
+    Y0 = np.array([y0, 0.5 * y0, y0])
+    te = np.linspace(0.0, 0.5, 11)
+    res = run_ensemble(model, Y0, te, systems=systems, step=1e-4)
+    assert res.y.shape == (11, 3, model.size) and res.backend == 'numba'
+    for r, (system, y) in enumerate(zip(systems, Y0)):
+        single = integrate_general(GeneralModel(system), y, te, method='rk4', step=1e-4)
+        assert np.abs(res.y[:, r] - single.y).max() < 1e-12, r
+    assert np.abs(res.y[-1, 0] - res.y[-1, 1]).max() > 1e-3     # other numbers, other runs
+    assert np.abs(res.y[-1, 0] - res.y[-1, 2]).max() > 1e-3
+    with pytest.raises(ParameterError, match='the same system with other numbers'):
+        run_ensemble(model, Y0[:1], te, systems=[load_system('elastic_frame')])
+
+
+def test_simulate_general_scene_with_each_method(tmp_path, capsys):
+    for method in ('rk4', 'rodas4'):
+        assert main(['simulate', 'twin_gimbal', '--t-end', '0.2', '--method', method]) == 0
+        assert f'{method}: steps' in capsys.readouterr().out
+    assert main(['simulate', 'twin_gimbal', '--t-end', '0.2', '--method', 'split8']) == 1
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and 'general scenes integrate with auto, dop853' in err
