@@ -80,17 +80,26 @@ TOKENS = st.sampled_from(['x', 'k', 'y', '1', '2.5', '1e3', '0', '+', '-', '*', 
                           '_', 'import', ',', '"', '[', '9**9**9'])
 
 
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.one_of(st.lists(TOKENS, max_size=25).map(''.join), st.text(max_size=40)))
-def test_random_text_gives_clean_refusal_or_valid_system(text):
+# where the random text goes: the key, its place in the document, how to read it back
+PLACES = {'potential': (lambda t: {'potential': t}, lambda s: s.potential),
+          'mass_matrix': (lambda t: {'mass_matrix': [[t]]}, lambda s: s.mass_matrix[0, 0]),
+          'guidance': (lambda t: {'guidance': [[t]]}, lambda s: s.guidance[0, 0]),
+          'rotor_inertia': (lambda t: {'rotor_inertia': [t]}, lambda s: s.rotor_inertia[0])}
+
+
+@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.one_of(st.lists(TOKENS, max_size=25).map(''.join), st.text(max_size=40)),
+       st.sampled_from(sorted(PLACES)))
+def test_random_text_gives_clean_refusal_or_valid_system(text, place):
+    put, get = PLACES[place]
     try:
-        system = system_from_mapping(_doc(potential=text), 'random.yaml')
+        system = system_from_mapping(_doc(**put(text)), 'random.yaml')
     except SystemFileError as err:
-        assert 'random.yaml' in str(err)
+        assert 'random.yaml' in str(err) and place in str(err)
         return
-    V = system.potential
-    assert V.free_symbols <= set(system.q_symbols()) | set(system.constant_symbols())
-    assert not V.has(sympy.zoo, sympy.nan, sympy.oo, sympy.I)
+    e = get(system)
+    assert e.free_symbols <= set(system.q_symbols()) | set(system.constant_symbols())
+    assert not e.has(sympy.zoo, sympy.nan, sympy.oo, sympy.I)
 
 
 # -- the system file -------------------------------------------------------------------------
