@@ -631,3 +631,17 @@ def test_simulate_general_scene_with_each_method(tmp_path, capsys):
     assert main(['simulate', 'twin_gimbal', '--t-end', '0.2', '--method', 'split8']) == 1
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and 'general scenes integrate with auto, dop853' in err
+
+
+def test_auto_picks_rodas4_for_a_stiff_drive():
+    from gyro_rotor.numerics.general import choose_method
+    scene = load_general_scene('twin_gimbal')
+    model = scene.make_model()
+    y0 = scene.initial_state(model)
+    assert choose_method(model, y0)[0] == 'dop853'
+    stiff = scene.with_drives(K_D=1e3).make_model()
+    method, reason = choose_method(stiff, y0)
+    assert method == 'rodas4' and 'stiff' in reason
+    run = integrate_general(stiff, y0, np.linspace(0.0, 0.2, 5))
+    assert run.method == 'rodas4' and run.nsteps < 5000
+    assert np.abs(stiff.residual(run.y)).max() < 1e-7 * stiff.energy(y0)
