@@ -265,6 +265,10 @@ class _FirstClass(WrapperAddressProtocol):
         self.dispatcher = dispatcher       # keeps the machine code alive
         self.address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
 
+    def __call__(self, y, P, out):
+        """Call ``rhs`` from Python."""
+        self.dispatcher(y, P, out)
+
     def __wrapper_address__(self):
         """Return the address of the compiled C wrapper of ``rhs``."""
         return self.address

@@ -54,8 +54,15 @@ def pack_params(p) -> np.ndarray:
                      float(p.pole_pairs)])
 
 
-def _dispatch_rhs(kind, y, P, out):
-    """Call a first-class right-hand side ``kind(y, P, out)`` or the hand-written model."""
+def rhs(kind, y, P, out):
+    """Write dy/dt at state ``y`` into ``out``.
+
+    ``kind`` is a model number (KIND: the hand-written models, :func:`_model_rhs`) or a
+    compiled right-hand side ``f(y, P, out)`` passed as a numba first-class function (a
+    general rotor system, :mod:`gyro_rotor.core.system.codegen`). In compiled code the
+    choice is made at compile time by the type of ``kind`` (the overload below), so the
+    hand-written models run exactly their own code.
+    """
     if callable(kind):
         kind(y, P, out)
     else:
@@ -71,10 +78,10 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
     from numba import types
     from numba.extending import overload
 
-    @overload(_dispatch_rhs)
-    def _dispatch_rhs_typed(kind, y, P, out):
+    @overload(rhs)
+    def _rhs_typed(kind, y, P, out):
         if isinstance(kind, types.Integer):
-            return lambda kind, y, P, out: _model_rhs(kind, y, P, out)
+            return _model_rhs.py_func
         return lambda kind, y, P, out: kind(y, P, out)
 
     @overload(_is_full)
@@ -82,17 +89,6 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
         if isinstance(kind, types.Integer):
             return lambda kind: kind == 0
         return lambda kind: False
-
-
-@njit(cache=True)
-def rhs(kind, y, P, out):
-    """Write dy/dt at state ``y`` into ``out``.
-
-    ``kind`` is a model number (KIND) or a compiled right-hand side ``f(y, P, out)`` passed
-    as a numba first-class function (a general rotor system,
-    :mod:`gyro_rotor.core.system.codegen`).
-    """
-    _dispatch_rhs(kind, y, P, out)
 
 
 @njit(cache=True)
