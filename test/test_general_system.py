@@ -408,6 +408,9 @@ def test_bad_system_file_via_cli_is_one_error_line(tmp_path, capsys):
 def test_steady_command_solves_from_a_guess(tmp_path, capsys):
     doc = _doc(potential='k*(x - 0.25)**2/2')
     path = _write_scene(tmp_path, doc, {})
+    assert main(['eig', path]) == 1     # the default steady motion (zeros) is checked too
+    err = capsys.readouterr().err
+    assert 'x_ddot = 0.5' in err and f'`gyro-rotor steady {path}`' in err, err
     assert main(['steady', path]) == 0
     assert 'q = [0.25' in capsys.readouterr().out
 
