@@ -381,6 +381,13 @@ def test_locus_json_has_K_D_star_and_claims(tmp_path):
 @pytest.mark.parametrize('params, match', [
     ({'initial': {'q': [0.1, 0.2]}}, r'initial.q must have 1 entries \(one per coordinate: x\)'),
     ({'initial': {'zdot': [0.1, 0.2]}}, 'initial.zdot must have 1 entries'),
+    ({'initial': {'qdot': []}}, r'initial.qdot must have 1 entries \(one per coordinate: x\), '
+                                'got 0'),
+    ({'initial': {'z': [0.0, 0.0]}}, r'initial.z must have 1 entries \(one per rotor: R\)'),
+    ({'steady': {'q': [0.0, 0.0]}}, 'steady.q must have 1 entries'),
+    ({'steady': {'qdot': [0.0, 1.0]}}, 'steady.qdot must have 1 entries'),
+    ({'initial': {'q': ['a']}}, 'initial.q must be a list of numbers'),
+    ({'locked': 'x'}, 'locked must be a list of coordinate names'),
     ({'locked': ['y']}, "locked\\[0\\] = 'y' is not a coordinate"),
     ({'steady': {'q': [0.3]}}, 'not a steady motion: the accelerations do not vanish there '
                                r'\(x_ddot = -0.6'),
