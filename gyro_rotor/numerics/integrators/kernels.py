@@ -54,8 +54,45 @@ def pack_params(p) -> np.ndarray:
                      float(p.pole_pairs)])
 
 
-@njit(cache=True)
 def rhs(kind, y, P, out):
+    """Write dy/dt at state ``y`` into ``out``.
+
+    ``kind`` is a model number (KIND: the hand-written models, :func:`_model_rhs`) or a
+    compiled right-hand side ``f(y, P, out)`` passed as a numba first-class function (a
+    general rotor system, :mod:`gyro_rotor.core.system.codegen`). In compiled code the
+    choice is made at compile time by the type of ``kind`` (the overload below), so the
+    hand-written models run exactly their own code.
+    """
+    if callable(kind):
+        kind(y, P, out)
+    else:
+        _model_rhs(kind, y, P, out)
+
+
+def _is_full(kind):
+    """Return True for the full (quaternion) model, False for others and for functions."""
+    return not callable(kind) and kind == 0
+
+
+if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
+    from numba import types
+    from numba.extending import overload
+
+    @overload(rhs)
+    def _rhs_typed(kind, y, P, out):
+        if isinstance(kind, types.Integer):
+            return _model_rhs.py_func
+        return lambda kind, y, P, out: kind(y, P, out)
+
+    @overload(_is_full)
+    def _is_full_typed(kind):
+        if isinstance(kind, types.Integer):
+            return lambda kind: kind == 0
+        return lambda kind: False
+
+
+@njit(cache=True)
+def _model_rhs(kind, y, P, out):
     """dy/dt of model ``kind`` at state ``y`` into ``out`` (see gyro_rotor.core.model)."""
     C_R = P[1]
     C_M = P[2]
@@ -145,7 +182,7 @@ def normalize_quaternion(kind, y, f):
     q NaN, so that the run stops as non-finite; scaling by 1 / inf would give q = 0 exactly,
     a finite state on which the next right-hand side divides by |q|^2 = 0.
     """
-    if kind != 0:
+    if not _is_full(kind):
         return
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
     s = 1.0 / n if 0.0 < n < math.inf else math.nan
