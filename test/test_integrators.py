@@ -234,3 +234,20 @@ def test_failed_solver_refuses_to_step():
         s.step()
     r = integrate(m, y0, (0, 1.0), None, 'gauss6', step=0.01)
     assert not r.success and r.status == -4
+
+
+@pytest.mark.parametrize('method', list(METHODS))
+def test_every_method_ends_with_a_failure_status_at_a_singular_state(method, tmp_path):
+    """theta = pi: the right-hand side is NaN there; every run loop must stop with a status.
+
+    (The DOP853 loop once met a NaN first derivative with a NaN step and never ended.)
+    """
+    f = tmp_path / 'down.yaml'
+    f.write_text('rotor_sim:\n  ros__parameters:\n    initial:\n      mode: body\n'
+                 '      quaternion: [0.0, 1.0, 0.0, 0.0]\n')
+    scene = load_scene(f)
+    model = scene.make_model()
+    res = make_integrator(method, model, scene.initial_state(model), 0.0, 0.1).run(
+        np.linspace(0.0, 0.1, 11))
+    assert res.status < 0 and not res.success
+    assert res.message

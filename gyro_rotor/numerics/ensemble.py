@@ -5,7 +5,7 @@ optionally with their own parameters, and are sampled on a common time grid. Two
 backends run the same equations:
 
 ``numba``   one compiled loop over trajectories calling the same right-hand side kernel as
-            the single-trajectory integrators (:mod:`gyro_rotor.integrators.kernels`);
+            the single-trajectory integrators (:mod:`gyro_rotor.numerics.integrators.kernels`);
 ``numpy``   the same right-hand side (core.model.full_rhs) run elementwise on arrays of
             shape (N,), for installs without numba.
 
@@ -18,11 +18,11 @@ import dataclasses
 import math
 import time
 
-from gyro_rotor.core.model import full_rhs, Model, pack_params
+from gyro_rotor.core.model import full_rhs, Model
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import kernels, tableaux as tb
-from gyro_rotor.numerics.integrators.base import model_rate
+from gyro_rotor.numerics.integrators.base import kernel_args
 from gyro_rotor.numerics.integrators.kernels import njit
 import numpy as np
 
@@ -171,11 +171,13 @@ def run_ensemble(model: Model, Y0, t_eval, *, method: str = 'rk4', step: float |
     if params is not None and len(params) != Y0.shape[0]:
         raise ParameterError(f'params must give one RotorParams per trajectory '
                              f'({Y0.shape[0]}), got {len(params)}')
-    P = np.array([pack_params(p) for p in plist])
+    args = [kernel_args(model, p) for p in plist]   # (kind, P, rate) per parameter set
+    kind = args[0][0]
+    P = np.array([a[1] for a in args])
     if params is None:
         P = np.repeat(P, Y0.shape[0], axis=0)
     if step is None:
-        h = factor / max(model_rate(p) for p in plist)
+        h = factor / max(a[2] for a in args)
     else:
         h = float(step)
         if not (math.isfinite(h) and h > 0):
@@ -184,11 +186,11 @@ def run_ensemble(model: Model, Y0, t_eval, *, method: str = 'rk4', step: float |
         backend = 'numba' if kernels.HAVE_NUMBA else 'numpy'
     if backend == 'numpy' and model.name != 'full':
         raise ParameterError('the numpy backend vectorizes the full model only')
-    kind = kernels.KIND[model.name]
     t0 = time.perf_counter()
     if backend == 'numba':
         out = np.empty((te.size, Y0.shape[0], model.n))
-        nsteps = int(_ens_run(kind, P, Y0, te, h, A, B, renormalize and kind == 0, out))
+        nsteps = int(_ens_run(kind, P, Y0, te, h, A, B, renormalize and model.name == 'full',
+                              out))
     else:
         out, nsteps = _numpy_run(P, Y0, te, h, A, B, renormalize)
     wall = time.perf_counter() - t0

@@ -6,9 +6,10 @@ compiled once per machine, then loaded from ``__pycache__``). Without numba the 
 functions run as ordinary Python (slower, same results): real ROS installs without numba
 still work.
 
-Models are selected by an integer ``kind`` (0 full, 1 upright_axis, 2 locked_housing) and
-the parameters travel as one float array ``P`` (see :func:`pack_params`), so a single
-compiled kernel serves every scene without first-class function arguments.
+Models are selected by ``kind``: an integer for the hand-written models (0 full,
+1 upright_axis, 2 locked_housing) or a compiled general rotor system's right-hand side as a
+numba first-class function (:func:`rhs`); the parameters travel as one float array ``P``
+(see :func:`pack_params`), so a single compiled kernel serves every scene of a model.
 
 Status codes returned by the run loops: :class:`Status` (0 finished, -1 step size
 underflow, -2 non-finite state, -3 step budget exhausted, -4 Newton/fixed-point iteration
@@ -65,9 +66,46 @@ BUDGET = int(Status.BUDGET)
 NOCONV = int(Status.NO_CONVERGENCE)
 
 
-@njit(cache=True, error_model='numpy')
 def rhs(kind, y, P, out):
-    """dy/dt of model ``kind`` at state ``y`` into ``out`` (the functions of core.model).
+    """Write dy/dt at state ``y`` into ``out``.
+
+    ``kind`` is a model number (KIND: the hand-written models, :func:`_model_rhs`) or a
+    compiled right-hand side ``f(y, P, out)`` passed as a numba first-class function (a
+    general rotor system, :mod:`gyro_rotor.core.system.codegen`). In compiled code the
+    choice is made at compile time by the type of ``kind`` (the overload below), so the
+    hand-written models run exactly their own code.
+    """
+    if callable(kind):
+        kind(y, P, out)
+    else:
+        _model_rhs(kind, y, P, out)
+
+
+def _is_full(kind):
+    """Return True for the full (quaternion) model, False for others and for functions."""
+    return not callable(kind) and kind == 0
+
+
+if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
+    from numba import types
+    from numba.extending import overload
+
+    @overload(rhs)
+    def _rhs_typed(kind, y, P, out):
+        if isinstance(kind, types.Integer):
+            return lambda kind, y, P, out: _model_rhs(kind, y, P, out)
+        return lambda kind, y, P, out: kind(y, P, out)
+
+    @overload(_is_full)
+    def _is_full_typed(kind):
+        if isinstance(kind, types.Integer):
+            return lambda kind: kind == 0
+        return lambda kind: False
+
+
+@njit(cache=True, error_model='numpy')
+def _model_rhs(kind, y, P, out):
+    """dy/dt of hand-written model ``kind`` at state ``y`` into ``out`` (core.model's functions).
 
     Compiled with numpy's error model: a division by zero (a state with q = 0, or the axis
     exactly at theta = pi) gives inf or nan, which the loops report as a non-finite state
@@ -86,12 +124,14 @@ def normalize_quaternion(kind, y, f):
     """Apply the projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
 
     The other equations depend on q only through its direction, so ``f`` stays the exact
-    right-hand side at the projected state.
+    right-hand side at the projected state. A norm that overflowed (a diverging step) makes
+    q NaN, so that the run stops as non-finite; scaling by 1 / inf would give q = 0 exactly,
+    a finite state on which the next right-hand side divides by |q|^2 = 0.
     """
-    if kind != 0:
+    if not _is_full(kind):
         return
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
-    s = 1.0 / n
+    s = 1.0 / n if 0.0 < n < math.inf else math.nan
     for i in range(4):
         y[i] *= s
         f[i] *= s
@@ -342,10 +382,11 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
     else:
         h = initial_step(kind, P, y, f, rtol, atol, 7, h_max, ytmp, ftmp)
         nfev += 1
-    status = OK
-    while t < t_end:
+    # a non-finite derivative at the start (a singular state) ends the run at once
+    status = OK if _all_finite(f) else NONFINITE
+    while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if h < min_step:
+        if not h >= min_step:           # also a NaN step (never compares)
             status = UNDERFLOW
             break
         if h > h_max:
@@ -648,11 +689,12 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     else:
         h = initial_step(kind, P, y, f, rtol, atol, 3, h_max, ytmp, fa)
         nfev += 1
-    status = OK
+    # a non-finite derivative at the start (a singular state) ends the run at once
+    status = OK if _all_finite(f) else NONFINITE
     jac_fresh = False
-    while t < t_end:
+    while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if h < min_step:
+        if not h >= min_step:           # also a NaN step (never compares)
             status = UNDERFLOW
             break
         if h > h_max:
