@@ -251,3 +251,21 @@ def test_every_method_ends_with_a_failure_status_at_a_singular_state(method, tmp
         np.linspace(0.0, 0.1, 11))
     assert res.status < 0 and not res.success
     assert res.message
+
+
+def test_radau9_stepping_one_step_at_a_time_grows_its_step_like_a_run():
+    """The live stepper calls radau9 one step at a time; it must resume with the next step.
+
+    (It once resumed with the last step's size, so the step never grew: 1e-8 s forever.)
+    """
+    scene = load_scene('precession', overrides={'K_D': 1e5})
+    model = scene.make_model()
+    y0 = scene.initial_state(model)
+    whole = make_integrator('radau9', model, y0, 0.0, 0.1).run(np.array([0.0, 0.1]))
+    stepped = make_integrator('radau9', model, y0, 0.0, 0.1)
+    for k in range(1, 101):
+        stepped.advance_to(k * 1e-3)
+    assert stepped.t == pytest.approx(0.1)
+    # landing on 100 intermediate times may add up to one clipped step per time
+    assert stepped.nsteps <= 2 * whole.nsteps + 100, (stepped.nsteps, whole.nsteps)
+    assert np.allclose(stepped.y, whole.y[-1], rtol=1e-6, atol=1e-9)
