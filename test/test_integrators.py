@@ -238,7 +238,7 @@ def test_failed_solver_refuses_to_step():
 
 @pytest.mark.parametrize('method', list(METHODS))
 def test_every_method_ends_with_a_failure_status_at_a_singular_state(method, tmp_path):
-    """theta = pi: the right-hand side is NaN there; every run loop must stop with a status.
+    """At theta = pi the right-hand side is NaN; every run loop must stop with a status.
 
     (The DOP853 loop once met a NaN first derivative with a NaN step and never ended.)
     """
