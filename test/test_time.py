@@ -70,7 +70,11 @@ def clocked_bag(tmp_path_factory):
                 import warnings
                 with warnings.catch_warnings():
                     warnings.simplefilter('ignore')
-                    if sum(1 for _ in open_bag(bag).messages('/energy')) >= n:
+                    rec = open_bag(bag)
+                    # every sample, and a diagnostics report of rotor_sim (once a second
+                    # of wall time: at rtf 0 the run may be over before the first one)
+                    if (sum(1 for _ in rec.messages('/energy')) >= n and
+                            any(b'rotor_sim: ' in m[-1] for m in rec.messages('/diagnostics'))):
                         break
             except Exception:  # noqa: B902 -- the bag is still being written
                 pass
