@@ -68,7 +68,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from gyro_rotor.core.model import FullModel, make_model
+from gyro_rotor.core.model import drive_torque, FullModel, make_model
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
@@ -288,10 +288,7 @@ def reduced_rhs_lagrange(params: RotorParams, x) -> np.ndarray:
     u = 1.0 - c
     W3 = chid - u * psd
     h3 = Cs * W3 + C_R * (Om + zd)
-    if p.pole_pairs:
-        Q = -(p.K_S / p.pole_pairs) * math.sin(p.pole_pairs * z) - p.K_D * zd
-    else:
-        Q = -p.K_S * z - p.K_D * zd
+    Q = float(drive_torque(p, z, zd))
     M = np.array([[I, 0.0, 0.0, 0.0],
                   [0.0, I * s * s + Cs * u * u, -Cs * u, -C_R * u],
                   [0.0, -Cs * u, Cs, C_R],
