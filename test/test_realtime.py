@@ -113,6 +113,17 @@ def test_t_end_stops_the_pacer():
     assert pacer.finished and st.t == pytest.approx(0.35)
     assert [s.k for s in samples] == [0, 1, 2, 3]
     assert pacer.tick(1.0) == []
+    # a later t_end continues from the stop, in real time from the next tick (the demo
+    # holds the simulation at its kick's time this way): no catch-up of the idle second
+    capped = pacer.capped
+    pacer.t_end = 0.6
+    assert not pacer.finished
+    assert pacer.tick(2.0) == []                    # re-anchors at (2.0, 0.35)
+    samples = pacer.tick(2.1)
+    assert st.t == pytest.approx(0.45) and [s.k for s in samples] == [4]
+    assert pacer.capped == capped
+    pacer.t_end = 0.45                              # an earlier stop: finished at once
+    assert pacer.finished and pacer.tick(3.0) == []
 
 
 def test_overruns_count_ticks_longer_than_the_period():

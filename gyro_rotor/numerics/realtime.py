@@ -370,12 +370,12 @@ class Pacer:
         self.max_catch_up = float(max_catch_up)
         self.period = float(period) if period else 1.0 / self.sample_rate
         self.chunk_samples = int(chunk_samples)
-        self.t_end = t_end
         self.rtf = 0.0
         self.set_rtf(rtf, None)
         self.paused = False
         self.finished = False
         self.stepper = stepper
+        self._t_end = t_end
         self._k_next = self._first_k(stepper.t)
         self._anchor: tuple[float, float] | None = None     # (wall0, t_sim0)
         self._last_tick: float | None = None
@@ -388,6 +388,23 @@ class Pacer:
         self._reset_window(None)
 
     # -- control ---------------------------------------------------------------------------
+    @property
+    def t_end(self) -> float | None:
+        """Return the simulation time to stop at (None: never)."""
+        return self._t_end
+
+    @t_end.setter
+    def t_end(self, t_end: float | None) -> None:
+        """Move the stop: a pacer finished at the old one continues if the new one is later.
+
+        It continues in real time from where it stopped (the time it idled is not caught up).
+        """
+        self._t_end = t_end
+        was = self.finished
+        self.finished = t_end is not None and self.stepper.t >= t_end
+        if was and not self.finished:
+            self._anchor = None
+
     def _first_k(self, t: float) -> int:
         """Index of the first grid point at or after t."""
         return int(math.ceil(t * self.sample_rate - _GRID_EPS))

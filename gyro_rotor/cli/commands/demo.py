@@ -81,6 +81,8 @@ class _LiveView:
         self.node.create_subscription(String, 'analysis_verdict', self._on_verdict, latched)
         self.perturb = self.node.create_client(Trigger, '/rotor_sim/perturb')
         self._trigger = Trigger
+        from rcl_interfaces.srv import SetParameters
+        self.set_params = self.node.create_client(SetParameters, '/rotor_sim/set_parameters')
 
     @staticmethod
     def _labelled(msg) -> dict:
@@ -111,15 +113,31 @@ class _LiveView:
         while time.monotonic() < end:
             self.ex.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
 
-    def kick(self, timeout: float = 5.0) -> str:
-        """Call /rotor_sim/perturb; return its message."""
-        if not self.perturb.wait_for_service(timeout_sec=timeout):
-            return 'perturb service not available'
-        fut = self.perturb.call_async(self._trigger.Request())
+    def _call(self, client, request, timeout: float):
+        """Call a service and spin until it answers; return the response (None: none)."""
+        if not client.wait_for_service(timeout_sec=timeout):
+            return None
+        fut = client.call_async(request)
         end = time.monotonic() + timeout
         while not fut.done() and time.monotonic() < end:
             self.ex.spin_once(timeout_sec=0.05)
-        return fut.result().message if fut.done() and fut.result() else 'no answer'
+        return fut.result() if fut.done() else None
+
+    def kick(self, timeout: float = 5.0) -> str:
+        """Call /rotor_sim/perturb; return its message."""
+        res = self._call(self.perturb, self._trigger.Request(), timeout)
+        return res.message if res is not None else 'perturb service: no answer'
+
+    def set_t_end(self, t_end: float, timeout: float = 5.0) -> None:
+        """Set rotor_sim's t_end (a live parameter); raise GyroRotorError if refused."""
+        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+        req = self.set_params.srv_type.Request(parameters=[Parameter(
+            name='t_end', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                               double_value=float(t_end)))])
+        res = self._call(self.set_params, req, timeout)
+        if res is None or not res.results[0].successful:
+            raise GyroRotorError(f'rotor_sim did not take t_end = {t_end} s: '
+                                 f'{res.results[0].reason if res else "no answer"}')
 
     def close(self) -> None:
         """Shut the node down."""
@@ -204,11 +222,21 @@ def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) ->
     return procs
 
 
-def _start_sim(args, scene_arg: str, domain_id: int, logs: dict):
+def _first_stop(args, kick_at: float) -> float:
+    """Return the simulation time where rotor_sim first stops: the kick's, else the end.
+
+    The simulation holds at the kick's time (stop_at_t_end) until the kick is done, so the
+    kick lands exactly there however late the demo process sees that time (a loaded
+    machine); then t_end moves on to the duration.
+    """
+    return kick_at if 0.0 <= kick_at < args.duration else float(args.duration)
+
+
+def _start_sim(args, scene_arg: str, domain_id: int, logs: dict, t_stop: float):
     from gyro_rotor.tools.launch import NodeProcess
     return NodeProcess('gyro_rotor.ros.sim_node', {
         'scene': str(scene_arg), 'real_time_factor': float(args.rtf),
-        'publish_rate': float(args.rate), 't_end': float(args.duration),
+        'publish_rate': float(args.rate), 't_end': float(t_stop),
         'stop_at_t_end': True, 'wait_for_subscribers': 1}, domain_id=domain_id,
         stdout=logs['rotor_sim'], stderr=logs['rotor_sim'])
 
@@ -227,6 +255,8 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
         if not kicked and t >= kick_at:
             print(f'  kick at t = {t:.2f} s: {view.kick()}')
             kicked = True
+            if _first_stop(args, kick_at) < args.duration:
+                view.set_t_end(args.duration)
         if not args.quiet and time.monotonic() >= next_print and t > last_t:
             print(_line(view), flush=True)
             next_print = time.monotonic() + 1.0
@@ -262,7 +292,8 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, bool]:
         procs += _start_nodes(args, scene_arg, out, claim.domain_id, logs)
         view = _LiveView(claim.domain_id)
         view.spin(1.0)
-        procs.append(_start_sim(args, scene_arg, claim.domain_id, logs))
+        procs.append(_start_sim(args, scene_arg, claim.domain_id, logs,
+                                _first_stop(args, kick_at)))
         _watch(args, view, procs, out, kick_at)
     except KeyboardInterrupt:
         interrupted = True
