@@ -50,8 +50,9 @@ def clocked_bag(tmp_path_factory):
     bag = tmp / 'bag'
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     an_log, sim_log = open(tmp / 'an.log', 'w'), open(tmp / 'sim.log', 'w')
-    an = NodeProcess('gyro_rotor.ros.analysis_node', {'output': str(bag), 'scene': 'precession'},
-                     stdout=an_log, stderr=subprocess.STDOUT, env=env)
+    an = NodeProcess('gyro_rotor.ros.analysis_node', {      # as the launch files run it
+        'output': str(bag), 'scene': 'precession', 'use_sim_time': True},
+        stdout=an_log, stderr=subprocess.STDOUT, env=env)
     sim = None
     n = int(T_END * RATE) + 1
     try:

@@ -39,6 +39,7 @@ from gyro_rotor.ros.recorder import BagRecorder, check_writable, default_bag_pat
 from gyro_rotor.ros.runner import run_node
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -128,7 +129,11 @@ class RotorAnalysisNode(Node):
             self.create_subscription(String, f'{self.sim_node}/scene',
                                      lambda m: self._on_scene(m.data), _LATCHED)
         self._scene_recorded = scene is not None
-        self.create_timer(float(period), self.publish_results)
+        # results every ``period`` of steady time: with use_sim_time (the launch files) a
+        # ROS-time timer would stop while the simulation pauses and fire in bursts at
+        # real_time_factor 0; the stamps are simulation time all the same (_publish_diag)
+        self.create_timer(float(period), self.publish_results,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # -- input ----------------------------------------------------------------------------
     def _on_bytes(self, topic: str, data: bytes) -> None:
