@@ -224,3 +224,42 @@ def test_every_stamp_is_simulation_time_diagnostics_of_both_nodes_included(clock
         assert np.all(np.diff(st) >= 0), node
     # the analysis stamps its verdicts with the time of the data it judged
     assert max(by_node['rotor_analysis']) > 0
+
+
+def test_analysis_node_with_use_sim_time_follows_the_clock_of_rotor_sim():
+    """rotor_analysis run as the launch files run it: its ROS time is rotor_sim's /clock.
+
+    A wall-clock ROS time (about 1.8e18 ns) or a clock that never left 0 would fail.
+    """
+    import rclpy
+    from rclpy.clock import ClockType
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from gyro_rotor.ros.analysis_node import RotorAnalysisNode
+    from gyro_rotor.ros.sim_node import RotorSimNode
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    sim = RotorSimNode(context=ctx, parameter_overrides=[       # /clock by default
+        Parameter('scene', value='precession'), Parameter('real_time_factor', value=1.0),
+        Parameter('publish_rate', value=RATE)])
+    ana = RotorAnalysisNode(context=ctx, parameter_overrides=[
+        Parameter('record', value=False), Parameter('scene', value='precession'),
+        Parameter('use_sim_time', value=True)])
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(sim)
+    ex.add_node(ana)
+    try:
+        clock = ana.get_clock()
+        assert clock.clock_type == ClockType.ROS_TIME and clock.ros_time_is_active
+        node_helpers.spin_until(ex, lambda: clock.now().nanoseconds >= 500_000_000, 20.0,
+                                step=0.01)
+        t_ana = clock.now().nanoseconds
+        t_sim = int(round(sim.sim.stepper.t * 1e9))
+        # ROS time of rotor_analysis = the last /clock: at most one tick (max_catch_up,
+        # 0.25 s) behind the simulation, never ahead of it
+        assert 0 <= t_sim - t_ana <= 250_000_000, (t_ana, t_sim)
+    finally:
+        ex.shutdown()
+        ana.destroy_node()
+        sim.destroy_node()
+        rclpy.try_shutdown(context=ctx)
