@@ -16,8 +16,10 @@ Publishes ``analysis`` (std_msgs/Float64MultiArray, one dimension labelled with
 :data:`~gyro_rotor.analysis.results.ANALYSIS_LABEL`), ``analysis_modes`` (2-D: a row per predicted
 mode, dim[0] labelled with the mode names, dim[1] with
 :data:`~gyro_rotor.analysis.results.MODE_LABEL`), ``analysis_verdict`` (std_msgs/String) and
-``/diagnostics``. On SIGINT/SIGTERM the bag is finalized, with the final live result as the
-MCAP metadata record ``gyro_rotor.live_result``.
+``/diagnostics`` (stamped with the simulation time of the newest sample judged: every stamp
+the package writes is simulation time; the launch files run this node with use_sim_time, so
+its ROS time is rotor_sim's ``/clock``). On SIGINT/SIGTERM the bag is finalized, with the
+final live result as the MCAP metadata record ``gyro_rotor.live_result``.
 """
 
 from __future__ import annotations
