@@ -71,7 +71,12 @@ def clocked_bag(tmp_path_factory):
                 import warnings
                 with warnings.catch_warnings():
                     warnings.simplefilter('ignore')
-                    if sum(1 for _ in open_bag(bag).messages('/energy')) >= n:
+                    reader = open_bag(bag)
+                    # every sample, and /diagnostics of both nodes (each about once a
+                    # second of steady time: a run at rtf 0 can end before the first)
+                    names = {node for _, _, data in reader.messages('/diagnostics')
+                             for node in (b'rotor_sim:', b'rotor_analysis:') if node in data}
+                    if sum(1 for _ in reader.messages('/energy')) >= n and len(names) == 2:
                         break
             except Exception:  # noqa: B902 -- the bag is still being written
                 pass
