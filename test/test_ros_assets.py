@@ -252,11 +252,23 @@ def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
     rsp = nodes['robot_state_publisher'].kwargs['parameters'][0]
     assert rsp['robot_description'] == URDF.read_text()
     assert rsp['use_sim_time'] is True
-    assert {'publish_clock': True} in nodes['rotor_sim'].kwargs['parameters']
+    sim_params = nodes['rotor_sim'].kwargs['parameters'][1]
+    assert sim_params['publish_clock'] is True
+    assert sim_params['wait_for_subscribers'].args[0].args[0] == 'wait_for_subscribers'
     assert all(p.get('use_sim_time') is not True for p in nodes['rotor_sim'].kwargs[
         'parameters'] if isinstance(p, dict))          # the simulator keeps its own time
     rviz = nodes['rviz2'].kwargs['parameters'][0]
     assert rviz['use_sim_time'] is True
+
+
+def test_combined_launch_records_from_t0(launch_env):
+    """gyro_rotor.launch.py: the analysis knows the scene and rotor_sim waits for it."""
+    ld = runpy.run_path(str(launch_env / 'launch' / 'gyro_rotor.launch.py'))[
+        'generate_launch_description']()
+    inc = {Path(e.args[0].args[0]).name: dict(e.kwargs['launch_arguments'])
+           for e in _walk(ld) if type(e).__name__ == 'IncludeLaunchDescription'}
+    assert inc['sim.launch.py']['wait_for_subscribers'] == '1'
+    assert inc['analysis.launch.py']['scene'].args[0] == 'scene'
 
 
 def test_analysis_launch_follows_simulation_time(launch_env):
