@@ -5,7 +5,8 @@
 Arguments: ``output`` (the rosbag2 directory to record to, which must not exist yet;
 empty: a fresh ``bags_out/rotor_<time>``), ``scene`` (the scene to predict against; empty:
 the one rotor_sim announces on ``~/scene``, which it follows through live changes),
-``window_s`` (the analysis window [s]).
+``window_s`` (the analysis window [s]). rotor_analysis runs with ``use_sim_time`` (ROS
+time = the simulation time of rotor_sim's ``/clock``, the base of every stamp it writes).
 """
 
 from launch import LaunchDescription
@@ -29,5 +30,6 @@ def generate_launch_description():
              parameters=[{'output': LaunchConfiguration('output'),
                           'scene': LaunchConfiguration('scene'),
                           'window_s': ParameterValue(LaunchConfiguration('window_s'),
-                                                     value_type=float)}]),
+                                                     value_type=float),
+                          'use_sim_time': True}]),
     ])

@@ -26,8 +26,10 @@ def generate_launch_description():
         DeclareLaunchArgument('rviz', default_value='false'),
         IncludeLaunchDescription(
             PythonLaunchDescriptionSource(os.path.join(launch_dir, 'analysis.launch.py')),
-            launch_arguments={'output': LaunchConfiguration('output')}.items()),
+            launch_arguments={'output': LaunchConfiguration('output'),
+                              'scene': scene}.items()),     # subscribed from the start
         IncludeLaunchDescription(
             PythonLaunchDescriptionSource(os.path.join(launch_dir, 'sim.launch.py')),
-            launch_arguments={'scene': scene, 'rviz': LaunchConfiguration('rviz')}.items()),
+            launch_arguments={'scene': scene, 'rviz': LaunchConfiguration('rviz'),
+                              'wait_for_subscribers': '1'}.items()),   # the recorder
     ])

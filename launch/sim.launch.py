@@ -6,7 +6,10 @@ Arguments: ``scene`` (a shipped scene name; its parameter file
 ``share/gyro_rotor/config/<scene>.yaml`` configures rotor_sim), ``robot_description``
 (true: robot_state_publisher turns ``joint_states`` into TF with
 ``share/gyro_rotor/urdf/centrifuge.urdf``; only meaningful for the centrifuge scenes),
-``rviz`` (start RViz2 with ``share/gyro_rotor/rviz/gyro_rotor.rviz``).
+``rviz`` (start RViz2 with ``share/gyro_rotor/rviz/gyro_rotor.rviz``),
+``wait_for_subscribers`` (hold simulation time at 0 until ``joint_states`` and ``energy``
+each have this many subscribers; 0: start at once; gyro_rotor.launch.py sets 1 so that
+rotor_analysis records from t = 0).
 rotor_sim publishes ``/clock`` (simulation time); every other node here runs with
 ``use_sim_time`` so that its TF and displays follow the simulated time.
 """
@@ -19,6 +22,7 @@ from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
 
 
 def generate_launch_description():
@@ -33,9 +37,13 @@ def generate_launch_description():
         DeclareLaunchArgument('robot_description', default_value='true',
                               description='publish TF of the centrifuge from joint_states'),
         DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
+        DeclareLaunchArgument('wait_for_subscribers', default_value='0',
+                              description='hold t = 0 until this many subscribers'),
         Node(package='gyro_rotor', executable='rotor_sim', name='rotor_sim', output='screen',
              parameters=[PathJoinSubstitution([share, 'config', [scene, '.yaml']]),
-                         {'publish_clock': True}]),
+                         {'publish_clock': True,
+                          'wait_for_subscribers': ParameterValue(
+                              LaunchConfiguration('wait_for_subscribers'), value_type=int)}]),
         Node(package='robot_state_publisher', executable='robot_state_publisher',
              name='robot_state_publisher', output='screen',
              condition=IfCondition(LaunchConfiguration('robot_description')),

@@ -252,7 +252,31 @@ def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
     rsp = nodes['robot_state_publisher'].kwargs['parameters'][0]
     assert rsp['robot_description'] == URDF.read_text()
     assert rsp['use_sim_time'] is True
-    assert {'publish_clock': True} in nodes['rotor_sim'].kwargs['parameters']
+    sim_params = nodes['rotor_sim'].kwargs['parameters'][1]
+    assert sim_params['publish_clock'] is True
+    assert sim_params['wait_for_subscribers'].args[0].args[0] == 'wait_for_subscribers'
+    assert all(p.get('use_sim_time') is not True for p in nodes['rotor_sim'].kwargs[
+        'parameters'] if isinstance(p, dict))          # the simulator keeps its own time
+    rviz = nodes['rviz2'].kwargs['parameters'][0]
+    assert rviz['use_sim_time'] is True
+
+
+def test_combined_launch_records_from_t0(launch_env):
+    """gyro_rotor.launch.py: the analysis knows the scene and rotor_sim waits for it."""
+    ld = runpy.run_path(str(launch_env / 'launch' / 'gyro_rotor.launch.py'))[
+        'generate_launch_description']()
+    inc = {Path(e.args[0].args[0]).name: dict(e.kwargs['launch_arguments'])
+           for e in _walk(ld) if type(e).__name__ == 'IncludeLaunchDescription'}
+    assert inc['sim.launch.py']['wait_for_subscribers'] == '1'
+    assert inc['analysis.launch.py']['scene'].args[0] == 'scene'
+
+
+def test_analysis_launch_follows_simulation_time(launch_env):
+    """rotor_analysis runs with use_sim_time: ROS time is rotor_sim's /clock."""
+    path = launch_env / 'launch' / 'analysis.launch.py'
+    ld = runpy.run_path(str(path))['generate_launch_description']()
+    nodes = {n.kwargs['executable']: n for n in _walk(ld) if type(n).__name__ == 'Node'}
+    assert nodes['rotor_analysis'].kwargs['parameters'][0]['use_sim_time'] is True
 
 
 # -- RViz and Foxglove ------------------------------------------------------------------
@@ -288,7 +312,13 @@ def test_foxglove_layout_plots_published_topics():
     assert set(leaves(layout['layout'])) == set(panels)
     published = _published_topics()
     paths = [p['value'] for cfg in panels.values() for p in cfg.get('paths', [])]
-    assert any(p.startswith('/energy.data[1]') for p in paths)      # E*
+    for field in ('E_star', 'residual', 'z'):        # the plots of E*, r and z
+        index = wire.ENERGY_FIELDS.index(field)
+        assert any(p.startswith(f'/energy.data[{index}]') for p in paths), field
+    scene = [cfg for key, cfg in panels.items() if key.startswith('3D!')]
+    assert len(scene) == 1 and scene[0]['followTf'] == 'world'       # the 3-D scene
+    assert set(scene[0]['topics']) <= published | {'/robot_description', '/tf'}
+    assert {'/axis_marker', '/robot_description'} <= set(scene[0]['topics'])
     for p in paths:
         assert p.split('.')[0] in published
     assert panels['RawMessages!verdict']['topicPath'] in published

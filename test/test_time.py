@@ -50,8 +50,9 @@ def clocked_bag(tmp_path_factory):
     bag = tmp / 'bag'
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     an_log, sim_log = open(tmp / 'an.log', 'w'), open(tmp / 'sim.log', 'w')
-    an = NodeProcess('gyro_rotor.ros.analysis_node', {'output': str(bag), 'scene': 'precession'},
-                     stdout=an_log, stderr=subprocess.STDOUT, env=env)
+    an = NodeProcess('gyro_rotor.ros.analysis_node', {      # as the launch files run it
+        'output': str(bag), 'scene': 'precession', 'use_sim_time': True},
+        stdout=an_log, stderr=subprocess.STDOUT, env=env)
     sim = None
     n = int(T_END * RATE) + 1
     try:
@@ -70,11 +71,12 @@ def clocked_bag(tmp_path_factory):
                 import warnings
                 with warnings.catch_warnings():
                     warnings.simplefilter('ignore')
-                    rec = open_bag(bag)
-                    # every sample, and a diagnostics report of rotor_sim (once a second
-                    # of wall time: at rtf 0 the run may be over before the first one)
-                    if (sum(1 for _ in rec.messages('/energy')) >= n and
-                            any(b'rotor_sim: ' in m[-1] for m in rec.messages('/diagnostics'))):
+                    reader = open_bag(bag)
+                    # every sample, and /diagnostics of both nodes (each about once a
+                    # second of steady time: a run at rtf 0 can end before the first)
+                    names = {node for _, _, data in reader.messages('/diagnostics')
+                             for node in (b'rotor_sim:', b'rotor_analysis:') if node in data}
+                    if sum(1 for _ in reader.messages('/energy')) >= n and len(names) == 2:
                         break
             except Exception:  # noqa: B902 -- the bag is still being written
                 pass
@@ -227,3 +229,42 @@ def test_every_stamp_is_simulation_time_diagnostics_of_both_nodes_included(clock
         assert np.all(np.diff(st) >= 0), node
     # the analysis stamps its verdicts with the time of the data it judged
     assert max(by_node['rotor_analysis']) > 0
+
+
+def test_analysis_node_with_use_sim_time_follows_the_clock_of_rotor_sim():
+    """rotor_analysis run as the launch files run it: its ROS time is rotor_sim's /clock.
+
+    A wall-clock ROS time (about 1.8e18 ns) or a clock that never left 0 would fail.
+    """
+    import rclpy
+    from rclpy.clock import ClockType
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from gyro_rotor.ros.analysis_node import RotorAnalysisNode
+    from gyro_rotor.ros.sim_node import RotorSimNode
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    sim = RotorSimNode(context=ctx, parameter_overrides=[       # /clock by default
+        Parameter('scene', value='precession'), Parameter('real_time_factor', value=1.0),
+        Parameter('publish_rate', value=RATE)])
+    ana = RotorAnalysisNode(context=ctx, parameter_overrides=[
+        Parameter('record', value=False), Parameter('scene', value='precession'),
+        Parameter('use_sim_time', value=True)])
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(sim)
+    ex.add_node(ana)
+    try:
+        clock = ana.get_clock()
+        assert clock.clock_type == ClockType.ROS_TIME and clock.ros_time_is_active
+        node_helpers.spin_until(ex, lambda: clock.now().nanoseconds >= 500_000_000, 20.0,
+                                step=0.01)
+        t_ana = clock.now().nanoseconds
+        t_sim = int(round(sim.sim.stepper.t * 1e9))
+        # ROS time of rotor_analysis = the last /clock: at most one tick (max_catch_up,
+        # 0.25 s) behind the simulation, never ahead of it
+        assert 0 <= t_sim - t_ana <= 250_000_000, (t_ana, t_sim)
+    finally:
+        ex.shutdown()
+        ana.destroy_node()
+        sim.destroy_node()
+        rclpy.try_shutdown(context=ctx)

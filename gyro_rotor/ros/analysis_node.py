@@ -16,8 +16,10 @@ Publishes ``analysis`` (std_msgs/Float64MultiArray, one dimension labelled with
 :data:`~gyro_rotor.analysis.results.ANALYSIS_LABEL`), ``analysis_modes`` (2-D: a row per predicted
 mode, dim[0] labelled with the mode names, dim[1] with
 :data:`~gyro_rotor.analysis.results.MODE_LABEL`), ``analysis_verdict`` (std_msgs/String) and
-``/diagnostics``. On SIGINT/SIGTERM the bag is finalized, with the final live result as the
-MCAP metadata record ``gyro_rotor.live_result``.
+``/diagnostics`` (stamped with the simulation time of the newest sample judged: every stamp
+the package writes is simulation time; the launch files run this node with use_sim_time, so
+its ROS time is rotor_sim's ``/clock``). On SIGINT/SIGTERM the bag is finalized, with the
+final live result as the MCAP metadata record ``gyro_rotor.live_result``.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from gyro_rotor.ros.recorder import BagRecorder, check_writable, default_bag_pat
 from gyro_rotor.ros.runner import run_node
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -128,7 +131,11 @@ class RotorAnalysisNode(Node):
             self.create_subscription(String, f'{self.sim_node}/scene',
                                      lambda m: self._on_scene(m.data), _LATCHED)
         self._scene_recorded = scene is not None
-        self.create_timer(float(period), self.publish_results)
+        # results every ``period`` of steady time: with use_sim_time (the launch files) a
+        # ROS-time timer would stop while the simulation pauses and fire in bursts at
+        # real_time_factor 0; the stamps are simulation time all the same (_publish_diag)
+        self.create_timer(float(period), self.publish_results,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # -- input ----------------------------------------------------------------------------
     def _on_bytes(self, topic: str, data: bytes) -> None:

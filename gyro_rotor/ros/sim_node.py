@@ -10,7 +10,7 @@ t_k = k / publish_rate with every derived output. The node publishes them:
   generalized forces (Q_theta, Q_psi, Q, -c_psi chi - Q) of eqs. (19, 23);
 * ``energy`` (std_msgs/Float64MultiArray, layout in :mod:`gyro_rotor.ros.messages`);
 * ``axis`` (Vector3Stamped), ``stator_pose`` (PoseStamped), ``axis_marker`` (Marker);
-* ``/diagnostics`` about once a second, ``/clock`` when ``publish_clock`` is true;
+* ``/diagnostics`` about once a second, ``/clock`` (unless ``publish_clock`` is false);
 * ``~/scene`` (std_msgs/String, transient local): the current scene as YAML.
 
 Services ``~/reset``, ``~/perturb`` (std_srvs/Trigger) and ``~/pause`` (std_srvs/SetBool).

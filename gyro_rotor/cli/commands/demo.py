@@ -217,7 +217,8 @@ def _out_dir(args: argparse.Namespace, scene) -> Path:
 def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) -> list:
     from gyro_rotor.tools.launch import NodeProcess
     procs = [NodeProcess('gyro_rotor.ros.analysis_node', {
-        'output': str(out / 'bag'), 'scene': str(scene_arg)}, domain_id=domain_id,
+        'output': str(out / 'bag'), 'scene': str(scene_arg), 'use_sim_time': True},
+        domain_id=domain_id,
         stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis'])]
     return procs
 
