@@ -80,6 +80,32 @@ def test_serial_and_local_cluster_agree(serial_result, cluster2, tmp_path):
     _assert_same(serial_result, _columns(tmp_path / 'addr'))
 
 
+def test_cli_scheduler_address(serial_result, cluster2, tmp_path, capsys):
+    """``gyro-rotor sweep --scheduler ADDRESS`` runs on that cluster, with the serial numbers."""
+    out = tmp_path / 'cli-addr'
+    args = ['sweep', 'pole_slip', '--t-end', '0.4', '--rate', '100', '--block', '4',
+            '--out', str(out), '--quiet', '--no-maps', '--scheduler', cluster2.scheduler.address]
+    for g in GRID:
+        args += ['--grid', g]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert 'address' in text and 'on 2 worker(s)' in text and '24/24 points' in text, text
+    _assert_same(serial_result, _columns(out))
+
+
+def test_cli_scheduler_unreachable(tmp_path, capsys):
+    """No scheduler at the address: one ERROR line naming it, exit 1."""
+    import socket
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        port = s.getsockname()[1]            # a port nobody listens on
+    address = f'tcp://127.0.0.1:{port}'
+    assert main(['sweep', 'pole_slip', '--grid', 'initial.dzdot=-100:100:4', '--t-end', '0.2',
+                 '--out', str(tmp_path / 'x'), '--quiet', '--scheduler', address]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: --scheduler ' + address) and err.count('\n') == 1, err
+
+
 def test_worker_killed_mid_sweep(serial_result, tmp_path):
     """SIGKILL a worker that is running a block: the scheduler reruns it; each point once."""
     distributed = pytest.importorskip('distributed')
@@ -142,6 +168,10 @@ def test_cli_resume_and_refusals(tmp_path, capsys):
     assert 'already holds a sweep' in capsys.readouterr().err
     assert main(args + ['--resume']) == 0
     assert '0 blocks run, 1 already there' in capsys.readouterr().out
+    maps = tmp_path / 'elsewhere'
+    assert main(args + ['--resume', '--maps', str(maps)]) == 0
+    assert (maps / 'final_well.png').is_file() and (maps / 'peak_deviation.png').is_file()
+    capsys.readouterr()
     changed = [a if a != '0.2' else '0.3' for a in args]
     assert main(changed + ['--resume']) == 1
     assert 'differs in t_end' in capsys.readouterr().err
@@ -185,17 +215,48 @@ def test_bad_options_are_errors_before_any_work(extra, message, tmp_path, capsys
     assert not out.exists()
 
 
-def test_scene_initial_condition_matches_simulate():
-    """The sweep point at the pole_slip scene's own initial slip slips as simulate says."""
+def test_scene_initial_condition_matches_simulate(capsys):
+    """The sweep point at the pole_slip scene's own initial slip slips as ``simulate`` says.
+
+    The scene's initial slip speed is read from its file; the slip count is the one
+    ``gyro-rotor simulate pole_slip`` prints (RotorAnalyzer over its trajectory).
+    """
+    import re
+
+    from gyro_rotor.analysis.sweep.task import scene_flat
     from gyro_rotor.numerics.simulate import simulate
-    spec = make_spec('pole_slip', ['initial.dzdot=-60:-60:1'], metrics=['well'])
+    dzdot = scene_flat('pole_slip')[0]['initial.dzdot']
+    spec = make_spec('pole_slip', [f'initial.dzdot={dzdot}:{dzdot}:1'], metrics=['well'])
     res = run_block(spec, 0).columns
+    assert main(['simulate', 'pole_slip']) == 0
+    printed = re.search(r'pole slips: +(\d+)', capsys.readouterr().out)
+    assert printed, 'simulate printed no pole-slip count'
+    assert res['status'][0] == PointStatus.OK
+    assert res['pole_slips'][0] == int(printed.group(1)) == 3     # the README's reference
     tr = simulate('pole_slip')
     p = tr.scene.params.pole_pairs
-    well_sim = int(round(tr.z[-1] * p / (2 * np.pi)))
-    assert well_sim == -3                                  # the reference of the README
-    assert res['final_well'][0] == well_sim
-    assert res['pole_slips'][0] == well_passages(tr.z * p / (2 * np.pi)) == 3
+    assert res['final_well'][0] == int(round(tr.z[-1] * p / (2 * np.pi))) == -3
+
+
+def test_sweep_bench_writes_to_a_new_directory_by_default():
+    """``sweep-bench`` never overwrites the committed bench/ unless --out bench is given."""
+    from gyro_rotor.cli.commands.sweep_bench import default_out_dir
+    from gyro_rotor.cli.main import build_parser
+    args = build_parser().parse_args(['sweep-bench'])
+    assert args.out is None
+    name = default_out_dir()
+    assert name.startswith('sweep-bench-') and len(name) == len('sweep-bench-YYYYmmdd-HHMMSS')
+    assert build_parser().parse_args(['sweep-bench', '--out', 'bench']).out == 'bench'
+
+
+def test_general_scene_is_refused_before_any_work(tmp_path, capsys):
+    """A general scene (system key) is not swept: one ERROR line, exit 1, nothing written."""
+    out = tmp_path / 'never'
+    assert main(['sweep', 'twin_gimbal', '--grid', 'constants.c_a=10:40:3', '--out', str(out),
+                 '--serial']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and 'general scene' in err and err.count('\n') == 1, err
+    assert not out.exists()
 
 
 def test_well_passages_counts_with_hysteresis():

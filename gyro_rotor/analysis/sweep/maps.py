@@ -135,8 +135,12 @@ def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
         if a1.spacing is Spacing.LOG:
             ax.set_yscale('log')
         bad = int((~ok).sum())
-        if bad:
-            title += f'\ngrey: {bad} failed, diverged or missing points'
+        no_value = int((ok & ~np.isfinite(vals)).sum())
+        grey = ([f'{bad} failed, diverged or missing points'] if bad else []) + \
+            ([f'{no_value} points without a value (not settled by t_end, no fit)']
+             if no_value else [])
+        if grey:
+            title += '\ngrey: ' + '; '.join(grey)
     if note:
         title += f'\n({note})'
     ax.set_title(title, fontsize=9)

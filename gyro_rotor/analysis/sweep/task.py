@@ -46,6 +46,10 @@ STEP_FACTOR = 0.02
 def scene_flat(scene: str) -> tuple[dict, str]:
     """Flat dotted mapping and path of a scene file (name or path), as ``load_scene`` reads it."""
     import yaml
+    from gyro_rotor.core.system.scene import is_general_scene
+    if is_general_scene(scene):
+        raise SceneError(f"'{scene}' is a general scene (a system key): sweeps run over the "
+                         'centrifuge scenes only (general systems are not swept yet)')
     path = scene_path(scene)
     doc = yaml.safe_load(path.read_text(encoding='utf-8'))
     section = next((doc[k] for k in NODE_NAMES if isinstance(doc, dict) and k in doc), None)

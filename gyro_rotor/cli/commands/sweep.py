@@ -47,6 +47,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='points per task (default: about 2 s of work, capped by memory)')
     p.add_argument('--step', type=float, default=None,
                    help='RK4 step [s] (default 0.02 / the fastest model rate of the sweep)')
+    p.add_argument('--maps', default=None, metavar='DIR',
+                   help='directory for the heatmap PNGs (default: OUT/maps)')
     p.add_argument('--no-maps', action='store_true', help='do not draw the heatmaps')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
 
@@ -74,6 +76,6 @@ def run(args: argparse.Namespace) -> int:
     print(f'  {table.num_rows}/{spec.n_points} points in {args.out}: '
           + ', '.join(f'{k} {v}' for k, v in counts.items()))
     if not args.no_maps:
-        for path in plot_maps(table, spec, f'{args.out}/maps'):
+        for path in plot_maps(table, spec, args.maps or f'{args.out}/maps'):
             print(f'  wrote {path}')
     return 0
