@@ -263,3 +263,18 @@ def test_well_passages_counts_with_hysteresis():
     """Jitter on a maximum counts nothing; a jump over two wells between samples counts 2."""
     u = np.array([0.0, 0.3, 0.5, 0.45, 0.55, 0.49, 0.2, 0.0, 0.9, 1.1, 3.05, 2.5, 2.1])
     assert well_passages(u) == 1 + 2 + 1
+
+
+def test_progress_bar_counts_points():
+    """The text progress bar: a line per tenth off a terminal, ending at all points, 100 %."""
+    import io
+
+    from gyro_rotor.analysis.sweep.runner import TextProgress
+    stream = io.StringIO()
+    bar = TextProgress(40, stream=stream, width=10)
+    for _ in range(8):
+        bar.update(5)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 8, lines                     # 5, 10, ..., 40 of 40: each a new tenth
+    assert lines[0].startswith('[#.........] 5/40 points  12.5%'), lines[0]
+    assert lines[-1].startswith('[##########] 40/40 points 100.0%'), lines[-1]

@@ -70,9 +70,9 @@ def run(args: argparse.Namespace) -> int:
     table = SweepStore(args.out).read()
     status = table.column('status').to_numpy()
     counts = {s.name.lower(): int((status == s).sum()) for s in PointStatus}
-    print(f'  {len(r.blocks_run)} blocks run, {r.blocks_skipped} already there; '
-          f'{r.points_run} points in {r.wall_s:.1f} s on {r.workers} worker(s): '
-          f'{r.steps_per_s:.3g} trajectory-steps/s')
+    done = (f'{r.points_run} points in {r.wall_s:.1f} s on {r.workers} worker(s): '
+            f'{r.steps_per_s:.3g} trajectory-steps/s' if r.blocks_run else 'nothing to compute')
+    print(f'  {len(r.blocks_run)} blocks run, {r.blocks_skipped} already there; {done}')
     print(f'  {table.num_rows}/{spec.n_points} points in {args.out}: '
           + ', '.join(f'{k} {v}' for k, v in counts.items()))
     if not args.no_maps:
