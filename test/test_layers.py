@@ -58,3 +58,38 @@ def test_layer_rule(path):
             if layer is not None:
                 assert ORDER[layer] <= own_rank, \
                     f'{rel}:{line} ({own or "top"}) imports {name} from the higher layer {layer}'
+
+
+#: the longest function the house allows (issue 13); compiled numba kernels are exempt,
+#: since splitting their loops would cost a call per step
+MAX_FUNCTION_LINES = 80
+
+
+def _is_compiled(fn: ast.FunctionDef) -> bool:
+    """Return True if ``fn`` is decorated with numba's ``njit``/``jit`` (any form)."""
+    for dec in fn.decorator_list:
+        target = dec.func if isinstance(dec, ast.Call) else dec
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, 'id', '')
+        if name in ('njit', 'jit'):
+            return True
+    return False
+
+
+@pytest.mark.parametrize('path', MODULES, ids=lambda p: str(p.relative_to(PKG)))
+def test_no_function_over_80_lines(path):
+    tree = ast.parse(path.read_text(), str(path))
+    long = [f'{fn.name} (line {fn.lineno}): {fn.end_lineno - fn.lineno + 1} lines'
+            for fn in ast.walk(tree)
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and not _is_compiled(fn) and fn.end_lineno - fn.lineno + 1 > MAX_FUNCTION_LINES]
+    assert not long, f'{path.relative_to(PKG)}: split ' + '; '.join(long)
+
+
+def test_the_function_length_check_can_fail(tmp_path):
+    """A 90-line function is caught, a 90-line njit kernel is not."""
+    body = '\n'.join(f'    x{i} = {i}' for i in range(88))
+    src = f'def long():\n{body}\n    return 0\n\n\n@njit(cache=True)\ndef kernel():\n{body}\n'
+    tree = ast.parse(src)
+    fns = [f for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)]
+    assert [f.end_lineno - f.lineno + 1 > MAX_FUNCTION_LINES and not _is_compiled(f)
+            for f in fns] == [True, False]

@@ -15,10 +15,11 @@ from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
                                          reduced_rhs_lagrange)
-from gyro_rotor.linear.stability import (analyze, analyze_scene, best_K_D, check_claims,
-                                         root_locus, sensitivities, spectrum, sweep, ZERO_ROOT,
-                                         ZERO_ROOT_Z)
+from gyro_rotor.linear.locus import check_claims, root_locus
+from gyro_rotor.linear.stability import (analyze, analyze_scene, sensitivities, spectrum, sweep,
+                                         ZERO_ROOT, ZERO_ROOT_Z)
 from gyro_rotor.linear.sysid import match_eigenvalues, matrix_pencil
+from gyro_rotor.linear.tune import best_K_D
 from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.linear.stability import ClaimsReport, RootLocus, ZERO_ROOT
+from gyro_rotor.linear.locus import ClaimsReport, RootLocus
+from gyro_rotor.linear.spectrum import ZERO_ROOT
 import numpy as np
 
 __all__ = ['plot_root_locus']

@@ -1,15 +1,9 @@
-"""Linear stability of the steady motions: modes, root locus over K_D, the paper's claims.
+"""Linear stability of the steady motions: named modes, drive penetration, verdict.
 
-Built on :mod:`gyro_rotor.linear.linearize`, where ``A(K_D) = A0 - K_D b c^T``: the drive damping
-is a rank-one feedback of the rotor's lag rate, so the root locus over K_D is a classic
-one. At K_D = 0 the roots are those of A0; as K_D -> infinity, n - 1 roots tend to the
-zeros of c^T (sI - A0)^-1 b (the motion with the rotor locked to the stator) and one
-tends to -K_D c^T b -> -infinity (Magnus 1980, section 4 and figure 2).
-
-Eigenvalues are computed from the pencil ``[[A0, -b], [c^T, -1/K_D]] - lambda diag(1,..,1,0)``
-for large K_D (its entries stay of the size of A0, so the nearly undamped roots keep
-their small real parts to ~1e-13 absolute even at K_D = 1e9) and from A itself for small
-K_D; at K_D = infinity the same pencil gives the asymptotes.
+Built on :mod:`gyro_rotor.linear.linearize` (``A(K_D) = A0 - K_D b c^T``) and the
+eigen-decompositions of :mod:`gyro_rotor.linear.spectrum`. The root locus over K_D and the
+paper's claims (a) to (d) live in :mod:`gyro_rotor.linear.locus`, the best K_D
+(``gyro-rotor tune``) in :mod:`gyro_rotor.linear.tune`.
 
 Modes are named once, at K_D = 0, by the coordinate group that holds most of their modal
 energy (tilt: nutation, and precession around solution I; twist: housing twist; drive:
@@ -27,13 +21,13 @@ noise (:data:`TOL_SENS_REL` times the largest sensitivity).
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
 from typing import Sequence
 
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linear.claims import Claim
 from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # noqa: F401
                                         spectrum, STRUCTURAL, TOL_RE_REL, TOL_SENS_REL, track,
@@ -41,21 +35,37 @@ from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # no
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
-__all__ = ['Mode', 'StabilityReport', 'RootLocus', 'Claim', 'ClaimsReport', 'TuneResult',
-           'spectrum', 'modes', 'analyze', 'analyze_scene', 'root_locus', 'check_claims',
-           'best_K_D', 'track', 'sweep', 'asymptotes', 'sensitivities', 'default_grid',
-           'scene_operating_point', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
+__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'spectrum', 'modes', 'analyze',
+           'analyze_scene',
+           'track', 'sweep', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
+           'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
 
 
 # -- data -------------------------------------------------------------------------------------
+class Stability(enum.StrEnum):
+    """The linear theory's verdict about a steady motion (:func:`analyze`)."""
+
+    ASYMPTOTICALLY_STABLE = 'asymptotically stable'
+    MARGINAL = 'marginal'
+    UNSTABLE = 'unstable'
+
+
+class ModeKind(enum.StrEnum):
+    """What a mode is: a conjugate pair, a real root, or the structural zero root."""
+
+    OSCILLATORY = 'oscillatory'
+    REAL = 'real'
+    ZERO = 'zero'
+
+
 @dataclasses.dataclass(frozen=True)
 class Mode:
     """One mode: a conjugate pair (upper eigenvalue given) or a real root.
 
     ``freq_hz`` = |Im lambda|/(2 pi); ``zeta`` = -Re lambda/|lambda|; ``tau`` = -1/Re lambda
     [s] (inf if Re >= 0); ``dRe_dKD`` = d Re(lambda)/d K_D at K_D = 0 [1/(N m s^2/rad)];
-    ``reached_by_drive``: that sensitivity is strictly negative; ``kind`` 'oscillatory',
-    'real' or 'zero' (the structural zero root).
+    ``reached_by_drive``: that sensitivity is strictly negative; ``kind`` a
+    :class:`ModeKind` (ZERO: the structural zero root).
     """
 
     name: str
@@ -65,7 +75,7 @@ class Mode:
     tau: float
     reached_by_drive: bool
     dRe_dKD: float
-    kind: str
+    kind: ModeKind
     eigenvalue_K_D0: complex
 
     def as_dict(self) -> dict:
@@ -89,7 +99,7 @@ class StabilityReport:
     modes: list
     spectral_abscissa: float
     slowest_mode: str
-    verdict: str
+    verdict: Stability
     marginal_modes: list
     reason: str
     A: np.ndarray = dataclasses.field(repr=False)
@@ -102,77 +112,6 @@ class StabilityReport:
         raise KeyError(f"no mode '{name}'; modes: {', '.join(m.name for m in self.modes)}")
 
 
-@dataclasses.dataclass(frozen=True)
-class ClaimsReport:
-    """Claims (a) to (d), K_D* (coupling pair meets on the real axis) and the regimes."""
-
-    claims: dict
-    K_D_star: float | None
-    breakaway: float | None
-    regimes: list
-    locus: RootLocus | None = dataclasses.field(default=None, repr=False)
-    meetings: list = dataclasses.field(default_factory=list)
-
-    @property
-    def all_hold(self) -> bool:
-        """Return True if (a) to (d) all hold."""
-        return all(c.holds for c in self.claims.values())
-
-
-@dataclasses.dataclass
-class RootLocus:
-    """Tracked roots over K_D: ``eigenvalues[i, j]`` at ``K_D[i]`` on branch ``labels[j]``.
-
-    ``zeros`` are the finite K_D -> infinity asymptotes with ``zero_labels`` (the branch
-    that ends there), ``fast_label`` the branch that goes to -infinity like
-    ``-K_D * fast_gain``.
-    """
-
-    lin: LinearSystem
-    K_D: np.ndarray
-    eigenvalues: np.ndarray
-    labels: list
-    zeros: np.ndarray
-    zero_labels: list
-    fast_label: str
-    fast_gain: float
-
-    def to_rows(self) -> list:
-        """Rows (K_D, branch, Re, Im) for CSV."""
-        return [(float(k), self.labels[j], float(lam.real), float(lam.imag))
-                for k, row in zip(self.K_D, self.eigenvalues) for j, lam in enumerate(row)]
-
-    def as_dict(self) -> dict:
-        """JSON-friendly dict."""
-        return {
-            'state_names': list(self.lin.state_names), 'coords': self.lin.coords,
-            'K_D': self.K_D.tolist(), 'labels': self.labels,
-            're': self.eigenvalues.real.tolist(), 'im': self.eigenvalues.imag.tolist(),
-            'asymptotes': {'zeros_re': self.zeros.real.tolist(),
-                           'zeros_im': self.zeros.imag.tolist(), 'zero_labels':
-                           self.zero_labels, 'fast_label': self.fast_label,
-                           'fast_root': f'-{self.fast_gain:.12g} K_D'},
-        }
-
-
-@dataclasses.dataclass(frozen=True)
-class TuneResult:
-    """Best K_D for the slowest decay (the paper's closing remark) and its sensitivity."""
-
-    K_S: float
-    K_D_best: float
-    rate_best: float
-    tau_best: float
-    governing_modes: list
-    excluded_modes: list
-    rate_at: dict
-    K_D_range_90: tuple
-    dlnrate_dlnKD: tuple
-    K_D_current: float
-    rate_current: float
-
-
-# -- spectra ----------------------------------------------------------------------------------
 # -- modes at an operating point -------------------------------------------------------------
 def sensitivities(lin: LinearSystem) -> tuple:
     """(eigenvalues of A0, d lambda/d K_D at K_D = 0, weighted right eigenvectors).
@@ -239,27 +178,28 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
     for nm, idx in by_name.items():
         lams = lam_K[idx]
         if nm in STRUCTURAL:
-            groups = [(nm, idx[0], 'zero')]
+            groups = [(nm, idx[0], ModeKind.ZERO)]
         elif len(idx) == 2 and abs(lams[0].imag) > tol_im:
             j = idx[int(np.argmax(lams.imag))]
-            groups = [(nm, j, 'oscillatory')]
+            groups = [(nm, j, ModeKind.OSCILLATORY)]
         elif len(idx) == 2:
             slow, fast = sorted(idx, key=lambda i: -lam_K[i].real)
-            groups = [(f'{nm} (slow real)', slow, 'real'), (f'{nm} (fast real)', fast, 'real')]
+            groups = [(f'{nm} (slow real)', slow, ModeKind.REAL),
+                      (f'{nm} (fast real)', fast, ModeKind.REAL)]
         else:
-            groups = [(nm, j, 'real') for j in idx]
+            groups = [(nm, j, ModeKind.REAL) for j in idx]
         for label, j, kind in groups:
             lamv = complex(lam_K[j])
             dre = float(d0[j].real)
-            reached = kind != 'zero' and dre < -tol_sens
+            reached = kind != ModeKind.ZERO and dre < -tol_sens
             re = lamv.real
-            zeta = -re / abs(lamv) if abs(re) > tol_re and kind != 'zero' else 0.0
+            zeta = -re / abs(lamv) if abs(re) > tol_re and kind != ModeKind.ZERO else 0.0
             out.append(Mode(
                 name=label, eigenvalue=lamv, freq_hz=abs(lamv.imag) / (2 * math.pi),
                 zeta=zeta,
                 tau=(-1.0 / re) if re < -tol_re else math.inf, reached_by_drive=reached,
                 dRe_dKD=dre, kind=kind, eigenvalue_K_D0=complex(lam0[j])))
-    out.sort(key=lambda m: (m.kind == 'zero', -m.eigenvalue.real))
+    out.sort(key=lambda m: (m.kind == ModeKind.ZERO, -m.eigenvalue.real))
     return out
 
 
@@ -270,6 +210,13 @@ def _tracked_names(lin: LinearSystem, K_values: Sequence[float]):
     lam_path = track(lambda k: (lam0, Vw) if k == 0 else spectrum(lin, k), K_values, names,
                      log=True)
     return names, lam0, d0, lam_path
+
+
+def _K_ref(p: RotorParams) -> float:
+    """Characteristic drive damping 2 sqrt(K_S mu), mu = C_R C_M/(C_R + C_M)."""
+    mu = p.C_R * p.C_M / (p.C_R + p.C_M)
+    k = p.K_S if p.K_S > 0 else max(p.c_psi, 1e-12)
+    return 2.0 * math.sqrt(k * mu)
 
 
 def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
@@ -299,17 +246,17 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     tol_re = _tol_re(lin)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
     ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens)
-    judged = [m for m in ms if m.kind != 'zero']
+    judged = [m for m in ms if m.kind != ModeKind.ZERO]
     absc = max((m.eigenvalue.real for m in judged), default=-math.inf)
     slowest = max(judged, key=lambda m: m.eigenvalue.real).name if judged else ''
     unstable = [m for m in judged if m.eigenvalue.real > tol_re]
     marginal = [m for m in judged if abs(m.eigenvalue.real) <= tol_re]
     if unstable:
-        verdict = 'unstable'
+        verdict = Stability.UNSTABLE
         reason = 'growing: ' + ', '.join(f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)'
                                          for m in unstable)
     elif marginal:
-        verdict = 'marginal'
+        verdict = Stability.MARGINAL
         parts = []
         for m in marginal:
             why = ('no drive damping (K_D = 0)' if K_D == 0 and m.reached_by_drive
@@ -319,7 +266,7 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
             parts.append(f'{m.name}: {why}')
         reason = '; '.join(parts)
     else:
-        verdict = 'asymptotically stable'
+        verdict = Stability.ASYMPTOTICALLY_STABLE
         reason = (f'every root except the cyclic zero root has Re < 0; slowest: {slowest} '
                   f'(Re = {absc:.4g} 1/s)' if lin.coords == 'II' else
                   f'every root has Re < 0; slowest: {slowest} (Re = {absc:.4g} 1/s)')
@@ -352,211 +299,6 @@ def analyze_scene(scene) -> StabilityReport:
         scene = load_scene(scene)
     p, sm, model = scene_operating_point(scene)
     return analyze(p, sm, model, scene=scene.name)
-
-
-# -- root locus -------------------------------------------------------------------------------
-def _K_ref(p: RotorParams) -> float:
-    """Characteristic drive damping 2 sqrt(K_S mu), mu = C_R C_M/(C_R + C_M)."""
-    mu = p.C_R * p.C_M / (p.C_R + p.C_M)
-    k = p.K_S if p.K_S > 0 else max(p.c_psi, 1e-12)
-    return 2.0 * math.sqrt(k * mu)
-
-
-def default_grid(params: RotorParams, per_decade: int = 40) -> np.ndarray:
-    """[0] plus a log grid from 1e-4 to 1e3 times 2 sqrt(K_S C_R C_M/(C_R + C_M))."""
-    K = _K_ref(params)
-    return np.concatenate([[0.0], np.geomspace(1e-4 * K, 1e3 * K, 7 * per_decade + 1)])
-
-
-def asymptotes(lin: LinearSystem) -> tuple:
-    """K_D -> infinity: (finite zeros (n-1,), gain g of the fast root -g K_D)."""
-    lam, _ = spectrum(lin, math.inf)
-    return lam, float(lin.c @ lin.b)
-
-
-def _check_grid(grid) -> np.ndarray:
-    g = np.asarray(grid, dtype=float)
-    if g.ndim != 1 or g.size < 2:
-        raise ParameterError('the K_D grid needs at least two values')
-    if not np.all(np.isfinite(g)):
-        raise ParameterError('the K_D grid must be finite (K_D -> infinity is added as '
-                             'the asymptotes)')
-    if np.any(g < 0):
-        raise ParameterError(f'K_D must not be negative, got {g[g < 0][0]!r} N m s/rad in '
-                             f'the grid')
-    if np.any(np.diff(g) <= 0):
-        raise ParameterError('the K_D grid must increase strictly')
-    return g
-
-
-def _reach(lin, K, zeros, gain) -> float:
-    """Return the distance of the roots at K from their asymptotes.
-
-    Relative to the spectral scale max(|zeros|, |eig(A0)|).
-    """
-    lam, _ = spectrum(lin, K)
-    if not np.all(np.isfinite(lam)):
-        return math.inf
-    fast = int(np.argmin(lam.real))
-    rest = np.delete(lam, fast)
-    from scipy.optimize import linear_sum_assignment
-    D = np.abs(rest[:, None] - zeros[None, :])
-    r, c = linear_sum_assignment(D)
-    scale = max(np.max(np.abs(zeros), initial=0.0),
-                np.max(np.abs(np.linalg.eigvals(lin.A0))), 1e-12)
-    far = float(np.max(D[r, c]) / scale)
-    # the escaping root must also be far beyond the zeros
-    if -lam[fast].real < 10 * scale:
-        far = max(far, 1.0)
-    return far
-
-
-#: the grid must end where every finite root is within this fraction of max |zero| of its
-#: asymptote (and the fast root beyond 10 max |zero|)
-REACH_TOL = 0.01
-
-
-def root_locus(lin: LinearSystem, K_D_grid=None) -> RootLocus:
-    """Tracked roots over K_D (default :func:`default_grid`) and the K_D -> inf asymptotes.
-
-    Raises ParameterError for negative or unordered grids, and for a grid that does not
-    reach large K_D (roots still further than REACH_TOL from their asymptotes).
-    """
-    grid = default_grid(lin.params) if K_D_grid is None else _check_grid(K_D_grid)
-    zeros, gain = asymptotes(lin)
-    far = _reach(lin, grid[-1], zeros, gain)
-    if far > REACH_TOL:
-        need = grid[-1]
-        for _ in range(15):
-            need *= 10
-            if _reach(lin, need, zeros, gain) <= REACH_TOL:
-                break
-        raise ParameterError(
-            f'the K_D grid ends at {grid[-1]:.4g} N m s/rad, which does not reach large K_D: '
-            f'the roots there are still {100 * far:.3g}% (of the largest asymptote) away '
-            f'from their K_D -> infinity asymptotes; extend it to at least {need:.3g}')
-    path = list(grid) if grid[0] == 0 else [0.0] + list(grid)
-    names, lam0, d0, lam_path = _tracked_names(lin, path)
-    if grid[0] != 0:
-        lam_path = lam_path[1:]
-    # which branch ends at which zero
-    from scipy.optimize import linear_sum_assignment
-    last = lam_path[-1]
-    fast = int(np.argmin(last.real))
-    others = [j for j in range(len(last)) if j != fast]
-    D = np.abs(last[others][:, None] - zeros[None, :])
-    r, c = linear_sum_assignment(D)
-    zlab = [''] * len(zeros)
-    for ri, ci in zip(r, c):
-        zlab[ci] = names[others[ri]]
-    return RootLocus(lin=lin, K_D=grid, eigenvalues=lam_path, labels=names, zeros=zeros,
-                     zero_labels=zlab, fast_label=names[fast], fast_gain=gain)
-
-
-def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
-    """Check the paper's claims (a) to (d) for this linearization, by their meaning.
-
-    See :mod:`gyro_rotor.linear.claims` (one function per claim, on a
-    :class:`~gyro_rotor.linear.claims.DriveSystem`; no claim looks at mode names).
-    ``K_D_star``/``breakaway`` are the last meeting of a pair on the real axis (the one
-    that splits toward 0 and -infinity); ``meetings`` holds all of them.
-    """
-    from gyro_rotor.linear import claims as cl
-    loc = root_locus(lin, K_D_grid)
-    sys = cl.drive_system(lin)
-    path = loc.eigenvalues if loc.K_D[0] == 0 else np.vstack(
-        [spectrum(lin, 0.0)[0][None, :], loc.eigenvalues])
-    K = loc.K_D if loc.K_D[0] == 0 else np.concatenate([[0.0], loc.K_D])
-    claim_d, meets = cl.claim_d(sys, K, path)
-    claims = {'a': cl.claim_a(sys), 'b': cl.claim_b(sys, K, path, loc.labels),
-              'c': cl.claim_c(sys, float(K[-1])), 'd': claim_d}
-    K_star = meets[-1].K_D if meets else None
-    lam_star = meets[-1].lam if meets else None
-    regimes = []
-    if K_star is not None:
-        regimes.append({'regime': 'the pair that meets last is complex (oscillatory)',
-                        'K_D_from': 0.0, 'K_D_to': K_star})
-        regimes.append({'regime': 'that pair real (overdamped)', 'K_D_from': K_star,
-                        'K_D_to': math.inf})
-    return ClaimsReport(claims=claims, K_D_star=K_star, breakaway=lam_star, regimes=regimes,
-                        locus=loc, meetings=meets)
-
-
-# -- the best K_D ----------------------------------------------------------------------------
-def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
-             K_S: float | None = None, K_D_grid=None) -> TuneResult:
-    """Return the K_D that maximizes the slowest decay rate -max Re over the judged modes.
-
-    Judged modes: all except the cyclic zero root and the modes the drive damping does not
-    reach (their rate is 0 for every K_D; they are listed in ``excluded_modes``). A grid
-    scan (default grid) is refined by a bounded scalar search in log K_D. Sensitivity:
-    the rate at 0.5, 0.9, 1.1, 2 times the optimum, the K_D range where the rate stays
-    within 90% of the best, and d ln(rate)/d ln(K_D) just below and above.
-    """
-    from scipy.optimize import minimize_scalar
-    if K_S is not None:
-        params = params.replace(K_S=float(K_S))
-    lin = linearize(params, motion, model)
-    names, lam0, d0, _ = _tracked_names(lin, [0.0])
-    lam_z, _, Vw_z = sensitivities(lin)
-
-    def fn0(k):          # the K_D = 0 basis that named the modes (zero clusters resolved)
-        return (lam_z, Vw_z) if k == 0 else spectrum(lin, k)
-    tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
-    excluded = sorted({nm for j, nm in enumerate(names)
-                       if nm in STRUCTURAL or not d0[j].real < -tol_sens})
-    judged_names = {nm for nm in names if nm not in excluded}
-    if not judged_names:
-        raise ParameterError('no mode is reached by the drive damping: K_D cannot be tuned')
-    grid = default_grid(params) if K_D_grid is None else _check_grid(K_D_grid)
-    grid = grid[grid > 0]
-    lam_path = track(fn0, [0.0] + list(grid), names, log=True)[1:]
-    judged = [j for j, nm in enumerate(names) if nm in judged_names]
-
-    def rate_of(lam):
-        return float(-np.max(lam[judged].real))
-
-    rates = np.array([rate_of(r) for r in lam_path])
-    i = int(np.argmax(rates))
-
-    def rate_at(K):
-        return rate_of(_aligned(lin, lam_path[i], grid[i], K))
-
-    lo = grid[max(i - 1, 0)]
-    hi = grid[min(i + 1, len(grid) - 1)]
-    res = minimize_scalar(lambda u: -rate_at(math.exp(u)), bounds=(math.log(lo), math.log(hi)),
-                          method='bounded', options={'xatol': 1e-6})
-    K_best = float(math.exp(res.x))
-    r_best = -float(res.fun)
-    if rates[i] > r_best:
-        K_best, r_best = float(grid[i]), float(rates[i])
-    lam_best = _aligned(lin, lam_path[i], grid[i], K_best)
-    gov = sorted({names[j] for j in judged if -lam_best[j].real <= r_best * (1 + 1e-6)})
-    at = {f'{f:g}': rate_at(K_best * f) for f in (0.5, 0.9, 1.1, 2.0)}
-    ok = np.where(rates >= 0.9 * r_best)[0]
-    rng = (float(grid[ok[0]]), float(grid[ok[-1]])) if ok.size else (K_best, K_best)
-    h = 0.01
-    r_m, r_p = rate_at(K_best * math.exp(-h)), rate_at(K_best * math.exp(h))
-    slopes = ((math.log(r_best) - math.log(r_m)) / h if r_m > 0 else math.nan,
-              (math.log(r_p) - math.log(r_best)) / h if r_p > 0 else math.nan)
-    cur = params.K_D
-    r_cur = (rate_of(track(fn0, _path_to(cur, params), names, log=True)[-1])
-             if cur > 0 else 0.0)
-    return TuneResult(K_S=params.K_S, K_D_best=K_best, rate_best=r_best,
-                      tau_best=1.0 / r_best if r_best > 0 else math.inf,
-                      governing_modes=gov, excluded_modes=excluded, rate_at=at,
-                      K_D_range_90=rng, dlnrate_dlnKD=slopes, K_D_current=cur,
-                      rate_current=r_cur)
-
-
-def _aligned(lin, lam_ref, K_ref, K) -> np.ndarray:
-    """Eigenvalues at K in the tracked order of ``lam_ref`` (known at K_ref)."""
-    lam_s, V = spectrum(lin, K_ref)
-    perm0 = [int(np.argmin(np.abs(lam_s - x))) for x in lam_ref]
-    names = [str(k) for k in range(len(lam_ref))]
-    path = track(lambda k: (lambda r: (r[0][perm0], r[1][:, perm0]))(spectrum(lin, k))
-                 if k == K_ref else spectrum(lin, k), [K_ref, K], names, log=True)
-    return path[-1]
 
 
 # -- parameter sweeps -------------------------------------------------------------------------
@@ -593,3 +335,17 @@ def sweep(params: RotorParams, name: str, values: Sequence[float], *, theta0: fl
         return lam, V
 
     return names, track(fn, values, names)
+
+
+#: names that moved to :mod:`gyro_rotor.linear.locus` and :mod:`gyro_rotor.linear.tune` when
+#: this module was split (issue 13); resolved lazily, since both import this module
+_MOVED = {'RootLocus': 'locus', 'ClaimsReport': 'locus', 'root_locus': 'locus',
+          'check_claims': 'locus', 'asymptotes': 'locus', 'default_grid': 'locus',
+          'TuneResult': 'tune', 'best_K_D': 'tune'}
+
+
+def __getattr__(name: str):
+    if name in _MOVED:
+        import importlib
+        return getattr(importlib.import_module(f'gyro_rotor.linear.{_MOVED[name]}'), name)
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

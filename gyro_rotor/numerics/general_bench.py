@@ -8,12 +8,14 @@ Three measurements, each returned as data (``gyro-rotor bench-general`` prints a
   the same physical state.
 - :func:`compile_times`: generation + compilation of a system in a fresh cache, and the
   load from the cache, each in its own Python process (imports included, interpreter start
-  not).
-- :func:`work_precision`: the generated Dormand-Prince loop against the usual user's path,
-  sympy ``lambdify`` to numpy plus scipy ``solve_ivp`` (RK45, DOP853, Radau, LSODA) on the
-  same equations: error (max over samples at 100 Hz of the largest |q - q_ref|, |z -
-  z_ref|) against wall time over a tolerance sweep, the reference being the generated loop
-  at rtol 1e-13.
+  not), and the first integration there (the project's kernels for first-class right-hand
+  sides: compiled once per machine, then loaded from numba's cache).
+- :func:`work_precision`: the default method of general systems (the project's integrators
+  on the generated right-hand side, :func:`gyro_rotor.numerics.general.integrate` with
+  ``auto``) against the usual user's path, sympy ``lambdify`` to numpy plus scipy
+  ``solve_ivp`` (RK45, DOP853, Radau, LSODA) on the same equations: error (max over samples
+  at 100 Hz of the largest |q - q_ref|, |z - z_ref|) against wall time over a tolerance
+  sweep, the reference being dop853 at rtol 1e-13.
 """
 
 from __future__ import annotations
@@ -29,12 +31,16 @@ import time
 from gyro_rotor.core.system.codegen import pack
 from gyro_rotor.core.system.equations import derive
 from gyro_rotor.core.system.scene import load_general_scene
+from gyro_rotor.numerics import general
 from gyro_rotor.numerics.integrators import kernels
 import numpy as np
 
-__all__ = ['rhs_cost', 'compile_times', 'work_precision', 'WPRow', 'best_at', 'SCIPY_METHODS']
+__all__ = ['rhs_cost', 'compile_times', 'work_precision', 'WPRow', 'best_at', 'SCIPY_METHODS',
+           'DEFAULT_LABEL']
 
 SCIPY_METHODS = ('RK45', 'DOP853', 'Radau', 'LSODA')
+#: the label of our rows: general.integrate with method 'auto'
+DEFAULT_LABEL = 'default'
 OUR_RTOLS = (1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 SCIPY_RTOLS = (1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 SAMPLE_RATE = 100.0
@@ -96,30 +102,41 @@ t0 = time.perf_counter()
 import numba, sympy
 from gyro_rotor.core.system.system_file import load_system
 from gyro_rotor.core.system.codegen import compile_system
+from gyro_rotor.core.system.model import GeneralModel
+from gyro_rotor.numerics.general import integrate
 t1 = time.perf_counter()
 s = load_system({name!r})
 t2 = time.perf_counter()
 c = compile_system(s)
 t3 = time.perf_counter()
-print(t1 - t0, t2 - t1, t3 - t2, int(c.from_cache))
+model = GeneralModel(s, c)
+integrate(model, model.state([0.01] * model.n, [0.0] * model.n, [0.0] * model.m,
+                             [0.0] * model.m), [0.0, 0.01])
+t4 = time.perf_counter()
+print(t1 - t0, t2 - t1, t3 - t2, t4 - t3, int(c.from_cache))
 """
 
 
 def compile_times(name: str = 'twin_gimbal') -> dict:
     """Seconds to generate + compile ``name`` in a fresh cache, then to load it from there.
 
-    Each in a new process, split into: imports (numba, sympy, gyro_rotor), reading the
-    system file (parse and checks), and compile_system (generate and compile, or load).
+    Each in a new process with empty caches (ours and numba's), split into: imports (numba,
+    sympy, gyro_rotor), reading the system file (parse and checks), compile_system
+    (generate and compile, or load) and a first integration (dop853: compiles, or loads,
+    the project's kernels for a first-class right-hand side, shared by every system).
     """
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
-        env = {**os.environ, 'GYRO_ROTOR_CACHE': tmp}
+        # numba's cache in a fresh directory too: the first run compiles everything it
+        # uses, the integrator kernels for first-class right-hand sides included
+        env = {**os.environ, 'GYRO_ROTOR_CACHE': tmp, 'NUMBA_CACHE_DIR': f'{tmp}/numba'}
         for label in ('first', 'cached'):
             res = subprocess.run([sys.executable, '-c', _COMPILE_SCRIPT.format(name=name)],
                                  env=env, capture_output=True, text=True, check=True)
-            imports, load, comp, from_cache = res.stdout.split()[-4:]
+            imports, load, comp, first, from_cache = res.stdout.split()[-5:]
             out[label] = {'imports': float(imports), 'load_system': float(load),
-                          'compile_system': float(comp), 'from_cache': bool(int(from_cache))}
+                          'compile_system': float(comp), 'first_run': float(first),
+                          'from_cache': bool(int(from_cache))}
     return out
 
 
@@ -166,7 +183,7 @@ def _err(Y, ref, n, m) -> float:
 
 def work_precision(names=('centrifuge_euler', 'twin_gimbal', 'elastic_frame'),
                    t_end: float = 2.0, repeats: int = 3) -> list[WPRow]:
-    """Error against wall time: generated loop vs lambdify + solve_ivp (module doc)."""
+    """Error against wall time: the default method vs lambdify + solve_ivp (module doc)."""
     from scipy.integrate import solve_ivp
     rows = []
     for name in names:
@@ -174,16 +191,16 @@ def work_precision(names=('centrifuge_euler', 'twin_gimbal', 'elastic_frame'),
         model = scene.make_model()
         te = np.arange(int(round(t_end * SAMPLE_RATE)) + 1) / SAMPLE_RATE
         y0 = scene.initial_state(model)
-        ref = model.integrate(y0, te, rtol=1e-13, atol=1e-15).y
+        ref = general.integrate(model, y0, te, method='dop853', rtol=1e-13, atol=1e-15).y
         n, m = model.n, model.m
         for rtol in OUR_RTOLS:
             walls = []
             for _ in range(repeats):
                 t0 = time.perf_counter()
-                run = model.integrate(y0, te, rtol=rtol, atol=rtol * 1e-3)
+                run = general.integrate(model, y0, te, rtol=rtol, atol=rtol * 1e-3)
                 walls.append(time.perf_counter() - t0)
-            rows.append(WPRow(name, 'generated dopri5', rtol, _err(run.y, ref, n, m),
-                              min(walls), run.nfev))
+            rows.append(WPRow(name, f'{DEFAULT_LABEL} ({run.method})', rtol,
+                              _err(run.y, ref, n, m), min(walls), run.nfev))
         rhs = _lambdified(scene)
         for method in SCIPY_METHODS:
             for rtol in SCIPY_RTOLS:

@@ -385,6 +385,12 @@ class LiveSimulation:
         y_old = self.stepper.y.copy()
         y = perturb_state(self.model, y_old, self.perturbation)
         try:       # the new stepper first: a state the model cannot evaluate changes nothing
+            # (the compiled kernels turn a division by zero into NaN; the model's own
+            # right-hand side raises it, so it is evaluated once here)
+            f = self.model.rhs(self.stepper.t, y)
+            if not np.all(np.isfinite(f)):
+                raise ParameterError('kick refused: the right-hand side is not finite at '
+                                     'the kicked state')
             stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
         except GyroRotorError:
             raise

@@ -45,6 +45,7 @@ import time
 from typing import Callable, Protocol
 
 from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 import numpy as np
 
 __all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
@@ -52,11 +53,6 @@ __all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_s
            'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL', 'DEFAULT_RK4_STEP',
            'EnergyBaseline']
 
-#: scipy OdeSolver classes :class:`DenseStepper` accepts by name
-SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
-#: default tolerances of the adaptive methods (as gyro_rotor.numerics.simulate)
-DEFAULT_RTOL = 1e-11
-DEFAULT_ATOL = 1e-12
 #: default step of the fixed-step RK4 [s]
 DEFAULT_RK4_STEP = 2.5e-4
 #: relative slack when comparing grid times with a target time

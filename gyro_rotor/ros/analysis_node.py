@@ -34,12 +34,12 @@ from gyro_rotor.bag.wire import (CdrError, energy_from_cdr, joints_from_cdr,
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.ros.messages as ros_msgs
+from gyro_rotor.ros.qos import profile
 from gyro_rotor.ros.recorder import BagRecorder, check_writable, default_bag_path, sim_topics
 from gyro_rotor.ros.runner import run_node
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
@@ -51,9 +51,8 @@ __all__ = ['RotorAnalysisNode', 'main', 'OWN_TOPICS']
 OWN_TOPICS = {'analysis': 'std_msgs/msg/Float64MultiArray',
               'analysis_modes': 'std_msgs/msg/Float64MultiArray',
               'analysis_verdict': 'std_msgs/msg/String'}
-_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-_LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+_QOS = profile('results')
+_LATCHED = profile('latched')
 
 
 def _float_range(lo: float, hi: float) -> list:
@@ -122,7 +121,7 @@ class RotorAnalysisNode(Node):
                                                  'analysis_verdict'))
             self.get_logger().info(f'recording to {self.recorder.path}')
         else:
-            deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+            deep = profile('state')
             self.create_subscription(Float64MultiArray, 'energy',
                                      self.session.on_energy, deep)
             self.create_subscription(JointState, 'joint_states', self.session.on_joints, deep)

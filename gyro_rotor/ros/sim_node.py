@@ -30,6 +30,7 @@ from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from gyro_rotor.errors import GyroRotorError
 from gyro_rotor.numerics.live import Level, LiveSimulation
 import gyro_rotor.ros.messages as ros_msgs
+from gyro_rotor.ros.qos import profile
 from gyro_rotor.ros.runner import run_node
 from gyro_rotor.ros.sim_params import declare_parameters, type_error
 import numpy as np
@@ -37,7 +38,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, String
@@ -48,9 +48,8 @@ import yaml
 __all__ = ['RotorSimNode', 'main', 'STATE_QOS']
 
 #: QoS of the state topics: reliable, deep enough for a recorder to keep up
-STATE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-_LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATE_QOS = profile('state')
+_LATCHED = profile('latched')
 #: flow control at real_time_factor 0: longest block per tick waiting for acknowledgements
 ACK_WAIT = Duration(seconds=0.05)
 #: at real_time_factor 0, sleep per tick while waiting, paused, finished or diverged [s]

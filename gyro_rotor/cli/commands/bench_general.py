@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 
 HELP = ('benchmark the general rotor systems: generated RHS vs the hand-written kernel, '
-        'compile and cache times, generated loop vs sympy lambdify + scipy solve_ivp')
+        'compile and cache times, the default method vs sympy lambdify + scipy solve_ivp')
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,7 +28,9 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError('--t-end and --level must be positive')
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     check_output_file(args.out, ('.md',))
-    lines = ['# General rotor systems: benchmark', '']
+    lines = ['# General rotor systems: benchmark', '',
+             f'Command: `gyro-rotor bench-general --out {args.out} --t-end {args.t_end:g} '
+             f'--level {args.level:g} --repeats {args.repeats}`', '']
     cost = gb.rhs_cost()
     lines += ['## Right-hand side per evaluation (centrifuge_euler vs hand-written kernel)', '',
               '| hand-written quaternion kernel [ns] | generated Euler-angle RHS [ns] | ratio |',
@@ -37,13 +39,13 @@ def run(args: argparse.Namespace) -> int:
               '']
     ct = gb.compile_times()
     lines += ['## Generation and compilation (twin_gimbal: 3 coordinates, 2 rotors)', '',
-              '| run | imports [s] | read system file [s] | compile_system [s] | total [s] |',
-              '|---|---|---|---|---|']
+              '| run | imports [s] | read system file [s] | compile_system [s] | first '
+              'integration [s] | total [s] |', '|---|---|---|---|---|---|']
     for label in ('first', 'cached'):
         c = ct[label]
-        total = c['imports'] + c['load_system'] + c['compile_system']
+        total = c['imports'] + c['load_system'] + c['compile_system'] + c['first_run']
         lines.append(f'| {label} | {c["imports"]:.2f} | {c["load_system"]:.2f} | '
-                     f'{c["compile_system"]:.2f} | {total:.2f} |')
+                     f'{c["compile_system"]:.2f} | {c["first_run"]:.2f} | {total:.2f} |')
     lines += ['', f'(load average at the time: {os.getloadavg()[0]:.1f})', '']
     rows = gb.work_precision(t_end=args.t_end, repeats=args.repeats)
     best = gb.best_at(rows, args.level)
@@ -51,14 +53,16 @@ def run(args: argparse.Namespace) -> int:
               '| system | method | rtol | error | wall [ms] | nfev | speed-up of ours |',
               '|---|---|---|---|---|---|---|']
     for system in sorted({r.system for r in rows}):
-        ours = best.get((system, 'generated dopri5'))
+        ours = next((r for (s, mth), r in best.items()
+                     if s == system and mth.startswith(gb.DEFAULT_LABEL)), None)
         for (s, method), r in sorted(best.items()):
             if s != system:
                 continue
             gain = f'{r.wall / ours.wall:.0f}x' if ours and r is not ours else '-'
             lines.append(f'| {s} | {method} | {r.rtol:g} | {r.err:.2e} | {r.wall * 1e3:.2f} '
                          f'| {r.nfev} | {gain} |')
-        scipy = [r for (s, mth), r in best.items() if s == system and mth != 'generated dopri5']
+        scipy = [r for (s, mth), r in best.items()
+                 if s == system and not mth.startswith(gb.DEFAULT_LABEL)]
         if ours and scipy:
             fastest = min(scipy, key=lambda r: r.wall)
             lines.append(f'| {system} | **fastest scipy: {fastest.method}** | | | | | '

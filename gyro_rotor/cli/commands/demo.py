@@ -61,8 +61,8 @@ class _LiveView:
 
     def __init__(self, domain_id: int):
         import rclpy
+        from gyro_rotor.ros.qos import profile
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import Float64MultiArray, String
         from std_srvs.srv import Trigger
         self.ctx = rclpy.context.Context()
@@ -74,9 +74,7 @@ class _LiveView:
         self.analysis: dict = {}
         self.modes: list = []
         self.verdict = ''
-        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        qos, latched = profile('monitor'), profile('latched')
         self.node.create_subscription(Float64MultiArray, 'energy', self._on_energy, qos)
         self.node.create_subscription(Float64MultiArray, 'analysis', self._on_analysis, 10)
         self.node.create_subscription(Float64MultiArray, 'analysis_modes', self._on_modes, 10)

@@ -53,9 +53,11 @@ def simulate(args) -> int:
     """Simulate a general scene; print a summary, write the CSV."""
     if args.out:
         check_output_file(args.out, ('.csv',))
-    if args.method not in ('auto', 'dopri5'):
-        raise ParameterError(f"general scenes integrate with 'dopri5' (the generated "
-                             f'Dormand-Prince loop), got --method {args.method}')
+    from gyro_rotor.numerics.general import integrate, METHODS
+    if args.method not in ('auto',) + METHODS:
+        raise ParameterError(f"general scenes integrate with auto, {', '.join(METHODS)} (the "
+                             f"project's integrators that need only the right-hand side), "
+                             f'got --method {args.method}')
     if not (math.isfinite(args.rate) and args.rate > 0):
         raise ParameterError(f'--rate must be positive, got {args.rate}')
     scene = _scene(args)
@@ -63,9 +65,9 @@ def simulate(args) -> int:
     n_samples = int(math.floor(scene.t_end * args.rate + 1e-9)) + 1
     if n_samples > 10_000_000:
         raise ParameterError(f'{n_samples} samples asked for; at most 10000000')
-    te = np.arange(n_samples) / args.rate
-    run = model.integrate(scene.initial_state(model), te, rtol=args.rtol or 1e-9,
-                          atol=args.atol or 1e-12)
+    te = np.arange(n_samples) / args.rate if n_samples > 1 else np.array([0.0, scene.t_end])
+    run = integrate(model, scene.initial_state(model), te, method=args.method,
+                    rtol=args.rtol or 1e-9, atol=args.atol or 1e-12)
     E = model.energy(run.y)
     r = model.residual(run.y)
     print(f'scene {scene.name}: system {scene.system.name} (n = {model.n}, m = {model.m}'
@@ -73,7 +75,8 @@ def simulate(args) -> int:
           f'{scene.t_end} s')
     print(f'  generated code: {"cache" if model.compiled.from_cache else "new"} '
           f'({model.compiled.seconds:.2f} s), {model.compiled.path}')
-    print(f'  steps {run.nsteps}, rejected {run.nrejected}, rhs evaluations {run.nfev}')
+    print(f'  {run.method}: steps {run.nsteps}, rejected {run.nrejected}, rhs evaluations '
+          f'{run.nfev}')
     print(f'  E*(0) = {E[0]:.10g} J, E*(end) = {E[-1]:.10g} J, dissipated D = '
           f'{run.y[-1, model.iD]:.6g} J, max |residual| = {np.abs(r).max():.3g} J')
     if args.out:

@@ -10,8 +10,8 @@ from gyro_rotor.cli.util import check_output_file, parse_sets
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
-from gyro_rotor.linear.stability import (check_claims, default_grid, root_locus,
-                                         scene_operating_point)
+from gyro_rotor.linear.locus import check_claims, default_grid, root_locus
+from gyro_rotor.linear.stability import scene_operating_point
 import numpy as np
 
 #: most points of the --points grid (each is an eigen-decomposition, plus tracking)

@@ -6,7 +6,8 @@ import argparse
 
 from gyro_rotor.cli.util import parse_sets
 from gyro_rotor.core.scene import load_scene
-from gyro_rotor.linear.stability import best_K_D, scene_operating_point
+from gyro_rotor.linear.stability import scene_operating_point
+from gyro_rotor.linear.tune import best_K_D
 
 HELP = "best drive damping K_D for the scene's K_S (fastest slowest decay) and its sensitivity"
 

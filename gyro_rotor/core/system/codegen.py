@@ -14,14 +14,18 @@ the parameter array ``P`` of :func:`pack`:
                         LDL' factorization, Q the drive law (eq. 8 or the sine law),
                         dD/dt = zdot' K_D zdot
 ``energy(y, P)``        E* (eq. 13, numba)
-``run(...)``            an adaptive Dormand-Prince 5(4) loop over ``rhs`` that samples at
-                        given times (numba)
 ``lin(y, P)``           (Mbar, dF/dq, dF/dv) at y, plain Python, for the linearization
+
+No integrator is generated: the project's integrators and the ensemble
+(:mod:`gyro_rotor.numerics.general`) call ``rhs`` as a numba first-class function
+(:attr:`CompiledSystem.first_class`), so their compiled loops are shared by every system
+and cached once.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib.util
 import os
 from pathlib import Path
@@ -35,10 +39,11 @@ import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
-__all__ = ['CompiledSystem', 'compile_system', 'pack', 'cache_dir', 'GENERATOR_VERSION']
+__all__ = ['CompiledSystem', 'compile_system', 'pack', 'cache_dir', 'GENERATOR_VERSION',
+           'RHS_TYPE']
 
 #: bump when the generated code changes, so that old cache entries are not reused
-GENERATOR_VERSION = 3
+GENERATOR_VERSION = 4
 #: parameters per drive in P: K_S, K_D, Omega0, pole_pairs
 DRIVE_SLOTS = 4
 
@@ -155,99 +160,6 @@ NY = {ny}
 
 '''
 
-_RUN = '''
-
-@njit(cache=True, error_model='numpy')
-def run(y0, t0, t_eval, P, rtol, atol, h0, h_max, max_steps, Y, counts):
-    """Dormand-Prince 5(4) with step control; steps end exactly on the sample times."""
-    ny = y0.size
-    y = y0.copy()
-    yn = np.empty(ny)
-    yt = np.empty(ny)
-    k1 = np.empty(ny)
-    k2 = np.empty(ny)
-    k3 = np.empty(ny)
-    k4 = np.empty(ny)
-    k5 = np.empty(ny)
-    k6 = np.empty(ny)
-    k7 = np.empty(ny)
-    rhs(y, P, k1)
-    counts[0] += 1
-    t = t0
-    h = h0
-    i = 0
-    while i < t_eval.size and t_eval[i] <= t:
-        for j in range(ny):
-            Y[i, j] = y[j]
-        i += 1
-    while i < t_eval.size:
-        if counts[1] >= max_steps:
-            return -3
-        target = t_eval[i]
-        hh = min(h, h_max)
-        last = False
-        if t + hh >= target - 1e-12 * abs(target):
-            hh = target - t
-            last = True
-        for j in range(ny):
-            yt[j] = y[j] + hh * (0.2 * k1[j])
-        rhs(yt, P, k2)
-        for j in range(ny):
-            yt[j] = y[j] + hh * (3.0 / 40.0 * k1[j] + 9.0 / 40.0 * k2[j])
-        rhs(yt, P, k3)
-        for j in range(ny):
-            yt[j] = y[j] + hh * (44.0 / 45.0 * k1[j] - 56.0 / 15.0 * k2[j]
-                                 + 32.0 / 9.0 * k3[j])
-        rhs(yt, P, k4)
-        for j in range(ny):
-            yt[j] = y[j] + hh * (19372.0 / 6561.0 * k1[j] - 25360.0 / 2187.0 * k2[j]
-                                 + 64448.0 / 6561.0 * k3[j] - 212.0 / 729.0 * k4[j])
-        rhs(yt, P, k5)
-        for j in range(ny):
-            yt[j] = y[j] + hh * (9017.0 / 3168.0 * k1[j] - 355.0 / 33.0 * k2[j]
-                                 + 46732.0 / 5247.0 * k3[j] + 49.0 / 176.0 * k4[j]
-                                 - 5103.0 / 18656.0 * k5[j])
-        rhs(yt, P, k6)
-        for j in range(ny):
-            yn[j] = y[j] + hh * (35.0 / 384.0 * k1[j] + 500.0 / 1113.0 * k3[j]
-                                 + 125.0 / 192.0 * k4[j] - 2187.0 / 6784.0 * k5[j]
-                                 + 11.0 / 84.0 * k6[j])
-        rhs(yn, P, k7)
-        counts[0] += 6
-        err = 0.0
-        for j in range(ny):
-            e = hh * (71.0 / 57600.0 * k1[j] - 71.0 / 16695.0 * k3[j] + 71.0 / 1920.0 * k4[j]
-                      - 17253.0 / 339200.0 * k5[j] + 22.0 / 525.0 * k6[j] - 1.0 / 40.0 * k7[j])
-            sc = atol + rtol * max(abs(y[j]), abs(yn[j]))
-            err += (e / sc) * (e / sc)
-        err = math.sqrt(err / ny)
-        if not math.isfinite(err):
-            if hh < 1e-300:
-                return -2
-            h = 0.25 * hh
-            counts[2] += 1
-            continue
-        if err <= 1.0:
-            t = target if last else t + hh
-            for j in range(ny):
-                y[j] = yn[j]
-                k1[j] = k7[j]
-            counts[1] += 1
-            fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** -0.2)
-            if not last or hh >= h:
-                h = hh * fac
-            if last:
-                for j in range(ny):
-                    Y[i, j] = y[j]
-                i += 1
-        else:
-            h = hh * max(0.2, 0.9 * err ** -0.2)
-            counts[2] += 1
-        if h <= 4e-16 * max(abs(t), 1.0):
-            return -1
-    return 0
-'''
-
 
 def _source(system: RotorSystem, eq: Equations) -> str:
     n, m, N = eq.n, eq.m, eq.n + eq.m
@@ -296,7 +208,6 @@ def _source(system: RotorSystem, eq: Equations) -> str:
     body.append(f'    return ({mat("M", N, N)}, {mat("Fq", N, n)}, {mat("Fv", N, N)})')
     out.append('\n\ndef lin(y, P):\n    """(Mbar, dF/dq, dF/dv) at y, without the drive '
                'terms."""\n' + '\n'.join(body) + '\n')
-    out.append(_RUN)
     return ''.join(out)
 
 
@@ -320,8 +231,51 @@ class CompiledSystem:
         """Return the compiled E* (arguments y, P)."""
         return self.module.energy
 
+    @functools.cached_property
+    def first_class(self):
+        """Return ``rhs`` as a numba first-class function of type RHS_TYPE (or ``rhs``).
+
+        A kernel called with it is compiled once for the function *type*, not for this
+        function, so numba's on-disk cache serves every system (a jitted function passed
+        as is would compile, uncached, a specialization per system and process).
+        """
+        if not hasattr(self.module.rhs, 'get_compile_result'):   # no numba: plain Python
+            return self.module.rhs
+        return _FirstClass(self.module.rhs)
+
 
 _LOADED: dict[str, CompiledSystem] = {}
+
+try:
+    from numba.core import types as _nbtypes
+    from numba.core.types import WrapperAddressProtocol
+    _ARRAY = _nbtypes.float64[::1]
+    #: the type of a generated right-hand side rhs(y, P, out) as a first-class function
+    RHS_TYPE = _nbtypes.void(_ARRAY, _ARRAY, _ARRAY)
+except ImportError:  # pragma: no cover - without numba nothing is compiled
+    WrapperAddressProtocol, RHS_TYPE = object, None
+
+
+class _FirstClass(WrapperAddressProtocol):
+    """A compiled rhs as numba's wrapper-address protocol: typed FunctionType(RHS_TYPE)."""
+
+    def __init__(self, dispatcher):
+        dispatcher.compile(RHS_TYPE)
+        cres = dispatcher.get_compile_result(RHS_TYPE)
+        self.dispatcher = dispatcher       # keeps the machine code alive
+        self.address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
+
+    def __call__(self, y, P, out):
+        """Call ``rhs`` from Python."""
+        self.dispatcher(y, P, out)
+
+    def __wrapper_address__(self):
+        """Return the address of the compiled C wrapper of ``rhs``."""
+        return self.address
+
+    def signature(self):
+        """Return the numba signature RHS_TYPE."""
+        return RHS_TYPE
 
 
 def _import(path: Path, key: str):
@@ -360,9 +314,6 @@ def compile_system(system: RotorSystem, *, warm: bool = True) -> CompiledSystem:
         P = pack(system)
         module.rhs(y, P, np.empty(ny))
         module.energy(y, P)
-        counts = np.zeros(4)
-        Y = np.empty((1, ny))
-        module.run(y, 0.0, np.array([1e-9]), P, 1e-6, 1e-6, 1e-9, 1.0, 10, Y, counts)
     compiled = CompiledSystem(key=key, module=module, path=path, from_cache=from_cache,
                               seconds=time.perf_counter() - start)
     _LOADED[key] = compiled

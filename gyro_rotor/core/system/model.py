@@ -8,31 +8,17 @@ energy-balance residual r = E* - E*(0) + D is zero along exact solutions of any 
 
 from __future__ import annotations
 
-import dataclasses
-import math
-
 from gyro_rotor.core.system.codegen import compile_system, CompiledSystem, pack
 from gyro_rotor.core.system.system_file import RotorSystem
-from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.errors import ParameterError
 import numpy as np
 
-__all__ = ['GeneralModel', 'GeneralRun', 'STATUS']
-
-#: status codes of the compiled run loop
-STATUS = {0: 'reached the end', -1: 'step size underflow', -2: 'the state became non-finite',
-          -3: 'step budget exhausted'}
+__all__ = ['GeneralModel', 'system_rate']
 
 
-@dataclasses.dataclass
-class GeneralRun:
-    """Samples of one run: times ``t`` (k,), states ``y`` (k, 2 N + 1) and the counters."""
-
-    t: np.ndarray
-    y: np.ndarray
-    nfev: int
-    nsteps: int
-    nrejected: int
-    status: int
+def system_rate(system: RotorSystem) -> float:
+    """Return a typical fastest rate [1/s] of a system: the largest field speed, at least 1."""
+    return max([1.0] + [abs(d.Omega0) for d in system.drives])
 
 
 class GeneralModel:
@@ -107,36 +93,4 @@ class GeneralModel:
 
     def rate(self) -> float:
         """Return a typical fastest rate [1/s] of the system, for the first step size."""
-        s = self.system
-        rates = [1.0] + [abs(d.Omega0) for d in s.drives]
-        return max(rates)
-
-    def integrate(self, y0, t_eval, *, rtol: float = 1e-9, atol: float = 1e-12,
-                  h_max: float = math.inf, max_steps: int = 50_000_000) -> GeneralRun:
-        """Integrate from ``y0`` at ``t_eval[0]`` and sample at ``t_eval`` (Dormand-Prince).
-
-        Raises :class:`IntegrationError` if the run stops early (the message says why).
-        """
-        y0 = np.asarray(y0, dtype=float).reshape(-1)
-        te = np.asarray(t_eval, dtype=float).reshape(-1)
-        if y0.size != self.size or not np.all(np.isfinite(y0)):
-            raise ParameterError(f'the initial state must be {self.size} finite numbers, got '
-                                 f'{y0.tolist()}')
-        if te.size == 0 or not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
-            raise ParameterError('t_eval must be a non-empty, finite, increasing array')
-        for name, v in (('rtol', rtol), ('atol', atol)):
-            if not (math.isfinite(v) and v > 0):
-                raise ParameterError(f'{name} must be positive and finite, got {v!r}')
-        Y = np.full((te.size, self.size), np.nan)
-        counts = np.zeros(4)
-        h0 = min(0.01 / self.rate(), (te[-1] - te[0]) or 1.0)
-        status = int(self.compiled.module.run(y0, float(te[0]), te, self.P, float(rtol),
-                                              float(atol), h0, float(h_max), int(max_steps),
-                                              Y, counts))
-        if status != 0:
-            k = int(np.count_nonzero(~np.isnan(Y[:, 0])))
-            last = te[k - 1] if k else te[0]
-            raise IntegrationError(f'system {self.system.name}: the integration stopped after '
-                                   f't = {last:.6g} s: {STATUS[status]}')
-        return GeneralRun(t=te, y=Y, nfev=int(counts[0]), nsteps=int(counts[1]),
-                          nrejected=int(counts[2]), status=status)
+        return system_rate(self.system)

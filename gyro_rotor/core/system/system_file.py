@@ -180,12 +180,12 @@ def _drive(entry: Any, where: str) -> Drive:
 
 def _matrix(value: Any, rows: int, cols: int, key: str, where: str, names) -> list:
     if not isinstance(value, list) or len(value) != rows:
-        got = len(value) if isinstance(value, list) else repr(value)
+        got = f'{len(value)}: {value!r}' if isinstance(value, list) else repr(value)
         raise SystemFileError(f'{where}: {key} must be a list of {rows} rows, got {got}')
     out = []
     for i, row in enumerate(value):
         if not isinstance(row, list) or len(row) != cols:
-            got = f'{len(row)} entries' if isinstance(row, list) else repr(row)
+            got = f'{len(row)} entries: {row!r}' if isinstance(row, list) else repr(row)
             raise SystemFileError(f'{where}: {key}[{i}] (row {i}) must be a list of {cols} '
                                   f'entries, got {got}')
         out.append([parse_expression(
@@ -243,10 +243,14 @@ def system_from_mapping(doc: Any, path: str | None = None) -> RotorSystem:
         raise SystemFileError(f'{where}: constants must be a mapping name: number')
     _names(list(consts), f'{where}: constants', 0)
     constants = {k: _number(v, f'{where}: constants.{k}') for k, v in consts.items()}
-    clash = (set(coords) & set(constants)) | (set(rotors) & (set(coords) | set(constants)))
-    if clash:
-        raise SystemFileError(f'{where}: the name {sorted(clash)[0]!r} is used twice (a '
-                              f'coordinate, rotor and constant need distinct names)')
+    for key_a, key_b, a, b in (('coordinates', 'constants', coords, constants),
+                               ('rotors', 'coordinates', rotors, coords),
+                               ('rotors', 'constants', rotors, constants)):
+        clash = sorted(set(a) & set(b))
+        if clash:
+            raise SystemFileError(f'{where}: the name {clash[0]!r} is in {key_a} and in '
+                                  f'{key_b} (a coordinate, rotor and constant need distinct '
+                                  f'names)')
     qsyms = tuple(sympy.Symbol(c, real=True) for c in coords)
     csyms = tuple(sympy.Symbol(c, real=True) for c in constants)
     names = {**dict(zip(constants, csyms)), **dict(zip(coords, qsyms))}
@@ -256,7 +260,7 @@ def system_from_mapping(doc: Any, path: str | None = None) -> RotorSystem:
     _check_symmetric(M, coords, constants, qsyms, csyms, where)
     inertia = doc['rotor_inertia']
     if not isinstance(inertia, list) or len(inertia) != m:
-        got = len(inertia) if isinstance(inertia, list) else repr(inertia)
+        got = f'{len(inertia)}: {inertia!r}' if isinstance(inertia, list) else repr(inertia)
         raise SystemFileError(f'{where}: rotor_inertia must be a list of {m} entries (one per '
                               f'rotor), got {got}')
     A = tuple(parse_expression(a, dict(zip(constants, csyms)),
@@ -266,7 +270,7 @@ def system_from_mapping(doc: Any, path: str | None = None) -> RotorSystem:
     V = parse_expression(doc['potential'], names, where=f'{where}: potential')
     drives = doc['drives']
     if not isinstance(drives, list) or len(drives) != m:
-        got = len(drives) if isinstance(drives, list) else repr(drives)
+        got = f'{len(drives)}: {drives!r}' if isinstance(drives, list) else repr(drives)
         raise SystemFileError(f'{where}: drives must be a list of {m} entries (one per rotor), '
                               f'got {got}')
     description = doc.get('description', '')

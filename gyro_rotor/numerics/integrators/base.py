@@ -31,7 +31,7 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import kernels
 import numpy as np
 
-__all__ = ['Integrator', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate']
+__all__ = ['Integrator', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate', 'kernel_args']
 
 STATUS_MESSAGES = {
     0: 'The solver successfully reached the end of the integration interval.',
@@ -99,6 +99,8 @@ class Integrator:
     #: order of the method (global error ~ h^order)
     order = 0
     adaptive = False
+    #: a fixed-step method that derives its default step from rtol (split8)
+    step_from_tolerance = False
     implicit = False
     renormalize = True
     default_rtol = 1e-10
@@ -109,11 +111,8 @@ class Integrator:
     def __init__(self, model: Model, y0, t0: float = 0.0, t_bound: float = math.inf, *,
                  rtol: float | None = None, atol: float | None = None,
                  step: float | None = None, max_steps: int = 50_000_000):
-        if not isinstance(model, Model):
-            raise TypeError('model must be a gyro_rotor.core.model.Model')
         self.model = model
-        self.kind = kernels.KIND[model.name]
-        self.P = kernels.pack_params(model.params)
+        self.kind, self.P, rate = kernel_args(model, getattr(model, 'params', None))
         y = np.array(y0, dtype=float).reshape(-1)
         if y.shape != (model.n,):
             raise ParameterError(f'y0 must have {model.n} components for model {model.name}, '
@@ -128,7 +127,7 @@ class Integrator:
         self.rtol = _check_positive('rtol', self.default_rtol if rtol is None else rtol)
         self.atol = _check_positive('atol', self.default_atol if atol is None else atol)
         if step is None:
-            self.h = self.step_factor / model_rate(model.params)
+            self.h = self.step_factor / rate
             if math.isfinite(t_bound) and t_bound > t0:
                 self.h = min(self.h, t_bound - t0)
             self.h_max = self.h if not self.adaptive else math.inf
@@ -248,6 +247,21 @@ class Integrator:
     def _run(self, t_eval: np.ndarray, Y: np.ndarray,
              counts: np.ndarray) -> int:  # pragma: no cover
         raise NotImplementedError
+
+
+def kernel_args(model, params) -> tuple:
+    """Return (kind, P, fastest rate) of ``model`` with ``params`` for the kernels.
+
+    A hand-written :class:`Model` is a KIND number with :func:`kernels.pack_params`; a
+    general rotor system (:class:`gyro_rotor.numerics.general.KernelSystem`) passes its
+    generated right-hand side as a first-class function with its own parameter array.
+    """
+    if isinstance(model, Model):
+        return kernels.KIND[model.name], kernels.pack_params(params), model_rate(params)
+    if hasattr(model, 'kernel_rhs'):
+        return model.kernel_rhs, model.pack(params), model.rate(params)
+    raise TypeError('model must be a gyro_rotor.core.model.Model or a general system '
+                    '(gyro_rotor.numerics.general.KernelSystem)')
 
 
 def model_rate(p) -> float:

@@ -6,18 +6,22 @@ compiled once per machine, then loaded from ``__pycache__``). Without numba the 
 functions run as ordinary Python (slower, same results): real ROS installs without numba
 still work.
 
-Models are selected by an integer ``kind`` (0 full, 1 upright_axis, 2 locked_housing) and
-the parameters travel as one float array ``P`` (see :func:`pack_params`), so a single
-compiled kernel serves every scene without first-class function arguments.
+Models are selected by ``kind``: an integer for the hand-written models (0 full,
+1 upright_axis, 2 locked_housing) or a compiled general rotor system's right-hand side as a
+numba first-class function (:func:`rhs`); the parameters travel as one float array ``P``
+(see :func:`pack_params`), so a single compiled kernel serves every scene of a model.
 
-Status codes returned by the run loops: 0 finished, -1 step size underflow, -2 non-finite
-state, -3 step budget exhausted, -4 Newton/fixed-point iteration did not converge.
+Status codes returned by the run loops: :class:`Status` (0 finished, -1 step size
+underflow, -2 non-finite state, -3 step budget exhausted, -4 Newton/fixed-point iteration
+did not converge), as the plain int constants OK, UNDERFLOW, ... that numba reads.
 """
 
 from __future__ import annotations
 
+import enum
 import math
 
+from gyro_rotor.core.model import full_rhs, locked_rhs, pack_params, upright_rhs
 import numpy as np
 
 try:  # pragma: no cover - exercised by whichever branch the install has
@@ -32,12 +36,11 @@ except ImportError:  # pragma: no cover
             return args[0]
         return lambda f: f
 
-__all__ = ['HAVE_NUMBA', 'KIND', 'pack_params', 'rhs', 'rk_run', 'dop853_run',
+__all__ = ['HAVE_NUMBA', 'KIND', 'Status', 'pack_params', 'rhs', 'rk_run', 'dop853_run',
            'gauss_run', 'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense',
            'gauss_step', 'rodas_step', 'fd_jacobian', 'normalize_quaternion']
 
 KIND = {'full': 0, 'upright_axis': 1, 'locked_housing': 2}
-_SERIES_LIMIT = 1e-4
 
 # step size control (as scipy's rk.py and Hairer's codes)
 SAFETY = 0.9
@@ -45,95 +48,75 @@ MIN_FACTOR = 0.2   # smallest decrease of the step in one go
 MAX_FACTOR = 10.0  # largest increase of the step in one go
 
 
-def pack_params(p) -> np.ndarray:
-    """Pack RotorParams into a float array.
+class Status(enum.IntEnum):
+    """Status codes of the run loops and steppers (read by numba as integer constants)."""
 
-    The order is (I, C_R, C_M, G s, c_theta, c_psi, K_S, K_D, Omega0, p).
-    """
-    return np.array([p.I, p.C_R, p.C_M, p.Gs, p.c_theta, p.c_psi, p.K_S, p.K_D, p.Omega0,
-                     float(p.pole_pairs)])
+    FINISHED = 0
+    STEP_UNDERFLOW = -1
+    NON_FINITE = -2
+    BUDGET = -3
+    NO_CONVERGENCE = -4
 
 
-@njit(cache=True)
+# numba reads module-level ints as compile-time constants (IntEnum members it does not)
+OK = int(Status.FINISHED)
+UNDERFLOW = int(Status.STEP_UNDERFLOW)
+NONFINITE = int(Status.NON_FINITE)
+BUDGET = int(Status.BUDGET)
+NOCONV = int(Status.NO_CONVERGENCE)
+
+
 def rhs(kind, y, P, out):
-    """dy/dt of model ``kind`` at state ``y`` into ``out`` (see gyro_rotor.core.model)."""
-    C_R = P[1]
-    C_M = P[2]
-    c_psi = P[5]
-    K_S = P[6]
-    K_D = P[7]
-    pp = P[9]
-    if kind == 0:
-        I_ = P[0]
-        Gs = P[3]
-        c_theta = P[4]
-        Omega0 = P[8]
-        qw = y[0]
-        qx = y[1]
-        qy = y[2]
-        qz = y[3]
-        W1 = y[4]
-        W2 = y[5]
-        W3 = y[6]
-        z = y[7]
-        zd = y[8]
-        n = qw * qw + qx * qx + qy * qy + qz * qz
-        k1 = 2.0 * (qx * qz - qw * qy) / n
-        k2 = 2.0 * (qy * qz + qw * qx) / n
-        k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
-        st = math.sqrt(k1 * k1 + k2 * k2)
-        th = math.atan2(st, k3)
-        if th < _SERIES_LIMIT:
-            t2 = th * th
-            ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
-        else:
-            ratio = th / st
-        dV = Gs - c_theta * ratio
-        tw = c_psi * 2.0 * math.atan2(qz, qw)
-        tw_k = tw / (1.0 + k3)
-        M1 = dV * k2 - tw_k * k1
-        M2 = -dV * k1 - tw_k * k2
-        if pp != 0.0:
-            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
-        else:
-            Q = -K_S * z - K_D * zd
-        g = C_M * W3 + C_R * (W3 + Omega0 + zd) - I_ * W3
-        dW3 = (-tw - Q) / C_M
-        out[0] = 0.5 * (-qx * W1 - qy * W2 - qz * W3)
-        out[1] = 0.5 * (qw * W1 + qy * W3 - qz * W2)
-        out[2] = 0.5 * (qw * W2 + qz * W1 - qx * W3)
-        out[3] = 0.5 * (qw * W3 + qx * W2 - qy * W1)
-        out[4] = (M1 - W2 * g) / I_
-        out[5] = (M2 + W1 * g) / I_
-        out[6] = dW3
-        out[7] = zd
-        out[8] = Q / C_R - dW3
-        out[9] = K_D * zd * zd
-    elif kind == 1:
-        chi = y[0]
-        chid = y[1]
-        z = y[2]
-        zd = y[3]
-        if pp != 0.0:
-            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
-        else:
-            Q = -K_S * z - K_D * zd
-        chidd = (-c_psi * chi - Q) / C_M
-        out[0] = chid
-        out[1] = chidd
-        out[2] = zd
-        out[3] = Q / C_R - chidd
-        out[4] = K_D * zd * zd
+    """Write dy/dt at state ``y`` into ``out``.
+
+    ``kind`` is a model number (KIND: the hand-written models, :func:`_model_rhs`) or a
+    compiled right-hand side ``f(y, P, out)`` passed as a numba first-class function (a
+    general rotor system, :mod:`gyro_rotor.core.system.codegen`). In compiled code the
+    choice is made at compile time by the type of ``kind`` (the overload below), so the
+    hand-written models run exactly their own code.
+    """
+    if callable(kind):
+        kind(y, P, out)
     else:
-        z = y[0]
-        zd = y[1]
-        if pp != 0.0:
-            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
-        else:
-            Q = -K_S * z - K_D * zd
-        out[0] = zd
-        out[1] = Q / C_R
-        out[2] = K_D * zd * zd
+        _model_rhs(kind, y, P, out)
+
+
+def _is_full(kind):
+    """Return True for the full (quaternion) model, False for others and for functions."""
+    return not callable(kind) and kind == 0
+
+
+if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
+    from numba import types
+    from numba.extending import overload
+
+    @overload(rhs)
+    def _rhs_typed(kind, y, P, out):
+        if isinstance(kind, types.Integer):
+            return lambda kind, y, P, out: _model_rhs(kind, y, P, out)
+        return lambda kind, y, P, out: kind(y, P, out)
+
+    @overload(_is_full)
+    def _is_full_typed(kind):
+        if isinstance(kind, types.Integer):
+            return lambda kind: kind == 0
+        return lambda kind: False
+
+
+@njit(cache=True, error_model='numpy')
+def _model_rhs(kind, y, P, out):
+    """dy/dt of hand-written model ``kind`` at state ``y`` into ``out`` (core.model's functions).
+
+    Compiled with numpy's error model: a division by zero (a state with q = 0, or the axis
+    exactly at theta = pi) gives inf or nan, which the loops report as a non-finite state
+    (status -2) or a rejected step, never as an exception out of a run.
+    """
+    if kind == 0:
+        full_rhs(y, P, out)
+    elif kind == 1:
+        upright_rhs(y, P, out)
+    else:
+        locked_rhs(y, P, out)
 
 
 @njit(cache=True)
@@ -145,7 +128,7 @@ def normalize_quaternion(kind, y, f):
     q NaN, so that the run stops as non-finite; scaling by 1 / inf would give q = 0 exactly,
     a finite state on which the next right-hand side divides by |q|^2 = 0.
     """
-    if kind != 0:
+    if not _is_full(kind):
         return
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
     s = 1.0 / n if 0.0 < n < math.inf else math.nan
@@ -235,17 +218,17 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
                 if not _all_finite(y):
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -2
+                    return NONFINITE
                 if nsteps >= max_steps:
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -3
+                    return BUDGET
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
     counts[0] = nfev
     counts[1] = nsteps
-    return 0
+    return OK
 
 
 # -- DOP853, adaptive with dense output --------------------------------------------------------
@@ -399,11 +382,12 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
     else:
         h = initial_step(kind, P, y, f, rtol, atol, 7, h_max, ytmp, ftmp)
         nfev += 1
-    status = 0
-    while t < t_end:
+    # a non-finite derivative at the start (a singular state) ends the run at once
+    status = OK if _all_finite(f) else NONFINITE
+    while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if h < min_step:
-            status = -1
+        if not h >= min_step:           # also a NaN step (never compares)
+            status = UNDERFLOW
             break
         if h > h_max:
             h = h_max
@@ -438,10 +422,10 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
         t = t_new
         nsteps += 1
         if not _all_finite(y):
-            status = -2
+            status = NONFINITE
             break
         if nsteps >= max_steps:
-            status = -3
+            status = BUDGET
             break
         if err == 0.0:
             fac = MAX_FACTOR
@@ -527,7 +511,7 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
                 if ne < 0:
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -4
+                    return NOCONV
                 nfev += ne + 1
                 nsteps += 1
                 for j in range(n):
@@ -535,39 +519,42 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
                 if not _all_finite(y):
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -2
+                    return NONFINITE
                 if nsteps >= max_steps:
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -3
+                    return BUDGET
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
     counts[0] = nfev
     counts[1] = nsteps
-    return 0
+    return OK
 
 
 # -- RODAS4 (Rosenbrock, L-stable) -------------------------------------------------------------
 @njit(cache=True)
 def fd_jacobian(kind, P, y, J, ytmp, fa, fb):
-    """Jacobian df/dy by central differences (10 pairs of evaluations for the full model).
+    """Jacobian df/dy by forward differences from ``fa`` = f(y) (one evaluation per column).
 
-    Truncation error ~ eps^(2/3) relative; the stiff entries (linear in zdot) are exact
-    up to round-off.
+    The last state (the dissipated work D) enters no right-hand side: its column is zero
+    and costs nothing. The stiff entries (linear in zdot, docs/model.md section 7) are
+    exact up to round-off; the others carry a relative error near sqrt(eps), which the
+    Rosenbrock method tolerates (its error terms in J - df/dy are of order h^2).
     """
     n = y.shape[0]
-    for j in range(n):
-        for m in range(n):
-            ytmp[m] = y[m]
-        d = 6e-6 * max(1.0, abs(y[j]))
+    for m in range(n):
+        ytmp[m] = y[m]
+    for j in range(n - 1):
+        d = 1.5e-8 * max(1.0, abs(y[j]))
         ytmp[j] = y[j] + d
-        rhs(kind, ytmp, P, fa)
-        ytmp[j] = y[j] - d
         rhs(kind, ytmp, P, fb)
+        ytmp[j] = y[j]
         for m in range(n):
-            J[m, j] = (fa[m] - fb[m]) / (2.0 * d)
-    return 2 * n
+            J[m, j] = (fb[m] - fa[m]) / d
+    for m in range(n):
+        J[m, n - 1] = 0.0
+    return n - 1
 
 
 @njit(cache=True)
@@ -702,12 +689,13 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     else:
         h = initial_step(kind, P, y, f, rtol, atol, 3, h_max, ytmp, fa)
         nfev += 1
-    status = 0
+    # a non-finite derivative at the start (a singular state) ends the run at once
+    status = OK if _all_finite(f) else NONFINITE
     jac_fresh = False
-    while t < t_end:
+    while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if h < min_step:
-            status = -1
+        if not h >= min_step:           # also a NaN step (never compares)
+            status = UNDERFLOW
             break
         if h > h_max:
             h = h_max
@@ -718,7 +706,7 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
             h = t_next - t
             clipped = True
         if not jac_fresh:
-            nfev += fd_jacobian(kind, P, y, J, ytmp, fa, fb)
+            nfev += fd_jacobian(kind, P, y, J, ytmp, f, fb)
             njev += 1
             jac_fresh = True
         err = rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new,
@@ -741,14 +729,14 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         jac_fresh = False
         nsteps += 1
         if not _all_finite(y):
-            status = -2
+            status = NONFINITE
             break
         while k < t_eval.shape[0] and t_eval[k] <= t:
             for j in range(n):
                 Y_out[k, j] = y[j]
             k += 1
         if nsteps >= max_steps:
-            status = -3
+            status = BUDGET
             break
         fac = 6.0 if err == 0.0 else min(6.0, SAFETY * err ** (-0.25))
         fac = max(MIN_FACTOR, fac)
