@@ -129,7 +129,7 @@ def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
             _draw_slips(ax, table, spec, a0.values, a1.values)
             title += ' (numbers/lines: pole slips)'
         keys = (a0.key, a1.key)
-        if column == 'settling_time' and set(keys) == {'K_S', 'K_D'}:
+        if column == 'settling_time' and set(keys) == {'K_S', 'K_D'} and not spec.general:
             ks_axis = a0 if a0.key == 'K_S' else a1
             sel = ks_axis.values[np.unique(np.linspace(0, ks_axis.count - 1,
                                                        min(12, ks_axis.count)).astype(int))]

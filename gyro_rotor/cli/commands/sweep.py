@@ -30,8 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--t-end', type=float, default=None, help="duration [s] (default: the scene's)")
     p.add_argument('--rate', type=float, default=100.0,
                    help='sample rate the metrics are taken from [Hz] (default 100)')
-    p.add_argument('--metrics', default=','.join(m.value for m in Metric),
-                   help=f"comma-separated subset of {','.join(m.value for m in Metric)}")
+    p.add_argument('--metrics', default=None,
+                   help=f"comma-separated subset of {','.join(m.value for m in Metric)} "
+                        '(default: all; general scenes: settling,peak,decay,energy)')
     p.add_argument('--tol', type=float, default=1e-3,
                    help='settling tolerance of the drive amplitude [rad] (default 1e-3)')
     p.add_argument('--out', required=True, help='output directory (Parquet blocks, maps)')
@@ -57,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     """Check everything, run the sweep, draw the maps, print a summary."""
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f'--workers must be positive, got {args.workers}')
-    metrics = [m.strip() for m in args.metrics.split(',') if m.strip()]
+    metrics = (None if args.metrics is None else
+               [m.strip() for m in args.metrics.split(',') if m.strip()])
     spec = make_spec(args.scene, args.grid, t_end=args.t_end, rate=args.rate, metrics=metrics,
                      tol=args.tol, block_size=args.block, step=args.step)
     executor = (Executor.SERIAL if args.serial else
