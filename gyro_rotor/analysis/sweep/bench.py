@@ -82,7 +82,11 @@ def _row(label: str, r: SweepRun, o_task: float, rate1: float | None,
 def run_bench(out_dir: str | None = None, *, t_end: float = 0.3,
               grid: Sequence[str] = BENCH_GRID, workers: Sequence[int] = (1, 2),
               progress: Callable[[str], None] | None = None) -> tuple[list, dict]:
-    """Run the benchmark; return the rows and the extrapolation inputs."""
+    """Run the benchmark; return the rows and the extrapolation inputs.
+
+    The sweeps' Parquet files go to a temporary directory under ``out_dir`` (default: the
+    system's temporary directory), removed at the end.
+    """
     say = progress or (lambda s: None)
     spec = make_spec('pole_slip', list(grid), t_end=t_end)
     _warm(spec)

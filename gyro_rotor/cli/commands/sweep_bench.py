@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out if args.out is not None else default_out_dir())
     out.mkdir(parents=True, exist_ok=True)
     load0 = os.getloadavg()[0]
-    rows, extra = run_bench(str(out), t_end=args.t_end, grid=args.grid or BENCH_GRID,
+    rows, extra = run_bench(None, t_end=args.t_end, grid=args.grid or BENCH_GRID,
                             workers=args.workers, progress=print)
     text = bench_table(rows, extra, (load0, os.getloadavg()[0]))
     (out / 'sweep_bench.md').write_text(text, encoding='utf-8')
