@@ -45,7 +45,7 @@ def _mcap_messages(bag: Path, topic: str) -> list:
 
 @pytest.fixture(scope='module')
 def clocked_bag(tmp_path_factory):
-    """Record a run at real_time_factor 0 with /clock (every message recorded)."""
+    """Record a run at real_time_factor 0 (every message recorded; /clock is the default)."""
     tmp = tmp_path_factory.mktemp('time')
     bag = tmp / 'bag'
     env = dict(os.environ, PYTHONUNBUFFERED='1')
@@ -61,7 +61,7 @@ def clocked_bag(tmp_path_factory):
             time.sleep(0.1)
         sim = NodeProcess('gyro_rotor.ros.sim_node', {
             'scene': 'precession', 'publish_rate': RATE, 'real_time_factor': 0.0,
-            't_end': T_END, 'stop_at_t_end': True, 'publish_clock': True,
+            't_end': T_END, 'stop_at_t_end': True,      # /clock by default
             'wait_for_subscribers': 1}, stdout=sim_log, stderr=subprocess.STDOUT, env=env)
         deadline = time.monotonic() + 90
         while time.monotonic() < deadline:
@@ -70,7 +70,11 @@ def clocked_bag(tmp_path_factory):
                 import warnings
                 with warnings.catch_warnings():
                     warnings.simplefilter('ignore')
-                    if sum(1 for _ in open_bag(bag).messages('/energy')) >= n:
+                    rec = open_bag(bag)
+                    # every sample, and a diagnostics report of rotor_sim (once a second
+                    # of wall time: at rtf 0 the run may be over before the first one)
+                    if (sum(1 for _ in rec.messages('/energy')) >= n and
+                            any(b'rotor_sim: ' in m[-1] for m in rec.messages('/diagnostics'))):
                         break
             except Exception:  # noqa: B902 -- the bag is still being written
                 pass
@@ -199,3 +203,27 @@ def test_time_is_monotonic_across_live_interventions():
     c = np.array([_ns(m.clock) for m in clock])
     assert np.all(np.diff(c) >= 0)
     assert c[-1] >= int(round(rows[-1, F['t_sim']] * 1e9))
+
+
+def test_every_stamp_is_simulation_time_diagnostics_of_both_nodes_included(clocked_bag):
+    """One time base (issue 16): header stamps, /clock and /diagnostics of both nodes.
+
+    Simulation time starts at 0 and ends at T_END here; a wall-clock stamp (2026, about
+    1.8e18 ns) or a stamp beyond the data would fail.
+    """
+    joints = _mcap_messages(clocked_bag, '/joint_states')
+    js = np.array([_ns(m.header.stamp) for _, _, m in joints])
+    t_end_ns = int(round(T_END * 1e9))
+    assert js[0] == 0 and js[-1] == t_end_ns
+    diags = _mcap_messages(clocked_bag, '/diagnostics')
+    by_node: dict = {}
+    for _, _, m in diags:
+        for st in m.status:
+            by_node.setdefault(st.name.split(':')[0], []).append(_ns(m.header.stamp))
+    assert set(by_node) == {'rotor_sim', 'rotor_analysis'}, set(by_node)
+    for node, stamps in by_node.items():
+        st = np.array(stamps)
+        assert np.all((st >= 0) & (st <= t_end_ns)), (node, st.min(), st.max())
+        assert np.all(np.diff(st) >= 0), node
+    # the analysis stamps its verdicts with the time of the data it judged
+    assert max(by_node['rotor_analysis']) > 0

@@ -111,6 +111,9 @@ class AnalysisSession:
         self.max_pending = max_pending
         self.scene_docs = 0
         self.energy_fields: tuple = ()
+        #: simulation time of the newest paired sample [s]: the time base of the stamps the
+        #: analysis node writes (0 before the first sample)
+        self.t_sim = 0.0
 
     @property
     def scene(self) -> Scene | None:
@@ -158,6 +161,7 @@ class AnalysisSession:
     def _take(self, samples: list[Sample]) -> None:
         if not samples:
             return
+        self.t_sim = max(self.t_sim, samples[-1].t)
         if self.series is not None:
             self.series.extend(samples)
         if self.analyzer is None:

@@ -59,8 +59,9 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
     'publish_rate': (float, 250.0, 'publish rate of the state topics [Hz]'),
     'real_time_factor': (float, 1.0, 'simulated seconds per wall second; 0 = as fast as '
                                      'possible'),
-    'publish_clock': (bool, False, 'publish /clock (rosgraph_msgs/Clock) with the '
-                                   'simulation time'),
+    'publish_clock': (bool, True, 'publish /clock (rosgraph_msgs/Clock) with the '
+                                  'simulation time (as Gazebo does; other nodes follow it '
+                                  'with use_sim_time)'),
     'integrator': (str, 'auto', 'integration method (auto picks one per scene)'),
     'rtol': (float, 0.0, 'relative tolerance of adaptive methods (0 = the method default)'),
     'atol': (float, 0.0, 'absolute tolerance of adaptive methods (0 = the method default)'),

@@ -207,7 +207,9 @@ class RotorAnalysisNode(Node):
         self._publish_diag(level, str(res.verdict), values)
 
     def _publish_diag(self, level: str, message: str, values: dict) -> None:
-        t = self.get_clock().now().nanoseconds
+        # one time base for every stamp the package writes: simulation time (here that of
+        # the newest sample analysed, so a verdict is stamped with the data it judged)
+        t = round(self.session.t_sim * 1e9)
         clean = {k: (v if not (isinstance(v, float) and math.isnan(v)) else 'nan')
                  for k, v in values.items()}
         self.pub_diag.publish(ros_msgs.diagnostic_array(
