@@ -80,6 +80,32 @@ def test_serial_and_local_cluster_agree(serial_result, cluster2, tmp_path):
     _assert_same(serial_result, _columns(tmp_path / 'addr'))
 
 
+def test_cli_scheduler_address(serial_result, cluster2, tmp_path, capsys):
+    """``gyro-rotor sweep --scheduler ADDRESS`` runs on that cluster, with the serial numbers."""
+    out = tmp_path / 'cli-addr'
+    args = ['sweep', 'pole_slip', '--t-end', '0.4', '--rate', '100', '--block', '4',
+            '--out', str(out), '--quiet', '--no-maps', '--scheduler', cluster2.scheduler.address]
+    for g in GRID:
+        args += ['--grid', g]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert 'address' in text and 'on 2 worker(s)' in text and '24/24 points' in text, text
+    _assert_same(serial_result, _columns(out))
+
+
+def test_cli_scheduler_unreachable(tmp_path, capsys):
+    """No scheduler at the address: one ERROR line naming it, exit 1."""
+    import socket
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        port = s.getsockname()[1]            # a port nobody listens on
+    address = f'tcp://127.0.0.1:{port}'
+    assert main(['sweep', 'pole_slip', '--grid', 'initial.dzdot=-100:100:4', '--t-end', '0.2',
+                 '--out', str(tmp_path / 'x'), '--quiet', '--scheduler', address]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: --scheduler ' + address) and err.count('\n') == 1, err
+
+
 def test_worker_killed_mid_sweep(serial_result, tmp_path):
     """SIGKILL a worker that is running a block: the scheduler reruns it; each point once."""
     distributed = pytest.importorskip('distributed')
@@ -142,6 +168,10 @@ def test_cli_resume_and_refusals(tmp_path, capsys):
     assert 'already holds a sweep' in capsys.readouterr().err
     assert main(args + ['--resume']) == 0
     assert '0 blocks run, 1 already there' in capsys.readouterr().out
+    maps = tmp_path / 'elsewhere'
+    assert main(args + ['--resume', '--maps', str(maps)]) == 0
+    assert (maps / 'final_well.png').is_file() and (maps / 'peak_deviation.png').is_file()
+    capsys.readouterr()
     changed = [a if a != '0.2' else '0.3' for a in args]
     assert main(changed + ['--resume']) == 1
     assert 'differs in t_end' in capsys.readouterr().err
@@ -185,20 +215,117 @@ def test_bad_options_are_errors_before_any_work(extra, message, tmp_path, capsys
     assert not out.exists()
 
 
-def test_scene_initial_condition_matches_simulate():
-    """The sweep point at the pole_slip scene's own initial slip slips as simulate says."""
+def test_scene_initial_condition_matches_simulate(capsys):
+    """The sweep point at the pole_slip scene's own initial slip slips as ``simulate`` says.
+
+    The scene's initial slip speed is read from its file; the slip count is the one
+    ``gyro-rotor simulate pole_slip`` prints (RotorAnalyzer over its trajectory).
+    """
+    import re
+
+    from gyro_rotor.analysis.sweep.task import scene_flat
     from gyro_rotor.numerics.simulate import simulate
-    spec = make_spec('pole_slip', ['initial.dzdot=-60:-60:1'], metrics=['well'])
+    dzdot = scene_flat('pole_slip')[0]['initial.dzdot']
+    spec = make_spec('pole_slip', [f'initial.dzdot={dzdot}:{dzdot}:1'], metrics=['well'])
     res = run_block(spec, 0).columns
+    assert main(['simulate', 'pole_slip']) == 0
+    printed = re.search(r'pole slips: +(\d+)', capsys.readouterr().out)
+    assert printed, 'simulate printed no pole-slip count'
+    assert res['status'][0] == PointStatus.OK
+    assert res['pole_slips'][0] == int(printed.group(1)) == 3     # the README's reference
     tr = simulate('pole_slip')
     p = tr.scene.params.pole_pairs
-    well_sim = int(round(tr.z[-1] * p / (2 * np.pi)))
-    assert well_sim == -3                                  # the reference of the README
-    assert res['final_well'][0] == well_sim
-    assert res['pole_slips'][0] == well_passages(tr.z * p / (2 * np.pi)) == 3
+    assert res['final_well'][0] == int(round(tr.z[-1] * p / (2 * np.pi))) == -3
+
+
+def test_sweep_bench_writes_to_a_new_directory_by_default():
+    """``sweep-bench`` never overwrites the committed bench/ unless --out bench is given."""
+    from gyro_rotor.cli.commands.sweep_bench import default_out_dir
+    from gyro_rotor.cli.main import build_parser
+    args = build_parser().parse_args(['sweep-bench'])
+    assert args.out is None
+    name = default_out_dir()
+    assert name.startswith('sweep-bench-') and len(name) == len('sweep-bench-YYYYmmdd-HHMMSS')
+    assert build_parser().parse_args(['sweep-bench', '--out', 'bench']).out == 'bench'
+
+
+GENERAL_GRID = ['constants.c_a=20:40:2', 'K_D=0.02:0.2:2:log']
+
+
+def _general_spec():
+    return make_spec('twin_gimbal', GENERAL_GRID, t_end=0.5, rate=100.0, block_size=3)
+
+
+def test_general_sweep_matches_a_direct_integration(tmp_path):
+    """A general scene's sweep point equals the scene loaded with the point's values, run alone.
+
+    Reference: the project's dop853 at rtol 1e-11 (not the sweep's RK4 ensemble) on
+    ``load_general_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
+    """
+    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.numerics.general import integrate
+    spec = _general_spec()
+    assert spec.general and spec.n_points == 4 and spec.n_blocks == 2
+    r = run_sweep(spec, tmp_path / 'g', executor=Executor.SERIAL)
+    assert sorted(r.blocks_run) == [0, 1]
+    got = _columns(tmp_path / 'g')
+    np.testing.assert_array_equal(got['point'], np.arange(4))
+    assert np.all(got['status'] == PointStatus.OK)
+    j = int(np.nonzero((got['constants.c_a'] == 40.0) & np.isclose(got['K_D'], 0.2))[0][0])
+    scene = load_general_scene('twin_gimbal', {'constants.c_a': 40.0, 'K_D': 0.2})
+    model = scene.make_model()
+    run = integrate(model, scene.initial_state(model), spec.t_eval, method='dop853',
+                    rtol=1e-11, atol=1e-13)
+    q = run.y[:, :model.n] - np.asarray(scene.steady_q)
+    assert got['peak_deviation'][j] == pytest.approx(np.abs(q).max(), rel=1e-7)
+    assert got['final_E_star'][j] == pytest.approx(model.energy(run.y[-1:])[0], rel=1e-7)
+    # the values reach the points: a stiffer turntable spring changes the motion
+    assert len(set(np.round(got['final_E_star'], 9))) == 4
+
+
+def test_general_sweep_same_on_a_local_cluster(cluster2, tmp_path):
+    """Serial and 2 worker processes give the same numbers for a general scene (to 1e-12)."""
+    run_sweep(_general_spec(), tmp_path / 's', executor=Executor.SERIAL)
+    r = run_sweep(_general_spec(), tmp_path / 'd', executor=Executor.LOCAL, client=cluster2)
+    assert r.workers == 2 and sorted(r.blocks_run) == [0, 1]
+    a, b = _columns(tmp_path / 's'), _columns(tmp_path / 'd')
+    for c in ('peak_deviation', 'settling_time', 'decay_rate', 'final_E_star'):
+        np.testing.assert_allclose(a[c], b[c], rtol=1e-12, atol=0.0, equal_nan=True, err_msg=c)
+
+
+@pytest.mark.parametrize('extra, message', [
+    (['--grid', 'constants.c_x=1:2:3'], "unknown constant 'c_x'"),
+    (['--grid', 'drive.R9.K_D=0.1:0.2:2'], "unknown key 'drive.R9.K_D'"),
+    (['--grid', 'constants.J_g=-1:1:3'], 'not positive definite'),
+    (['--grid', 'K_D=-1:1:3'], 'must not be negative'),
+    (['--grid', 'initial.q=0:1:2'], 'cannot be swept in a general scene'),
+    (['--grid', 'K_D=0.1:0.2:2', '--metrics', 'well'], "metric 'well' is not computed"),
+])
+def test_bad_general_grid_is_an_error_before_any_work(extra, message, tmp_path, capsys):
+    """General scenes: one ERROR line naming the problem, exit 1, nothing written."""
+    out = tmp_path / 'never'
+    assert main(['sweep', 'twin_gimbal', '--out', str(out), '--serial'] + extra) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and message in err and err.count('\n') == 1, err
+    assert not out.exists()
 
 
 def test_well_passages_counts_with_hysteresis():
     """Jitter on a maximum counts nothing; a jump over two wells between samples counts 2."""
     u = np.array([0.0, 0.3, 0.5, 0.45, 0.55, 0.49, 0.2, 0.0, 0.9, 1.1, 3.05, 2.5, 2.1])
     assert well_passages(u) == 1 + 2 + 1
+
+
+def test_progress_bar_counts_points():
+    """The text progress bar: a line per tenth off a terminal, ending at all points, 100 %."""
+    import io
+
+    from gyro_rotor.analysis.sweep.runner import TextProgress
+    stream = io.StringIO()
+    bar = TextProgress(40, stream=stream, width=10)
+    for _ in range(8):
+        bar.update(5)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 8, lines                     # 5, 10, ..., 40 of 40: each a new tenth
+    assert lines[0].startswith('[#.........] 5/40 points  12.5%'), lines[0]
+    assert lines[-1].startswith('[##########] 40/40 points 100.0%'), lines[-1]

@@ -12,6 +12,7 @@ module         concept
 ``grid``       ``--grid KEY=START:STOP:COUNT[:log]`` axes, their product, checks
 ``metrics``    per-trajectory metrics (final well, pole slips, settling, ...)
 ``task``       the sweep specification and one block of points = one ensemble run
+``general``    the same for general scenes (constants and drive values of a system)
 ``store``      incremental Parquet output, the manifest, ``--resume``
 ``runner``     serial in-process or on Dask (local process cluster or by address)
 ``maps``       heatmap PNGs of a metric over two grid axes

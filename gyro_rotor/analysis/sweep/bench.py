@@ -42,6 +42,7 @@ class BenchRow:
     efficiency: float
     task_overhead: float
     end_to_end_overhead: float
+    load: tuple = (math.nan, math.nan)
 
 
 def _noop(x):
@@ -66,20 +67,26 @@ def _warm(spec: SweepSpec) -> float:
     return time.perf_counter() - t0
 
 
-def _row(label: str, r: SweepRun, o_task: float, rate1: float | None) -> BenchRow:
+def _row(label: str, r: SweepRun, o_task: float, rate1: float | None,
+         load0: float) -> BenchRow:
     w = max(1, r.workers)
     block_work = r.work_s / max(1, len(r.blocks_run))
     eff = r.steps_per_s / (w * rate1) if rate1 else math.nan
     return BenchRow(label=label, workers=w, points=r.points_run, blocks=len(r.blocks_run),
                     wall_s=r.wall_s, steps_per_s=r.steps_per_s, efficiency=eff,
                     task_overhead=o_task / block_work if o_task == o_task else math.nan,
-                    end_to_end_overhead=1.0 - r.work_s / (w * r.wall_s))
+                    end_to_end_overhead=1.0 - r.work_s / (w * r.wall_s),
+                    load=(load0, os.getloadavg()[0]))
 
 
-def run_bench(out_dir: str | None = None, *, t_end: float = 0.5,
+def run_bench(out_dir: str | None = None, *, t_end: float = 0.3,
               grid: Sequence[str] = BENCH_GRID, workers: Sequence[int] = (1, 2),
               progress: Callable[[str], None] | None = None) -> tuple[list, dict]:
-    """Run the benchmark; return the rows and the extrapolation inputs."""
+    """Run the benchmark; return the rows and the extrapolation inputs.
+
+    The sweeps' Parquet files go to a temporary directory under ``out_dir`` (default: the
+    system's temporary directory), removed at the end.
+    """
     say = progress or (lambda s: None)
     spec = make_spec('pole_slip', list(grid), t_end=t_end)
     _warm(spec)
@@ -87,8 +94,9 @@ def run_bench(out_dir: str | None = None, *, t_end: float = 0.5,
     tmp = tempfile.TemporaryDirectory(dir=out_dir)
     say(f'serial: {spec.n_points} points, {spec.n_blocks} blocks of {spec.block_size}, '
         f'{spec.steps_per_trajectory} steps each')
+    load0 = os.getloadavg()[0]
     r = run_sweep(spec, os.path.join(tmp.name, 'serial'), executor=Executor.SERIAL)
-    rows.append(_row('serial (in process)', r, math.nan, None))
+    rows.append(_row('serial (in process)', r, math.nan, None, load0))
     say(f'  {r.wall_s:.1f} s, {r.steps_per_s:.4g} trajectory-steps/s')
     rate1 = o1 = block_work1 = None
     for w in workers:
@@ -98,6 +106,7 @@ def run_bench(out_dir: str | None = None, *, t_end: float = 0.5,
             client.run(_warm, spec)
             o_task = noop_overhead(client)
             say(f'{w} worker(s): no-op task {1e3 * o_task:.2f} worker-ms per task')
+            load0 = os.getloadavg()[0]
             r = run_sweep(spec, os.path.join(tmp.name, f'w{w}'), executor=Executor.LOCAL,
                           client=client)
         finally:
@@ -107,7 +116,7 @@ def run_bench(out_dir: str | None = None, *, t_end: float = 0.5,
         if rate1 is None:
             rate1, o1 = r.steps_per_s / w, o_task
             block_work1 = r.work_s / max(1, len(r.blocks_run))
-        rows.append(_row(f'LocalCluster, {w} worker(s)', r, o_task, rate1))
+        rows.append(_row(f'LocalCluster, {w} worker(s)', r, o_task, rate1, load0))
         say(f'  {r.wall_s:.1f} s, {r.steps_per_s:.4g} trajectory-steps/s')
     tmp.cleanup()
     extra = {'rate1': rate1, 'o_task': o1, 'block_work': block_work1, 'blocks': spec.n_blocks,
@@ -129,13 +138,15 @@ def bench_table(rows: list, extra: dict, load: tuple) -> str:
              f'machine: {os.cpu_count()} cores, load average {load[0]:.2f} before and '
              f'{load[1]:.2f} after (shared with other jobs).', '',
              '| run | workers | wall [s] | trajectory-steps/s | scaling efficiency | '
-             'task overhead (no-op task / block work) | end-to-end overhead |',
-             '|---|---|---|---|---|---|---|']
+             'task overhead (no-op task / block work) | end-to-end overhead | '
+             'load average (start, end of the run) |',
+             '|---|---|---|---|---|---|---|---|']
     for r in rows:
         eff = '-' if math.isnan(r.efficiency) else f'{100 * r.efficiency:.0f} %'
         ov = '-' if math.isnan(r.task_overhead) else f'{100 * r.task_overhead:.3f} %'
         lines.append(f'| {r.label} | {r.workers} | {r.wall_s:.1f} | {r.steps_per_s:.4g} | '
-                     f'{eff} | {ov} | {100 * r.end_to_end_overhead:.1f} % |')
+                     f'{eff} | {ov} | {100 * r.end_to_end_overhead:.1f} % | '
+                     f'{r.load[0]:.2f}, {r.load[1]:.2f} |')
     lines += ['', f'Estimate (not measured) for a cluster of N workers, each as fast as the '
               f'measured single worker ({extra["rate1"]:.4g} trajectory-steps/s), '
               f'{1e3 * extra["o_task"]:.2f} ms overhead per task, '
@@ -145,6 +156,9 @@ def bench_table(rows: list, extra: dict, load: tuple) -> str:
     for n in (1, 2, 8, 32, 128):
         t, rate = _estimate(extra, n)
         lines.append(f'| {n} | {t:.1f} | {rate:.3g} |')
+    lines += ['', 'The machine is shared: the scaling efficiency compares runs made under the '
+              'load averages in the table (the 1-minute average of the whole machine, '
+              'this benchmark included), not a quiet machine.']
     lines += ['', f'Beyond N = {extra["blocks"]} workers the blocks run out: smaller '
               '--block sizes (down to about 20 x the overhead per task) keep them busy.']
     return '\n'.join(lines) + '\n'

@@ -38,8 +38,11 @@ SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in _INITIAL_UNITS)
 
 def key_unit(key: str) -> str:
     """SI unit of a sweepable key ('-' for counts)."""
-    if key in PARAM_UNITS:
-        return PARAM_UNITS[key] or '-'
+    last = key.rsplit('.', 1)[-1]
+    if key in PARAM_UNITS or (key.startswith('drive.') and last in PARAM_UNITS):
+        return PARAM_UNITS[last] or '-'
+    if key.startswith('constants.'):
+        return '-'                    # a constant of a system file carries no unit
     return _INITIAL_UNITS.get(key.split('.', 1)[-1], '-')
 
 

@@ -92,6 +92,15 @@ def _draw_slips(ax, table, spec, x, y):
         ax.clabel(cs, fmt=lambda v: f'{v + 0.5:.0f}', fontsize=6)
 
 
+def _draw_scene_point(ax, spec: SweepSpec, key0: str, key1: str) -> None:
+    """Mark the scene's own values of the two axes' keys (a star), if the scene has both."""
+    x, y = spec.base.get(key0), spec.base.get(key1)
+    if isinstance(x, (int, float)) and isinstance(y, (int, float)):
+        ax.plot([x], [y], marker='*', color='w', mec='k', ms=11, ls='none',
+                label=f'the scene ({key0} = {x:g}, {key1} = {y:g})')
+        ax.legend(loc='best', fontsize=7)
+
+
 def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
     import matplotlib
     matplotlib.use('Agg')
@@ -120,7 +129,7 @@ def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
             _draw_slips(ax, table, spec, a0.values, a1.values)
             title += ' (numbers/lines: pole slips)'
         keys = (a0.key, a1.key)
-        if column == 'settling_time' and set(keys) == {'K_S', 'K_D'}:
+        if column == 'settling_time' and set(keys) == {'K_S', 'K_D'} and not spec.general:
             ks_axis = a0 if a0.key == 'K_S' else a1
             sel = ks_axis.values[np.unique(np.linspace(0, ks_axis.count - 1,
                                                        min(12, ks_axis.count)).astype(int))]
@@ -128,6 +137,7 @@ def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
             xs, ys = (ks, kd) if a0.key == 'K_S' else (kd, ks)
             ax.plot(xs, ys, 'w--o', ms=3, lw=1.2, label='linear optimum K_D(K_S) (tune)')
             ax.legend(loc='best', fontsize=7)
+        _draw_scene_point(ax, spec, a0.key, a1.key)
         ax.set_xlabel(_label(a0.key))
         ax.set_ylabel(_label(a1.key))
         if a0.spacing is Spacing.LOG:
@@ -135,8 +145,12 @@ def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
         if a1.spacing is Spacing.LOG:
             ax.set_yscale('log')
         bad = int((~ok).sum())
-        if bad:
-            title += f'\ngrey: {bad} failed, diverged or missing points'
+        no_value = int((ok & ~np.isfinite(vals)).sum())
+        grey = ([f'{bad} failed, diverged or missing points'] if bad else []) + \
+            ([f'{no_value} points without a value (not settled by t_end, no fit)']
+             if no_value else [])
+        if grey:
+            title += '\ngrey: ' + '; '.join(grey)
     if note:
         title += f'\n({note})'
     ax.set_title(title, fontsize=9)

@@ -35,7 +35,7 @@ from gyro_rotor.core.model import Model
 import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
-           'trajectory_metrics', 'well_passages', 'DEFAULT_TOL']
+           'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay']
 
 #: default settling tolerance of the drive amplitude a [rad]
 DEFAULT_TOL = 1e-3
@@ -89,7 +89,8 @@ def well_passages(u: np.ndarray) -> int:
     return int(np.sum(np.abs(np.diff(k)))) if k.size > 1 else 0
 
 
-def _fit_decay(t: np.ndarray, a: np.ndarray) -> float:
+def fit_decay(t: np.ndarray, a: np.ndarray) -> float:
+    """Return -slope of a least-squares line through ln a(t) (a > 1e-12); NaN if too short."""
     ok = a > 1e-12
     if np.count_nonzero(ok) < 10:
         return math.nan
@@ -98,6 +99,16 @@ def _fit_decay(t: np.ndarray, a: np.ndarray) -> float:
         return math.nan
     slope = np.polyfit(tt - tt[0], la, 1)[0]
     return float(-slope)
+
+
+def settle_time(t: np.ndarray, a: np.ndarray, tol: float) -> float:
+    """First sample time after which the amplitude ``a`` stays <= ``tol``; NaN if a(T) > tol."""
+    above = np.nonzero(a > tol)[0]
+    if above.size == 0:
+        return float(t[0])
+    if above[-1] == a.size - 1:
+        return math.nan
+    return float(t[above[-1] + 1])
 
 
 def trajectory_metrics(model: Model, t: np.ndarray, y: np.ndarray, metrics, *,
@@ -124,19 +135,13 @@ def trajectory_metrics(model: Model, t: np.ndarray, y: np.ndarray, metrics, *,
         omega_d = math.sqrt(p.K_S * (1.0 / p.C_R + 1.0 / p.C_M)) if p.K_S > 0 else 1.0
         a = np.hypot(z - k_end * well_w, zd / omega_d)
         if Metric.SETTLING in metrics:
-            above = np.nonzero(a > tol)[0]
-            if above.size == 0:
-                out['settling_time'] = float(t[0])
-            elif above[-1] == a.size - 1:
-                out['settling_time'] = math.nan
-            else:
-                out['settling_time'] = float(t[above[-1] + 1])
+            out['settling_time'] = settle_time(t, a, tol)
         if Metric.DECAY in metrics:
             start = 0
             if pp > 0:
                 other = np.nonzero(np.round(z / well_w) != k_end)[0]
                 start = other[-1] + 1 if other.size else 0
-            out['decay_rate'] = _fit_decay(t[start:], a[start:])
+            out['decay_rate'] = fit_decay(t[start:], a[start:])
     if Metric.ENERGY in metrics:
         out['final_E_star'] = float(model.energy(y[-1]))
     return out

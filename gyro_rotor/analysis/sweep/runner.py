@@ -150,7 +150,9 @@ def run_sweep(spec: SweepSpec, out, *, executor: Executor = Executor.LOCAL,
             on_block(res)
     t0 = time.perf_counter()
     n_workers = 1
-    if executor is Executor.SERIAL and client is None:
+    if not todo and client is None:
+        n_workers = 0                 # nothing to compute: no cluster is started
+    elif executor is Executor.SERIAL and client is None:
         _serial(spec, todo, on_result)
     else:
         own = client is None

@@ -70,6 +70,7 @@ class SweepSpec:
     metrics: Sequence[str]
     tol: float
     block_size: int
+    general: bool = False
 
     @property
     def sweep_grid(self) -> SweepGrid:
@@ -136,6 +137,13 @@ def _sweep_step(base: Mapping[str, Any], grid: SweepGrid) -> float:
     return STEP_FACTOR / max(fastest, 1.0)
 
 
+def _check_metrics(wanted) -> None:
+    for m in wanted:
+        if m not in tuple(Metric):
+            raise ParameterError(f"unknown metric '{m}'; valid: "
+                                 f"{', '.join(x.value for x in Metric)}")
+
+
 def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = None,
               rate: float = 100.0, metrics: Sequence[str] | None = None,
               tol: float = 1e-3, block_size: int | None = None,
@@ -144,9 +152,22 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
 
     Raises :class:`~gyro_rotor.errors.ParameterError` or ``SceneError`` naming the problem.
     """
-    base, path = scene_flat(scene)
+    from gyro_rotor.core.system.scene import general_scene_path, is_general_scene
+    general = is_general_scene(scene)
     grid = SweepGrid.parse(grid_specs)
-    grid.check(base)
+    if general:
+        from gyro_rotor.analysis.sweep.general import check_general_grid, GENERAL_METRICS
+        from gyro_rotor.core.system.scene import load_general_scene
+        path = str(general_scene_path(scene))
+        base = {'t_end': load_general_scene(path).t_end}
+        wanted = GENERAL_METRICS if metrics is None else tuple(metrics)
+        _check_metrics(wanted)
+        fastest = check_general_grid(path, grid, wanted)
+    else:
+        base, path = scene_flat(scene)
+        grid.check(base)
+        wanted = tuple(Metric) if metrics is None else tuple(metrics)
+        _check_metrics(wanted)
     t_end = float(base.get('t_end', 10.0)) if t_end is None else float(t_end)
     for name, v in (('--t-end', t_end), ('--rate', rate), ('--tol', tol)):
         if not (math.isfinite(v) and v > 0):
@@ -154,17 +175,15 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
     if t_end * rate < 1:
         raise ParameterError(f'--t-end x --rate = {t_end * rate:g}: at least one sample '
                              'interval is needed')
-    wanted = tuple(Metric) if metrics is None else tuple(metrics)
-    for m in wanted:
-        if m not in tuple(Metric):
-            raise ParameterError(f"unknown metric '{m}'; valid: "
-                                 f"{', '.join(x.value for x in Metric)}")
-    h = _sweep_step(base, grid) if step is None else float(step)
+    if step is not None:
+        h = float(step)
+    else:
+        h = STEP_FACTOR / max(fastest, 1.0) if general else _sweep_step(base, grid)
     if not (math.isfinite(h) and h > 0):
         raise ParameterError(f'--step must be positive and finite, got {step!r}')
     spec = SweepSpec(scene=path, base=base, grid=tuple(a.spec for a in grid.axes), t_end=t_end,
                      rate=float(rate), step=h, metrics=tuple(str(m) for m in wanted),
-                     tol=float(tol), block_size=1)
+                     tol=float(tol), block_size=1, general=general)
     if block_size is None:
         per_point = spec.steps_per_trajectory * US_PER_TRAJECTORY_STEP * 1e-6
         mem = MAX_BLOCK_BYTES / (spec.t_eval.size * 10 * 8.0)
@@ -251,6 +270,9 @@ def _abscissa(scene: Scene, cache: dict) -> float:
 
 def run_block(spec: SweepSpec, b: int) -> BlockResult:
     """Integrate block ``b`` of the sweep and return its columns (a row per point, always)."""
+    if spec.general:
+        from gyro_rotor.analysis.sweep.general import general_block
+        return general_block(spec, b)
     t0 = time.perf_counter()
     grid = spec.sweep_grid
     points = spec.block_points(b)

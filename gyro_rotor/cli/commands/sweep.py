@@ -30,8 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--t-end', type=float, default=None, help="duration [s] (default: the scene's)")
     p.add_argument('--rate', type=float, default=100.0,
                    help='sample rate the metrics are taken from [Hz] (default 100)')
-    p.add_argument('--metrics', default=','.join(m.value for m in Metric),
-                   help=f"comma-separated subset of {','.join(m.value for m in Metric)}")
+    p.add_argument('--metrics', default=None,
+                   help=f"comma-separated subset of {','.join(m.value for m in Metric)} "
+                        '(default: all; general scenes: settling,peak,decay,energy)')
     p.add_argument('--tol', type=float, default=1e-3,
                    help='settling tolerance of the drive amplitude [rad] (default 1e-3)')
     p.add_argument('--out', required=True, help='output directory (Parquet blocks, maps)')
@@ -47,6 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='points per task (default: about 2 s of work, capped by memory)')
     p.add_argument('--step', type=float, default=None,
                    help='RK4 step [s] (default 0.02 / the fastest model rate of the sweep)')
+    p.add_argument('--maps', default=None, metavar='DIR',
+                   help='directory for the heatmap PNGs (default: OUT/maps)')
     p.add_argument('--no-maps', action='store_true', help='do not draw the heatmaps')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
 
@@ -55,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     """Check everything, run the sweep, draw the maps, print a summary."""
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f'--workers must be positive, got {args.workers}')
-    metrics = [m.strip() for m in args.metrics.split(',') if m.strip()]
+    metrics = (None if args.metrics is None else
+               [m.strip() for m in args.metrics.split(',') if m.strip()])
     spec = make_spec(args.scene, args.grid, t_end=args.t_end, rate=args.rate, metrics=metrics,
                      tol=args.tol, block_size=args.block, step=args.step)
     executor = (Executor.SERIAL if args.serial else
@@ -68,12 +72,12 @@ def run(args: argparse.Namespace) -> int:
     table = SweepStore(args.out).read()
     status = table.column('status').to_numpy()
     counts = {s.name.lower(): int((status == s).sum()) for s in PointStatus}
-    print(f'  {len(r.blocks_run)} blocks run, {r.blocks_skipped} already there; '
-          f'{r.points_run} points in {r.wall_s:.1f} s on {r.workers} worker(s): '
-          f'{r.steps_per_s:.3g} trajectory-steps/s')
+    done = (f'{r.points_run} points in {r.wall_s:.1f} s on {r.workers} worker(s): '
+            f'{r.steps_per_s:.3g} trajectory-steps/s' if r.blocks_run else 'nothing to compute')
+    print(f'  {len(r.blocks_run)} blocks run, {r.blocks_skipped} already there; {done}')
     print(f'  {table.num_rows}/{spec.n_points} points in {args.out}: '
           + ', '.join(f'{k} {v}' for k, v in counts.items()))
     if not args.no_maps:
-        for path in plot_maps(table, spec, f'{args.out}/maps'):
+        for path in plot_maps(table, spec, args.maps or f'{args.out}/maps'):
             print(f'  wrote {path}')
     return 0
