@@ -2,8 +2,8 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.integrators`, RODAS4 where
-the drive damping makes the scene stiff, Gauss6 for long conservative runs), at
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.integrators`, Radau9 where
+the drive damping makes the scene stiff, Split8 for long conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -19,7 +19,8 @@ from typing import Any, Mapping
 from gyro_rotor.core.model import Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.numerics.integrators import choose_method as choose_integrator, integrate, METHODS
+from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
+                                             make_integrator, METHODS)
 import numpy as np
 
 __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
@@ -50,8 +51,9 @@ class Trajectory:
     y: np.ndarray
     out: dict
     method: str
-    rtol: float
-    atol: float
+    #: tolerances the method used (None for a fixed-step method, which uses ``step``)
+    rtol: float | None
+    atol: float | None
     nfev: int
     nsteps: int
     wall_time: float
@@ -59,6 +61,18 @@ class Trajectory:
     message: str = ''
     #: why 'auto' chose this method ('' when the method was given)
     method_reason: str = ''
+    #: step of a fixed-step method [s] (None for adaptive methods)
+    step: float | None = None
+
+    @property
+    def setting(self) -> str:
+        """Return the method's setting as text: its tolerances, or its fixed step."""
+        parts = []
+        if self.rtol is not None:
+            parts.append(f'rtol {self.rtol:g}, atol {self.atol:g}')
+        if self.step is not None:
+            parts.append(f'step {self.step:.3g} s')
+        return '; '.join(parts)
 
     def __getattr__(self, name: str) -> Any:
         out = self.__dict__.get('out')
@@ -101,7 +115,8 @@ class Trajectory:
         o = self.out
         return {
             'scene': self.scene.name, 'model': self.model.name, 'method': self.method,
-            'rtol': self.rtol, 'atol': self.atol, 't_end': float(self.t[-1]),
+            'rtol': self.rtol, 'atol': self.atol, 'step': self.step, 'setting': self.setting,
+            't_end': float(self.t[-1]),
             'samples': len(self.t), 'theta_end': float(o['theta'][-1]),
             'psidot_end': float(o['psidot'][-1]), 'chi_end': float(o['chi'][-1]),
             'z_end': float(o['z'][-1]), 'zdot_end': float(o['zdot'][-1]),
@@ -116,8 +131,8 @@ class Trajectory:
 def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    See :func:`gyro_rotor.integrators.choose_method`: RODAS4 where the drive damping makes
-    the scene stiff, Gauss6 for long conservative runs, DOP853 otherwise.
+    See :func:`gyro_rotor.integrators.choose_method`: Radau9 where the drive damping makes
+    the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
     """
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
                              scene.model)
@@ -147,13 +162,15 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.integrators` (rk4, rk8, dop853, gauss6, rodas4) or a
+        method of :mod:`gyro_rotor.integrators` (rk4, rk8, dop853, gauss6, rodas4, radau9,
+        split8) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
-        Tolerances of adaptive methods.
+        Tolerances of adaptive methods (split8 derives its step from rtol); a fixed-step
+        method's trajectory reports None for them.
     step : float, optional
-        Step of the fixed-step methods (rk4, rk8, gauss6) [s]; default from the model's
-        fastest rate.
+        Step of the fixed-step methods (rk4, rk8, gauss6, split8) [s]; default from the
+        model's fastest rate.
     overrides : mapping, optional
         Flat scene keys to change (e.g. ``{'K_D': 0.1}``), validated like the file.
     y0 : ndarray, optional
@@ -190,10 +207,12 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     if t_eval[-1] < t_end - 1e-12:
         t_eval = np.append(t_eval, t_end)
     t0 = time.perf_counter()
+    used_step = None
     if method in METHODS:
         try:
-            res = integrate(model, y_init, (0.0, t_end), t_eval, method, rtol=rtol,
-                            atol=atol, step=step)
+            solver = make_integrator(method, model, y_init, 0.0, t_end, rtol=rtol, atol=atol,
+                                     step=step)
+            res = solver.run(t_eval)
         except ZeroDivisionError as err:
             raise IntegrationError(
                 f'integration of scene {scene.name} failed: the axis reached theta = pi '
@@ -201,6 +220,10 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         wall = time.perf_counter() - t0
         t_s, Y, nfev, nsteps = res.t, res.y, res.nfev, res.nsteps
         status, message = res.status, res.message
+        if not solver.adaptive:
+            used_step = solver.h
+            if not solver.step_from_tolerance or step is not None:
+                rtol = atol = None      # rk4, rk8, gauss6 do not use tolerances
     else:
         from scipy.integrate import solve_ivp
         try:
@@ -220,4 +243,5 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
                                f't = {t_s[-1] if t_s.size else 0.0}: {message}')
     return Trajectory(scene=scene, model=model, t=t_s, y=Y, out=model.outputs(t_s, Y),
                       method=method, rtol=rtol, atol=atol, nfev=int(nfev), nsteps=int(nsteps),
-                      wall_time=wall, success=True, message=message, method_reason=reason)
+                      wall_time=wall, success=True, message=message, method_reason=reason,
+                      step=used_step)

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
         tr.save(args.out)
     s = tr.summary()
     print(f"scene {s['scene']} (model {s['model']}), {s['t_end']:g} s with {s['method']} "
-          f"(rtol {s['rtol']:g}, atol {s['atol']:g})")
+          f"({s['setting']})")
     if s['method_reason']:
         print(f"  auto: {s['method']}, {s['method_reason']}")
     print(f"  final state:  theta {s['theta_end']:.9f} rad, psidot {s['psidot_end']:.9f} "

@@ -355,6 +355,7 @@ class Split8(Integrator):
     name = 'split8'
     order = 8
     renormalize = False
+    step_from_tolerance = True
     default_rtol = 1e-10
     default_atol = 1e-12
     W = tb.KL8_W
