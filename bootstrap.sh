@@ -7,18 +7,28 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 venv="${GYRO_ROTOR_VENV:-$here/.venv}"
 python="${PYTHON:-python3}"
 stamp="$venv/.gyro_rotor_stamp"
-want="$(cat "$here/requirements.txt" "$here/requirements-test.txt" "$here/setup.py" "$here/setup.cfg" | sha256sum | cut -d' ' -f1)"
+want="$(cat "$here/requirements.txt" "$here/requirements-test.txt" "$here/setup.py" "$here/setup.cfg" "$here/bootstrap.sh" | sha256sum | cut -d' ' -f1)"
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -x "$venv/bin/python" ]; then
   exit 0
 fi
-echo "bootstrap: setting up $venv (first run takes about a minute)" >&2
+t0=$SECONDS
+echo "bootstrap: setting up $venv (the first run took about 2 minutes on a 2-core VM)" >&2
 if [ ! -x "$venv/bin/python" ]; then
   "$python" -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip setuptools wheel
 "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$here/requirements-test.txt"
-"$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$here"
+# editable_mode=compat puts the checkout itself on sys.path (a .pth line), so that a folder
+# named gyro_rotor in the working directory (the checkout seen from its parent) cannot
+# shadow the package as a namespace package; setuptools' notes about editable modes go to
+# a log that is shown only if the install fails
+log="$venv/.gyro_rotor_install.log"
+if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps \
+    --no-build-isolation -e "$here" --config-settings editable_mode=compat >"$log" 2>&1; then
+  cat "$log" >&2
+  exit 1
+fi
 # compile the integrators' numba kernels into numba's cache now, not in the first node
 "$venv/bin/python" -m gyro_rotor.numerics.integrators.warmup
 echo "$want" > "$stamp"
-echo "bootstrap: ready" >&2
+echo "bootstrap: ready ($((SECONDS - t0)) s)" >&2

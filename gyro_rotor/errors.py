@@ -7,7 +7,7 @@ and exits non-zero.
 """
 
 __all__ = [
-    'GyroRotorError', 'ParameterError', 'SceneError', 'NoSteadyMotionError',
+    'GyroRotorError', 'ParameterError', 'SceneError', 'SystemFileError', 'NoSteadyMotionError',
     'IntegrationError', 'BagError', 'AnalysisError',
 ]
 
@@ -22,6 +22,10 @@ class ParameterError(GyroRotorError, ValueError):
 
 class SceneError(GyroRotorError, ValueError):
     """A scene file is malformed, has an unknown key or a value of the wrong type."""
+
+
+class SystemFileError(GyroRotorError, ValueError):
+    """A system file (a rotor system of the general theory) is malformed: names file and key."""
 
 
 class NoSteadyMotionError(GyroRotorError, ValueError):

@@ -19,7 +19,8 @@ import time
 
 from gyro_rotor.analysis.checks import analyze_bag
 from gyro_rotor.bag.bagio import open_bag
-from node_helpers import wait_for_log
+from gyro_rotor.ros.messages import ENERGY_FIELDS
+from node_helpers import bag_on_disk, wait_for_log, wait_until
 import pytest
 
 pytestmark = pytest.mark.ros
@@ -45,17 +46,36 @@ def _stop(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 30.0) -> i
         raise
 
 
-def _record(tmp_path: Path, scene: str = 'precession'):
-    """Start the recorder, then the simulator (stopping at T_END); return both."""
+def _record(tmp_path: Path, scene: str = 'precession', t_end: float = T_END):
+    """Start the recorder, then the simulator (stopping at ``t_end``); return both.
+
+    The simulator holds its time at 0 until the recorder's subscriptions matched
+    (``wait_for_subscribers``), then logs 'simulation time starts'.
+    """
     bag = tmp_path / 'bag'
     an = _start(['gyro_rotor.ros.analysis_node', '--ros-args', '-p', f'output:={bag}',
                  '-p', 'window_s:=2.0', '-p', 'min_fit_s:=1.0'], tmp_path / 'an.log')
     wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
-    time.sleep(1.0)      # let discovery settle before the first sample
     sim = _start(['gyro_rotor.ros.sim_node', '--ros-args', '-p', f'scene:={scene}',
-                  '-p', 'real_time_factor:=1.0', '-p', f't_end:={T_END}',
-                  '-p', 'stop_at_t_end:=true'], tmp_path / 'sim.log')
+                  '-p', 'real_time_factor:=1.0', '-p', f't_end:={t_end}',
+                  '-p', 'stop_at_t_end:=true', '-p', 'wait_for_subscribers:=1'],
+                 tmp_path / 'sim.log')
     return bag, an, sim
+
+
+def _energy_k(data: bytes) -> tuple[int, int]:
+    """(seq, k) of a serialized energy message: its float64 array ends the CDR."""
+    import struct
+    n = len(ENERGY_FIELDS)
+    row = struct.unpack_from(f'<{n}d', data, len(data) - 8 * n)
+    return int(row[ENERGY_FIELDS.index('seq')]), int(row[ENERGY_FIELDS.index('k')])
+
+
+def _published(log: Path) -> dict:
+    import json
+    import re
+    found = re.findall(r'published counts: (\{.*\})', log.read_text())
+    return json.loads(found[-1]) if found else {}
 
 
 def _reset_sim(timeout: float = 20.0) -> None:
@@ -78,6 +98,36 @@ def _reset_sim(timeout: float = 20.0) -> None:
         node.destroy_node()
     finally:
         rclpy.shutdown(context=context)
+
+
+def _parameters(node: str, wanted: list[str], timeout: float = 30.0):
+    """Names (list_parameters) and values (get_parameters) of ``node``, by its services."""
+    import rclpy
+    from rcl_interfaces.srv import GetParameters, ListParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import parameter_value_to_python
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    try:
+        client_node = rclpy.create_node('test_param_client', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(client_node)
+        answers = []
+        for srv, name, req in ((ListParameters, 'list_parameters', ListParameters.Request()),
+                               (GetParameters, 'get_parameters',
+                                GetParameters.Request(names=wanted))):
+            client = client_node.create_client(srv, f'{node}/{name}')
+            assert client.wait_for_service(timeout_sec=timeout), name
+            future = client.call_async(req)
+            executor.spin_until_future_complete(future, timeout_sec=timeout)
+            assert future.done(), name
+            answers.append(future.result())
+        executor.shutdown()
+        client_node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+    return (list(answers[0].result.names),
+            [parameter_value_to_python(v) for v in answers[1].values])
 
 
 def _energy_seq_three_readers(bag: Path) -> tuple[list, list, list]:
@@ -103,15 +153,28 @@ def _energy_seq_three_readers(bag: Path) -> tuple[list, list, list]:
 def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
     bag, an, sim = _record(tmp_path)
     try:
-        wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
-        # the simulator publishes from its first tick, before discovery has matched the
-        # recorder (rosbag2 has the same race); so restart its run once both are up: the
-        # run after the reset must be recorded completely
-        time.sleep(1.5)
+        wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim, timeout=40.0)
+        # restart the run (the node's ~/reset) once the first run is longer than the window
+        # in which the analysis pairs energy with joint_states by stamp (PAIRER_KEEP): a
+        # shorter run's unpaired samples would meet the new run's samples of the same stamps.
+        # The run after the reset must be recorded completely, and the analysis must count
+        # it as one reset.
+        from gyro_rotor.tools.soak import PAIRER_KEEP
+        wait_until(lambda: len(bag_on_disk(bag, '/energy')) > 2 * PAIRER_KEEP,
+                   'the first run on disk beyond the pairing window', an, timeout=60.0)
         _reset_sim()
-        time.sleep(T_END + 1.5)          # T_END at real time, then the sim idles
+        n = int(T_END * RATE) + 1
+
+        def run_complete():
+            ks = [_energy_k(d)[1] for _, d in bag_on_disk(bag, '/energy')]
+            return any(ks[i] < ks[i - 1] for i in range(1, len(ks))) and ks[-1] == n - 1
+        wait_until(run_complete, 'the run after the reset on disk', an, timeout=60.0)
         assert _stop(sim) == 0
-        time.sleep(1.5)                  # the last results are published
+        published = _published(tmp_path / 'sim.log')
+        # the recorder took every published message (all on disk) before it is stopped
+        for topic in ('energy', 'joint_states'):
+            wait_until(lambda: len(bag_on_disk(bag, f'/{topic}')) == published[topic],
+                       f'all {published[topic]} {topic} messages on disk', an)
     finally:
         _stop(sim)
         rc = _stop(an)
@@ -145,6 +208,16 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
         by_name['/energy']['topic_metadata']['offered_qos_profiles']
     assert by_name['/energy']['topic_metadata']['offered_qos_profiles'][0]['reliability'] \
         == 'reliable'
+    # the type hash the publisher announced in the graph (the same RIHS01 as the share files)
+    from gyro_rotor.bag.msgdefs import type_hash
+    want = type_hash('std_msgs/msg/Float64MultiArray')
+    assert want.startswith('RIHS01_')
+    assert reader.channel_metadata['/energy']['topic_type_hash'] == want
+    assert by_name['/energy']['topic_metadata']['type_description_hash'] == want
+    # no directory of the recording machine in the metadata: the scene is named relative
+    # to the package's share directory
+    doc = yaml.safe_load(reader.metadata['gyro_rotor.scene']['document'])
+    assert doc['path'] == 'config/precession.yaml'
     # the live result is in the bag, and the offline analysis reproduces it
     off = analyze_bag(bag)
     assert off.live is not None and off.live['samples'] == len(seq)
@@ -155,10 +228,13 @@ def test_record_read_back_counts_and_sigint_finalizes(tmp_path):
 
 def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
     import gyro_rotor.cli.main as cli
-    bag, an, sim = _record(tmp_path)
+    bag, an, sim = _record(tmp_path, t_end=60.0)
     try:
-        wait_for_log(tmp_path / 'sim.log', "scene 'precession'", sim, timeout=40.0)
-        time.sleep(0.7 * T_END)          # killed while the simulation is running
+        # killed while the simulation is running (it would run for a minute), as soon as
+        # the recorder has written a chunk with some energy messages
+        wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim, timeout=40.0)
+        wait_until(lambda: len(bag_on_disk(bag, '/energy')) >= 25,
+                   'a flushed chunk with energy messages', an, timeout=60.0)
         t_kill = time.time_ns()
         an.send_signal(signal.SIGKILL)
         an.wait(timeout=10)
@@ -199,9 +275,13 @@ def test_sigterm_finalizes_the_bag(tmp_path):
                 tmp_path / 'an.log')
     try:
         wait_for_log(tmp_path / 'an.log', 'recording to', an, timeout=40.0)
-        time.sleep(1.0)
+        # the node spins (its parameter services answer) before it gets SIGTERM
+        names, values = _parameters('/rotor_analysis', ['window_s', 'output'])
     finally:
         rc = _stop(an, signal.SIGTERM)
+    # ros2 param list/get see the node's parameters (issue 16)
+    assert {'output', 'window_s', 'min_fit_s', 'scene', 'record'} <= set(names)
+    assert values == [8.0, str(bag)]
     assert rc == 0, (tmp_path / 'an.log').read_text()
     reader = open_bag(bag)
     assert not reader.truncated

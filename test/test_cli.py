@@ -14,7 +14,35 @@ def test_simulate_prints_summary_and_writes_csv(tmp_path, capsys):
     text = capsys.readouterr().out
     for word in ('final state', 'E*', 'residual', 'RHS evaluations', 'wall time', '||q|-1|'):
         assert word in text
-    assert out.read_text().startswith('t,theta,psi,phi_R,phi_M,')
+    header = out.read_text().splitlines()[0].split(',')
+    assert header[:6] == ['t [s]', 'theta [rad]', 'psi [rad]', 'phi_R [rad]', 'phi_M [rad]',
+                          'thetadot [rad/s]']
+    from gyro_rotor.numerics.simulate import CSV_COLUMNS
+    assert [h.split(' [')[0] for h in header] == list(CSV_COLUMNS)
+    assert all(h.endswith(']') for h in header)
+
+
+def test_set_errors_name_the_option_not_the_scene_file(capsys):
+    assert main(['simulate', 'precession', '--set', 'A_R=-0.05']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: --set A_R=-0.05 (scene precession): inertia A_R')
+    assert 'scene file' not in err
+
+
+def test_fixed_step_method_reports_no_tolerances(capsys):
+    assert main(['simulate', 'precession', '--t-end', '0.1', '--method', 'rk4']) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert 'rtol 1e' not in first and 'fixed step' in first
+    assert main(['simulate', 'precession', '--t-end', '0.1', '--method', 'dop853']) == 0
+    assert 'rtol 1e-' in capsys.readouterr().out.splitlines()[0]
+
+
+def test_simulate_pole_slip_reports_the_slip_count(capsys):
+    assert main(['simulate', 'pole_slip', '--t-end', '3']) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if 'pole slips' in ln)
+    assert int(line.split(':')[1].split()[0]) > 0
+    assert main(['simulate', 'precession', '--t-end', '0.1']) == 0
+    assert 'pole slips' not in capsys.readouterr().out
 
 
 def test_steady_prints_both_branches(capsys):
@@ -70,3 +98,39 @@ def test_bad_output_and_sizes_are_refused_before_work(argv, match, capsys):
 
 def test_set_reads_exponent_notation(capsys):
     assert main(['steady', 'precession', '--set', 'K_D=1e-3']) == 0
+
+
+def test_a_closed_stdout_pipe_is_not_an_error_message():
+    """`gyro-rotor scenes | head -0`: the reader is gone before anything is written."""
+    proc = subprocess.Popen([sys.executable, '-m', 'gyro_rotor', 'scenes'],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=60) == 1
+    assert 'Broken pipe' not in err and 'Errno 32' not in err and 'Traceback' not in err, err
+
+
+def test_module_entry_point_from_the_folder_that_holds_the_checkout(tmp_path):
+    """A folder named gyro_rotor in the working directory must not shadow the package."""
+    from pathlib import Path
+    import gyro_rotor
+    (tmp_path / 'gyro_rotor').symlink_to(Path(gyro_rotor.__file__).resolve().parents[1])
+    r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'recover', 'no_such_bag'],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and 'Traceback' not in r.stderr, r.stderr
+    assert r.stderr.startswith('ERROR: no_such_bag: no such bag'), r.stderr
+
+
+def test_soak_load_starts_busy_processes_and_stops_them(capsys):
+    import time
+    from gyro_rotor.tools.soak import CpuLoad, read_cpu_s
+    with CpuLoad(2) as load:
+        pids = [p.pid for p in load.procs]
+        assert len(pids) == 2
+        deadline = time.monotonic() + 30
+        while not all((read_cpu_s(pid) or 0) > 0.05 for pid in pids):
+            assert time.monotonic() < deadline, 'the busy processes use no CPU'
+            time.sleep(0.05)
+    assert all(read_cpu_s(pid) is None for pid in pids)        # stopped and reaped
+    assert main(['soak', '--load', '-1', '--duration', '1']) == 1
+    assert '--load must be >= 0' in capsys.readouterr().err

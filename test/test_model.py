@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 def lagrange_rhs(p: RotorParams):
     """Lagrange equations of T (18), V (19), drive (23) in (theta, psi, phi_R, phi_M).
 
-    Written from the Lagrangian alone, independent of gyro_rotor.model: mass matrix M(theta),
+    Written from the Lagrangian alone, independent of gyro_rotor.core.model: mass matrix M(theta),
     M qdd = Q - dV/dq + dT/dq - (dM/dtheta thetadot) qd.
     """
     I, C_R, C_M = p.A_R + p.A_M, p.C_R, p.C_M

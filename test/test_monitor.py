@@ -42,3 +42,45 @@ def test_monitor_sees_the_simulation_topics():
     assert 'E_star' in last and 'residual' in last
     line = next(ln for ln in last.splitlines() if ln.startswith('/joint_states '))
     assert float(line.split()[3]) > 0      # it counted messages
+
+
+def test_array_values_names_numbers_by_the_messages_own_labels():
+    from gyro_rotor.tools.monitor import array_values
+    modes = array_values([['nutation', 'zero root'], ['pred_re', 'pred_im', 'status']],
+                         [-0.5, 61.2, 1.0, 0.0, 0.0, 3.0])
+    assert modes == {'nutation': {'pred_re': -0.5, 'pred_im': 61.2, 'status': 1.0},
+                     'zero root': {'pred_re': 0.0, 'pred_im': 0.0, 'status': 3.0}}
+    assert array_values([['a', 'b']], [1.0, 2.0]) == {'a': 1.0, 'b': 2.0}
+    # labels that do not fit the data name nothing (never a shifted column)
+    assert array_values([['a', 'b']], [1.0, 2.0, 3.0]) == {}
+    assert array_values([['m1', 'm2'], ['x', 'y']], [1.0, 2.0, 3.0]) == {}
+
+
+@pytest.mark.ros
+def test_monitor_labels_analysis_modes_by_row_and_column():
+    """The analysis node's 2-D analysis_modes: a line per mode, each number under its column."""
+    from gyro_rotor.analysis.results import MODE_FIELDS, MODE_LABEL
+    from gyro_rotor.cli.commands.monitor import Monitor
+    from gyro_rotor.tools.monitor import TopicStats
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+    names = ['nutation', 'housing twist', 'zero root (cyclic psi)']
+    rows = [[-0.0018 - i, 61.19 + i, -0.002, 61.2, 3.0, 4.0, 0.5, float(i)]
+            for i in range(len(names))]
+    ncol = len(MODE_FIELDS)
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=','.join(names), size=len(rows),
+                                          stride=len(rows) * ncol),
+                      MultiArrayDimension(label=MODE_LABEL, size=ncol, stride=ncol)]
+    msg.data = [v for row in rows for v in row]
+    mon = Monitor(node=None)
+    mon.stats['/analysis_modes'] = TopicStats('/analysis_modes')
+    mon._callback('/analysis_modes', Float64MultiArray)(serialize_message(msg))
+    lines = [ln for ln in mon.render().splitlines() if ln.startswith('/analysis_modes ')
+             and ': ' in ln]
+    assert len(lines) == len(names)
+    for name, row, line in zip(names, rows, lines):
+        assert line.startswith(f'/analysis_modes {name}: ')
+        shown = dict(part.rsplit(' ', 1) for part in line.split(': ', 1)[1].split(', '))
+        assert list(shown) == list(MODE_FIELDS)
+        assert [float(v) for v in shown.values()] == pytest.approx(row, rel=1e-5)

@@ -1,4 +1,4 @@
-"""Pure tests of gyro_rotor.realtime (no ROS): pacing with a fake steady clock."""
+"""Pure tests of gyro_rotor.numerics.realtime (no ROS): pacing with a fake steady clock."""
 
 import math
 import subprocess
@@ -172,7 +172,6 @@ def test_realtime_does_not_import_rclpy():
 
 
 def test_integrators_package_methods_behind_the_same_interface():
-    pytest.importorskip('gyro_rotor.integrators')
     from gyro_rotor.numerics.realtime import IntegratorStepper
     from gyro_rotor.core.scene import load_scene
     scene = load_scene('precession')
@@ -186,3 +185,51 @@ def test_integrators_package_methods_behind_the_same_interface():
     pacer.tick(0.1234)
     assert ours.t == pytest.approx(0.1234, abs=1e-12)
     np.testing.assert_allclose(ours.y, ref.advance_to(ours.t), rtol=0, atol=1e-8)
+
+
+def test_restart_on_a_grid_point_does_not_repeat_its_sample():
+    """At rtf 0 every tick ends on the grid; a change there must not publish k twice."""
+    st = RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3)
+    pacer = Pacer(st, sample_rate=100.0, rtf=0.0, chunk_samples=5)
+    first = pacer.tick(0.0)
+    assert [s.k for s in first] == [0, 1, 2, 3, 4] and st.t == pytest.approx(0.04)
+    pacer.restart(RK4Stepper(oscillator, st.t, st.y, 1e-3))
+    assert [s.k for s in pacer.tick(0.0)] == [5, 6, 7, 8, 9]
+    pacer.restart(RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3))   # back to 0
+    assert [s.k for s in pacer.tick(0.0)] == [0, 1, 2, 3, 4]
+
+
+def test_deadline_cuts_a_tick_keeps_the_grid_and_books_the_lost_time():
+    st = RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3)
+    pacer = Pacer(st, sample_rate=100.0, rtf=1.0)
+    pacer.tick(0.0)
+    out = pacer.tick(0.2, deadline=-1.0)            # a deadline already past: one step
+    assert pacer.cut and pacer.budget_cuts == 1
+    assert out == [] and st.t == pytest.approx(1e-3)
+    assert pacer.lost_sim_time == pytest.approx(0.2 - 1e-3)
+    out = pacer.tick(0.25)                          # re-anchored at the cut: 0.05 s more
+    assert not pacer.cut and [s.k for s in out] == [1, 2, 3, 4, 5]
+    assert pacer.take_window(0.25).budget_cuts == 1
+
+
+@pytest.mark.parametrize('method', ['DOP853', 'rk4'])
+def test_an_arithmetic_error_of_the_rhs_is_an_integration_error(method):
+    def divide(t, y):
+        return np.array([1.0 / 0.0 if t > 0.05 else 1.0])   # Python floats: ZeroDivisionError
+    st = make_stepper(method, divide, 0.0, np.array([0.0]), step_size=0.01)
+    with pytest.raises(IntegrationError, match='ZeroDivisionError'):
+        st.advance_to(1.0)
+    assert np.all(np.isfinite(st.y))
+
+
+def test_an_overflowed_quaternion_norm_is_a_divergence_not_q_equal_zero():
+    """Issue 12's flaky ZeroDivisionError: |q| overflowed, 1 / inf made q exactly 0."""
+    from gyro_rotor.numerics.integrators import kernels
+    y = np.zeros(10)
+    y[0:4] = 1e160                                  # finite, but |q|^2 overflows
+    f = np.ones(10)
+    kernels.normalize_quaternion(0, y, f)
+    assert not np.any(np.isfinite(y[0:4]))          # before the fix: exactly 0.0
+    y[0:4] = (3.0, 0.0, 4.0, 0.0)                   # an ordinary norm is still projected
+    kernels.normalize_quaternion(0, y, f)
+    np.testing.assert_allclose(y[0:4], (0.6, 0.0, 0.8, 0.0), rtol=1e-15)

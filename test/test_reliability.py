@@ -138,7 +138,10 @@ def test_simulator_restart_mid_recording_is_a_new_segment_not_a_loss(tmp_path):
                 time.sleep(0.5)
             assert sim.stop() == 0
             runs.append(_published(tmp_path / f'sim{i}.log')['energy'])
-        time.sleep(1.5)
+        # the recorder (and so the analysis) took every joint state too before it stops
+        node_helpers.wait_until(
+            lambda: len(node_helpers.bag_on_disk(bag, '/joint_states')) >= sum(runs),
+            'every joint state on disk', an)
     finally:
         assert an.stop() == 0, (tmp_path / 'an.log').read_text()
     assert runs == [501, 501]
@@ -191,13 +194,26 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
                                        Parameter('K_S', value=1e8)])
         assert all(r.successful for r in results), [r.reason for r in results]
         spin_until(lambda: node.diverged is not None)
-        t_stop, y_stop = node._last
+        t_stop, y_stop = node.sim.last
         assert np.all(np.isfinite(y_stop))
+        # diagnostics from one publisher arrive in order, but one published before the
+        # divergence may still be in flight: judge from the first ERROR on, and require one
+        # more report after it (the guard keeps saying ERROR, never 'running' again)
         n_diag = len(diags)
-        spin_until(lambda: len(diags) > n_diag + 1)
-        st_err = [d.status[0] for d in diags[n_diag:] if 'rotor_sim' in d.status[0].name]
-        assert st_err and all(s.level == DiagnosticStatus.ERROR for s in st_err)
+
+        def sim_status():
+            return [d.status[0] for d in diags[n_diag:] if 'rotor_sim' in d.status[0].name]
+
+        def first_error():
+            return next((i for i, s in enumerate(sim_status())
+                         if s.level == DiagnosticStatus.ERROR), None)
+        spin_until(lambda: first_error() is not None and len(sim_status()) > first_error() + 1)
+        st_err = sim_status()[first_error():]
+        assert all(s.level == DiagnosticStatus.ERROR for s in st_err), st_err
         assert 'diverged' in st_err[-1].message
+        # the samples published up to the last good state have all arrived (in-process
+        # delivery takes its time on a loaded machine)
+        spin_until(lambda: energy and energy[-1].data[F['t_sim']] >= t_stop)
         n0 = len(energy)
         t_before = node.stepper.t
         for _ in range(30):
@@ -207,7 +223,7 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
         assert len(energy) == n0 or rows[n0:, F['t_sim']].max() <= t_stop
         # nothing published is garbage: finite, the residual within the guard
         assert np.all(np.isfinite(rows))
-        assert np.max(np.abs(rows[:, F['residual']])) <= node.cfg['max_residual']
+        assert np.max(np.abs(rows[:, F['residual']])) <= node.sim.cfg['max_residual']
         assert rows[-1, F['t_sim']] == t_stop
         # the node lives on: sane values and a reset bring it back
         node.set_parameters([Parameter('K_S', value=20.0), Parameter('integrator',
@@ -225,6 +241,147 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
         probe.destroy_node()
         node.destroy_node()
         rclpy.try_shutdown(context=ctx)
+
+
+class _LiveRig:
+    """rotor_sim (rtf 1, 250 Hz, diagnostics every 0.2 s) and a probe in one executor."""
+
+    def __init__(self, name: str):
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.parameter import Parameter
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import Float64MultiArray
+        from gyro_rotor.ros.sim_node import RotorSimNode
+        self.ctx = rclpy.context.Context()
+        rclpy.init(context=self.ctx)
+        self.node = RotorSimNode(context=self.ctx, parameter_overrides=[
+            Parameter('scene', value='precession'), Parameter('real_time_factor', value=1.0),
+            Parameter('publish_rate', value=250.0), Parameter('diagnostics_period', value=0.2)])
+        self.probe = rclpy.create_node(name, context=self.ctx)
+        self.energy, self.diags = [], []
+        self.probe.create_subscription(Float64MultiArray, 'energy', self.energy.append,
+                                       QoSProfile(depth=20000,
+                                                  reliability=ReliabilityPolicy.RELIABLE))
+        self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diags.append, 50)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.ex.add_node(self.probe)
+
+    def spin_until(self, cond, timeout=30.0):
+        node_helpers.spin_until(self.ex, cond, timeout, step=0.02)
+
+    def call(self, srv_type, name, request):
+        """Call a service; return (response, wall seconds from sending to the answer)."""
+        client = self.probe.create_client(srv_type, name)
+        self.spin_until(client.service_is_ready)
+        start = time.monotonic()
+        fut = client.call_async(request)
+        self.spin_until(fut.done)
+        took = time.monotonic() - start
+        self.probe.destroy_client(client)
+        return fut.result(), took
+
+    def statuses(self, start=0):
+        """(level, message, values) of the simulator's statuses since diags[start]."""
+        return [(d.status[0].level, d.status[0].message,
+                 {kv.key: kv.value for kv in d.status[0].values})
+                for d in self.diags[start:] if 'rotor_sim' in d.status[0].name]
+
+    def close(self):
+        import rclpy
+        self.ex.shutdown()
+        self.probe.destroy_node()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+@pytest.mark.ros
+def test_an_exception_inside_the_timer_is_caught_reported_and_reset_recovers(monkeypatch):
+    """Issue 12: an exception out of the integrator in the timer callback took the node down.
+
+    Any exception type is simulated by the stepper raising ZeroDivisionError (as the
+    compiled right-hand side did, see test_realtime); the node must survive, keep the
+    last good state, say ERROR with the exception named, answer services, and reset.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from std_srvs.srv import SetBool, Trigger
+    rig = _LiveRig('probe_exc')
+    try:
+        rig.spin_until(lambda: len(rig.energy) > 20)
+
+        def divide(t_target, deadline=None):
+            raise ZeroDivisionError('division by zero')
+        monkeypatch.setattr(rig.node.sim.stepper, 'advance_to', divide)
+        rig.spin_until(lambda: rig.node.diverged is not None)
+        assert 'ZeroDivisionError' in rig.node.diverged
+        t_stop, y_stop = rig.node.sim.last
+        assert np.all(np.isfinite(y_stop))
+        n_diag = len(rig.diags)
+        rig.spin_until(lambda: len(rig.statuses(n_diag)) >= 2)
+        level, msg, values = rig.statuses(n_diag)[-1]
+        assert level == DiagnosticStatus.ERROR and 'ZeroDivisionError' in msg
+        rows = np.array([list(m.data) for m in rig.energy])
+        assert rows[-1, F['t_sim']] == t_stop              # nothing after the last good one
+        res, _ = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
+        assert res.success                                  # alive and serving
+        res, _ = rig.call(Trigger, '/rotor_sim/perturb', Trigger.Request())
+        assert not res.success and 'reset first' in res.message
+        res, _ = rig.call(Trigger, '/rotor_sim/reset', Trigger.Request())
+        assert res.success, res.message
+        n1 = len(rig.energy)
+        rig.spin_until(lambda: len(rig.energy) > n1 + 10)
+        assert rig.node.diverged is None
+    finally:
+        rig.close()
+
+
+@pytest.mark.ros
+def test_live_stiff_change_keeps_services_answering_and_switches_the_method():
+    """K_D = 1e5 set live under an explicit dop853 (issue 12: ticks of seconds, slow services).
+
+    Without the work budget, the first tick after the change would integrate up to
+    max_catch_up = 0.25 s of simulated time with dop853, which needs about 17 s of wall
+    time here (measured: 0.06 s simulated in 3 s). With it, every tick stops after
+    TICK_BUDGET = 25 ms of work, so a service call is answered between two ticks; the
+    bound asserted (2 s) is a generous functional one: far below the unbudgeted tick.
+    """
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.parameter import Parameter
+    from std_srvs.srv import SetBool
+    from gyro_rotor.numerics.realtime import resolve_method
+    rig = _LiveRig('probe_stiff')
+    try:
+        rig.spin_until(lambda: len(rig.energy) > 20)
+        node = rig.node
+        assert node.set_parameters([Parameter('integrator', value='dop853')])[0].successful
+        n_diag = len(rig.diags)
+        (res,) = node.set_parameters([Parameter('K_D', value=1e5)])
+        assert res.successful, res.reason
+        auto, reason = resolve_method('auto', node.sim.model.params)
+        assert auto != 'dop853'                              # stiff: rodas4 today
+        answer, took = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
+        assert answer.success and took < 2.0, took
+        rig.spin_until(lambda: any(f'switched to {auto}' in msg
+                                   for _, msg, _ in rig.statuses(n_diag)))
+        level, msg, values = next(s for s in rig.statuses(n_diag)
+                                  if f'switched to {auto}' in s[1])
+        assert level == DiagnosticStatus.WARN and 'work budget' in msg
+        assert int(values['budget_cuts']) >= 1 and values['integrator'] == auto
+        assert f'switched to {auto} ({reason})' in values['method_switch']
+        assert node.stepper.method == auto
+        # with auto's method the node keeps going and services stay quick
+        n1 = len(rig.energy)
+        rig.spin_until(lambda: len(rig.energy) > n1 + 50)
+        answer, took = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
+        assert answer.success and took < 2.0, took
+        assert node.diverged is None
+        rows = np.array([list(m.data) for m in rig.energy])
+        assert np.all(np.diff(rows[:, F['k']]) == 1)         # cut ticks lose time, no sample
+        assert np.max(np.abs(rows[:, F['residual']])) <= node.sim.cfg['max_residual']
+    finally:
+        rig.close()
 
 
 @pytest.fixture
@@ -364,16 +521,11 @@ bad_live = st.one_of(st.sampled_from([math.nan, math.inf, -math.inf, -1.0, 0.0, 
 def test_live_interface_refuses_changes_that_invalidate_the_model(live_node, field, value):
     from rclpy.parameter import Parameter
     node = live_node
-    before = node.scene.params
+    before = node.sim.scene.params
     stepper = node.stepper
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter('ignore')
-            (res,) = node.set_parameters([Parameter(field, value=value)])
-    except Exception as err:  # noqa: B902 -- rclpy refuses a wrong type by raising
-        assert field in str(err) or 'type' in str(err).lower(), err
-        assert node.scene.params == before
-        return
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        (res,) = node.set_parameters([Parameter(field, value=value)])
     lowest = {'s': -100.0, 'Omega0': -1e5}.get(field, 0.0)
     valid_signed = isinstance(value, float) and lowest <= value < 0.0
     if res.successful:
@@ -382,8 +534,9 @@ def test_live_interface_refuses_changes_that_invalidate_the_model(live_node, fie
         assert valid_signed or value == 0.0, (field, value)
         node.set_parameters([Parameter(field, value=getattr(before, field))])
     else:
-        if isinstance(value, (str, bool)):        # rclpy's own type check (no name)
-            assert 'Wrong parameter type' in res.reason, res.reason
+        if isinstance(value, (str, bool)):        # the node's type check names all three
+            assert res.reason.startswith(f'parameter {field}: {value!r} (')
+            assert 'is not a double' in res.reason, res.reason
         else:
             assert field in res.reason or 'range' in res.reason, res.reason
-        assert node.scene.params == before and node.stepper is stepper
+        assert node.sim.scene.params == before and node.stepper is stepper

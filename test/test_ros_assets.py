@@ -18,6 +18,7 @@ import sys
 import types
 import xml.etree.ElementTree as ET
 
+from gyro_rotor.bag import wire
 from gyro_rotor.core.rotations import axis_from_quaternion, quaternion_from_euler
 import numpy as np
 import pytest
@@ -25,11 +26,8 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 URDF = REPO / 'urdf' / 'centrifuge.urdf'
-#: joint_states names, as rotor_sim publishes them (gyro_rotor.ros.messages.JOINT_NAMES;
-#: read from the source so that this test does not need rclpy)
-JOINT_NAMES = ast.literal_eval(next(
-    line.split('=', 1)[1] for line in (REPO / 'gyro_rotor/ros/messages.py').read_text()
-    .splitlines() if line.startswith('JOINT_NAMES')))
+#: joint_states names, as rotor_sim publishes them (the pure wire layouts: no rclpy needed)
+JOINT_NAMES = wire.JOINT_NAMES
 
 
 # -- the URDF ---------------------------------------------------------------------------

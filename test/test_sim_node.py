@@ -125,7 +125,7 @@ def test_energy_layout_effort_and_lyapunov(rig):
     n0 = len(rig.energy)
     rig.spin_until(lambda: len(rig.energy) - n0 >= 100)
     rows = rig.energy_rows(n0)
-    p = rig.node.scene.params
+    p = rig.node.sim.scene.params
     z, zdot = rows[:, F['z']], rows[:, F['zdot']]
     np.testing.assert_allclose(rows[:, F['dissipation']], p.K_D * zdot ** 2, rtol=1e-12)
     np.testing.assert_allclose(rows[:, F['dE_dt']], -rows[:, F['dissipation']])
@@ -160,15 +160,15 @@ def test_perturb_and_reset_services(rig):
     node = rig.node
     assert rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=True)).success
     y0, t0 = node.stepper.y.copy(), node.stepper.t
-    E_ref0 = node.baseline.E_ref
+    E_ref0 = node.sim.baseline.E_ref
     res = rig.call(Trigger, '/rotor_sim/perturb', Trigger.Request())
     assert res.success, res.message
     y1 = node.stepper.y
     assert node.stepper.t == t0
     assert y1[8] == pytest.approx(y0[8] + 1.0)                 # perturbation.dzdot = 1.0
     assert y1[9] == y0[9]                                       # dissipated work kept
-    jump = float(node.model.energy(y1) - node.model.energy(y0))
-    assert node.baseline.E_ref - E_ref0 == pytest.approx(jump, rel=1e-12, abs=1e-15)
+    jump = float(node.sim.model.energy(y1) - node.sim.model.energy(y0))
+    assert node.sim.baseline.E_ref - E_ref0 == pytest.approx(jump, rel=1e-12, abs=1e-15)
     assert rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False)).success
     n0 = len(rig.energy)
     rig.spin_until(lambda: len(rig.energy) - n0 >= 20)
@@ -211,16 +211,16 @@ def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
         (result,) = node.set_parameters([Parameter(name, value=value)])
         assert not result.successful
         assert word in result.reason
-    assert node.scene.params.K_D == 0.05 and node.scene.params.A_R == 0.05
+    assert node.sim.scene.params.K_D == 0.05 and node.sim.scene.params.A_R == 0.05
     # K_S: E* jumps by (K_S' - K_S) z^2 / 2, the residual baseline moves with it
     y = node.stepper.y.copy()
-    E_ref = node.baseline.E_ref
+    E_ref = node.sim.baseline.E_ref
     (result,) = node.set_parameters([Parameter('K_S', value=40.0)])
     assert result.successful, result.reason
-    assert node.scene.params.K_S == 40.0 and node.model.params.K_S == 40.0
-    assert node.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
-                                                        abs=1e-15)
-    seq_change = node.seq          # samples from here on were computed with K_S = 40
+    assert node.sim.scene.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
+    assert node.sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
+                                                            abs=1e-15)
+    seq_change = node.sim.seq          # samples from here on were computed with K_S = 40
     rig.spin_until(lambda: rig.energy[-1].data[F['seq']] > seq_change + 20)
     rows = rig.energy_rows()
     rows = rows[rows[:, F['seq']] >= seq_change]
@@ -239,7 +239,7 @@ def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
     (result,) = node.set_parameters([Parameter('max_residual', value=0.0)])
     assert result.successful
     rig.spin_until(lambda: node.diverged is not None)
-    t_stop = node._last[0]
+    t_stop = node.sim.last[0]
     n0 = len(rig.diags)
     rig.spin_until(lambda: len(rig.diags) > n0)
     st = rig.diags[-1].status[0]
@@ -247,7 +247,7 @@ def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
     n1 = len(rig.energy)
     rig.spin_for(0.2)
     assert all(m.data[F['t_sim']] <= t_stop for m in rig.energy[n1:])
-    assert np.all(np.isfinite(node._last[1]))
+    assert np.all(np.isfinite(node.sim.last[1]))
     node.set_parameters([Parameter('max_residual', value=1.0)])
     assert rig.call(Trigger, '/rotor_sim/reset', Trigger.Request()).success
     n2 = len(rig.energy)
@@ -290,3 +290,38 @@ def test_separate_process_publishes_and_shuts_down_cleanly(sig):
         rclpy.shutdown(context=context)
     assert proc.returncode == 0, err
     assert 'Traceback' not in err, err
+
+
+@pytest.mark.parametrize('arg, expected', [
+    ('K_D:=1', 'parameter K_D: 1 (integer) is not a double in [0, 1e+09] (write 1.0)'),
+    ('A_R:=-0.05', 'parameter A_R: -0.05 is out of range: expected a double in [0, 1e+06]'),
+    ('publish_rate:=fast', "parameter publish_rate: 'fast' (string) is not a double in "
+                           '[1, 10000]'),
+    ('pole_pairs:=1.5', 'parameter pole_pairs: 1.5 (double) is not an integer in [0, 64]'),
+    ('stop_at_t_end:=1', 'parameter stop_at_t_end: 1 (integer) is not true or false'),
+    ('A_R:=0.0', "parameters of scene 'precession': inertia A_R must be positive"),
+    ('integrator:=euler', "unknown integrator 'euler'"),
+    ('scene:=no_such_scene', "unknown scene 'no_such_scene'"),
+    ('K_D', "Couldn't parse parameter override rule: '-p K_D'"),
+])
+def test_bad_start_up_parameter_is_one_error_line_and_exit_status_1(arg, expected):
+    proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args', '-p',
+                           arg], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1, proc.stderr
+    errors = [line for line in proc.stderr.splitlines() if line.startswith('ERROR:')]
+    assert len(errors) == 1 and expected in errors[0], proc.stderr
+    assert 'Traceback' not in proc.stderr and 'published counts' not in proc.stderr
+
+
+def test_live_change_of_the_wrong_type_names_parameter_value_and_type(rig):
+    for name, value, reason in (
+            ('K_S', 'stiff', "parameter K_S: 'stiff' (string) is not a double in [0, 1e+09]"),
+            ('K_S', 30, 'parameter K_S: 30 (integer) is not a double in [0, 1e+09] (write '
+                        '30.0)'),
+            ('stop_at_t_end', 1.0, 'parameter stop_at_t_end: 1.0 (double) is not true or '
+                                   'false'),
+            ('K_S', -1.0, 'K_S')):
+        (result,) = rig.node.set_parameters([Parameter(name, value=value)])
+        assert not result.successful and reason in result.reason, result.reason
+    assert rig.node.sim.scene.params.K_S == 20.0
+    assert rig.node.get_parameter('K_S').value == 20.0

@@ -13,7 +13,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from gyro_rotor.analysis.checks import AnalysisResult, BagAnalysis
+from gyro_rotor.analysis.offline import BagAnalysis
+from gyro_rotor.analysis.results import AnalysisResult
+from gyro_rotor.analysis.verdict import decay_rate_bound, fmt_tau
 import numpy as np
 
 __all__ = ['text_report', 'json_report', 'write_report', 'plot_report']
@@ -25,6 +27,11 @@ def _f(x: Any, spec: str = '.4g') -> str:
     return format(x, spec)
 
 
+def _tau(tau: float, window: float) -> str:
+    """Format a decay time; '-' if none, 'not measurable' beyond 100 windows (1 % change)."""
+    return '-' if not math.isfinite(tau) else fmt_tau(tau, 100.0 * window).replace(' s', '')
+
+
 def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
     """Return a human-readable report (verdict, evidence, modes, data integrity)."""
     p = res.prediction
@@ -34,18 +41,23 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
                                            '`gyro-rotor recover BAG` repairs it)'
                                            if bag.truncated else ''))
         lines.append(f'scene: {res.scene} (from {bag.scene_source}); options {bag.options}')
-    lines.append(f'verdict: {res.verdict.upper()}  [{res.level}]')
+    lines.append(f'verdict: {str(res.verdict).upper()}  [{res.level}]: {res.reason}')
     if bag is not None and bag.live is not None:
         lines.append(f"live verdict recorded in the bag: {bag.live.get('verdict')}")
+    bound = decay_rate_bound(p.decaying_abscissa)
     lines.append(f'prediction ({p.source}, coordinates {p.coords}): {p.verdict}, spectral '
-                 f'abscissa {p.spectral_abscissa:.4g} 1/s, E*_inf = {p.E_inf:.9g} J')
-    lines.append(f'samples {res.samples}, dropped {res.dropped}, resets {res.resets}, kicks '
-                 f'{res.kicks}, time jumps {res.time_jumps}, parameter changes '
-                 f'{res.param_changes}, pole slips {res.pole_slips}')
+                 f'abscissa {p.spectral_abscissa:.4g} 1/s, decay bound 2|alpha| = '
+                 f'{_f(bound)} 1/s, E*_inf = {p.E_inf:.9g} J (before any kick)')
+    lines.append(f'samples {res.samples}, dropped {res.dropped}, unpaired {res.unpaired}, '
+                 f'resets {res.resets}, kicks {res.kicks}, time jumps {res.time_jumps}, '
+                 f'parameter changes {res.param_changes}, pole slips {res.pole_slips}')
+    lines.append('')
+    lines.append('criteria:')
+    lines += [f'  {c.line()}' for c in res.criteria]
     lines.append('')
     lines.append('evidence:')
-    lines += [f'  {e}' for e in res.evidence]
-    cur = res.current
+    lines += [f'  {e}' for e in res.evidence[1:] if not e.startswith('[')]
+    cur = res.judged
     if cur is not None:
         lines.append('')
         lines.append(f'modes (segment {cur.index}, window {cur.window_s:.3g} s):')
@@ -54,7 +66,8 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
         for m in cur.modes:
             fm = None if m.measured is None else abs(m.measured.imag) / (2 * math.pi)
             lines.append(f'  {m.name:26s} {_f(abs(m.predicted.imag) / (2 * math.pi)):>10s} '
-                         f'{_f(fm):>10s} {_f(m.pred_tau):>11s} {_f(m.meas_tau):>11s}  '
+                         f'{_f(fm):>10s} {_tau(m.pred_tau, cur.window_s):>11s} '
+                         f'{_tau(m.meas_tau, cur.window_s):>11s}  '
                          f'{m.status}')
         if len(res.segments) > 1:
             lines.append('')
@@ -122,24 +135,21 @@ def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
     t = np.array([s.t for s in S])
     E = np.array([s.E_star for s in S])
     files = []
-    # E* - E*_inf with the fitted decay of the last segment
+    # E* - E*_inf (fitted) with the fitted curve over the judged window
     fig, ax = plt.subplots(figsize=(7, 4))
-    dE = E - res.prediction.E_inf
+    cur = res.judged
+    fit = cur.energy_fit if cur is not None else None
+    E_inf = fit.E_inf if fit is not None else res.prediction.E_inf
+    dE = E - E_inf
     ax.semilogy(t, np.where(dE > 0, dE, np.nan), lw=0.8, label='E* - E*_inf (data)')
-    cur = res.current
-    if cur is not None and math.isfinite(cur.energy_decay_rate) and len(t):
-        t1 = cur.t_end
-        t0 = t1 - cur.window_s
-        sel = (t >= t0) & (t <= t1)
-        sel &= dE > 0
-        if sel.any():
-            # the least-squares line of the fit: log dE = c - rate t
-            c = float(np.mean(np.log(dE[sel]) + cur.energy_decay_rate * t[sel]))
-            tt = np.linspace(t0, t1, 50)
-            ax.semilogy(tt, np.exp(c - cur.energy_decay_rate * tt), 'r--',
-                        label=f'fit: rate {cur.energy_decay_rate:.3g} 1/s')
+    if fit is not None and len(t):
+        sel = (t >= fit.t0) & (t <= cur.t_end)
+        curve = fit.curve(t[sel]) - E_inf
+        ax.semilogy(t[sel], np.where(curve > 0, curve, np.nan), 'r--', lw=0.8,
+                    label=f'fit with the predicted rates: E*_inf = {E_inf:.9g} J, '
+                          f'rate {_f(fit.rate, ".3g")} 1/s')
     ax.set_xlabel('simulation time t [s]')
-    ax.set_ylabel('E* - E*_inf [J]')
+    ax.set_ylabel('E* - E*_inf [J] (E*_inf fitted)')
     ax.set_title(f'{res.scene}: Lyapunov function (eq. 13), verdict {res.verdict}')
     ax.legend(fontsize=8)
     fig.tight_layout()

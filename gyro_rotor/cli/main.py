@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
+from gyro_rotor.cli.commands import general
 from gyro_rotor.errors import GyroRotorError
 
 #: subcommand name -> module in gyro_rotor.cli.commands (listed in the order of --help)
@@ -28,16 +30,16 @@ COMMANDS = {
     'recover': 'recover',
     'soak': 'soak',
     'rt-bench': 'rt_bench',
+    'campbell': 'campbell',
+    'bench-general': 'bench_general',
+    'sweep': 'sweep',
+    'sweep-bench': 'sweep_bench',
 }
 
 
 def _load(name: str):
-    try:
-        return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
-    except ModuleNotFoundError as err:
-        if err.name == f'gyro_rotor.cli.commands.{COMMANDS[name]}':
-            return None
-        raise
+    """Import the module of subcommand ``name`` (a registered command must exist)."""
+    return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,10 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMANDS:
         mod = _load(name)
-        if mod is None:
-            continue
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
+        general.extend_parser(name, p)
         p.set_defaults(_run=mod.run)
     return parser
 
@@ -63,9 +64,20 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args._run(args) or 0)
+        status = general.dispatch(args)   # a general scene (with a system key)?
+        if status is None:
+            status = int(args._run(args) or 0)
+        sys.stdout.flush()      # inside the try: a closed pipe is handled below
+        return status
     except GyroRotorError as err:
         print(f'ERROR: {err}', file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        # the reader of stdout went away (`gyro-rotor ... | head`): not an error of ours.
+        # As the Python docs advise: point stdout at devnull so that the flush at exit does
+        # not fail again, and exit quietly.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
         return 1
     except (OSError, UnicodeError) as err:
         # a file that cannot be read or written (missing directory, a directory instead of

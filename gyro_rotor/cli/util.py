@@ -32,6 +32,28 @@ def parse_sets(items: list[str]) -> dict[str, Any]:
     return out
 
 
+def load_scene_with_sets(scene: str, sets: list[str]):
+    """Load a scene, then apply ``--set`` overrides; an error names its real source.
+
+    The file is loaded alone first, so that a fault of the file names the file; a value
+    refused only with the overrides names ``--set`` (not the scene file it was applied to).
+    """
+    from gyro_rotor.core.scene import load_scene
+    overrides = parse_sets(sets)
+    base = load_scene(scene)
+    if not overrides:
+        return base
+    try:
+        return load_scene(scene, overrides=overrides)
+    except (SceneError, ParameterError) as err:
+        text = str(err)
+        prefix = f'scene file {base.path}: '
+        if text.startswith(prefix):
+            text = text[len(prefix):]
+        given = ' '.join(f'--set {item}' for item in sets)
+        raise type(err)(f'{given} (scene {base.name}): {text}') from err
+
+
 def check_output_file(path: str, suffixes: tuple[str, ...] = ()) -> None:
     """Refuse, before any work is done, an output file that could not be written."""
     import os

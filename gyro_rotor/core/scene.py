@@ -1,6 +1,6 @@
 """Scenes: a YAML file that is at once a ROS 2 parameter file for ``rotor_sim``.
 
-A scene names the parameters (:mod:`gyro_rotor.params`), the model it needs, the
+A scene names the parameters (:mod:`gyro_rotor.core.params`), the model it needs, the
 duration and the initial condition::
 
     rotor_sim:
@@ -187,7 +187,7 @@ def perturb_state(model: Model, y: np.ndarray, perturbation: Mapping[str, float]
     Full model: the orientation is turned by dtheta and dchi in the current 3-1-3 angles
     (psi, theta + dtheta, phi_M + dchi), and the rate kick is added to the body rates,
     W += J(psi, theta, phi_M) (dpsidot, dthetadot, 0) with J the map of
-    :func:`~gyro_rotor.rotations.body_rates_from_euler` at the (new) angles. This is
+    :func:`~gyro_rotor.core.rotations.body_rates_from_euler` at the (new) angles. This is
     linear in the kick and regular at theta = 0, where the Euler rates themselves are not
     defined: every other component of W is kept. The quaternion keeps its hemisphere, so
     chi moves by exactly dchi. Reduced models: the same in their coordinates. z and zdot

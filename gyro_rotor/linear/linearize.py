@@ -4,7 +4,7 @@ Every linearization here is ``x' = A x`` in coordinates where the steady motion 
 equilibrium, with ``A`` linear in K_D: ``A = A_0 - K_D b c^T`` (the drive damping is a
 rank-one feedback of the rotor's lag rate zdot). Both an *analytic* Jacobian (derived by
 hand from the Lagrangian below) and a *finite-difference* one are provided; the latter is
-taken through the full quaternion model of :mod:`gyro_rotor.model` (an independent code
+taken through the full quaternion model of :mod:`gyro_rotor.core.model` (an independent code
 path) by exact kinematic maps, so that their agreement checks the derivation.
 
 Solution II (docs/model.md section 6): reduced coordinates
@@ -354,7 +354,8 @@ def linearize(params: RotorParams, steady_motion: SteadyMotion, model: str = 'fu
     ----------
     params : RotorParams
     steady_motion : SteadyMotion
-        Solution I (branch 0) or II (branch 1 or 2), from :func:`gyro_rotor.steady.steady_motion`.
+        Solution I (branch 0) or II (branch 1 or 2), from
+        :func:`~gyro_rotor.core.steady.steady_motion`.
     model : str
         'full' (reduced coordinates of solution II, Cartesian tilt for solution I),
         'upright_axis' or 'locked_housing'.
@@ -364,7 +365,7 @@ def linearize(params: RotorParams, steady_motion: SteadyMotion, model: str = 'fu
     if not isinstance(params, RotorParams):
         raise TypeError('params must be a RotorParams')
     if not isinstance(steady_motion, SteadyMotion):
-        raise TypeError('steady_motion must be a SteadyMotion (gyro_rotor.steady)')
+        raise TypeError('steady_motion must be a SteadyMotion (gyro_rotor.core.steady)')
     coords = coordinates(model, steady_motion)
     A0, b = _analytic_A0_b(params, coords, steady_motion)
     c = _c_vector(coords)

@@ -1,6 +1,6 @@
 """Linear stability of the steady motions: modes, root locus over K_D, the paper's claims.
 
-Built on :mod:`gyro_rotor.linearize`, where ``A(K_D) = A0 - K_D b c^T``: the drive damping
+Built on :mod:`gyro_rotor.linear.linearize`, where ``A(K_D) = A0 - K_D b c^T``: the drive damping
 is a rank-one feedback of the rotor's lag rate, so the root locus over K_D is a classic
 one. At K_D = 0 the roots are those of A0; as K_D -> infinity, n - 1 roots tend to the
 zeros of c^T (sI - A0)^-1 b (the motion with the rotor locked to the stator) and one
@@ -28,41 +28,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Callable, Sequence
+from typing import Sequence
 
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
+from gyro_rotor.linear.claims import Claim
 from gyro_rotor.linear.linearize import linearize, LinearSystem
+from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # noqa: F401
+                                        spectrum, STRUCTURAL, TOL_RE_REL, TOL_SENS_REL, track,
+                                        ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
+# the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
 __all__ = ['Mode', 'StabilityReport', 'RootLocus', 'Claim', 'ClaimsReport', 'TuneResult',
            'spectrum', 'modes', 'analyze', 'analyze_scene', 'root_locus', 'check_claims',
            'best_K_D', 'track', 'sweep', 'asymptotes', 'sensitivities', 'default_grid',
            'scene_operating_point', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
-
-ZERO_ROOT = 'zero root (cyclic psi)'
-#: without drive stiffness (K_S = 0) the lag z is cyclic too: a second structural zero root
-ZERO_ROOT_Z = 'zero root (cyclic z: no drive stiffness)'
-#: the structural zero roots: listed, never judged
-STRUCTURAL = (ZERO_ROOT, ZERO_ROOT_Z)
-#: at most this many bisections per path point in :func:`track` (plus a fixed reserve)
-MAX_BISECTIONS_PER_POINT = 16
-#: a real part with |Re| <= TOL_RE_REL ||A0||_F is on the imaginary axis (eig noise is
-#: ~1e-14 ||A0||; the pencil keeps it there for every K_D)
-TOL_RE_REL = 1e-12
-#: a sensitivity |d Re/d K_D| <= TOL_SENS_REL max_j |d lambda_j/d K_D| is zero
-TOL_SENS_REL = 1e-9
-#: names per coordinate system at K_D = 0: (name, coordinate group)
-SLOTS = {
-    'II': (('nutation', 'tilt'), ('housing twist', 'twist'), ('rotor-field coupling', 'drive')),
-    'I': (('nutation', 'tilt'), ('precession', 'tilt'), ('housing twist', 'twist'),
-          ('rotor-field coupling', 'drive')),
-    'upright': (('housing twist', 'twist'), ('rotor-field coupling', 'drive')),
-    'locked': (('rotor-field coupling', 'drive'),),
-}
-#: the paper's claim (a): (undamped oscillations, zero roots) at K_D = 0
-EXPECTED_AT_ZERO = {'II': (3, 1), 'I': (4, 0), 'upright': (2, 0), 'locked': (1, 0)}
 
 
 # -- data -------------------------------------------------------------------------------------
@@ -121,17 +103,6 @@ class StabilityReport:
 
 
 @dataclasses.dataclass(frozen=True)
-class Claim:
-    """One of the paper's claims (a) to (d): whether it holds, why, and its numbers."""
-
-    key: str
-    statement: str
-    holds: bool
-    detail: str
-    data: dict
-
-
-@dataclasses.dataclass(frozen=True)
 class ClaimsReport:
     """Claims (a) to (d), K_D* (coupling pair meets on the real axis) and the regimes."""
 
@@ -140,6 +111,7 @@ class ClaimsReport:
     breakaway: float | None
     regimes: list
     locus: RootLocus | None = dataclasses.field(default=None, repr=False)
+    meetings: list = dataclasses.field(default_factory=list)
 
     @property
     def all_hold(self) -> bool:
@@ -201,234 +173,6 @@ class TuneResult:
 
 
 # -- spectra ----------------------------------------------------------------------------------
-def _tol_re(lin: LinearSystem) -> float:
-    return TOL_RE_REL * max(np.linalg.norm(lin.A0), 1.0)
-
-
-def _cyclic_z(lin: LinearSystem) -> int | None:
-    """Index of z if it is cyclic (K_S = 0: its column of A0 is zero), else None."""
-    if lin.params.K_S != 0.0 or 'z' not in lin.state_names:
-        return None
-    iz = lin.state_names.index('z')
-    return iz if not np.any(lin.A0[:, iz]) else None
-
-
-def spectrum(lin: LinearSystem, K_D: float, *, left: bool = False):
-    """Return the eigenvalues and eigenvectors of A(K_D); K_D may be inf.
-
-    Eigenvalues (n,), right eigenvectors (n, n) (columns, energy-weighted, unit norm)
-    and, if ``left``, left eigenvectors (unweighted).
-
-    Without drive stiffness (K_S = 0) z is cyclic: its zero root is deflated (the
-    spectrum of A without z, then the root 0 with eigenvector e_z appended last) so that
-    it cannot make a defective cluster with the drive's slip root at K_D = 0; z carries
-    no energy then (weight sqrt(K_S) = 0), so the other weighted vectors have no z part.
-    Raises ParameterError if K_D is negative or the eigenvalues are not finite (K_D
-    beyond what double precision resolves).
-    """
-    if K_D < 0 or math.isnan(K_D):
-        raise ParameterError(f'K_D must not be negative, got {K_D!r} N m s/rad')
-    iz = _cyclic_z(lin)
-    if iz is None:
-        out = _spectrum(lin, K_D, left)
-    else:
-        keep = [k for k in range(len(lin.c)) if k != iz]
-        red = dataclasses.replace(
-            lin, A=lin.A[np.ix_(keep, keep)], A0=lin.A0[np.ix_(keep, keep)], b=lin.b[keep],
-            c=lin.c[keep], weights=lin.weights[keep],
-            groups=tuple(lin.groups[k] for k in keep),
-            state_names=tuple(lin.state_names[k] for k in keep))
-        r = _spectrum(red, K_D, left)
-        n = len(lin.c)
-        ez = np.zeros((n, 1), dtype=complex)
-        ez[iz] = 1.0
-
-        def pad(M):
-            full = np.zeros((n, M.shape[1]), dtype=complex)
-            full[keep] = M
-            return np.hstack([full, ez])
-        out = (np.append(r[0], 0.0),) + tuple(pad(M) for M in r[1:])
-    if not np.all(np.isfinite(out[0])):
-        raise ParameterError(f'K_D = {float(K_D)!r} N m s/rad is too large for the linear '
-                             'analysis: the eigenvalues are not finite in double precision')
-    return out
-
-
-def _spectrum(lin: LinearSystem, K_D: float, left: bool):
-    import scipy.linalg as sl
-    n = len(lin.c)
-    c_norm = max(np.linalg.norm(lin.c), 1e-300)
-    big = K_D * np.linalg.norm(lin.b) > np.linalg.norm(lin.A0) / c_norm
-    if not big:
-        if left:
-            lam, W, V = sl.eig(lin.with_K_D(K_D), left=True, right=True)
-        else:
-            lam, V = sl.eig(lin.with_K_D(K_D))
-            W = None
-    else:
-        if left:
-            raise ParameterError('left eigenvectors are only computed for small K_D')
-        P = np.zeros((n + 1, n + 1))
-        P[:n, :n] = lin.A0
-        P[:n, n] = -lin.b
-        P[n, :n] = lin.c
-        P[n, n] = -1.0 / K_D if math.isfinite(K_D) else 0.0
-        B = np.eye(n + 1)
-        B[n, n] = 0.0
-        lam, V = sl.eig(P, B)
-        # QZ returns the infinite eigenvalues with beta = 0 or of rounding size
-        big_lam = 1e300 if math.isfinite(K_D) else 1e12 * max(np.linalg.norm(lin.A0), 1.0)
-        keep = np.isfinite(lam) & (np.abs(lam) < big_lam)
-        order = np.argsort(~keep, kind='stable')
-        lam, V = lam[order], V[:n, order]
-        nfin = n if math.isfinite(K_D) else int(np.sum(keep))
-        lam, V = lam[:nfin], V[:, :nfin]
-        W = None
-    Vw = V * lin.weights[:, None]
-    Vw = Vw / np.maximum(np.linalg.norm(Vw, axis=0), 1e-300)
-    return (lam, Vw, W) if left else (lam, Vw)
-
-
-def _shares(lin: LinearSystem, Vw: np.ndarray) -> dict:
-    groups = np.array(lin.groups)
-    e = np.abs(Vw) ** 2
-    tot = np.maximum(e.sum(axis=0), 1e-300)
-    return {g: e[groups == g].sum(axis=0) / tot for g in ('tilt', 'twist', 'drive')}
-
-
-def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None) -> list:
-    """Names of the eigenvalues of A0 (K_D = 0) by modal energy shares (module doc).
-
-    ``d`` (the sensitivities d lambda/d K_D) decides which of several zero roots is the
-    structural one of psi: the one the drive damping does not move.
-    """
-    from scipy.optimize import linear_sum_assignment
-    n = len(lam)
-    tol_im = 1e-9 * max(np.max(np.abs(lam)), 1.0)
-    names: list = [None] * n
-    free = list(range(n))
-    if _cyclic_z(lin) is not None:          # spectrum() appends the root of z last
-        names[n - 1] = ZERO_ROOT_Z
-        free.remove(n - 1)
-    if lin.coords == 'II':
-        mag = np.abs(lam[free])
-        if d is not None:
-            near = mag <= 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
-            if np.sum(near) > 1:
-                mag = np.where(near, np.abs(np.asarray(d)[free]), np.inf)
-        j0 = free[int(np.argmin(mag))]
-        names[j0] = ZERO_ROOT
-        free.remove(j0)
-    units = []               # lists of eigenvalue indices: a conjugate pair or a real root
-    rest = sorted(free, key=lambda j: -lam[j].imag)
-    while rest:
-        j = rest.pop(0)
-        if lam[j].imag > tol_im and rest:
-            k = min(rest, key=lambda i: abs(lam[i] - np.conj(lam[j])))
-            rest.remove(k)
-            units.append([j, k])
-        else:
-            units.append([j])
-    sh = _shares(lin, Vw)
-    slots = list(SLOTS[lin.coords])
-    cost = np.array([[-sh[g][u[0]] for _, g in slots] for u in units])
-    rows, cols = linear_sum_assignment(cost)
-    extra = 0
-    assigned = dict(zip(rows, cols))
-    for ui, u in enumerate(units):
-        if ui in assigned:
-            nm = slots[assigned[ui]][0]
-        else:
-            extra += 1
-            nm = f'mode {extra}'
-        for j in u:
-            names[j] = nm
-    # the two tilt modes about solution I: the faster one is the nutation
-    if lin.coords == 'I':
-        tilt = [ui for ui, u in enumerate(units)
-                if names[u[0]] in ('nutation', 'precession')]
-        if len(tilt) == 2:
-            fast, slow = sorted(tilt, key=lambda ui: -abs(lam[units[ui][0]].imag))
-            for j in units[fast]:
-                names[j] = 'nutation'
-            for j in units[slow]:
-                names[j] = 'precession'
-    return names
-
-
-def _match(lam0, V0, lam1, V1):
-    """Assign new eigenpairs to old ones: eigenvector overlap, eigenvalue distance."""
-    from scipy.optimize import linear_sum_assignment
-    if not (np.all(np.isfinite(lam1)) and np.all(np.isfinite(V1))):
-        raise ParameterError('the eigenvalues along the path are not finite (a parameter '
-                             'beyond what double precision resolves)')
-    overlap = np.abs(V0.conj().T @ V1)
-    # the spectral scale without the one root that escapes like -K_D c^T b (which would
-    # make every other root's step look negligible); that root is measured against itself
-    a0, a1 = np.abs(lam0), np.abs(lam1)
-    scale = max(np.sort(a0)[-2] if a0.size > 1 else a0[0],
-                np.sort(a1)[-2] if a1.size > 1 else a1[0], 1e-12)
-    D = (np.abs(lam0[:, None] - lam1[None, :])
-         / np.maximum(scale, np.minimum(a0[:, None], a1[None, :])))
-    cost = (1.0 - overlap) + D
-    rows, cols = linear_sum_assignment(cost)
-    perm = np.empty(len(lam0), dtype=int)
-    perm[rows] = cols
-    quality = float(np.min(overlap[rows, cols])), float(np.max(D[rows, cols]))
-    return perm, quality
-
-
-def track(fn: Callable[[float], tuple], s_values: Sequence[float], labels0: list, *,
-          log: bool = False, max_depth: int = 12, min_overlap: float = 0.9,
-          max_jump: float = 0.05):
-    """Follow eigenpairs along a parameter path by eigenvector continuity.
-
-    Parameters
-    ----------
-    fn : callable
-        ``fn(s) -> (eigenvalues (n,), eigenvectors (n, n))`` (vectors unit-norm columns).
-    s_values : sequence of float
-        The path (monotonic); intervals where the match is ambiguous (overlap below
-        ``min_overlap`` or a jump above ``max_jump`` of the spectral scale) are bisected
-        (geometrically if ``log`` and both ends are positive) up to ``max_depth`` times,
-        and at most :data:`MAX_BISECTIONS_PER_POINT` times per path point in all.
-    labels0 : list of str
-        Names of the eigenpairs of ``fn(s_values[0])``, in its order.
-
-    Returns
-    -------
-    eigenvalues : ndarray, shape (len(s_values), n)
-        Column j follows the mode ``labels0[j]``.
-    """
-    s_values = [float(s) for s in s_values]
-    lam, V = fn(s_values[0])
-    out = [lam.copy()]
-    # a cap on the bisections of the whole path: a degenerate cluster (repeated roots
-    # whose vectors eig picks arbitrarily) must not bisect every interval to max_depth
-    budget = MAX_BISECTIONS_PER_POINT * len(s_values) + 4 * max_depth
-    for s1 in s_values[1:]:
-        stack = [(s1, 0)]
-        cur_s = s_values[len(out) - 1]
-        while stack:
-            target, depth = stack[-1]
-            lam1, V1 = fn(target)
-            perm, (ov, jump) = _match(lam, V, lam1, V1)
-            if (ov < min_overlap or jump > max_jump) and depth < max_depth and budget > 0:
-                if log and cur_s > 0 and target > 0:
-                    mid = math.sqrt(cur_s * target)
-                else:
-                    mid = 0.5 * (cur_s + target)
-                if mid != cur_s and mid != target:
-                    budget -= 1
-                    stack.append((mid, depth + 1))
-                    continue
-            lam, V = lam1[perm], V1[:, perm]
-            cur_s = target
-            stack.pop()
-        out.append(lam.copy())
-    return np.array(out)
-
-
 # -- modes at an operating point -------------------------------------------------------------
 def sensitivities(lin: LinearSystem) -> tuple:
     """(eigenvalues of A0, d lambda/d K_D at K_D = 0, weighted right eigenvectors).
@@ -602,7 +346,7 @@ def scene_operating_point(scene) -> tuple:
 
 
 def analyze_scene(scene) -> StabilityReport:
-    """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.scene.Scene`)."""
+    """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.core.scene.Scene`)."""
     from gyro_rotor.core.scene import load_scene, Scene
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
@@ -709,141 +453,33 @@ def root_locus(lin: LinearSystem, K_D_grid=None) -> RootLocus:
                      zero_labels=zlab, fast_label=names[fast], fast_gain=gain)
 
 
-def _real_count(lin, K, tol_im) -> int:
-    lam, _ = spectrum(lin, K)
-    return int(np.sum(np.abs(lam.imag) <= tol_im))
-
-
 def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
-    """Check the paper's claims (a) to (d) for this linearization (any scene).
+    """Check the paper's claims (a) to (d) for this linearization, by their meaning.
 
-    (a) at K_D = 0 all roots on the imaginary axis: the expected number of undamped
-    oscillations (3 about II) plus the zero root(s); (b) for every K_D > 0 of the grid all
-    non-zero roots in the open left half plane; (c) as K_D -> infinity the nutation and
-    one coupling (the housing twist) return to the imaginary axis; (d) the other coupling
-    pair (rotor-field) meets on the negative real axis at K_D* and splits, one root
-    toward 0, the other toward -infinity.
+    See :mod:`gyro_rotor.linear.claims` (one function per claim, on a
+    :class:`~gyro_rotor.linear.claims.DriveSystem`; no claim looks at mode names).
+    ``K_D_star``/``breakaway`` are the last meeting of a pair on the real axis (the one
+    that splits toward 0 and -infinity); ``meetings`` holds all of them.
     """
+    from gyro_rotor.linear import claims as cl
     loc = root_locus(lin, K_D_grid)
-    tol_re = _tol_re(lin)
-    names = loc.labels
-    lam0 = loc.eigenvalues[0] if loc.K_D[0] == 0 else spectrum(lin, 0.0)[0]
-    claims = {}
-    # (a)
-    on_axis = np.abs(lam0.real) <= tol_re
-    zero_n = int(np.sum(np.abs(lam0) <= tol_re))
-    osc_n = int(np.sum(on_axis & (lam0.imag > tol_re)))
-    exp = EXPECTED_AT_ZERO[lin.coords]
-    claims['a'] = Claim('a', 'at K_D = 0: undamped oscillations plus the zero root',
-                        bool(np.all(on_axis) and (osc_n, zero_n) == exp),
-                        f'{osc_n} undamped oscillations and {zero_n} zero root(s) '
-                        f'(expected {exp[0]} and {exp[1]}); max |Re| = '
-                        f'{np.max(np.abs(lam0.real)):.2e} 1/s',
-                        {'oscillations': osc_n, 'zero_roots': zero_n,
-                         'freq_hz': sorted((lam0[lam0.imag > tol_re].imag / (2 * math.pi))
-                                           .tolist())})
-    # (b)
-    judged = [j for j, nm in enumerate(names) if nm not in STRUCTURAL]
-    pos = loc.K_D > 0
-    re = loc.eigenvalues[pos][:, judged].real
-    worst = re.max(axis=1)
-    # |Re| below the resolution counts as in the left half plane only for a mode that the
-    # drive reaches (d Re/d K_D < 0 at K_D = 0, then Re ~ K_D dRe/dK_D: tiny K_D, or a
-    # branch returning toward its asymptote on the axis like 1/K_D)
-    lam_s, d0, Vw_s = sensitivities(lin)
-    tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
-    names0 = _name_at_zero(lin, lam_s, Vw_s, d0)
-    reached = {nm for nm, dj in zip(names0, d0) if dj.real < -tol_sens}
-    ok_small = np.array([names[j] in reached for j in judged])
-    bad_pts = (re > tol_re) | ((re > -tol_re) & ~ok_small[None, :])
-    bad = bad_pts.any(axis=1)
-    unresolved = int(np.sum((np.abs(re) <= tol_re) & ok_small[None, :]))
-    if np.any(bad):
-        i = int(np.argmax(bad))
-        j = judged[int(np.argmax(re[i]))]
-        detail = (f'fails: at K_D = {loc.K_D[pos][i]:.4g} the {names[j]} root has Re = '
-                  f'{re[i].max():+.3e} 1/s (not < -{tol_re:.1e}); not in the open left '
-                  f'half plane: '
-                  f'{sorted({names[judged[k]] for k in np.where(bad_pts[i])[0]})}')
-    else:
-        detail = (f'holds on {int(pos.sum())} K_D values from {loc.K_D[pos][0]:.3g} to '
-                  f'{loc.K_D[-1]:.3g}: max Re = {worst.max():.3e} 1/s'
-                  + (f' ({unresolved} roots of reached modes within the resolution '
-                     f'{tol_re:.1e} of the axis)' if unresolved else ''))
-    claims['b'] = Claim('b', 'for every K_D > 0 all non-zero roots in the left half plane',
-                        not bool(np.any(bad)), detail,
-                        {'max_re': float(worst.max()), 'tol_re': tol_re,
-                         'unresolved': unresolved})
-    # (c)
-    returning = [loc.zero_labels[k] for k, z in enumerate(loc.zeros)
-                 if abs(z.real) <= tol_re and abs(z.imag) > tol_re]
-    ret_names = sorted(set(returning))
-    want = {'nutation', 'housing twist'} if lin.coords in ('II', 'I') else {'housing twist'}
-    if lin.coords == 'locked':
-        want = set()
-    c_holds = want.issubset(ret_names) and 'rotor-field coupling' not in ret_names
-    zfreq = {nm: abs(z.imag) / (2 * math.pi) for nm, z in zip(loc.zero_labels, loc.zeros)
-             if abs(z.imag) > tol_re}
-    claims['c'] = Claim('c', 'K_D -> infinity: the nutation and one coupling root return to '
-                        'the imaginary axis', bool(c_holds),
-                        f'branches ending on the imaginary axis: {ret_names} at '
-                        + ', '.join(f'{k} {v:.4f} Hz' for k, v in zfreq.items()),
-                        {'returning': ret_names, 'asymptote_freq_hz': zfreq})
-    # (d) K_D*: the rotor-field pair meets on the real axis
-    tol_im = 1e-7 * max(np.max(np.abs(lam0)), 1.0)
-    Ks = loc.K_D
-    cols = [j for j, nm in enumerate(names) if nm == 'rotor-field coupling']
-    K_star = lam_star = None
-    if len(cols) == 2:
-        imag = np.abs(loc.eigenvalues[:, cols].imag).max(axis=1)
-        real_idx = np.where((imag <= tol_im) & (Ks > 0))[0]
-        if real_idx.size and real_idx[0] > 0:
-            i = int(real_idx[0])
-            lo, hi = Ks[i - 1], Ks[i]
-            n_before = _real_count(lin, lo, tol_im)
-            for _ in range(60):
-                mid = math.sqrt(lo * hi) if lo > 0 else 0.5 * (lo + hi)
-                if _real_count(lin, mid, tol_im) > n_before:
-                    hi = mid
-                else:
-                    lo = mid
-                if hi - lo <= 1e-12 * hi:
-                    break
-            K_star = hi
-            lam_h = spectrum(lin, hi)[0]
-            reals = lam_h[np.abs(lam_h.imag) <= tol_im]
-            lam_star = float(reals[np.argmin(np.abs(reals - np.mean(
-                loc.eigenvalues[i, cols].real)))].real)
-    ends = [loc.zero_labels[k] for k, z in enumerate(loc.zeros) if abs(z) <= tol_re]
-    d_holds = (K_star is not None and lam_star is not None and lam_star < 0
-               and loc.fast_label == 'rotor-field coupling' and 'rotor-field coupling' in ends)
-    claims['d'] = Claim('d', 'the rotor-field pair meets on the negative real axis at K_D* '
-                        'and splits: one root toward 0, one toward -infinity', bool(d_holds),
-                        (f'K_D* = {K_star:.6g} N m s/rad, meeting at lambda = {lam_star:.6g} '
-                         f'1/s; fast branch: {loc.fast_label} (-> -{loc.fast_gain:.6g} K_D); '
-                         f'branches ending at 0: {ends}') if K_star is not None else
-                        f'no meeting on the real axis within the grid (fast branch: '
-                        f'{loc.fast_label}; ending at 0: {ends})',
-                        {'K_D_star': K_star, 'lambda_star': lam_star,
-                         'fast_label': loc.fast_label, 'ending_at_zero': ends})
+    sys = cl.drive_system(lin)
+    path = loc.eigenvalues if loc.K_D[0] == 0 else np.vstack(
+        [spectrum(lin, 0.0)[0][None, :], loc.eigenvalues])
+    K = loc.K_D if loc.K_D[0] == 0 else np.concatenate([[0.0], loc.K_D])
+    claim_d, meets = cl.claim_d(sys, K, path)
+    claims = {'a': cl.claim_a(sys), 'b': cl.claim_b(sys, K, path, loc.labels),
+              'c': cl.claim_c(sys, float(K[-1])), 'd': claim_d}
+    K_star = meets[-1].K_D if meets else None
+    lam_star = meets[-1].lam if meets else None
     regimes = []
     if K_star is not None:
-        regimes.append({'regime': 'all roots oscillatory (rotor-field pair complex)',
+        regimes.append({'regime': 'the pair that meets last is complex (oscillatory)',
                         'K_D_from': 0.0, 'K_D_to': K_star})
-        regimes.append({'regime': 'rotor-field pair real (overdamped)', 'K_D_from': K_star,
+        regimes.append({'regime': 'that pair real (overdamped)', 'K_D_from': K_star,
                         'K_D_to': math.inf})
-    for nm in dict.fromkeys(names):
-        if nm in STRUCTURAL:
-            continue
-        js = [j for j, x in enumerate(names) if x == nm]
-        re_b = loc.eigenvalues[:, js].real.max(axis=1)
-        i = int(np.argmin(re_b))
-        if 0 < i < len(Ks) - 1 and nm != 'rotor-field coupling' and -re_b[i] > tol_re:
-            regimes.append({'regime': f'{nm}: decay grows with K_D, then falls back',
-                            'K_D_from': 0.0, 'K_D_to': float(Ks[i]),
-                            'max_decay_rate': float(-re_b[i])})
     return ClaimsReport(claims=claims, K_D_star=K_star, breakaway=lam_star, regimes=regimes,
-                        locus=loc)
+                        locus=loc, meetings=meets)
 
 
 # -- the best K_D ----------------------------------------------------------------------------

@@ -5,7 +5,7 @@ optionally with their own parameters, and are sampled on a common time grid. Two
 backends run the same equations:
 
 ``numba``   one compiled loop over trajectories calling the same right-hand side kernel as
-            the single-trajectory integrators (:mod:`gyro_rotor.integrators.kernels`);
+            the single-trajectory integrators (:mod:`gyro_rotor.numerics.integrators.kernels`);
 ``numpy``   the same right-hand side (core.model.full_rhs) run elementwise on arrays of
             shape (N,), for installs without numba.
 

@@ -21,11 +21,19 @@ period counts as an *overrun*.
 With ``rtf = 0`` ("as fast as possible") each tick advances by a fixed chunk of
 ``chunk_samples`` output samples.
 
-The integrators behind the pacer share the minimal interface of :class:`Stepper`
-(``t``, ``y``, ``nfev``, ``advance_to(t)``, ``method``): :class:`DenseStepper` wraps a scipy
+**Work budget.** A tick may be given a ``deadline`` (a ``time.monotonic()`` reading): the
+steppers check it after every step, so a tick whose work would exceed it (a live change
+to a stiff or very fast system) stops at the step where the budget ran out, with the
+stepper's ``t, y`` at that step's end. The tick returns the samples it reached, counts as
+*cut* (``budget_cuts``), and the simulation time not reached is counted as lost (the time
+base is re-anchored), so the caller is back in its event loop within about one step of the
+deadline.
+
+The integrators behind the pacer share the minimal interface of :class:`Stepper` (``t``,
+``y``, ``nfev``, ``advance_to(t, deadline)``, ``method``): :class:`DenseStepper` wraps a scipy
 ``OdeSolver`` class (DOP853 by default) and reaches ``t_target`` with its dense output;
 :class:`RK4Stepper` is a fixed-step classical Runge-Kutta with a final partial step.
-:func:`make_stepper` picks one by name, and uses :mod:`gyro_rotor.integrators` when that
+:func:`make_stepper` picks one by name, and uses :mod:`gyro_rotor.numerics.integrators` when that
 module provides the method.
 """
 
@@ -33,19 +41,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from typing import Callable, Protocol
 
 from gyro_rotor.errors import IntegrationError, ParameterError
 import numpy as np
 
 __all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
-           'resolve_method', 'Pacer', 'Sample',
+           'resolve_method', 'Pacer', 'Sample', 'WorkBudgetExceeded',
            'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL', 'DEFAULT_RK4_STEP',
            'EnergyBaseline']
 
 #: scipy OdeSolver classes :class:`DenseStepper` accepts by name
 SCIPY_METHODS = ('DOP853', 'RK45', 'RK23', 'Radau', 'BDF', 'LSODA')
-#: default tolerances of the adaptive methods (as gyro_rotor.simulate)
+#: default tolerances of the adaptive methods (as gyro_rotor.numerics.simulate)
 DEFAULT_RTOL = 1e-11
 DEFAULT_ATOL = 1e-12
 #: default step of the fixed-step RK4 [s]
@@ -64,13 +73,35 @@ class Stepper(Protocol):
     y: np.ndarray
     nfev: int
 
-    def advance_to(self, t_target: float) -> np.ndarray:
-        """Integrate to exactly ``t_target`` (>= t) and return y(t_target)."""
+    def advance_to(self, t_target: float, deadline: float | None = None) -> np.ndarray:
+        """Integrate to exactly ``t_target`` (>= t) and return y(t_target).
+
+        Raises :class:`WorkBudgetExceeded` (``t, y`` at the last step) when a step ends
+        after ``deadline`` (a ``time.monotonic()`` reading) short of ``t_target``.
+        """
+
+
+class WorkBudgetExceeded(Exception):
+    """A stepper ran out of its work budget before the target; ``t, y`` are consistent."""
+
+
+def _over(deadline: float | None) -> bool:
+    return deadline is not None and time.monotonic() > deadline
 
 
 def _check_finite(t: float, y: np.ndarray, method: str) -> None:
     if not np.all(np.isfinite(y)):
         raise IntegrationError(f'{method}: the state became non-finite at t = {t:.9g} s')
+
+
+def _arithmetic(method: str, t: float, err: ArithmeticError) -> IntegrationError:
+    """Return the IntegrationError for an exception raised by the right-hand side.
+
+    A diverging solution can reach states where the model's formulas divide by zero (the
+    compiled kernels follow Python's rules and raise ZeroDivisionError) or overflow.
+    """
+    return IntegrationError(f'{method}: the right-hand side failed near t = {t:.9g} s '
+                            f'({type(err).__name__}: {err})')
 
 
 class DenseStepper:
@@ -108,19 +139,26 @@ class DenseStepper:
         """Right-hand side evaluations so far."""
         return int(self._solver.nfev)
 
-    def advance_to(self, t_target: float) -> np.ndarray:
-        """Integrate to exactly ``t_target`` and return y(t_target)."""
+    def advance_to(self, t_target: float, deadline: float | None = None) -> np.ndarray:
+        """Integrate to exactly ``t_target`` and return y(t_target) (see :class:`Stepper`)."""
         s = self._solver
         if self.failed:
             raise IntegrationError(f'{self.method}: the integrator failed earlier')
         if t_target < self.t:
             raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
         while s.t < t_target:
-            msg = s.step()
+            try:
+                msg = s.step()
+            except ArithmeticError as err:
+                self.failed = True
+                raise _arithmetic(self.method, s.t, err) from err
             if s.status == 'failed' or not np.all(np.isfinite(s.y)):
                 self.failed = True
                 raise IntegrationError(f'{self.method}: step failed at t = {s.t:.9g} s'
                                        + (f': {msg}' if msg else ': non-finite state'))
+            if s.t < t_target and _over(deadline):
+                self.t, self.y = float(s.t), s.y.copy()
+                raise WorkBudgetExceeded(self.method)
         if s.t == t_target:
             y = s.y.copy()
         else:
@@ -149,22 +187,27 @@ class RK4Stepper:
 
     def _step(self, h: float) -> None:
         f, t, y = self.fun, self.t, self.y
-        k1 = f(t, y)
-        k2 = f(t + h / 2, y + h / 2 * k1)
-        k3 = f(t + h / 2, y + h / 2 * k2)
-        k4 = f(t + h, y + h * k3)
+        try:
+            k1 = f(t, y)
+            k2 = f(t + h / 2, y + h / 2 * k1)
+            k3 = f(t + h / 2, y + h / 2 * k2)
+            k4 = f(t + h, y + h * k3)
+        except ArithmeticError as err:
+            raise _arithmetic(self.method, t, err) from err
         self.nfev += 4
         y_new = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         _check_finite(t + h, y_new, self.method)
         self.y = y_new
 
-    def advance_to(self, t_target: float) -> np.ndarray:
+    def advance_to(self, t_target: float, deadline: float | None = None) -> np.ndarray:
         """Full steps of ``h`` while they fit, then one partial step landing on t_target."""
         if t_target < self.t:
             raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
         while t_target - self.t > self.h * (1 + _GRID_EPS):
             self._step(self.h)
             self.t += self.h
+            if _over(deadline):
+                raise WorkBudgetExceeded(self.method)
         rest = t_target - self.t
         if rest > 0:
             self._step(rest)
@@ -173,11 +216,13 @@ class RK4Stepper:
 
 
 class IntegratorStepper:
-    """Adapter of a :mod:`gyro_rotor.integrators` method to the :class:`Stepper` interface.
+    """Adapter of a :mod:`gyro_rotor.numerics.integrators` method to :class:`Stepper`.
 
-    Its ``advance_to`` clips the last step onto the target; a failed status becomes an
+    Its ``advance_to`` clips the last step onto the target; a failed status, or an
+    arithmetic exception of the compiled right-hand side, becomes an
     :class:`~gyro_rotor.errors.IntegrationError`, with the last good state kept in
-    ``t, y``.
+    ``t, y``. With a ``deadline`` it steps one accepted step at a time (the loop of
+    ``Integrator.advance_to``) and checks the clock after each.
     """
 
     def __init__(self, integrator):
@@ -193,12 +238,25 @@ class IntegratorStepper:
         """Right-hand side evaluations so far."""
         return int(self.integrator.nfev)
 
-    def advance_to(self, t_target: float) -> np.ndarray:
-        """Integrate to exactly ``t_target`` and return y(t_target)."""
+    def advance_to(self, t_target: float, deadline: float | None = None) -> np.ndarray:
+        """Integrate to exactly ``t_target`` and return y(t_target) (see :class:`Stepper`)."""
         if t_target < self.t:
             raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
-        status = self.integrator.advance_to(t_target)
-        y = np.array(self.integrator.y, dtype=float)
+        integ = self.integrator
+        try:
+            if deadline is None:
+                status = integ.advance_to(t_target)
+            else:
+                while integ.t < t_target and integ.status == 'running':
+                    integ._advance(t_target)      # one accepted step, clipped at the target
+                    if integ.t < t_target and integ.status == 'running' and _over(deadline):
+                        self.t, self.y = float(integ.t), np.array(integ.y, dtype=float)
+                        raise WorkBudgetExceeded(self.method)
+                status = integ.status
+        except ArithmeticError as err:
+            integ.status = 'failed'
+            raise _arithmetic(self.method, integ.t, err) from err
+        y = np.array(integ.y, dtype=float)
         if status == 'failed' or not np.all(np.isfinite(y)):
             raise IntegrationError(f'{self.method}: failed near t = '
                                    f'{self.integrator.t:.9g} s: {self.integrator.message}')
@@ -207,7 +265,7 @@ class IntegratorStepper:
 
 
 def _integrators():
-    """Return the METHODS registry and make_integrator of gyro_rotor.integrators, if present."""
+    """Return METHODS and make_integrator of gyro_rotor.numerics.integrators, if present."""
     try:
         from gyro_rotor.numerics.integrators import make_integrator, METHODS
     except ImportError:
@@ -216,7 +274,7 @@ def _integrators():
 
 
 def resolve_method(method: str, params, t_end: float = math.inf) -> tuple[str, str]:
-    """'auto' -> (method, reason): gyro_rotor.integrators' choice, else scipy's DOP853/Radau."""
+    """'auto' -> (method, reason): the integrators' choice, else scipy's DOP853/Radau."""
     if method != 'auto':
         return method, 'requested'
     methods, _ = _integrators()
@@ -231,7 +289,7 @@ def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: floa
                  atol: float = 0.0, step_size: float = 0.0, model=None) -> Stepper:
     """Make a stepper by name.
 
-    With ``model`` given, a method of :mod:`gyro_rotor.integrators` (``rk4``, ``rk8``,
+    With ``model`` given, a method of :mod:`gyro_rotor.numerics.integrators` (``rk4``, ``rk8``,
     ``dop853``, ``gauss6``, ``rodas4``); otherwise, or for the scipy names (``DOP853``,
     ``Radau``, ...), scipy's OdeSolver with dense output; ``rk4`` falls back to
     :class:`RK4Stepper`. Zero tolerances or step size mean the method's default.
@@ -271,6 +329,7 @@ class WindowStats:
     ticks: int
     samples: int
     overruns: int            # ticks whose work took longer than the period
+    budget_cuts: int         # ticks stopped by their work budget (sim time lost)
     capped: int              # ticks whose catch-up was capped (sim time lost)
     lost_sim_time: float     # simulated seconds given up by capping
     interval_mean: float     # mean wall interval between ticks [s]
@@ -325,8 +384,10 @@ class Pacer:
         self._anchor: tuple[float, float] | None = None     # (wall0, t_sim0)
         self._last_tick: float | None = None
         self._tick_start = 0.0
+        #: whether the last tick was stopped by its work budget
+        self.cut = False
         # totals
-        self.ticks = self.samples = self.overruns = self.capped = 0
+        self.ticks = self.samples = self.overruns = self.capped = self.budget_cuts = 0
         self.lost_sim_time = 0.0
         self._reset_window(None)
 
@@ -348,9 +409,16 @@ class Pacer:
             self._anchor = (now, self.stepper.t)
 
     def restart(self, stepper: Stepper, now: float | None = None) -> None:
-        """Continue with a new stepper (reset, kick, parameter change) from its t."""
+        """Continue with a new stepper (reset, kick, parameter change) from its t.
+
+        Continuing at the same time (a kick or a parameter change right on a grid point,
+        as every tick at rtf 0 ends) does not repeat that grid point's sample.
+        """
+        k = self._first_k(stepper.t)
+        if stepper.t >= self.stepper.t:
+            k = max(k, self._k_next)
         self.stepper = stepper
-        self._k_next = self._first_k(stepper.t)
+        self._k_next = k
         self.finished = self.t_end is not None and stepper.t >= self.t_end
         if now is not None and self._anchor is not None:
             self._anchor = (now, stepper.t)
@@ -369,12 +437,15 @@ class Pacer:
             self._last_tick = None
 
     # -- stepping --------------------------------------------------------------------------
-    def tick(self, now: float) -> list[Sample]:
+    def tick(self, now: float, deadline: float | None = None) -> list[Sample]:
         """Advance to the target time for steady-clock reading ``now``; return grid samples.
 
-        Raises :class:`~gyro_rotor.errors.IntegrationError` from the stepper (its last good
-        state remains ``stepper.t, stepper.y``).
+        With a ``deadline`` (a ``time.monotonic()`` reading) the work stops at the first
+        step that ends after it (see the module doc: ``cut``, ``budget_cuts``). Raises
+        :class:`~gyro_rotor.errors.IntegrationError` from the stepper (its last good state
+        remains ``stepper.t, stepper.y``).
         """
+        self.cut = False
         self._tick_start = now
         if self._last_tick is not None:
             dt = now - self._last_tick
@@ -408,21 +479,43 @@ class Pacer:
             self.finished = True
         if t_target < st.t:
             t_target = st.t
-        out = []
+        out: list[Sample] = []
+        try:
+            self._advance(t_target, out, deadline)
+        except WorkBudgetExceeded:
+            self._cut(t_target, max(now, deadline))
+        self.samples += len(out)
+        self._w_samples += len(out)
+        return out
+
+    def _advance(self, t_target: float, out: list, deadline: float | None) -> None:
+        """Step to t_target, appending the grid samples passed on the way to ``out``."""
+        st = self.stepper
         slack = _GRID_EPS / self.sample_rate
         while True:
             tk = self.grid_time(self._k_next)
             if tk > t_target + slack:
                 break
             tk = max(tk, st.t)
-            y = st.advance_to(tk)
+            y = st.advance_to(tk, deadline)
             out.append(Sample(self._k_next, tk, np.array(y, copy=True)))
             self._k_next += 1
+            if st.t < t_target and _over(deadline):      # (steps that end on the grid)
+                raise WorkBudgetExceeded(st.method)
         if t_target > st.t:
-            st.advance_to(t_target)
-        self.samples += len(out)
-        self._w_samples += len(out)
-        return out
+            st.advance_to(t_target, deadline)
+
+    def _cut(self, t_target: float, when: float) -> None:
+        """Book a tick stopped by its budget at ``when``; the rest of its target is lost."""
+        self.cut = True
+        self.finished = False
+        self.budget_cuts += 1
+        self._w_budget += 1
+        if self.rtf > 0:
+            lost = t_target - self.stepper.t
+            self.lost_sim_time += lost
+            self._w_lost += lost
+            self._anchor = (when, self.stepper.t)
 
     def end_tick(self, now: float) -> None:
         """Record the end of a tick's work (for overrun and busy-time figures)."""
@@ -439,6 +532,7 @@ class Pacer:
         self._w_intervals: list[float] = []
         self._w_busy: list[float] = []
         self._w_ticks = self._w_samples = self._w_overruns = self._w_capped = 0
+        self._w_budget = 0
         self._w_lost = 0.0
 
     def take_window(self, now: float) -> WindowStats:
@@ -451,7 +545,7 @@ class Pacer:
             wall=wall, sim=sim,
             achieved_rtf=(sim / wall) if wall > 0 and not self.paused else math.nan,
             ticks=self._w_ticks, samples=self._w_samples, overruns=self._w_overruns,
-            capped=self._w_capped, lost_sim_time=self._w_lost,
+            capped=self._w_capped, budget_cuts=self._w_budget, lost_sim_time=self._w_lost,
             interval_mean=float(np.mean(iv)), interval_std=float(np.std(iv)),
             interval_max=float(np.max(iv)), interval_p99=float(np.percentile(iv, 99)),
             busy_mean=float(np.mean(busy)),

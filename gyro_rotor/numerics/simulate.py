@@ -2,8 +2,8 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.integrators`, Radau9 where
-the drive damping makes the scene stiff, Split8 for long conservative runs), at
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`,
+Radau9 where the drive damping makes the scene stiff, Split8 for long conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -71,7 +71,7 @@ class Trajectory:
         if self.rtol is not None:
             parts.append(f'rtol {self.rtol:g}, atol {self.atol:g}')
         if self.step is not None:
-            parts.append(f'step {self.step:.3g} s')
+            parts.append(f'fixed step {self.step:.3g} s')
         return '; '.join(parts)
 
     def __getattr__(self, name: str) -> Any:
@@ -131,8 +131,8 @@ class Trajectory:
 def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    See :func:`gyro_rotor.integrators.choose_method`: Radau9 where the drive damping makes
-    the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
+    See :func:`gyro_rotor.numerics.integrators.choose_method`: Radau9 where the drive
+    damping makes the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
     """
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
                              scene.model)
@@ -155,15 +155,15 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     Parameters
     ----------
     scene : Scene or str
-        A loaded scene, or a scene name / path for :func:`~gyro_rotor.scene.load_scene`.
+        A loaded scene, or a scene name / path for :func:`~gyro_rotor.core.scene.load_scene`.
     t_end : float, optional
         Duration [s]; default the scene's ``t_end``.
     rate : float
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.integrators` (rk4, rk8, dop853, gauss6, rodas4, radau9,
-        split8) or a
+        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4,
+        radau9, split8) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
         Tolerances of adaptive methods (split8 derives its step from rtol); a fixed-step

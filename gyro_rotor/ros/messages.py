@@ -25,6 +25,8 @@ from typing import Mapping
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, Vector3Stamped
+# the wire layouts are written once, in gyro_rotor.bag.wire
+from gyro_rotor.bag.wire import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -35,12 +37,6 @@ __all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'LEVELS', 'stamp', 'joint_state', 'en
            'axis_vector', 'stator_pose', 'axis_marker', 'diagnostic_array', 'clock',
            'text', 'ENERGY_LABEL']
 
-#: joint order of ``joint_states`` (3-1-3 angles of the paper; the rotor's phi_R)
-JOINT_NAMES = ('theta', 'psi', 'phi_R', 'phi_M')
-#: fields of the ``energy`` array, in order
-ENERGY_FIELDS = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
-                 'D', 'k')
-ENERGY_LABEL = ','.join(ENERGY_FIELDS)
 #: diagnostic levels as the byte constants the message needs (never plain ints)
 LEVELS = {'OK': DiagnosticStatus.OK, 'WARN': DiagnosticStatus.WARN,
           'ERROR': DiagnosticStatus.ERROR, 'STALE': DiagnosticStatus.STALE}

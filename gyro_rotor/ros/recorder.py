@@ -4,7 +4,8 @@
 subscription (RELIABLE, KEEP_ALL, VOLATILE; KEEP_LAST ``depth`` TRANSIENT_LOCAL for the
 latched ``~/scene`` document), so the bag holds the serialized bytes exactly as received, never
 re-encoded. A topic's channel is registered at its first message, with the QoS profiles its
-publishers offer (``Node.get_publishers_info_by_topic``), as ``ros2 bag record`` does;
+publishers offer and the type hash they announce (``Node.get_publishers_info_by_topic``),
+as ``ros2 bag record`` does;
 ``log_time`` is the receive time (when the recorder took the message, wall clock) and
 ``publish_time`` the publisher's DDS source timestamp (both ns since the epoch, this host's
 clock); the simulation time is only in the messages (stamps, ``/clock``). Each callback
@@ -27,6 +28,7 @@ import time
 from typing import Callable, Mapping
 
 from gyro_rotor.bag.bagio import BagWriter, normalize_qos, qos_profile_dict
+from gyro_rotor.bag.wire import sim_topics
 from gyro_rotor.errors import BagError
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -38,20 +40,6 @@ __all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable', 'D
 MIN_FREE_BYTES = 32 * 1024 * 1024
 #: most messages one callback takes from its subscription beyond the one it was given
 DRAIN_MAX = 200
-
-
-def sim_topics(sim_node: str = 'rotor_sim') -> dict[str, str]:
-    """Topics of the simulation node (relative names as it publishes them) and their types."""
-    return {
-        'joint_states': 'sensor_msgs/msg/JointState',
-        'energy': 'std_msgs/msg/Float64MultiArray',
-        'axis': 'geometry_msgs/msg/Vector3Stamped',
-        'stator_pose': 'geometry_msgs/msg/PoseStamped',
-        'axis_marker': 'visualization_msgs/msg/Marker',
-        '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
-        '/clock': 'rosgraph_msgs/msg/Clock',
-        f'{sim_node}/scene': 'std_msgs/msg/String',
-    }
 
 
 def default_bag_path(root: str | os.PathLike = 'bags_out') -> Path:
@@ -142,6 +130,8 @@ class BagRecorder:
         self.not_written = 0
         self.on_error = on_error
         self._types: dict[str, str] = {}
+        #: per recorded topic: whether its type hash came from the graph
+        self.graph_hashes: dict[str, bool] = {}
         self._subs = []
         self._sub_of: dict = {}
         self.drain_max = DRAIN_MAX
@@ -165,10 +155,22 @@ class BagRecorder:
             self._sub_of[name] = sub
         self._timer = node.create_timer(flush_period, self.flush)
 
-    def _offered_qos(self, topic: str) -> list:
+    def _add_topic(self, topic: str) -> None:
+        """Register ``topic`` at its first message with what its publishers offer.
+
+        As ``ros2 bag record``: the offered QoS profiles and the ``topic_type_hash`` come from
+        the graph (``get_publishers_info_by_topic``); the hash falls back to the installed
+        type description when no publisher offers a valid one.
+        """
         infos = self.node.get_publishers_info_by_topic(topic)
-        profiles = [normalize_qos(i.qos_profile)[0] for i in infos]
-        return profiles or [qos_profile_dict()]
+        profiles = [normalize_qos(i.qos_profile)[0] for i in infos] or [qos_profile_dict()]
+        hashes = {str(i.topic_type_hash) for i in infos
+                  if getattr(i, 'topic_type_hash', None) is not None}
+        hashes.discard('INVALID')
+        digest = hashes.pop() if len(hashes) == 1 else None
+        self.writer.add_topic(topic, self._types[topic], profiles, topic_type_hash=digest)
+        self.received[topic] = 0
+        self.graph_hashes[topic] = digest is not None
 
     def _on_raw(self, topic: str, data: bytes, info) -> None:
         """Record a message, then take and record what else is queued on the topic.
@@ -202,13 +204,11 @@ class BagRecorder:
         if self.failed:
             self.not_written += 1
         else:
-            publish = None
-            if isinstance(info, Mapping):
-                publish = info.get('source_timestamp') or None
+            # rclpy gives the MessageInfo as a dict (source_timestamp: the DDS send time)
+            publish = info.get('source_timestamp') if type(info) is dict else None
             try:
                 if topic not in self.received:
-                    self.writer.add_topic(topic, self._types[topic], self._offered_qos(topic))
-                    self.received[topic] = 0
+                    self._add_topic(topic)
                 self.writer.write(topic, data, now, publish if publish and publish > 0 else now)
                 self.received[topic] += 1
             except (OSError, BagError) as err:

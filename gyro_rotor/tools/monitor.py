@@ -4,6 +4,7 @@
 wall-clock readings), the count, the bytes and, where the message carries a sequence
 counter (the ``energy`` array's ``seq``), the number of missing sequence numbers. Its
 rate is the one ``ros2 topic hz`` reports: messages in the window over the window's span.
+:func:`array_values` names the numbers of a MultiArray by its own dimension labels.
 """
 
 from __future__ import annotations
@@ -12,7 +13,35 @@ import collections
 import dataclasses
 import math
 
-__all__ = ['TopicStats']
+__all__ = ['TopicStats', 'array_values']
+
+
+def array_values(labels: list[list[str]], data) -> dict:
+    """Name the numbers of a Float64MultiArray by its own dimension labels.
+
+    Parameters
+    ----------
+    labels : list of list of str
+        The comma-separated labels of each dimension (:func:`gyro_rotor.bag.wire.array_labels`).
+    data : sequence of float
+        The array, row major.
+
+    Returns
+    -------
+    dict
+        One dimension: ``{label: value}``. Two dimensions (a row per entry of dim[0], a
+        column per entry of dim[1], as ``analysis_modes``): ``{row label: {column label:
+        value}}``. Empty when the labels do not fit the data.
+    """
+    data = list(data)
+    if len(labels) == 1 and len(labels[0]) == len(data):
+        return dict(zip(labels[0], data))
+    if len(labels) == 2:
+        rows, cols = labels
+        if rows and cols and len(rows) * len(cols) == len(data):
+            n = len(cols)
+            return {r: dict(zip(cols, data[i * n:(i + 1) * n])) for i, r in enumerate(rows)}
+    return {}
 
 
 @dataclasses.dataclass

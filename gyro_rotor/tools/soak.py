@@ -30,8 +30,8 @@ from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
 
-__all__ = ['SoakResult', 'run_soak', 'find_max_rate', 'read_rss_kb', 'energy_seq_from_cdr',
-           'SIM_TOPICS']
+__all__ = ['SoakResult', 'run_soak', 'find_max_rate', 'read_rss_kb', 'read_cpu_s', 'CpuLoad',
+           'energy_seq_from_cdr', 'SIM_TOPICS']
 
 #: topics whose published count the simulator reports, and their names in the bag
 SIM_TOPICS = {'joint_states': '/joint_states', 'energy': '/energy', 'axis': '/axis',
@@ -56,7 +56,7 @@ def read_rss_kb(pid: int) -> int | None:
 
 def energy_seq_from_cdr(data: bytes) -> int:
     """Return the ``seq`` of a serialized ``energy`` message (its data array ends the CDR)."""
-    from gyro_rotor.ros.messages import ENERGY_FIELDS
+    from gyro_rotor.bag.wire import ENERGY_FIELDS
     n = len(ENERGY_FIELDS)
     off = len(data) - 8 * n + 8 * ENERGY_FIELDS.index('seq')
     if off < 4:
@@ -84,6 +84,11 @@ class SoakResult:
     analysis_exit: int | None = None
     ack_wait_s: float = math.nan
     capped_total: int = 0
+    load: int = 0                         # busy processes run beside the nodes
+    loadavg: list = dataclasses.field(default_factory=list)   # 1-min load at start, t_end
+    cpu_s: dict = dataclasses.field(default_factory=dict)     # CPU time per node [s]
+    cpu_first: dict = dataclasses.field(default_factory=dict)  # ... at the first sample
+    rss_t0: float = 0.0
     notes: list = dataclasses.field(default_factory=list)
 
     @property
@@ -148,6 +153,16 @@ class SoakResult:
                 lines.append(f'  RSS {name}: {pts[0] / 1024:.1f} -> {pts[-1] / 1024:.1f} MB '
                              f'(max {max(pts) / 1024:.1f}); second half of the run '
                              f'{g / 1024:.2f} MB ({gm:.1f} kB/min)')
+        n = self.recorded.get('energy', 0)
+        for name, cpu in self.cpu_s.items():
+            first = self.cpu_first.get(name)
+            if cpu is not None and first is not None and n and self.wall_s > 0:
+                run = cpu - first
+                lines.append(f'  CPU {name}: {cpu:.1f} s, {run:.1f} s from the first sample '
+                             f'= {run / n * 1e6:.0f} us per sample ({run / self.wall_s:.2f} of '
+                             'a core)')
+        lines.append(f'  busy processes: {self.load}; load average (1 min) '
+                     + ', '.join(f'{x:.1f}' for x in self.loadavg))
         lines.append(f'  bag {self.bag_bytes / 1e6:.1f} MB = {self.bag_mb_per_min:.1f} MB per '
                      f'wall minute')
         if self.rtf == 0:
@@ -228,9 +243,141 @@ def _count_bag(bag: Path, res: SoakResult) -> None:
     res.bag_bytes = sum(f.stat().st_size for f in bag.iterdir() if f.is_file())
 
 
+class CpuLoad:
+    """``n`` busy processes (``yes > /dev/null``), one per core by default; a context."""
+
+    def __init__(self, n: int | None = None):
+        self.n = (os.cpu_count() or 1) if n is None else int(n)
+        self.procs: list = []
+
+    def __enter__(self) -> 'CpuLoad':
+        import subprocess
+        for _ in range(self.n):
+            self.procs.append(subprocess.Popen(['yes'], stdout=subprocess.DEVNULL,
+                                               stdin=subprocess.DEVNULL))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for p in self.procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait()
+        self.procs.clear()
+
+
+def read_cpu_s(pid: int) -> float | None:
+    """CPU time (user + system) of process ``pid`` so far [s], None if it is gone."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _check_soak_args(rate: float, duration: float, rtf: float, out: Path) -> Path:
+    if not (math.isfinite(rate) and 1 <= rate <= 10000):
+        raise ParameterError(f'rate must be in 1..10000 Hz, got {rate!r}')
+    if not (math.isfinite(duration) and duration > 0):
+        raise ParameterError(f'duration must be positive, got {duration!r}')
+    if not (math.isfinite(rtf) and rtf >= 0):
+        raise ParameterError(f'rtf must be >= 0, got {rtf!r}')
+    bag = out / 'bag'
+    if bag.exists():
+        raise ParameterError(f'{bag} exists already')
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ParameterError(f'cannot create output directory {out}: {err}') from err
+    return bag
+
+
+def _start_nodes(res: SoakResult, scene_arg: str, bag: Path, domain_id: int, logs: dict,
+                 env: dict):
+    """Start rotor_analysis (recording) and rotor_sim; return (sim, analysis)."""
+    from gyro_rotor.tools.launch import NodeProcess
+    ana = NodeProcess('gyro_rotor.ros.analysis_node', {
+        'output': str(bag), 'scene': scene_arg}, domain_id=domain_id,
+        stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis'], env=env)
+    sim = NodeProcess('gyro_rotor.ros.sim_node', {
+        'scene': scene_arg, 'publish_rate': res.rate, 'real_time_factor': res.rtf,
+        't_end': res.duration, 'stop_at_t_end': True, 'wait_for_subscribers': 1,
+        'diagnostics_period': 1.0},
+        domain_id=domain_id, stdout=logs['rotor_sim'], stderr=logs['rotor_sim'], env=env)
+    return sim, ana
+
+
+def _run_to_t_end(res: SoakResult, sim, ana, listener: _Listener, out: Path,
+                  rss_period: float, say: Callable[[str], None]) -> None:
+    """Sample memory and progress until the simulator reports t_end (or fails)."""
+    t0 = time.monotonic()
+    t_first = None
+    next_rss, next_say = t0, t0 + 30.0
+    limit = 120.0 + (res.duration / res.rtf * 3.0 if res.rtf > 0 else res.duration * 5.0)
+    while not listener.sim_message.startswith('stopped at t_end'):
+        listener.spin(0.2)
+        now = time.monotonic()
+        t_sim = float(listener.sim.get('t_sim', 'nan') or 'nan')
+        if t_first is None and t_sim > 0:
+            t_first = now
+            res.cpu_first = {'rotor_sim': read_cpu_s(sim.pid),
+                             'rotor_analysis': read_cpu_s(ana.pid)}
+        if now >= next_rss:
+            res.rss_kb.append((round(now - t0, 2), read_rss_kb(sim.pid), read_rss_kb(ana.pid)))
+            next_rss = now + rss_period
+        if now >= next_say:
+            say(f'  wall {now - t0:6.0f} s  t_sim {t_sim:8.2f} s  achieved rtf '
+                f'{listener.sim.get("achieved_rtf", "?")}  recorded samples '
+                f'{listener.analysis.get("samples", math.nan):.0f}  load average '
+                f'{os.getloadavg()[0]:.1f}')
+            next_say = now + 30.0
+        for p in (sim, ana):
+            if p.poll() is not None:
+                raise GyroRotorError(f'{p.module} exited early with status {p.poll()}; '
+                                     f'see {out}')
+        if now - t0 > limit:
+            raise GyroRotorError(f'the simulation did not reach t_end in {limit:.0f} s '
+                                 f'(t_sim {t_sim}); see {out}')
+    res.wall_s = time.monotonic() - (t_first if t_first is not None else t0)
+    res.achieved_rtf = res.duration / res.wall_s if res.wall_s > 0 else math.nan
+    res.rtf_min = min(listener.rtf_windows[1:] or listener.rtf_windows or [math.nan])
+    res.ack_wait_s = float(listener.sim.get('ack_wait_s', 'nan'))
+    res.capped_total = int(listener.sim.get('capped_total', '0'))
+    res.rss_t0 = t0
+
+
+def _drain(res: SoakResult, listener: _Listener, drain_timeout: float) -> None:
+    """Wait until the analysis took (nearly) every published sample, or stopped taking."""
+    want = int(listener.sim.get('published_energy', '0'))
+    deadline = time.monotonic() + drain_timeout
+    last, stable = -1.0, 0
+    while time.monotonic() < deadline:
+        listener.spin(1.0)
+        got = listener.analysis.get('samples', -1.0)
+        # the analysis pairs energy with joint_states: up to PAIRER_KEEP samples wait
+        if got >= want - PAIRER_KEEP:
+            return
+        stable = stable + 1 if got == last else 0
+        last = got
+        if stable >= 5:
+            res.notes.append(f'the analysis stopped at {got:.0f} of {want} samples')
+            return
+
+
+def _stop_nodes(res: SoakResult, sim, ana, listener: _Listener, out: Path) -> None:
+    """Stop the simulator (its counts), then the recorder; CPU time and last memory."""
+    res.cpu_s = {'rotor_sim': read_cpu_s(sim.pid), 'rotor_analysis': None}
+    res.sim_exit = sim.stop()
+    res.published = {k: int(v) for k, v in _published_from_log(out / 'rotor_sim.log').items()}
+    listener.spin(1.0)
+    res.rss_kb.append((round(time.monotonic() - res.rss_t0, 2), None, read_rss_kb(ana.pid)))
+    res.cpu_s['rotor_analysis'] = read_cpu_s(ana.pid)
+    res.analysis_exit = ana.stop(timeout=60.0)
+
+
 def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'precession',
              out: str | os.PathLike = 'soak_runs', rtf: float = 1.0, rss_period: float = 5.0,
-             drain_timeout: float = 120.0,
+             drain_timeout: float = 120.0, load: int = 0,
              progress: Callable[[str], None] | None = print) -> SoakResult:
     """Run both nodes for ``duration`` simulated seconds and measure (see module doc).
 
@@ -250,102 +397,34 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
         Seconds between memory samples.
     drain_timeout : float
         Longest wait after t_end for the recorder to take the last messages [s].
+    load : int
+        Busy processes (``yes > /dev/null``) run during the soak (0 = none); started
+        before the nodes, stopped after them.
     """
-    from gyro_rotor.tools.launch import claim_domain_id, NodeProcess
     from gyro_rotor.core.scene import load_scene
-    if not (math.isfinite(rate) and 1 <= rate <= 10000):
-        raise ParameterError(f'rate must be in 1..10000 Hz, got {rate!r}')
-    if not (math.isfinite(duration) and duration > 0):
-        raise ParameterError(f'duration must be positive, got {duration!r}')
-    if not (math.isfinite(rtf) and rtf >= 0):
-        raise ParameterError(f'rtf must be >= 0, got {rtf!r}')
+    from gyro_rotor.tools.launch import claim_domain_id
+    out = Path(out)
+    bag = _check_soak_args(rate, duration, rtf, out)
     sc = load_scene(scene)
     say = progress or (lambda s: None)
-    out = Path(out)
-    bag = out / 'bag'
-    if bag.exists():
-        raise ParameterError(f'{bag} exists already')
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ParameterError(f'cannot create output directory {out}: {err}') from err
     res = SoakResult(rate=float(rate), rtf=float(rtf), duration=float(duration),
-                     scene=sc.name)
+                     scene=sc.name, load=int(load))
     claim = claim_domain_id()
     logs = {n: open(out / f'{n}.log', 'w') for n in ('rotor_sim', 'rotor_analysis')}
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     sim = ana = listener = None
+    res.loadavg.append(os.getloadavg()[0])
     try:
-        ana = NodeProcess('gyro_rotor.ros.analysis_node', {
-            'output': str(bag), 'scene': str(sc.path or scene)}, domain_id=claim.domain_id,
-            stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis'], env=env)
-        listener = _Listener(claim.domain_id)
-        listener.spin(1.0)
-        sim = NodeProcess('gyro_rotor.ros.sim_node', {
-            'scene': str(sc.path or scene), 'publish_rate': float(rate),
-            'real_time_factor': float(rtf), 't_end': float(duration), 'stop_at_t_end': True,
-            'wait_for_subscribers': 1, 'diagnostics_period': 1.0},
-            domain_id=claim.domain_id, stdout=logs['rotor_sim'], stderr=logs['rotor_sim'],
-            env=env)
-        say(f'soak: ROS_DOMAIN_ID {claim.domain_id}, rotor_sim pid {sim.pid}, '
-            f'rotor_analysis pid {ana.pid}, bag {bag}')
-        t0 = time.monotonic()
-        t_first = None
-        next_rss = t0
-        next_say = t0 + 30.0
-        limit = 120.0 + (duration / rtf * 3.0 if rtf > 0 else duration * 5.0)
-        while True:
-            listener.spin(0.2)
-            now = time.monotonic()
-            t_sim = float(listener.sim.get('t_sim', 'nan') or 'nan')
-            if t_first is None and t_sim > 0:
-                t_first = now
-            if now >= next_rss:
-                res.rss_kb.append((round(now - t0, 2), read_rss_kb(sim.pid),
-                                   read_rss_kb(ana.pid)))
-                next_rss = now + rss_period
-            if now >= next_say:
-                say(f'  wall {now - t0:6.0f} s  t_sim {t_sim:8.2f} s  achieved rtf '
-                    f'{listener.sim.get("achieved_rtf", "?")}  recorded samples '
-                    f'{listener.analysis.get("samples", math.nan):.0f}')
-                next_say = now + 30.0
-            if listener.sim_message.startswith('stopped at t_end'):
-                break
-            for p in (sim, ana):
-                if p.poll() is not None:
-                    raise GyroRotorError(f'{p.module} exited early with status {p.poll()}; '
-                                         f'see {out}')
-            if now - t0 > limit:
-                raise GyroRotorError(f'the simulation did not reach t_end in {limit:.0f} s '
-                                     f'(t_sim {t_sim}); see {out}')
-        t_end_wall = time.monotonic()
-        res.wall_s = t_end_wall - (t_first if t_first is not None else t0)
-        res.achieved_rtf = duration / res.wall_s if res.wall_s > 0 else math.nan
-        res.rtf_min = min(listener.rtf_windows[1:] or listener.rtf_windows or [math.nan])
-        res.ack_wait_s = float(listener.sim.get('ack_wait_s', 'nan'))
-        res.capped_total = int(listener.sim.get('capped_total', '0'))
-        # the recorder takes what is still queued (the simulator keeps its unacknowledged
-        # messages only while it lives), then the simulator stops
-        want = int(listener.sim.get('published_energy', '0'))
-        deadline = time.monotonic() + drain_timeout
-        last, stable = -1.0, 0
-        while time.monotonic() < deadline:
-            listener.spin(1.0)
-            got = listener.analysis.get('samples', -1.0)
-            # the analysis pairs energy with joint_states: up to PAIRER_KEEP samples wait
-            if got >= want - PAIRER_KEEP:
-                break
-            stable = stable + 1 if got == last else 0
-            last = got
-            if stable >= 5:
-                res.notes.append(f'the analysis stopped at {got:.0f} of {want} samples')
-                break
-        res.sim_exit = sim.stop()
-        res.published = {k: int(v) for k, v in
-                         _published_from_log(out / 'rotor_sim.log').items()}
-        listener.spin(1.0)
-        res.rss_kb.append((round(time.monotonic() - t0, 2), None, read_rss_kb(ana.pid)))
-        res.analysis_exit = ana.stop(timeout=60.0)
+        with CpuLoad(load):
+            listener = _Listener(claim.domain_id)
+            sim, ana = _start_nodes(res, str(sc.path or scene), bag, claim.domain_id, logs,
+                                    env)
+            say(f'soak: ROS_DOMAIN_ID {claim.domain_id}, rotor_sim pid {sim.pid}, '
+                f'rotor_analysis pid {ana.pid}, {load} busy processes, bag {bag}')
+            _run_to_t_end(res, sim, ana, listener, out, rss_period, say)
+            res.loadavg.append(os.getloadavg()[0])
+            _drain(res, listener, drain_timeout)
+            _stop_nodes(res, sim, ana, listener, out)
     finally:
         for p in (sim, ana):
             if p is not None:
@@ -362,7 +441,8 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
 
 def find_max_rate(rates=(250.0, 500.0, 1000.0, 1500.0, 2000.0, 3000.0), duration: float = 20.0,
                   scene: str = 'precession', out: str | os.PathLike = 'soak_runs/max_rate',
-                  min_rtf: float = 0.98, progress: Callable[[str], None] | None = print
+                  min_rtf: float = 0.98, load: int = 0,
+                  progress: Callable[[str], None] | None = print
                   ) -> tuple[float | None, list[SoakResult]]:
     """Short soaks at increasing ``rates`` (rtf 1); the highest rate with zero loss.
 
@@ -374,7 +454,7 @@ def find_max_rate(rates=(250.0, 500.0, 1000.0, 1500.0, 2000.0, 3000.0), duration
     results, best = [], None
     for rate in sorted(rates):
         r = run_soak(rate=rate, duration=duration, scene=scene, out=Path(out) / f'{rate:g}Hz',
-                     progress=None)
+                     load=load, progress=None)
         results.append(r)
         ok = r.zero_loss and r.achieved_rtf >= min_rtf
         say(f'  {rate:7g} Hz: lost {r.lost.get("energy")} energy / '

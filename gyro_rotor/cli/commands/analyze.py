@@ -1,4 +1,10 @@
-"""``gyro-rotor analyze BAG``: the live node's stability checks on a recorded bag."""
+"""``gyro-rotor analyze BAG``: the live node's stability checks on a recorded bag.
+
+Exit status: 0 if the verdict is confirmed (every applicable criterion passed:
+asymptotically stable, or marginal where the linear theory predicts it), :data:`NOT_CONFIRMED`
+(2) for any other verdict (not confirmed, insufficient data, unstable, diverged), 1 for bad
+input.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +13,9 @@ import json
 import sys
 
 HELP = ('analyze a recorded bag: Lyapunov, decay fits, eigenvalues from data vs predicted, '
-        'pole slips, verdict; text/JSON report and plots')
+        'pole slips, verdict; text/JSON report and plots; exit 0 confirmed, 2 not')
+#: exit status for a verdict that is not confirmed (1 is bad input)
+NOT_CONFIRMED = 2
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -26,12 +34,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print the text report; 0 whatever the verdict (1 only for bad input)."""
+    """Print the text report; 0 if the verdict is confirmed, else 2 (1 for bad input)."""
     import math
 
-    from gyro_rotor.analysis.checks import analyze_bag
-    from gyro_rotor.errors import BagError, ParameterError
+    from gyro_rotor.analysis.offline import analyze_bag
     from gyro_rotor.analysis.report import _clean, json_report, text_report, write_report
+    from gyro_rotor.errors import BagError, ParameterError
     if not args.bag.strip():
         raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
     if args.window is not None and not args.window >= 0:
@@ -46,4 +54,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(_clean(json_report(bag.result, bag)), indent=1))
     for f in files:
         print(f'wrote {f}')
-    return 0
+    res = bag.result
+    print(f'RESULT: {"CONFIRMED" if res.confirmed else "NOT CONFIRMED"}: {res.verdict}'
+          + ('' if res.confirmed else f' ({res.reason})'))
+    return 0 if res.confirmed else NOT_CONFIRMED

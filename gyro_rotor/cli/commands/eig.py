@@ -9,7 +9,8 @@ import math
 from gyro_rotor.cli.util import check_output_file, parse_sets
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.stability import analyze, scene_operating_point
+from gyro_rotor.linear.stability import analyze, scene_operating_point, TOL_RE_REL
+import numpy as np
 
 HELP = 'eigenvalues, named modes, drive penetration and the stability verdict of a scene'
 
@@ -36,12 +37,18 @@ def run(args: argparse.Namespace) -> int:
     print(f'  state: ({", ".join(r.state_names)})')
     print(f'  {"mode":40s} {"Re [1/s]":>13s} {"Im [rad/s]":>12s} {"f [Hz]":>9s} '
           f'{"zeta":>10s} {"tau [s]":>10s} {"dRe/dK_D":>11s}  reached')
+    # a real part below the eigensolver's resolution is 0, not a result (never 1e-102)
+    res = TOL_RE_REL * max(float(np.linalg.norm(r.A)), 1.0)
+
+    def re(x: float, width: int = 13) -> str:
+        return f'{x:+{width}.6e}' if abs(x) > res else f'{"0":>{width}s}'
     for m in r.modes:
         tau = f'{m.tau:10.4g}' if math.isfinite(m.tau) else f'{"inf":>10s}'
-        print(f'  {m.name:40s} {m.eigenvalue.real:+13.6e} {m.eigenvalue.imag:12.6f} '
+        print(f'  {m.name:40s} {re(m.eigenvalue.real)} {m.eigenvalue.imag:12.6f} '
               f'{m.freq_hz:9.4f} {m.zeta:10.3e} {tau} {m.dRe_dKD:+11.4e}  '
               f'{"yes" if m.reached_by_drive else "no"}')
-    print(f'  spectral abscissa {r.spectral_abscissa:+.6e} 1/s (slowest: {r.slowest_mode})')
+    print(f'  spectral abscissa {re(r.spectral_abscissa, 0).strip()} 1/s (slowest: '
+          f'{r.slowest_mode}; |Re| below {res:.1e} 1/s prints as 0)')
     print(f'  verdict: {r.verdict}: {r.reason}')
     if args.json:
         with open(args.json, 'w') as f:

@@ -17,7 +17,10 @@ import numpy as np
 #: most points of the --points grid (each is an eigen-decomposition, plus tracking)
 MAX_POINTS = 100000
 
-HELP = "root locus over K_D (the paper's figure 2), its asymptotes and claims (a) to (d)"
+HELP = ("root locus over K_D (the paper's figure 2), its asymptotes and claims (a) to (d); "
+        'exit 0 if every claim holds, 2 if one fails')
+#: exit status when a claim fails (1 is bad input)
+CLAIM_FAILS = 2
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -48,7 +51,7 @@ def _grid(args, params) -> np.ndarray | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Compute, print the claims, write the requested files."""
+    """Compute, print the claims, write the requested files; 0 if all claims hold, else 2."""
     for path in (args.csv, args.json, args.out):
         if path:
             check_output_file(path)
@@ -67,14 +70,19 @@ def run(args: argparse.Namespace) -> int:
     print(f'scene {scene.name} (model {model}) about {sm.name}; K_D from 0 to '
           f'{loc.K_D[-1]:.4g} N m s/rad ({len(loc.K_D)} values)')
     for key, c in cr.claims.items():
-        print(f'  ({key}) {"holds" if c.holds else "FAILS"}: {c.statement}\n      {c.detail}')
-    if cr.K_D_star is not None:
-        print(f'  K_D* = {cr.K_D_star:.8g} N m s/rad (meeting at {cr.breakaway:.6g} 1/s)')
+        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
+        if c.exception:
+            print(f'      expected exception: {c.exception}')
+    for mt in cr.meetings:
+        print(f'  K_D* = {mt.K_D:.8g} N m s/rad (double root at {mt.lam:.6g} 1/s, polished '
+              f'and verified to {mt.verified_rtol:.0e} relative)')
     for r in cr.regimes:
         print(f"  regime: {r['regime']}: K_D in [{r['K_D_from']:.4g}, {r['K_D_to']:.4g}]")
+    tol = cr.claims['b'].data['tol_re']
     print('  asymptotes (K_D -> infinity): ' + ', '.join(
-        f'{nm} {z.real:+.3g}{z.imag:+.6g}j' for z, nm in zip(loc.zeros, loc.zero_labels)
-        if z.imag >= 0) + f'; {loc.fast_label} -> -{loc.fast_gain:.6g} K_D')
+        f'{nm} ' + (f'{z.real:+.4g}' if abs(z.real) > tol else '0') + f'{z.imag:+.6g}j'
+        for z, nm in zip(loc.zeros, loc.zero_labels) if z.imag >= 0)
+        + f'; {loc.fast_label} -> -{loc.fast_gain:.6g} K_D')
     if args.csv:
         with open(args.csv, 'w', newline='') as f:
             w = csv.writer(f)
@@ -85,7 +93,9 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         doc = loc.as_dict()
         doc['claims'] = {k: {'statement': c.statement, 'holds': c.holds, 'detail': c.detail,
-                             'data': c.data} for k, c in cr.claims.items()}
+                             'exception': c.exception, 'data': c.data}
+                         for k, c in cr.claims.items()}
+        doc['meetings'] = [{'K_D_star': mt.K_D, 'lambda_star': mt.lam} for mt in cr.meetings]
         doc['K_D_star'] = cr.K_D_star
         doc['breakaway'] = cr.breakaway
         doc['regimes'] = cr.regimes
@@ -97,4 +107,4 @@ def run(args: argparse.Namespace) -> int:
         plot_root_locus(loc, args.out, claims=cr, K_D_mark=p.K_D if p.K_D > 0 else None,
                         title=f'root locus over K_D: scene {scene.name}, {sm.name}')
         print(f'  wrote {args.out}')
-    return 0
+    return 0 if cr.all_hold else CLAIM_FAILS

@@ -14,8 +14,9 @@ import math
 import sys
 import time
 
+from gyro_rotor.bag.wire import array_labels
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.tools.monitor import TopicStats
+from gyro_rotor.tools.monitor import array_values, TopicStats
 
 HELP = 'monitor the rotor topics of a running system: rates, E*, residual, diagnostics'
 
@@ -54,10 +55,10 @@ class Monitor:
 
     def discover(self) -> None:
         """Subscribe to new topics of the graph."""
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from gyro_rotor.ros.qos import profile
         # best effort matches every publisher and never slows one down; a deep queue keeps
         # the monitor from dropping what it is slow to take
-        qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT)
+        qos = profile('monitor')
         for topic, types in self.node.get_topic_names_and_types():
             if topic in self.subs or topic in _SKIP or not types:
                 continue
@@ -79,8 +80,7 @@ class Monitor:
             if name in ('Float64MultiArray', 'DiagnosticArray', 'String'):
                 msg = deserialize_message(data, cls)
                 if name == 'Float64MultiArray' and msg.layout.dim:
-                    labels = msg.layout.dim[0].label.split(',')
-                    values = dict(zip(labels, msg.data))
+                    values = array_values(array_labels(msg.layout.dim), msg.data)
                     self.latest[topic] = values
                     if 'seq' in values:
                         seq = int(values['seq'])
@@ -106,17 +106,26 @@ class Monitor:
                          f'{"-" if math.isnan(jit) else f"{1e3 * jit:9.2f}":>9s} '
                          f'{s.gaps if s.last_seq is not None else "-":>5}')
         for topic, values in sorted(self.latest.items()):
-            if isinstance(values, dict):
-                keys = [k for k in ('t_sim', 'E_star', 'dE_dt', 'residual', 'z', 'zdot')
-                        if k in values] or list(values)[:8]
-                lines.append(f'{topic}: ' + ', '.join(f'{k} {values[k]:.6g}' for k in keys))
-            else:
-                lines.append(f'{topic}: {values}')
+            lines += _value_lines(topic, values)
         for name, (level, message) in sorted(self.diag.items()):
             lines.append(f'[{level}] {name}: {message}')
         if not self.stats:
             lines.append('(no rotor topics yet: is rotor_sim running in this ROS domain?)')
         return '\n'.join(lines)
+
+
+_KEYS = ('t_sim', 'E_star', 'dE_dt', 'residual', 'z', 'zdot')
+
+
+def _value_lines(topic: str, values) -> list[str]:
+    """Lines of the latest values of a topic (a row per mode for a 2-D array)."""
+    if not isinstance(values, dict):
+        return [f'{topic}: {values}']
+    if values and all(isinstance(v, dict) for v in values.values()):
+        return [f'{topic} {row}: ' + ', '.join(f'{k} {v:.6g}' for k, v in cols.items())
+                for row, cols in values.items()]
+    keys = [k for k in _KEYS if k in values] or list(values)[:8]
+    return [f'{topic}: ' + ', '.join(f'{k} {values[k]:.6g}' for k in keys)]
 
 
 def run(args: argparse.Namespace) -> int:

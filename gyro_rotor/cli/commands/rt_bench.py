@@ -1,6 +1,6 @@
 """``gyro-rotor rt-bench``: achieved real-time factor and tick jitter of the rotor_sim node.
 
-Runs :class:`~gyro_rotor.sim_node.RotorSimNode` in this process (its own ROS context, a
+Runs :class:`~gyro_rotor.ros.sim_node.RotorSimNode` in this process (its own ROS context, a
 SingleThreadedExecutor, all topics published as in operation) for a few wall seconds per
 scene and real-time factor, and prints what its pacer measured: simulated over wall time,
 the timer-tick intervals (mean, standard deviation = jitter, 99th percentile, maximum),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gyro_rotor.cli.util import check_output_file, parse_sets
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
 from gyro_rotor.numerics.simulate import DEFAULT_RATE, simulate
 
 HELP = 'simulate a scene (name or YAML path) and print a summary'
@@ -17,19 +17,52 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                    help='override a scene key, e.g. --set K_D=0.1 --set initial.dzdot=2.0')
     p.add_argument('--rate', type=float, default=DEFAULT_RATE, help='output sample rate [Hz]')
-    p.add_argument('--out', default=None, help='write samples to FILE.csv or FILE.npz')
+    p.add_argument('--out', default=None,
+                   help='write samples to FILE.csv (header: name [unit]) or FILE.npz')
     p.add_argument('--method', default='auto', help='integration method (default: auto)')
     p.add_argument('--rtol', type=float, default=None, help='relative tolerance')
     p.add_argument('--atol', type=float, default=None, help='absolute tolerance')
+
+
+#: units of the CSV columns (numerics.simulate.CSV_COLUMNS), written into the header
+CSV_UNITS = {'t': 's', 'theta': 'rad', 'psi': 'rad', 'phi_R': 'rad', 'phi_M': 'rad',
+             'thetadot': 'rad/s', 'psidot': 'rad/s', 'phi_R_dot': 'rad/s',
+             'phi_M_dot': 'rad/s', 'axis_x': '1', 'axis_y': '1', 'axis_z': '1',
+             'chi': 'rad', 'z': 'rad', 'zdot': 'rad/s', 'Q': 'N m', 'E_star': 'J',
+             'dE_dt': 'W', 'residual': 'J', 'qnorm_error': '1'}
+
+
+def write_csv(tr, path: str) -> None:
+    """Write the trajectory as CSV with a header of ``name [unit]`` per column."""
+    import numpy as np
+    from gyro_rotor.numerics.simulate import CSV_COLUMNS
+    cols = tr.columns()
+    header = ','.join(f'{k} [{CSV_UNITS[k]}]' for k in CSV_COLUMNS)
+    np.savetxt(path, np.column_stack([cols[k] for k in CSV_COLUMNS]), delimiter=',',
+               header=header, comments='', fmt='%.17g')
+
+
+def _pole_slips(tr) -> str:
+    """Pole slips of a synchronous drive (z over a potential maximum), '' without poles."""
+    if not tr.scene.params.pole_pairs:
+        return ''
+    from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
+    ana = RotorAnalyzer(tr.scene, window_s=0)
+    ana.add_many(samples_from_trajectory(tr))
+    r = ana.result()
+    return f'  pole slips:   {r.pole_slips} (z passed a maximum of the drive potential)'
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulation and print the summary."""
     if args.out:
         check_output_file(args.out, ('.csv', '.npz'))
-    tr = simulate(args.scene, t_end=args.t_end, rate=args.rate, method=args.method,
-                  rtol=args.rtol, atol=args.atol, overrides=parse_sets(args.set))
-    if args.out:
+    scene = load_scene_with_sets(args.scene, args.set)
+    tr = simulate(scene, t_end=args.t_end, rate=args.rate, method=args.method,
+                  rtol=args.rtol, atol=args.atol)
+    if args.out and args.out.endswith('.csv'):
+        write_csv(tr, args.out)
+    elif args.out:
         tr.save(args.out)
     s = tr.summary()
     print(f"scene {s['scene']} (model {s['model']}), {s['t_end']:g} s with {s['method']} "
@@ -42,6 +75,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"  E*:           first {s['E_star_first']:.12g} J, last {s['E_star_last']:.12g} J")
     print(f"  max |residual| {s['max_abs_residual']:.3e} J, max ||q|-1| "
           f"{s['max_qnorm_drift']:.3e}")
+    slips = _pole_slips(tr)
+    if slips:
+        print(slips)
     print(f"  {s['nfev']} RHS evaluations, {s['samples']} samples, wall time "
           f"{s['wall_time']:.3f} s")
     if args.out:

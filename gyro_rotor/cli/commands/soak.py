@@ -3,8 +3,9 @@
 Runs ``rotor_sim`` and ``rotor_analysis`` (recording) as processes for ``--duration``
 simulated seconds at ``--rate`` and prints messages published vs recorded per topic,
 memory growth, the achieved real-time factor and the bag size per minute
-(:func:`gyro_rotor.soak.run_soak`). ``--find-max-rate`` runs short soaks at increasing
-rates instead and reports the highest rate without loss on this machine. The figures go
+(:func:`gyro_rotor.tools.soak.run_soak`). ``--find-max-rate`` runs short soaks at increasing
+rates instead and reports the highest rate without loss on this machine. ``--load`` runs
+a busy process (``yes > /dev/null``) per core beside the nodes for the whole run. The figures go
 to ``OUT/soak.json`` as well. Exit status 0 only if nothing was lost.
 """
 
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 import time
 
@@ -33,6 +35,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='search the highest rate with zero loss (short runs per rate)')
     p.add_argument('--rates', default='250,500,1000,1500,2000,3000',
                    help='rates tried by --find-max-rate [Hz, comma separated]')
+    p.add_argument('--load', type=int, nargs='?', const=os.cpu_count() or 1, default=0,
+                   metavar='N',
+                   help='run N busy processes (yes > /dev/null) beside the nodes; --load '
+                        f'alone: one per core ({os.cpu_count()})')
     p.add_argument('--run-seconds', type=float, default=20.0,
                    help='simulated seconds per rate with --find-max-rate (20)')
 
@@ -40,6 +46,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the soak (or the rate search); 0 if nothing was lost."""
     from gyro_rotor.tools.soak import find_max_rate, run_soak
+    if args.load < 0:
+        raise ParameterError(f'--load must be >= 0 busy processes, got {args.load}')
     out = Path(args.out) if args.out else Path('soak_runs') / time.strftime('%Y%m%d-%H%M%S')
     if args.find_max_rate:
         try:
@@ -52,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'searching the highest rate without loss: {rates} Hz, {args.run_seconds:g} s '
               f'each, scene {args.scene}, output {out}')
         best, results = find_max_rate(rates, duration=args.run_seconds, scene=args.scene,
-                                      out=out)
+                                      out=out, load=args.load)
         (out / 'max_rate.json').write_text(json.dumps(
             {'best_rate': best, 'runs': [r.as_dict() for r in results]}, indent=1,
             default=str))
@@ -60,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
               f'{best if best is not None else "none"} Hz')
         return 0 if best is not None else 1
     res = run_soak(rate=args.rate, duration=args.duration, scene=args.scene, out=out,
-                   rtf=args.rtf)
+                   rtf=args.rtf, load=args.load)
     print(res.text())
     print(f'figures: {out / "soak.json"}')
     return 0 if res.zero_loss else 1

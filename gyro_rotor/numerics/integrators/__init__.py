@@ -1,9 +1,9 @@
 """Integrators for the gyrostat: one interface, seven methods, compiled inner loops.
 
-See :mod:`gyro_rotor.integrators.base` for the contract (scipy's OdeSolver shape),
-:mod:`gyro_rotor.integrators.methods` for the methods and :func:`integrate`,
-:mod:`gyro_rotor.integrators.tableaux` for their coefficients and
-:mod:`gyro_rotor.integrators.kernels` for the compiled loops (numba if installed).
+See :mod:`gyro_rotor.numerics.integrators.base` for the contract (scipy's OdeSolver shape),
+:mod:`gyro_rotor.numerics.integrators.methods` for the methods and :func:`integrate`,
+:mod:`gyro_rotor.numerics.integrators.tableaux` for their coefficients and
+:mod:`gyro_rotor.numerics.integrators.kernels` for the compiled loops (numba if installed).
 """
 
 from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator, model_rate,

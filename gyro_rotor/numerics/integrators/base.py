@@ -14,7 +14,7 @@ finished or failed integrator is misuse and raises ``RuntimeError``.
 
 Quaternion hook: the full model's state carries the stator quaternion q, which the exact
 flow keeps on the unit sphere. Methods with ``renormalize = True`` project it back after
-every accepted step (:func:`~gyro_rotor.integrators.kernels.normalize_quaternion`: q and
+every accepted step (:func:`~gyro_rotor.numerics.integrators.kernels.normalize_quaternion`: q and
 dq/dt are scaled together, which keeps the stored derivative exact because the other
 equations see q only through its direction). The Gauss method keeps |q| = 1 by itself
 (it preserves quadratic invariants) and does not project.
@@ -78,7 +78,7 @@ class Integrator:
     Parameters
     ----------
     model : Model
-        The equations of motion (``gyro_rotor.model``); its parameters are packed once.
+        The equations of motion (``gyro_rotor.core.model``); its parameters are packed once.
     y0 : array_like, shape (n,)
         Initial state; must be finite.
     t0 : float
@@ -112,7 +112,7 @@ class Integrator:
                  rtol: float | None = None, atol: float | None = None,
                  step: float | None = None, max_steps: int = 50_000_000):
         if not isinstance(model, Model):
-            raise TypeError('model must be a gyro_rotor.model.Model')
+            raise TypeError('model must be a gyro_rotor.core.model.Model')
         self.model = model
         self.kind = kernels.KIND[model.name]
         self.P = kernels.pack_params(model.params)

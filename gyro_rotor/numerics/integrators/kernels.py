@@ -86,12 +86,14 @@ def normalize_quaternion(kind, y, f):
     """Apply the projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
 
     The other equations depend on q only through its direction, so ``f`` stays the exact
-    right-hand side at the projected state.
+    right-hand side at the projected state. A norm that overflowed (a diverging step) makes
+    q NaN, so that the run stops as non-finite; scaling by 1 / inf would give q = 0 exactly,
+    a finite state on which the next right-hand side divides by |q|^2 = 0.
     """
     if kind != 0:
         return
     n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
-    s = 1.0 / n
+    s = 1.0 / n if 0.0 < n < math.inf else math.nan
     for i in range(4):
         y[i] *= s
         f[i] *= s

@@ -20,8 +20,8 @@ split8      8      explicit  splitting into exact flows (free gyrostat; torques)
                              construction; E* error bounded over long conservative runs
 ==========  =====  ========  ==================================================================
 
-Every method runs on the singularity-free state of :mod:`gyro_rotor.model`; the inner
-loops are the compiled kernels of :mod:`gyro_rotor.integrators.kernels`.
+Every method runs on the singularity-free state of :mod:`gyro_rotor.core.model`; the inner
+loops are the compiled kernels of :mod:`gyro_rotor.numerics.integrators.kernels`.
 """
 
 from __future__ import annotations

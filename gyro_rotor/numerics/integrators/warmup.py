@@ -1,6 +1,6 @@
 """Compile the integrators' numba kernels once, into numba's on-disk cache.
 
-``python -m gyro_rotor.integrators.warmup`` (run by ``bootstrap.sh`` after an install)
+``python -m gyro_rotor.numerics.integrators.warmup`` (run by ``bootstrap.sh`` after an install)
 runs every method briefly through both of its paths (the compiled ``run`` loop of
 ``integrate`` and the ``advance_to`` stepping of the nodes), and the ensemble, so that
 neither the first demo nor a node started by a test waits for the JIT compiler. Without

@@ -1,0 +1,414 @@
+"""Streaming stability analysis of one simulation: :class:`RotorAnalyzer` (pure Python).
+
+Fed with paired samples (:mod:`gyro_rotor.analysis.samples`) of the simulation node's
+``energy`` and ``joint_states`` topics, live by the analysis node and offline from a bag
+(:mod:`gyro_rotor.analysis.offline`): the same class, the same numbers. Data events start
+a new *segment* (fits never mix segments): resets (t_sim or the grid index going back),
+time jumps, kicks (E* rising with a continuous residual: the node's ``~/perturb``) and
+parameter changes; sequence gaps are counted. Over a sliding window of the last segment
+long enough to fit it measures E*_inf and the decay of E* (:mod:`~.decay`), the modes
+(:mod:`~.modes`), the deviation envelope and pole slips (sine law with p pole pairs:
+passages of z over the maxima of the drive potential, z = (2k+1) pi / p). The verdict is
+the conjunction of the named criteria of :mod:`~.verdict` (:mod:`~.criteria`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Iterable
+
+from gyro_rotor.analysis import criteria as crit
+from gyro_rotor.analysis.decay import envelope_decay_rate, fit_energy
+from gyro_rotor.analysis.modes import check_modes, ModeCheck
+from gyro_rotor.analysis.prediction import predict, Prediction
+from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
+from gyro_rotor.analysis.samples import Sample
+from gyro_rotor.analysis.verdict import (combine, ModeStatus, SyncState, Verdict)
+from gyro_rotor.core.scene import Scene
+from gyro_rotor.errors import AnalysisError, ParameterError
+import numpy as np
+
+__all__ = ['RotorAnalyzer', 'limit_blas_threads']
+
+_TWO_PI = 2.0 * math.pi
+_BLAS_LIMITED = False
+
+
+_TWO_PI = 2.0 * math.pi
+_BLAS_LIMITED = False
+
+
+def limit_blas_threads(n: int = 1) -> bool:
+    """Limit numpy's bundled OpenBLAS to ``n`` threads; return whether it worked.
+
+    The analysis runs beside the simulator on a small machine; a multithreaded OpenBLAS
+    spin-waits when the cores are busy: the SVD of one window (2280 x 121) took 3 to 5 s
+    with 2 threads under load and 0.05 s with one (measured here on 2 cores), long enough
+    for the node to miss messages. Environment variables would have to be set before numpy
+    is loaded, so the library's own ``*_set_num_threads`` is called instead.
+    """
+    import ctypes
+    import glob
+    import os
+    libdir = os.path.join(os.path.dirname(np.__file__), os.pardir, 'numpy.libs')
+    for lib in glob.glob(os.path.join(libdir, '*openblas*')):
+        try:
+            dll = ctypes.CDLL(lib)
+        except OSError:
+            continue
+        for name in ('scipy_openblas_set_num_threads64_', 'scipy_openblas_set_num_threads',
+                     'openblas_set_num_threads64_', 'openblas_set_num_threads'):
+            fn = getattr(dll, name, None)
+            if fn is not None:
+                fn(int(n))
+                return True
+    return False
+
+
+class _Segment:
+    """Raw data of one segment (ring-buffered to ``max_samples``)."""
+
+    def __init__(self, index: int, reason: str, scene: Scene, pred: Prediction,
+                 max_samples: int):
+        self.index, self.reason, self.scene, self.pred = index, reason, scene, pred
+        self.max_samples = max_samples
+        self.rows: list[tuple] = []
+        self.samples = 0
+        self.t_start = math.nan
+        self.E_first = math.nan
+        self.lyap_max = -math.inf
+        self.lyap_violations = 0
+        self.residual_max = 0.0
+        self.slips = 0
+        self.last_slip_t = -math.inf
+        self.well_index: int | None = None   # the well z last arrived in (hysteresis)
+        self.last: Sample | None = None
+        self.fit: dict = {}
+
+    def add(self, s: Sample, row: tuple) -> None:
+        if self.samples == 0:
+            self.t_start, self.E_first = s.t, s.E_star
+        self.samples += 1
+        self.rows.append(row)
+        if len(self.rows) > self.max_samples:
+            del self.rows[:len(self.rows) - self.max_samples]
+        self.last = s
+
+
+def check_window(window_s) -> float:
+    """Return the fit window [s] (inf for 0, inf or None: whole segments); refuse < 0, NaN."""
+    if window_s is None:
+        return math.inf
+    try:
+        w = float(window_s)
+    except (TypeError, ValueError):
+        raise ParameterError(f'window_s must be a number of seconds, got {window_s!r}') from None
+    if math.isnan(w) or w < 0:
+        raise ParameterError(f'window_s must be >= 0 s (0 = whole segments), got {w!r}')
+    return w if w > 0 and math.isfinite(w) else math.inf
+
+
+class RotorAnalyzer:
+    """Streaming stability analysis of one simulation (see module doc).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene the data come from (parameters, steady motion).
+    window_s : float
+        Length of the sliding window of the decay and mode fits [s]; 0 or inf = the whole
+        segment (offline).
+    lyapunov_tol : float
+        Largest increase of E* between two samples counted as integration noise [J]
+        (plus ``lyapunov_rtol`` |E*|).
+    residual_warn : float
+        |energy-balance residual| above which the result is WARN [J].
+    diverge_residual : float
+        |residual| or deviation beyond which the run counts as diverged [J].
+    sync_hold_s : float
+        A slip within this time keeps the state 'lost synchronism' [s].
+    min_fit_s : float
+        Shortest window for fits [s].
+    max_window_samples : int
+        Samples kept per segment (older ones are dropped from the fits).
+    blas_threads : int
+        Limit numpy's OpenBLAS to this many threads (0 = leave it), see
+        :func:`limit_blas_threads`.
+    """
+
+    def __init__(self, scene: Scene, *, window_s: float = 8.0, lyapunov_tol: float = 1e-8,
+                 lyapunov_rtol: float = 1e-9, residual_warn: float = 1e-6,
+                 diverge_residual: float = 1e-2, sync_hold_s: float = 1.0,
+                 min_fit_s: float = 2.0, max_window_samples: int = 20000,
+                 blas_threads: int = 1):
+        if not isinstance(scene, Scene):
+            raise AnalysisError('RotorAnalyzer needs a gyro_rotor.scene.Scene')
+        self.window_s = check_window(window_s)
+        self.lyapunov_tol = float(lyapunov_tol)
+        self.lyapunov_rtol = float(lyapunov_rtol)
+        self.residual_warn = float(residual_warn)
+        self.diverge_residual = float(diverge_residual)
+        self.sync_hold_s = float(sync_hold_s)
+        self.min_fit_s = float(min_fit_s)
+        self.max_window_samples = int(max_window_samples)
+        global _BLAS_LIMITED
+        if blas_threads and not _BLAS_LIMITED:
+            _BLAS_LIMITED = limit_blas_threads(blas_threads)
+        self.scene = scene
+        self.prediction = predict(scene)
+        self.samples = 0
+        self.dropped = 0
+        self.resets = 0
+        self.kicks = 0
+        self.time_jumps = 0
+        self.param_changes = 0
+        self.non_finite = 0
+        #: samples left unpaired by the caller's SamplePairer (data loss; set by the session)
+        self.unpaired = 0
+        self.segments: list[_Segment] = []
+        self._done: list[SegmentResult] = []
+        self._last: Sample | None = None
+        self._dt: float | None = None
+
+    # -- input --------------------------------------------------------------------------------
+    def set_scene(self, scene: Scene) -> bool:
+        """Switch to new scene parameters (a new segment); return whether they changed."""
+        if scene == self.scene or (scene.params == self.scene.params
+                                   and scene.model == self.scene.model
+                                   and scene.initial == self.scene.initial):
+            return False
+        self.scene = scene
+        self.prediction = predict(scene)
+        self.param_changes += 1
+        if self.segments:
+            self._new_segment('parameters changed')
+        return True
+
+    def add(self, s: Sample) -> None:
+        """Feed one sample (in publication order)."""
+        last = self._last
+        reason = None
+        if last is None:
+            reason = 'start'
+        else:
+            if s.seq > last.seq + 1:
+                self.dropped += s.seq - last.seq - 1
+            elif s.seq <= last.seq:
+                reason = 'simulation restarted (sequence went back)'
+                self.resets += 1
+            if reason is None:
+                dt = s.t - last.t
+                if s.t < last.t or (s.k >= 0 and 0 <= s.k < last.k):
+                    reason = 'reset (simulation time went back)'
+                    self.resets += 1
+                else:
+                    step = self._dt or dt
+                    nseq = max(1, s.seq - last.seq)
+                    if step > 0 and dt > (nseq + 0.5) * step:
+                        reason = f'time jump of {dt:.6g} s'
+                        self.time_jumps += 1
+                    elif dt > 0 and s.seq == last.seq + 1:
+                        self._dt = dt if self._dt is None else self._dt
+            if reason is None:
+                rise = s.E_star - last.E_star
+                tol = self.lyapunov_tol + self.lyapunov_rtol * abs(s.E_star)
+                dres = s.residual - last.residual
+                if rise > tol and (not math.isfinite(dres) or abs(dres) < 0.5 * rise):
+                    # E* rose, and the residual (E* + D - E_ref) did not rise with it: an
+                    # external kick (~/perturb rebases E_ref), not a Lyapunov violation; an
+                    # integration error moves E* and the residual together
+                    reason = f'kick (E* rose by {rise:.6g} J)'
+                    self.kicks += 1
+        self.samples += 1
+        if not all(math.isfinite(v) for v in (s.t, s.E_star, s.z, s.zdot)):
+            self.non_finite += 1
+        if reason is not None:
+            self._new_segment(reason)
+        self._add_to_segment(self.segments[-1], s, last if reason is None else None)
+        self._last = s
+
+    def add_many(self, samples: Iterable[Sample]) -> None:
+        """Feed several samples."""
+        for s in samples:
+            self.add(s)
+
+    def _new_segment(self, reason: str) -> None:
+        if self.segments:
+            self._done.append(self._evaluate(self.segments[-1]))
+        self.segments.append(_Segment(len(self.segments), reason, self.scene,
+                                      self.prediction, self.max_window_samples))
+
+    def _add_to_segment(self, seg: _Segment, s: Sample, prev: Sample | None) -> None:
+        pred = seg.pred
+        if prev is not None:
+            rise = s.E_star - prev.E_star
+            seg.lyap_max = max(seg.lyap_max, rise)
+            if rise > self.lyapunov_tol + self.lyapunov_rtol * abs(s.E_star):
+                seg.lyap_violations += 1
+        if math.isfinite(s.residual):
+            seg.residual_max = max(seg.residual_max, abs(s.residual))
+        # synchronism: passages of z over the potential maxima (2k+1) pi / p
+        # with hysteresis: the well index changes only once z is within pi/(2p) of the
+        # bottom of another well, so jitter on a maximum counts nothing
+        p = pred.pole_pairs
+        if p > 0 and math.isfinite(s.z):
+            u = p * s.z / _TWO_PI                      # z in wells (bottoms at integers)
+            k = round(u)
+            if abs(u - k) <= 0.25:
+                if seg.well_index is not None and k != seg.well_index:
+                    seg.slips += abs(k - seg.well_index)
+                    seg.last_slip_t = s.t
+                seg.well_index = k
+        seg.add(s, self._row(s, pred))
+
+    def _row(self, s: Sample, pred: Prediction) -> tuple:
+        """(t, E*, residual, z, zdot, deviation channels...) of one sample."""
+        th, psi = s.positions[0], s.positions[1]
+        thd, psid, _, phiMd = s.velocities
+        p = pred.pole_pairs
+        z = s.z
+        if p > 0:
+            z = z - _TWO_PI / p * round(p * z / _TWO_PI)       # deviation from the well
+        if pred.coords == 'II':
+            dev = (th - pred.theta0, thd, psid - pred.psidot0, psid + phiMd, z, s.zdot)
+        elif pred.coords == 'I':
+            st = math.sin(th)
+            dev = (st * math.sin(psi), -st * math.cos(psi), z, s.zdot)
+        else:
+            dev = (z, s.zdot)
+        return (s.t, s.E_star, s.residual, s.z, s.zdot) + tuple(dev)
+
+    # -- evaluation ---------------------------------------------------------------------------
+
+    # -- evaluation ---------------------------------------------------------------------------
+    def result(self) -> AnalysisResult:
+        """Evaluate the segments and return the whole analysis so far (module doc)."""
+        segs = list(self._done)
+        if self.segments:
+            segs.append(self._evaluate(self.segments[-1]))
+        judged = next((s for s in reversed(segs) if s.energy_fit is not None),
+                      segs[-1] if segs else None)
+        criteria = self._criteria(segs, judged)
+        verdict, reason = self._combine(judged, criteria)
+        evidence = [f'{verdict}: {reason}'] + [c.line() for c in criteria]
+        if judged is not None:
+            evidence.insert(1, f'judged on segment {judged.index} ({judged.reason}, t = '
+                               f'{judged.t_start:.3f} .. {judged.t_end:.3f} s, window '
+                               f'{judged.window_s:.3g} s)')
+        level = {Verdict.ASYMPTOTICALLY_STABLE: 'OK', Verdict.MARGINAL: 'OK',
+                 Verdict.INSUFFICIENT_DATA: 'OK', Verdict.NOT_CONFIRMED: 'WARN',
+                 Verdict.UNSTABLE: 'ERROR', Verdict.DIVERGED: 'ERROR'}[verdict]
+        if not segs:
+            level = 'STALE'
+        return AnalysisResult(
+            scene=self.scene.name, prediction=self.prediction, samples=self.samples,
+            dropped=self.dropped, resets=self.resets, kicks=self.kicks,
+            time_jumps=self.time_jumps, param_changes=self.param_changes,
+            pole_slips=sum(s.pole_slips for s in segs), segments=segs, verdict=verdict,
+            evidence=evidence, level=level, criteria=criteria, reason=reason,
+            unpaired=self.unpaired, judged=judged,
+            t_sim=self._last.t if self._last is not None else math.nan)
+
+    def _criteria(self, segs: list, judged: SegmentResult | None) -> list:
+        out = [crit.lyapunov(segs, self.lyapunov_tol, self.lyapunov_rtol),
+               crit.energy_balance(segs, self.residual_warn)]
+        if judged is not None:
+            out += [crit.decay(judged, judged_pred(self, judged), self.min_fit_s,
+                               self._resolution(judged)),
+                    crit.modes(judged, self.min_fit_s)]
+        out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite))
+        if judged is not None:
+            sync = crit.synchronism(segs[-1], self.segments[-1].pred)
+            if sync is not None:
+                out.append(sync)
+        return out
+
+    def _combine(self, judged: SegmentResult | None, criteria: list) -> tuple:
+        if judged is None:
+            return Verdict.INSUFFICIENT_DATA, 'no samples yet'
+        pred = judged_pred(self, judged)
+        segs = self._done + [judged]
+        diverged = any(s.non_finite or s.residual_max > self.diverge_residual for s in segs)
+        growing = [m for m in judged.modes if m.measured is not None
+                   and m.status is ModeStatus.DISAGREES and m.measured.real > 0]
+        unstable = bool(growing) or judged.deviation_decay_rate < -0.05 or (
+            self.segments and self._evaluated_sync_lost())
+        return combine(criteria, pred.verdict, diverged=diverged, unstable=bool(unstable),
+                       marginal_modes=tuple(m.name for m in pred.marginal_modes))
+
+    def _evaluated_sync_lost(self) -> bool:
+        seg = self.segments[-1]
+        return (seg.pred.pole_pairs > 0 and seg.last is not None
+                and seg.last.t - seg.last_slip_t <= self.sync_hold_s)
+
+    def _resolution(self, seg: SegmentResult) -> float:
+        """Spread of E* [J] below which E* counts as constant (the Lyapunov tolerance)."""
+        return self.lyapunov_tol + self.lyapunov_rtol * abs(seg.E_last)
+
+    def _window(self, seg: _Segment) -> np.ndarray:
+        R = np.asarray(seg.rows, dtype=float)
+        if R.size == 0:
+            return R.reshape(0, 5)
+        if math.isfinite(self.window_s):
+            R = R[R[:, 0] >= R[-1, 0] - self.window_s - 1e-9]
+        return R
+
+    def _sync(self, seg: _Segment) -> tuple:
+        pred, last = seg.pred, seg.last
+        if pred.pole_pairs <= 0 or last is None:
+            return SyncState.SYNCHRONOUS, 0
+        well = int(round(pred.pole_pairs * last.z / _TWO_PI))
+        if last.t - seg.last_slip_t <= self.sync_hold_s:
+            return SyncState.LOST, well
+        return (SyncState.RESYNCHRONIZED if seg.slips else SyncState.SYNCHRONOUS), well
+
+    def _evaluate(self, seg: _Segment) -> SegmentResult:
+        pred = seg.pred
+        R = self._window(seg)
+        last = seg.last
+        sync_state, well = self._sync(seg)
+        # fit only data after the last slip (locked in one well)
+        if R.size and math.isfinite(seg.last_slip_t):
+            R = R[R[:, 0] > seg.last_slip_t + 0.5]
+        R = R[np.all(np.isfinite(R), axis=1)] if R.size else R
+        span = float(R[-1, 0] - R[0, 0]) if len(R) > 1 else 0.0
+        e_fit, dev_rate, unexplained = None, math.nan, []
+        if span >= self.min_fit_s and len(R) > 20:
+            eigs = [m.eigenvalue for m in pred.modes if not m.structural]
+            e_fit = fit_energy(R[:, 0], R[:, 1], eigs)
+            dev_rate = envelope_decay_rate(R[:, 0], R[:, 5:], [m.freq_hz for m in pred.modes])
+            found = check_modes(R[:, 0], R[:, 5:], pred, span)
+            modes, unexplained = found.checks, found.unexplained
+        else:
+            modes = [ModeCheck(m.name, m.eigenvalue, None, math.nan,
+                               ModeStatus.NOT_IDENTIFIED, m.reached_by_drive, m.structural)
+                     for m in pred.modes]
+        res = SegmentResult(
+            index=seg.index, reason=seg.reason, scene=seg.scene.name,
+            t_start=seg.t_start, t_end=last.t if last else math.nan, samples=seg.samples,
+            E_first=seg.E_first, E_last=last.E_star if last else math.nan,
+            E_inf=e_fit.E_inf if e_fit else math.nan,
+            lyapunov_max_increase=seg.lyap_max if math.isfinite(seg.lyap_max) else math.nan,
+            lyapunov_violations=seg.lyap_violations, residual_max=seg.residual_max,
+            energy_decay_rate=e_fit.rate if e_fit else math.nan,
+            deviation_decay_rate=dev_rate, window_s=span, modes=modes,
+            pole_slips=seg.slips, sync_state=sync_state, well=well,
+            verdict=Verdict.INSUFFICIENT_DATA, evidence=[], energy_fit=e_fit,
+            unexplained=unexplained, non_finite=not (last and math.isfinite(last.E_star)))
+        res.criteria = [crit.decay(res, pred, self.min_fit_s, self._resolution(res)),
+                        crit.modes(res, self.min_fit_s)]
+        sync = crit.synchronism(res, pred)
+        if sync is not None:
+            res.criteria.append(sync)
+        res.verdict, reason = combine(res.criteria, pred.verdict,
+                                      diverged=res.non_finite
+                                      or res.residual_max > self.diverge_residual,
+                                      unstable=sync_state is SyncState.LOST,
+                                      marginal_modes=tuple(m.name for m in pred.marginal_modes))
+        res.evidence = [reason] + [c.line() for c in res.criteria]
+        return res
+
+
+def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:
+    """Return the prediction a segment was recorded under."""
+    return analyzer.segments[seg.index].pred

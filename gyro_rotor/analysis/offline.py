@@ -1,0 +1,142 @@
+"""The offline analysis of a recorded bag: :func:`analyze_bag` (pure Python, no rclpy)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Mapping
+
+from gyro_rotor.analysis.analyzer import check_window
+from gyro_rotor.analysis.results import AnalysisResult
+from gyro_rotor.analysis.session import AnalysisSession
+from gyro_rotor.core.scene import Scene
+from gyro_rotor.errors import AnalysisError, BagError
+
+__all__ = ['BagAnalysis', 'analyze_bag']
+
+
+@dataclasses.dataclass
+class BagAnalysis:
+    """The offline analysis of a bag: the result, the live result recorded, the samples."""
+
+    path: str
+    result: AnalysisResult
+    live: dict | None
+    samples: list
+    topics: dict
+    truncated: bool
+    scene_source: str
+    options: dict
+
+
+def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str | None:
+    names = [t for t, info in topics.items()
+             if t.rsplit('/', 1)[-1] == suffix and info.type == type_name]
+    return sorted(names, key=len)[0] if names else None
+
+
+def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | None = None,
+                **options: Any) -> BagAnalysis:
+    """Run the analysis of the live node over a recorded bag (nothing but the bag needed).
+
+    The scene comes from ``scene`` if given, else from the bag's ``gyro_rotor.scene``
+    metadata record, else from the simulation node's ``~/scene`` documents in the bag. The
+    window is the one the live node used (metadata ``gyro_rotor.analysis``) unless
+    ``window_s`` is given (0 = whole segments).
+
+    Raises
+    ------
+    BagError
+        Missing or unreadable bag.
+    AnalysisError
+        The bag lacks the ``energy`` / ``joint_states`` topics, or no scene is known.
+    SceneError
+        The scene named in the bag is unknown (and the bag carries no parameters).
+    """
+    import warnings
+
+    from gyro_rotor.bag.bagio import BagWarning, open_bag
+    if not str(path).strip():
+        raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
+    if window_s is not None:
+        check_window(window_s)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always', BagWarning)
+        reader = open_bag(path)
+    problems = [str(w.message) for w in caught]
+    energy = _find_topic(reader.topics, 'energy', 'std_msgs/msg/Float64MultiArray')
+    joints = _find_topic(reader.topics, 'joint_states', 'sensor_msgs/msg/JointState')
+    if energy is None or joints is None:
+        found = ', '.join(f'{t} ({i.type})' for t, i in sorted(reader.topics.items()))
+        raise AnalysisError(f'{path}: not a gyro_rotor recording: needs the topics energy '
+                            f'(std_msgs/msg/Float64MultiArray) and joint_states '
+                            f'(sensor_msgs/msg/JointState); found {found or "no topics"}')
+    scene_topic = _find_topic(reader.topics, 'scene', 'std_msgs/msg/String')
+    meta_opts = _json_record(reader, 'gyro_rotor.analysis', 'options', {})
+    opts = {**(meta_opts if isinstance(meta_opts, dict) else {}), **options}
+    if window_s is not None:
+        opts['window_s'] = window_s
+    fixed, base, source = _scene_source(path, reader, scene, scene_topic)
+    session = AnalysisSession(fixed if fixed is not None else base, base=base,
+                              keep_series=True, **opts)
+    if fixed is None and base is not None:
+        session.fixed = False
+    wanted = [energy, joints] + ([scene_topic] if scene_topic and fixed is None else [])
+    for topic, _, msg in reader.decoded(wanted):
+        if topic == energy:
+            session.on_energy(msg)
+        elif topic == joints:
+            session.on_joints(msg)
+        else:
+            session.on_scene_doc(msg.data)
+    session.finish()
+    if session.analyzer is None:
+        raise AnalysisError(f'{path}: no scene document in the bag and no scene given')
+    if session.analyzer.samples == 0:
+        raise AnalysisError(f'{path}: the energy and joint_states topics hold no messages')
+    live = None
+    if 'gyro_rotor.live_result' in reader.metadata:
+        rec = reader.metadata['gyro_rotor.live_result']
+        live = _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
+            'verdict': rec.get('verdict'), 'error': rec.get('error')}
+    result = session.result()
+    if problems:
+        result.evidence.extend(problems)
+    return BagAnalysis(path=str(path), result=result, live=live, samples=session.series,
+                       topics={t: i.count for t, i in reader.topics.items()},
+                       truncated=reader.truncated, scene_source=source, options=opts)
+
+
+def _json_record(reader, name: str, key: str, default):
+    """Return the JSON value ``key`` of metadata record ``name`` (``default`` if absent)."""
+    import json
+    text = reader.metadata.get(name, {}).get(key)
+    if not text:
+        return default
+    try:
+        return json.loads(text)
+    except ValueError:
+        return default
+
+
+def _scene_source(path, reader, scene, scene_topic) -> tuple:
+    """Return (fixed scene, base scene, where from) for :func:`analyze_bag`."""
+    from gyro_rotor.core.scene import load_scene, scene_from_mapping
+    import yaml
+    if isinstance(scene, Scene):
+        return scene, None, 'given'
+    if scene:
+        return load_scene(scene), None, f'given ({scene})'
+    if 'gyro_rotor.scene' in reader.metadata:
+        rec = reader.metadata['gyro_rotor.scene']
+        try:
+            flat = yaml.safe_load(rec.get('flat', ''))
+        except yaml.YAMLError as err:
+            raise AnalysisError(f'{path}: the scene record is not YAML: {err}') from err
+        if not isinstance(flat, dict):
+            raise AnalysisError(f'{path}: the gyro_rotor.scene record holds no parameters')
+        base = scene_from_mapping(flat, strict_float=False)
+        return None, base, f"bag metadata (scene '{base.name}')"
+    if scene_topic is not None:
+        return None, None, f'scene documents on {scene_topic}'
+    raise AnalysisError(f'{path}: the bag names no scene (no gyro_rotor.scene metadata, '
+                        f'no ~/scene topic); pass one with --scene')

@@ -1,0 +1,156 @@
+"""Samples: one ``energy`` and one ``joint_states`` message of the same grid point, paired.
+
+Nothing here imports rclpy or message types.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+from typing import Mapping, Sequence
+
+from gyro_rotor.errors import AnalysisError
+import numpy as np
+
+__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'samples_from_trajectory']
+
+_TWO_PI = 2.0 * math.pi
+
+
+@dataclasses.dataclass(frozen=True)
+class Sample:
+    """One paired sample of ``energy`` and ``joint_states`` at simulation time ``t``.
+
+    ``positions``/``velocities`` are (theta, psi, phi_R, phi_M) and their rates as
+    published (angles wrapped); the rest are the ``energy`` fields of
+    :mod:`gyro_rotor.ros_msgs` (t_sim, E_star, dE_dt, residual, z, zdot, seq, D, k).
+    """
+
+    t: float
+    seq: int
+    k: int
+    E_star: float
+    dE_dt: float
+    residual: float
+    z: float
+    zdot: float
+    D: float
+    positions: tuple = (0.0, 0.0, 0.0, 0.0)
+    velocities: tuple = (0.0, 0.0, 0.0, 0.0)
+
+
+def energy_sample_fields(values: Sequence[float], fields: Sequence[str]) -> dict:
+    """Map an ``energy`` array to a dict by the field names of its layout label."""
+    if len(values) != len(fields):
+        raise AnalysisError(f'energy message has {len(values)} values but its layout names '
+                            f'{len(fields)} fields ({",".join(fields)})')
+    return dict(zip(fields, (float(v) for v in values)))
+
+
+class SamplePairer:
+    """Pair ``energy`` and ``joint_states`` messages by their simulation time stamp.
+
+    The simulation node publishes both for every grid point with the same stamp, each
+    topic in order; the recorder and DDS may interleave the two topics arbitrarily (in a
+    bag, messages of the same stamp sit up to thousands of records apart). Energy
+    messages are released in their arrival order (publication order, ``seq``), each as
+    soon as its joint state is there, so nothing is lost however far apart the topics are.
+
+    Data loss is counted, never silent: an energy message whose joint state has not come
+    while more than ``keep`` joint states wait (each topic arrives in publication order, so
+    those came later: its own was lost) is released with NaN joints and counted in
+    :attr:`unpaired_energy`; a joint state that arrived before the one just paired was
+    left without its energy message and counts in :attr:`unpaired_joints`. Only arrival
+    order is used, never the order of the stamps (a reset starts t_sim again at 0).
+    ``max_pending`` bounds the memory: beyond it the oldest waiting message is given up.
+    """
+
+    def __init__(self, keep: int = 64, max_pending: int = 1_000_000):
+        self.keep = int(keep)
+        self.max_pending = int(max_pending)
+        self._energy: collections.deque = collections.deque()     # (stamp, fields)
+        self._joints: dict[int, tuple] = {}                        # in arrival order
+        self.unpaired_energy = 0
+        self.unpaired_joints = 0
+
+    @property
+    def unpaired(self) -> int:
+        """Messages of either topic left without their partner so far."""
+        return self.unpaired_energy + self.unpaired_joints
+
+    @property
+    def pending(self) -> int:
+        """Messages waiting for their partner."""
+        return len(self._energy) + len(self._joints)
+
+    def add_energy(self, stamp_ns: int, fields: Mapping[str, float]) -> list[Sample]:
+        """Add an energy message; return the samples completed (in order)."""
+        self._energy.append((int(stamp_ns), dict(fields)))
+        return self._release()
+
+    def add_joints(self, stamp_ns: int, positions, velocities) -> list[Sample]:
+        """Add a joint state; return the samples completed."""
+        stamp = int(stamp_ns)
+        if stamp in self._joints:            # a stamp again (a restarted run): the old is lost
+            del self._joints[stamp]
+            self.unpaired_joints += 1
+        self._joints[stamp] = (tuple(float(v) for v in positions),
+                               tuple(float(v) for v in velocities))
+        if len(self._joints) > self.max_pending:
+            del self._joints[next(iter(self._joints))]
+            self.unpaired_joints += 1
+        return self._release()
+
+    def _release(self) -> list[Sample]:
+        out = []
+        while self._energy:
+            stamp, fields = self._energy[0]
+            joints = None
+            if stamp in self._joints:
+                # joint states that arrived before this one lost their energy message
+                while (first := next(iter(self._joints))) != stamp:
+                    del self._joints[first]
+                    self.unpaired_joints += 1
+                joints = self._joints.pop(stamp)
+            elif len(self._joints) <= self.keep and len(self._energy) <= self.max_pending:
+                break
+            else:
+                self.unpaired_energy += 1
+            self._energy.popleft()
+            out.append(self._make(fields, joints))
+        return out
+
+    def flush(self) -> list[Sample]:
+        """Return every waiting energy sample (NaN joints where missing: counted lost)."""
+        out = []
+        while self._energy:
+            stamp, fields = self._energy.popleft()
+            joints = self._joints.pop(stamp, None)
+            self.unpaired_energy += joints is None
+            out.append(self._make(fields, joints))
+        self.unpaired_joints += len(self._joints)
+        self._joints.clear()
+        return out
+
+    def _make(self, e: dict, joints: tuple | None) -> Sample:
+        pos, vel = joints if joints is not None else (None, None)
+        nan4 = (math.nan,) * 4
+        return Sample(t=e['t_sim'], seq=int(e['seq']), k=int(e.get('k', -1)),
+                      E_star=e['E_star'], dE_dt=e.get('dE_dt', math.nan),
+                      residual=e.get('residual', math.nan), z=e['z'], zdot=e['zdot'],
+                      D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4)
+
+
+def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
+    """Return samples as the simulation node would publish them, from a simulate() Trajectory."""
+    o = tr.out
+    wrap = np.vectorize(lambda a: math.remainder(a, _TWO_PI))
+    pos = np.column_stack([o['theta'], wrap(o['psi']), wrap(o['phi_R']), wrap(o['phi_M'])])
+    vel = np.column_stack([o['thetadot'], o['psidot'], o['phi_R_dot'], o['phi_M_dot']])
+    D = tr.y[:, tr.model.idiss]
+    return [Sample(t=float(t), seq=seq0 + i, k=i, E_star=float(o['E_star'][i]),
+                   dE_dt=float(o['dE_dt'][i]), residual=float(o['residual'][i]),
+                   z=float(o['z'][i]), zdot=float(o['zdot'][i]), D=float(D[i]),
+                   positions=tuple(pos[i]), velocities=tuple(vel[i]))
+            for i, t in enumerate(tr.t)]

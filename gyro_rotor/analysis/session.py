@@ -1,0 +1,185 @@
+"""Messages in, analysis out: the glue that the analysis node and the offline analysis share.
+
+Also the scene as a flat mapping (the bag's metadata) and the scene from the simulation
+node's ``~/scene`` document. Pure Python: messages are duck-typed.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from gyro_rotor.analysis.analyzer import RotorAnalyzer
+from gyro_rotor.analysis.results import AnalysisResult
+from gyro_rotor.analysis.samples import energy_sample_fields, Sample, SamplePairer
+from gyro_rotor.core.scene import Scene
+from gyro_rotor.errors import AnalysisError
+
+__all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc']
+
+
+def scene_to_flat(scene: Scene) -> dict[str, Any]:
+    """Return the flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it."""
+    flat: dict[str, Any] = {'scene': scene.name, 'model': scene.model, 't_end': scene.t_end}
+    if scene.description:
+        flat['description'] = scene.description
+    flat.update(scene.params.to_mapping())
+    ic = scene.initial
+    flat['initial.mode'] = ic.mode
+    if ic.mode == 'steady':
+        for k in ('theta0', 'branch', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz',
+                  'dzdot'):
+            flat[f'initial.{k}'] = getattr(ic, k)
+    else:
+        flat['initial.quaternion'] = list(ic.quaternion)
+        flat['initial.omega_body'] = list(ic.omega_body)
+        flat['initial.z'], flat['initial.zdot'] = ic.z, ic.zdot
+        if ic.chi is not None:
+            flat['initial.chi'] = ic.chi
+    for k, v in scene.perturbation.items():
+        flat[f'perturbation.{k}'] = v
+    return flat
+
+
+def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] | None = None
+                       ) -> Scene:
+    """Return the Scene described by the simulation node's ``~/scene`` YAML document.
+
+    The document carries the scene name and path, the model, t_end, the (live) parameters,
+    the perturbation and (since issue 8) the initial condition as ``initial``; ``base`` (a
+    Scene or a flat mapping, e.g. from the bag's metadata) takes precedence, and older
+    documents without ``initial`` fall back to the scene file named.
+
+    Raises
+    ------
+    SceneError, ParameterError
+        For an unknown scene without a base, or invalid values.
+    """
+    from gyro_rotor.core.scene import load_scene, scene_from_mapping
+    if not isinstance(doc, Mapping) or 'params' not in doc:
+        raise AnalysisError(f'not a scene document of rotor_sim: {str(doc)[:80]!r}')
+    if isinstance(base, Scene):
+        flat = scene_to_flat(base)
+    elif base is not None:
+        flat = dict(base)
+    elif isinstance(doc.get('initial'), Mapping):     # documents since issue 8
+        flat = {f'initial.{k}': v for k, v in doc['initial'].items()}
+    else:
+        path = doc.get('path')
+        try:
+            flat = scene_to_flat(load_scene(path if path else doc.get('scene', '')))
+        except AnalysisError:
+            raise
+        except Exception:
+            flat = scene_to_flat(load_scene(doc.get('scene', '')))
+    flat['scene'] = str(doc.get('scene', flat.get('scene', 'custom')))
+    for key in ('model', 't_end'):
+        if key in doc:
+            flat[key] = doc[key]
+    flat.update(doc['params'])
+    for k, v in (doc.get('perturbation') or {}).items():
+        flat[f'perturbation.{k}'] = v
+    return scene_from_mapping(flat, strict_float=False)
+
+
+class AnalysisSession:
+    """Messages in, analysis out: the glue the node and the offline analysis share.
+
+    Messages are duck-typed: rclpy messages (live) and the ``mcap_ros2`` decoder's objects
+    (offline) have the same fields. Samples that arrive before the scene is known are
+    kept (up to ``max_pending``) and analysed when it is.
+
+    Parameters
+    ----------
+    scene : Scene, optional
+        A fixed scene (then the sim node's scene documents only switch parameters).
+    base : Scene or flat mapping, optional
+        Initial-condition source for :func:`scene_from_sim_doc`.
+    **options
+        Passed to :class:`RotorAnalyzer` (``window_s`` ...).
+    """
+
+    def __init__(self, scene: Scene | None = None, base=None, *, max_pending: int = 100000,
+                 keep_series: bool = False, **options: Any):
+        self.options = options
+        self.series: list[Sample] | None = [] if keep_series else None
+        self.base = base if base is not None else scene
+        self.fixed = scene is not None
+        self.analyzer: RotorAnalyzer | None = (RotorAnalyzer(scene, **options)
+                                               if scene is not None else None)
+        self.pairer = SamplePairer()
+        self.pending: list[Sample] = []
+        self.max_pending = max_pending
+        self.scene_docs = 0
+        self.energy_fields: tuple = ()
+
+    @property
+    def scene(self) -> Scene | None:
+        """Return the scene being analysed (None until known)."""
+        return self.analyzer.scene if self.analyzer is not None else None
+
+    def on_scene_doc(self, text: str) -> Scene:
+        """Feed a ``~/scene`` document (YAML text) of the simulation node."""
+        import yaml
+        try:
+            doc = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise AnalysisError(f'scene document is not YAML: {err}') from err
+        self.scene_docs += 1
+        scene = scene_from_sim_doc(doc, self.base)
+        if self.base is None:
+            self.base = scene
+        if self.analyzer is None:
+            self.analyzer = RotorAnalyzer(scene, **self.options)
+            self.analyzer.add_many(self.pending)
+            self.pending.clear()
+        else:
+            self.analyzer.set_scene(scene)
+        return scene
+
+    def on_energy(self, msg: Any) -> None:
+        """Feed an ``energy`` message (std_msgs/Float64MultiArray, layout of ros_msgs)."""
+        from_label = ''
+        if msg.layout.dim:
+            from_label = msg.layout.dim[0].label
+        if from_label and (not self.energy_fields or
+                           ','.join(self.energy_fields) != from_label):
+            self.energy_fields = tuple(from_label.split(','))
+        if not self.energy_fields:
+            raise AnalysisError('energy message without a labelled layout')
+        fields = energy_sample_fields(msg.data, self.energy_fields)
+        stamp = int(round(fields['t_sim'] * 1e9))
+        self._take(self.pairer.add_energy(stamp, fields))
+
+    def on_joints(self, msg: Any) -> None:
+        """Feed a ``joint_states`` message (sensor_msgs/JointState)."""
+        stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        self._take(self.pairer.add_joints(stamp, msg.position, msg.velocity))
+
+    def _take(self, samples: list[Sample]) -> None:
+        if not samples:
+            return
+        if self.series is not None:
+            self.series.extend(samples)
+        if self.analyzer is None:
+            self.pending.extend(samples)
+            del self.pending[:max(0, len(self.pending) - self.max_pending)]
+        else:
+            self.analyzer.add_many(samples)
+
+    def finish(self) -> None:
+        """Analyse samples still waiting for their pair."""
+        self._take(self.pairer.flush())
+
+    def result(self) -> AnalysisResult:
+        """Return the analysis so far.
+
+        Raises
+        ------
+        AnalysisError
+            If the scene is still unknown.
+        """
+        if self.analyzer is None:
+            raise AnalysisError(f'the scene is unknown ({len(self.pending)} samples waiting): '
+                                'no scene document from rotor_sim and no scene given')
+        self.analyzer.unpaired = self.pairer.unpaired
+        return self.analyzer.result()

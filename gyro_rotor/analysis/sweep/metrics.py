@@ -1,0 +1,142 @@
+"""Metrics of one sampled trajectory of a sweep (the columns of the sweep's Parquet output).
+
+Notation: z is the rotor's lag behind the rotating field, p the number of pole pairs of the
+sine law Q = -(K_S/p) sin(p z) - K_D zdot (p = 0: the linear law, eq. 23). The wells of the
+drive potential have their bottoms at z = 2 pi k / p and their maxima at (2k + 1) pi / p.
+
+=====================  ===============================================================  =====
+column                 definition                                                       unit
+=====================  ===============================================================  =====
+``final_well``         k of the well the rotor ends in: round(p z(T) / 2 pi) (0 if p = 0)   -
+``pole_slips``         passages of z over the maxima of the drive potential, counted as     -
+                       :class:`~gyro_rotor.analysis.checks.RotorAnalyzer` counts them
+                       (the well index changes only once z is within a quarter well of
+                       a bottom, so jitter on a maximum counts nothing)
+``settling_time``      first sample time after which the drive's phase-plane amplitude      s
+                       a = sqrt(dz^2 + (zdot / omega_d)^2) stays <= ``tol`` (dz = z minus
+                       the bottom of the final well, omega_d = sqrt(K_S (1/C_R + 1/C_M)),
+                       the drive's frequency); NaN if a(T) > tol
+``peak_deviation``     max |z(t) - z_0| with z_0 the bottom of the initial well             rad
+``decay_rate``         -slope of a least-squares line through ln a(t) over the locked       1/s
+                       part (after the last change of the nearest well, a > 1e-12);
+                       NaN with fewer than 10 samples or 0.1 s there
+``final_E_star``       E* (eq. 13) at t = T                                                 J
+``spectral_abscissa``  max Re of the linearization's roots at the point (judged modes,      1/s
+                       :func:`gyro_rotor.linear.stability.analyze`)
+=====================  ===============================================================  =====
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+
+from gyro_rotor.core.model import Model
+import numpy as np
+
+__all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
+           'trajectory_metrics', 'well_passages', 'DEFAULT_TOL']
+
+#: default settling tolerance of the drive amplitude a [rad]
+DEFAULT_TOL = 1e-3
+_TWO_PI = 2.0 * math.pi
+
+
+class Metric(enum.StrEnum):
+    """The metric groups of ``--metrics``."""
+
+    WELL = 'well'
+    SETTLING = 'settling'
+    PEAK = 'peak'
+    DECAY = 'decay'
+    ENERGY = 'energy'
+    ABSCISSA = 'abscissa'
+
+
+class PointStatus(enum.IntEnum):
+    """What became of a point: every point gets a row, failed ones too."""
+
+    OK = 0
+    DIVERGED = 1      # a non-finite state during the integration
+    FAILED = 2        # the point could not be set up (no steady motion, ...) or integrated
+
+
+#: metric group -> its columns
+METRIC_COLUMNS = {
+    Metric.WELL: ('final_well', 'pole_slips'),
+    Metric.SETTLING: ('settling_time',),
+    Metric.PEAK: ('peak_deviation',),
+    Metric.DECAY: ('decay_rate',),
+    Metric.ENERGY: ('final_E_star',),
+    Metric.ABSCISSA: ('spectral_abscissa',),
+}
+#: columns stored as (nullable) integers
+INT_COLUMNS = ('final_well', 'pole_slips')
+COLUMN_UNITS = {'final_well': '-', 'pole_slips': '-', 'settling_time': 's',
+                'peak_deviation': 'rad', 'decay_rate': '1/s', 'final_E_star': 'J',
+                'spectral_abscissa': '1/s'}
+
+
+def well_passages(u: np.ndarray) -> int:
+    """Passages over potential maxima from z in wells, u = p z / 2 pi (bottoms at integers).
+
+    The rule of :class:`~gyro_rotor.analysis.checks.RotorAnalyzer`: a sample within a
+    quarter well of a bottom (|u - round(u)| <= 1/4) sets the well index k; each change of
+    k adds |k - k_previous| passages.
+    """
+    k = np.round(u)
+    k = k[np.abs(u - k) <= 0.25]
+    return int(np.sum(np.abs(np.diff(k)))) if k.size > 1 else 0
+
+
+def _fit_decay(t: np.ndarray, a: np.ndarray) -> float:
+    ok = a > 1e-12
+    if np.count_nonzero(ok) < 10:
+        return math.nan
+    tt, la = t[ok], np.log(a[ok])
+    if tt[-1] - tt[0] < 0.1:
+        return math.nan
+    slope = np.polyfit(tt - tt[0], la, 1)[0]
+    return float(-slope)
+
+
+def trajectory_metrics(model: Model, t: np.ndarray, y: np.ndarray, metrics, *,
+                       tol: float = DEFAULT_TOL) -> dict:
+    """Column -> value for one trajectory (samples ``y`` (m, n) at ``t`` (m,), all finite).
+
+    ``model`` carries the point's parameters; ``metrics`` is a set of :class:`Metric`
+    (the linear spectral abscissa is computed by the caller, once per parameter set).
+    """
+    p = model.params
+    pp = p.pole_pairs
+    z = y[:, model.iz]
+    zd = y[:, model.izd]
+    out: dict = {}
+    well_w = _TWO_PI / pp if pp > 0 else 0.0
+    k_end = int(round(z[-1] / well_w)) if pp > 0 else 0
+    if Metric.WELL in metrics:
+        out['final_well'] = k_end
+        out['pole_slips'] = well_passages(z / well_w) if pp > 0 else 0
+    if Metric.PEAK in metrics:
+        z0 = well_w * round(z[0] / well_w) if pp > 0 else 0.0
+        out['peak_deviation'] = float(np.max(np.abs(z - z0)))
+    if Metric.SETTLING in metrics or Metric.DECAY in metrics:
+        omega_d = math.sqrt(p.K_S * (1.0 / p.C_R + 1.0 / p.C_M)) if p.K_S > 0 else 1.0
+        a = np.hypot(z - k_end * well_w, zd / omega_d)
+        if Metric.SETTLING in metrics:
+            above = np.nonzero(a > tol)[0]
+            if above.size == 0:
+                out['settling_time'] = float(t[0])
+            elif above[-1] == a.size - 1:
+                out['settling_time'] = math.nan
+            else:
+                out['settling_time'] = float(t[above[-1] + 1])
+        if Metric.DECAY in metrics:
+            start = 0
+            if pp > 0:
+                other = np.nonzero(np.round(z / well_w) != k_end)[0]
+                start = other[-1] + 1 if other.size else 0
+            out['decay_rate'] = _fit_decay(t[start:], a[start:])
+    if Metric.ENERGY in metrics:
+        out['final_E_star'] = float(model.energy(y[-1]))
+    return out

@@ -1,0 +1,289 @@
+"""The sweep specification and its unit of work: one block of points = one ensemble run.
+
+The points of a sweep are cut into blocks of ``block_size`` consecutive flat indices
+(block b holds points b B .. min((b + 1) B, n) - 1). The cut depends only on the
+specification, never on the scheduler, and each block is integrated by one call of
+:func:`gyro_rotor.numerics.ensemble.run_ensemble` (RK4, lockstep, compiled) with a step
+``h`` common to the whole sweep. The ensemble integrates each trajectory independently
+with that step, so a point's numbers do not depend on its block either: serial, on a
+local cluster or on a remote one, the results are the same to the last bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from typing import Any, Mapping, Sequence
+import warnings
+
+from gyro_rotor.analysis.sweep.grid import SweepGrid
+from gyro_rotor.analysis.sweep.metrics import (Metric, METRIC_COLUMNS, PointStatus,
+                                               trajectory_metrics)
+from gyro_rotor.core.model import make_model
+from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
+from gyro_rotor.core.scene import flatten, NODE_NAMES, Scene, scene_from_mapping, scene_path
+from gyro_rotor.errors import GyroRotorError, ParameterError, SceneError
+from gyro_rotor.numerics.ensemble import run_ensemble
+from gyro_rotor.numerics.integrators.base import model_rate
+import numpy as np
+
+__all__ = ['SweepSpec', 'make_spec', 'run_block', 'BlockResult', 'scene_flat',
+           'US_PER_TRAJECTORY_STEP', 'TARGET_BLOCK_WORK_S', 'MAX_BLOCK_BYTES', 'STEP_FACTOR']
+
+#: the ensemble's measured cost (README, integrators section) [us], for sizing blocks
+US_PER_TRAJECTORY_STEP = 0.6
+#: estimated work per block [s]: far above the measured per-task overhead of Dask
+#: (a few ms, ``gyro-rotor sweep-bench``), so the overhead stays under 5 %
+TARGET_BLOCK_WORK_S = 2.0
+#: most bytes of ensemble samples one block holds in memory
+MAX_BLOCK_BYTES = 64e6
+#: RK4 step = STEP_FACTOR / the fastest model rate over the sweep (the ensemble's default)
+STEP_FACTOR = 0.02
+
+
+def scene_flat(scene: str) -> tuple[dict, str]:
+    """Flat dotted mapping and path of a scene file (name or path), as ``load_scene`` reads it."""
+    import yaml
+    path = scene_path(scene)
+    doc = yaml.safe_load(path.read_text(encoding='utf-8'))
+    section = next((doc[k] for k in NODE_NAMES if isinstance(doc, dict) and k in doc), None)
+    if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
+        raise SceneError(f'scene file {path}: no rotor_sim: ros__parameters section')
+    flat = flatten(section['ros__parameters'])
+    flat.setdefault('scene', path.stem)
+    scene_from_mapping(flat, path=str(path))         # the file's own checks (typed floats)
+    return flat, str(path)
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepSpec:
+    """Everything that fixes a sweep's numbers (saved as ``sweep.json`` beside the results)."""
+
+    scene: str
+    base: Mapping[str, Any]
+    grid: Sequence[str]
+    t_end: float
+    rate: float
+    step: float
+    metrics: Sequence[str]
+    tol: float
+    block_size: int
+
+    @property
+    def sweep_grid(self) -> SweepGrid:
+        """Return the parsed grid."""
+        return SweepGrid.parse(list(self.grid))
+
+    @property
+    def n_points(self) -> int:
+        """Return number of points."""
+        return self.sweep_grid.n_points
+
+    @property
+    def n_blocks(self) -> int:
+        """Return number of blocks."""
+        return -(-self.n_points // self.block_size)
+
+    @property
+    def t_eval(self) -> np.ndarray:
+        """Sample times 0, 1/rate, ..., t_end."""
+        n = int(math.floor(self.t_end * self.rate + 1e-9))
+        t = np.arange(n + 1) / self.rate
+        return t if t[-1] >= self.t_end - 1e-12 else np.append(t, self.t_end)
+
+    @property
+    def steps_per_trajectory(self) -> int:
+        """RK4 steps of one trajectory (the ensemble splits each sample interval evenly)."""
+        te = self.t_eval
+        return int(sum(max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
+                       for a, b in zip(te[:-1], te[1:])))
+
+    def block_points(self, b: int) -> np.ndarray:
+        """Flat indices of block ``b``."""
+        if not 0 <= b < self.n_blocks:
+            raise ParameterError(f'block {b} out of range 0..{self.n_blocks - 1}')
+        return np.arange(b * self.block_size, min((b + 1) * self.block_size, self.n_points))
+
+    def to_json(self) -> str:
+        """JSON text of the specification."""
+        d = dataclasses.asdict(self)
+        d['grid'], d['metrics'], d['base'] = list(self.grid), list(self.metrics), dict(self.base)
+        return json.dumps(d, indent=1, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> 'SweepSpec':
+        """Inverse of :meth:`to_json`."""
+        d = json.loads(text)
+        return cls(**{**d, 'grid': tuple(d['grid']), 'metrics': tuple(d['metrics'])})
+
+
+def _sweep_step(base: Mapping[str, Any], grid: SweepGrid) -> float:
+    """STEP_FACTOR / max model rate over the parameter axes (initial axes do not change it)."""
+    param_axes = [a for a in grid.axes if a.key in PARAM_FIELDS]
+    fixed = {k: base[k] for k in PARAM_FIELDS if k in base}
+    shape = tuple(a.count for a in param_axes)
+    fastest = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        for idx in np.ndindex(*shape):
+            ch = {a.key: a.scene_value(a.values[i]) for a, i in zip(param_axes, idx)}
+            try:
+                fastest = max(fastest, model_rate(RotorParams(**{**fixed, **ch})))
+            except GyroRotorError:
+                continue                  # such a point is recorded as failed
+    return STEP_FACTOR / max(fastest, 1.0)
+
+
+def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = None,
+              rate: float = 100.0, metrics: Sequence[str] | None = None,
+              tol: float = 1e-3, block_size: int | None = None,
+              step: float | None = None) -> SweepSpec:
+    """Check everything and build the specification (no integration is done here).
+
+    Raises :class:`~gyro_rotor.errors.ParameterError` or ``SceneError`` naming the problem.
+    """
+    base, path = scene_flat(scene)
+    grid = SweepGrid.parse(grid_specs)
+    grid.check(base)
+    t_end = float(base.get('t_end', 10.0)) if t_end is None else float(t_end)
+    for name, v in (('--t-end', t_end), ('--rate', rate), ('--tol', tol)):
+        if not (math.isfinite(v) and v > 0):
+            raise ParameterError(f'{name} must be positive and finite, got {v!r}')
+    if t_end * rate < 1:
+        raise ParameterError(f'--t-end x --rate = {t_end * rate:g}: at least one sample '
+                             'interval is needed')
+    wanted = tuple(Metric) if metrics is None else tuple(metrics)
+    for m in wanted:
+        if m not in tuple(Metric):
+            raise ParameterError(f"unknown metric '{m}'; valid: "
+                                 f"{', '.join(x.value for x in Metric)}")
+    h = _sweep_step(base, grid) if step is None else float(step)
+    if not (math.isfinite(h) and h > 0):
+        raise ParameterError(f'--step must be positive and finite, got {step!r}')
+    spec = SweepSpec(scene=path, base=base, grid=tuple(a.spec for a in grid.axes), t_end=t_end,
+                     rate=float(rate), step=h, metrics=tuple(str(m) for m in wanted),
+                     tol=float(tol), block_size=1)
+    if block_size is None:
+        per_point = spec.steps_per_trajectory * US_PER_TRAJECTORY_STEP * 1e-6
+        mem = MAX_BLOCK_BYTES / (spec.t_eval.size * 10 * 8.0)
+        block_size = int(max(1, min(math.ceil(TARGET_BLOCK_WORK_S / per_point), mem)))
+    elif block_size < 1:
+        raise ParameterError(f'--block must be a positive number of points, got {block_size}')
+    return dataclasses.replace(spec, block_size=int(min(block_size, grid.n_points)))
+
+
+@dataclasses.dataclass
+class BlockResult:
+    """Columns of one block (point index, grid coordinates, status, message, metrics)."""
+
+    block: int
+    columns: dict
+    work_s: float
+    steps: int
+
+
+def _setup_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int):
+    """Scenes, initial states and set-up errors of the points of a block.
+
+    The scene's other keys were checked with :meth:`SweepGrid.check`; a point changes
+    only its parameters (validated by :class:`RotorParams`, one object per distinct set)
+    and its initial condition (validated by ``Scene.initial_state``).
+    """
+    base = scene_from_mapping(dict(spec.base), strict_float=False)
+    scenes: list = [None] * n
+    Y0: list = [None] * n
+    msg = [''] * n
+    params: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        for j in range(n):
+            ch = grid.overrides(coords, j)
+            pc = tuple((k, v) for k, v in ch.items() if k in PARAM_FIELDS)
+            ic = {k.split('.', 1)[1]: v for k, v in ch.items() if k.startswith('initial.')}
+            try:
+                if pc not in params:
+                    params[pc] = base.params.replace(**dict(pc))
+                sc = dataclasses.replace(base, params=params[pc],
+                                         initial=dataclasses.replace(base.initial, **ic))
+                scenes[j], Y0[j] = sc, sc.initial_state()
+            except (GyroRotorError, ZeroDivisionError, ValueError) as err:
+                msg[j] = f'set-up: {err}'
+    return scenes, Y0, msg
+
+
+def _integrate(model_name: str, scenes: list, Y0: list, t_eval: np.ndarray, h: float):
+    """Integrate the set-up points: samples (m, N, n); on an exception point by point."""
+    idx = [j for j, s in enumerate(scenes) if s is not None]
+    if not idx:
+        return idx, None, 0, {}
+    model = make_model(model_name, scenes[idx[0]].params)
+    plist = [scenes[j].params for j in idx]
+    Y = np.array([Y0[j] for j in idx])
+    try:
+        res = run_ensemble(model, Y, t_eval, method='rk4', step=h, params=plist)
+        return idx, res.y, res.nsteps, {}
+    except (ArithmeticError, ValueError, GyroRotorError):
+        pass
+    out = np.full((t_eval.size, len(idx), model.n), np.nan)
+    errors, nsteps = {}, 0
+    for c, j in enumerate(idx):
+        try:
+            r = run_ensemble(model, Y[c:c + 1], t_eval, method='rk4', step=h, params=[plist[c]])
+            out[:, c, :], nsteps = r.y[:, 0, :], r.nsteps
+        except (ArithmeticError, ValueError, GyroRotorError) as err:
+            errors[j] = f'integration: {type(err).__name__}: {err}'
+    return idx, out, nsteps, errors
+
+
+def _abscissa(scene: Scene, cache: dict) -> float:
+    from gyro_rotor.linear.stability import analyze, scene_operating_point
+    p, sm, model = scene_operating_point(scene)
+    key = (p, sm, model)
+    if key not in cache:
+        try:
+            cache[key] = analyze(p, sm, model).spectral_abscissa
+        except (GyroRotorError, ArithmeticError, np.linalg.LinAlgError):
+            cache[key] = math.nan
+    return cache[key]
+
+
+def run_block(spec: SweepSpec, b: int) -> BlockResult:
+    """Integrate block ``b`` of the sweep and return its columns (a row per point, always)."""
+    t0 = time.perf_counter()
+    grid = spec.sweep_grid
+    points = spec.block_points(b)
+    n = points.size
+    coords = grid.coordinates(points)
+    scenes, Y0, msg = _setup_points(spec, grid, coords, n)
+    t_eval = spec.t_eval
+    model_name = str(spec.base.get('model', 'full'))
+    idx, Y, nsteps, errors = _integrate(model_name, scenes, Y0, t_eval, spec.step)
+    metrics = {Metric(m) for m in spec.metrics}
+    names = [c for m in Metric if m in metrics for c in METRIC_COLUMNS[m]]
+    cols = {c: np.full(n, np.nan) for c in names}
+    status = np.full(n, int(PointStatus.FAILED), dtype=np.int8)
+    cache: dict = {}
+    for c, j in enumerate(idx):
+        if j in errors:
+            msg[j] = errors[j]
+            continue
+        y = Y[:, c, :]
+        fin = np.all(np.isfinite(y), axis=1)
+        if not np.all(fin):
+            status[j] = PointStatus.DIVERGED
+            msg[j] = f'non-finite state at t = {t_eval[np.argmin(fin)]:.6g} s'
+            continue
+        model = make_model(model_name, scenes[j].params)
+        for k, v in trajectory_metrics(model, t_eval, y, metrics, tol=spec.tol).items():
+            cols[k][j] = v
+        if Metric.ABSCISSA in metrics:
+            cols['spectral_abscissa'][j] = _abscissa(scenes[j], cache)
+        status[j] = PointStatus.OK
+    columns = {'point': points.astype(np.int64), 'block': np.full(n, b, dtype=np.int32),
+               **coords, 'status': status, 'message': np.array(msg, dtype=object)}
+    for k, v in cols.items():
+        columns[k] = v
+    return BlockResult(block=b, columns=columns, work_s=time.perf_counter() - t0,
+                       steps=int(nsteps) * len(idx))

@@ -1,0 +1,1 @@
+"""Rotor systems of the general theory: system files, generated equations, scenes."""

@@ -1,0 +1,369 @@
+"""Compiled equations of a rotor system: sympy -> Python source -> numba, cached on disk.
+
+:func:`compile_system` derives the equations (:mod:`~gyro_rotor.core.system.equations`),
+writes one Python module per system *structure* (names and expressions; the numbers
+travel in a parameter array, so changed constants or drives need no new code) and loads
+it. The module lives in the cache directory (``$GYRO_ROTOR_CACHE`` or
+``~/.cache/gyro_rotor/systems``) under the hash of the structure; numba caches its machine
+code beside it (``cache=True``), so the second run loads instead of compiling.
+
+The generated module holds, with ``y = (q, qdot, z, zdot, D)`` (length 2 (n + m) + 1) and
+the parameter array ``P`` of :func:`pack`:
+
+``rhs(y, P, out)``      dy/dt (numba): Mbar vdot = F + [0; Q] solved by an unrolled
+                        LDL' factorization, Q the drive law (eq. 8 or the sine law),
+                        dD/dt = zdot' K_D zdot
+``energy(y, P)``        E* (eq. 13, numba)
+``run(...)``            an adaptive Dormand-Prince 5(4) loop over ``rhs`` that samples at
+                        given times (numba)
+``lin(y, P)``           (Mbar, dF/dq, dF/dv) at y, plain Python, for the linearization
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import os
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+from gyro_rotor.core.system.equations import derive, Equations
+from gyro_rotor.core.system.system_file import RotorSystem
+import numpy as np
+import sympy
+from sympy.printing.pycode import PythonCodePrinter
+
+__all__ = ['CompiledSystem', 'compile_system', 'pack', 'cache_dir', 'GENERATOR_VERSION']
+
+#: bump when the generated code changes, so that old cache entries are not reused
+GENERATOR_VERSION = 3
+#: parameters per drive in P: K_S, K_D, Omega0, pole_pairs
+DRIVE_SLOTS = 4
+
+
+class _Printer(PythonCodePrinter):
+    """Python printer: math.*, small integer powers as products, floats exact (repr)."""
+
+    def __init__(self):
+        super().__init__({'fully_qualified_modules': True, 'standard': 'python3'})
+
+    def _print_Float(self, expr):
+        return repr(float(expr))
+
+    def _print_Rational(self, expr):
+        return repr(float(expr))
+
+    def _print_Pow(self, expr, rational=False):
+        b, e = expr.base, expr.exp
+        if e.is_Integer and 1 < abs(int(e)) <= 4:
+            body = '*'.join([f'({self._print(b)})'] * abs(int(e)))
+            return f'({body})' if int(e) > 0 else f'(1.0/({body}))'
+        if e == -1:
+            return f'(1.0/({self._print(b)}))'
+        if e == sympy.Rational(1, 2):
+            return f'math.sqrt({self._print(b)})'
+        if e == -sympy.Rational(1, 2):
+            return f'(1.0/math.sqrt({self._print(b)}))'
+        return f'(({self._print(b)})**({self._print(e)}))'
+
+
+def cache_dir() -> Path:
+    """Directory of the generated modules (``$GYRO_ROTOR_CACHE`` or ~/.cache/gyro_rotor)."""
+    env = os.environ.get('GYRO_ROTOR_CACHE')
+    base = Path(env) if env else Path.home() / '.cache' / 'gyro_rotor'
+    return base / 'systems'
+
+
+def pack(system: RotorSystem) -> np.ndarray:
+    """Parameter array P: the constants (in file order), then K_S, K_D, Omega0, p per drive."""
+    drives = [x for d in system.drives for x in (d.K_S, d.K_D, d.Omega0, float(d.pole_pairs))]
+    return np.array(list(system.constants.values()) + drives, dtype=float)
+
+
+def _unpack_lines(eq: Equations, nc: int, indent: str) -> list[str]:
+    n, m = eq.n, eq.m
+    lines = [f'{indent}q{i} = y[{i}]' for i in range(n)]
+    lines += [f'{indent}v{i} = y[{n + i}]' for i in range(n)]
+    lines += [f'{indent}z{k} = y[{2 * n + k}]' for k in range(m)]
+    lines += [f'{indent}v{n + k} = y[{2 * n + m + k}]' for k in range(m)]
+    lines += [f'{indent}c{k} = P[{k}]' for k in range(nc)]
+    lines += [f'{indent}O{k} = P[{nc + DRIVE_SLOTS * k + 2}]' for k in range(m)]
+    return lines
+
+
+def _cse_lines(names: list[str], exprs: list, indent: str, printer: _Printer) -> list[str]:
+    subs, reduced = sympy.cse(exprs, symbols=sympy.numbered_symbols('w'))
+    lines = [f'{indent}{s} = {printer.doprint(e)}' for s, e in subs]
+    lines += [f'{indent}{name} = {printer.doprint(e)}' for name, e in zip(names, reduced)]
+    return lines
+
+
+def _drive_lines(eq: Equations, nc: int, indent: str) -> list[str]:
+    lines = [f'{indent}diss = 0.0']
+    for k in range(eq.m):
+        base = nc + DRIVE_SLOTS * k
+        lines += [f'{indent}KS = P[{base}]', f'{indent}KD = P[{base + 1}]',
+                  f'{indent}pp = P[{base + 3}]',
+                  f'{indent}if pp != 0.0:',
+                  f'{indent}    Q{k} = -(KS / pp) * math.sin(pp * z{k}) - KD * v{eq.n + k}',
+                  f'{indent}else:',
+                  f'{indent}    Q{k} = -KS * z{k} - KD * v{eq.n + k}',
+                  f'{indent}diss += KD * v{eq.n + k} * v{eq.n + k}']
+    return lines
+
+
+def _ldl_lines(N: int, indent: str) -> list[str]:
+    """Solve Mbar a = F by an unrolled LDL' factorization (Mbar symmetric positive definite)."""
+    lines = []
+    for j in range(N):
+        s = ' - '.join([f'M{j}_{j}'] + [f'L{j}_{k} * L{j}_{k} * d{k}' for k in range(j)])
+        lines.append(f'{indent}d{j} = {s}')
+        for i in range(j + 1, N):
+            s = ' - '.join([f'M{i}_{j}'] + [f'L{i}_{k} * L{j}_{k} * d{k}' for k in range(j)])
+            lines.append(f'{indent}L{i}_{j} = ({s}) / d{j}')
+    for i in range(N):
+        s = ' - '.join([f'F{i}'] + [f'L{i}_{k} * b{k}' for k in range(i)])
+        lines.append(f'{indent}b{i} = {s}')
+    for i in reversed(range(N)):
+        s = ' - '.join([f'b{i} / d{i}'] + [f'L{k}_{i} * a{k}' for k in range(i + 1, N)])
+        lines.append(f'{indent}a{i} = {s}')
+    return lines
+
+
+_HEADER = '''"""Generated by gyro_rotor.core.system.codegen for the rotor system {name!r}.
+
+Structure key {key}; generator version {version}. Do not edit: delete the file to rebuild.
+"""
+import math
+
+import numpy as np
+
+try:
+    from numba import njit
+except ImportError:  # plain Python without numba
+    def njit(*args, **kwargs):
+        if len(args) == 1 and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+N = {N}
+NQ = {n}
+NR = {m}
+NY = {ny}
+
+'''
+
+_RUN = '''
+
+@njit(cache=True, error_model='numpy')
+def run(y0, t0, t_eval, P, rtol, atol, h0, h_max, max_steps, Y, counts):
+    """Dormand-Prince 5(4) with step control; steps end exactly on the sample times."""
+    ny = y0.size
+    y = y0.copy()
+    yn = np.empty(ny)
+    yt = np.empty(ny)
+    k1 = np.empty(ny)
+    k2 = np.empty(ny)
+    k3 = np.empty(ny)
+    k4 = np.empty(ny)
+    k5 = np.empty(ny)
+    k6 = np.empty(ny)
+    k7 = np.empty(ny)
+    rhs(y, P, k1)
+    counts[0] += 1
+    t = t0
+    h = h0
+    i = 0
+    while i < t_eval.size and t_eval[i] <= t:
+        for j in range(ny):
+            Y[i, j] = y[j]
+        i += 1
+    while i < t_eval.size:
+        if counts[1] >= max_steps:
+            return -3
+        target = t_eval[i]
+        hh = min(h, h_max)
+        last = False
+        if t + hh >= target - 1e-12 * abs(target):
+            hh = target - t
+            last = True
+        for j in range(ny):
+            yt[j] = y[j] + hh * (0.2 * k1[j])
+        rhs(yt, P, k2)
+        for j in range(ny):
+            yt[j] = y[j] + hh * (3.0 / 40.0 * k1[j] + 9.0 / 40.0 * k2[j])
+        rhs(yt, P, k3)
+        for j in range(ny):
+            yt[j] = y[j] + hh * (44.0 / 45.0 * k1[j] - 56.0 / 15.0 * k2[j]
+                                 + 32.0 / 9.0 * k3[j])
+        rhs(yt, P, k4)
+        for j in range(ny):
+            yt[j] = y[j] + hh * (19372.0 / 6561.0 * k1[j] - 25360.0 / 2187.0 * k2[j]
+                                 + 64448.0 / 6561.0 * k3[j] - 212.0 / 729.0 * k4[j])
+        rhs(yt, P, k5)
+        for j in range(ny):
+            yt[j] = y[j] + hh * (9017.0 / 3168.0 * k1[j] - 355.0 / 33.0 * k2[j]
+                                 + 46732.0 / 5247.0 * k3[j] + 49.0 / 176.0 * k4[j]
+                                 - 5103.0 / 18656.0 * k5[j])
+        rhs(yt, P, k6)
+        for j in range(ny):
+            yn[j] = y[j] + hh * (35.0 / 384.0 * k1[j] + 500.0 / 1113.0 * k3[j]
+                                 + 125.0 / 192.0 * k4[j] - 2187.0 / 6784.0 * k5[j]
+                                 + 11.0 / 84.0 * k6[j])
+        rhs(yn, P, k7)
+        counts[0] += 6
+        err = 0.0
+        for j in range(ny):
+            e = hh * (71.0 / 57600.0 * k1[j] - 71.0 / 16695.0 * k3[j] + 71.0 / 1920.0 * k4[j]
+                      - 17253.0 / 339200.0 * k5[j] + 22.0 / 525.0 * k6[j] - 1.0 / 40.0 * k7[j])
+            sc = atol + rtol * max(abs(y[j]), abs(yn[j]))
+            err += (e / sc) * (e / sc)
+        err = math.sqrt(err / ny)
+        if not math.isfinite(err):
+            if hh < 1e-300:
+                return -2
+            h = 0.25 * hh
+            counts[2] += 1
+            continue
+        if err <= 1.0:
+            t = target if last else t + hh
+            for j in range(ny):
+                y[j] = yn[j]
+                k1[j] = k7[j]
+            counts[1] += 1
+            fac = 10.0 if err == 0.0 else min(10.0, 0.9 * err ** -0.2)
+            if not last or hh >= h:
+                h = hh * fac
+            if last:
+                for j in range(ny):
+                    Y[i, j] = y[j]
+                i += 1
+        else:
+            h = hh * max(0.2, 0.9 * err ** -0.2)
+            counts[2] += 1
+        if h <= 4e-16 * max(abs(t), 1.0):
+            return -1
+    return 0
+'''
+
+
+def _source(system: RotorSystem, eq: Equations) -> str:
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    nc = len(system.constants)
+    pr = _Printer()
+    out = [_HEADER.format(name=system.name, key=system.structure_key(),
+                          version=GENERATOR_VERSION, N=N, n=n, m=m, ny=2 * N + 1)]
+    # rhs
+    names = [f'M{i}_{j}' for i in range(N) for j in range(i + 1)] + [f'F{i}' for i in range(N)]
+    exprs = [eq.Mbar[i, j] for i in range(N) for j in range(i + 1)] + list(eq.F)
+    body = _unpack_lines(eq, nc, '    ') + _cse_lines(names, exprs, '    ', pr)
+    body += _drive_lines(eq, nc, '    ')
+    body += [f'    F{n + k} = F{n + k} + Q{k}' for k in range(m)]
+    body += _ldl_lines(N, '    ')
+    body += [f'    out[{i}] = v{i}' for i in range(n)]
+    body += [f'    out[{n + i}] = a{i}' for i in range(n)]
+    body += [f'    out[{2 * n + k}] = v{n + k}' for k in range(m)]
+    body += [f'    out[{2 * n + m + k}] = a{n + k}' for k in range(m)]
+    body += [f'    out[{2 * N}] = diss']
+    out.append("@njit(cache=True, error_model='numpy')\ndef rhs(y, P, out):\n"
+               '    """dy/dt of y = (q, qdot, z, zdot, D)."""\n' + '\n'.join(body) + '\n')
+    # energy
+    body = _unpack_lines(eq, nc, '    ')
+    body += _cse_lines(['kin', 'pot'], [eq.kinetic, eq.V], '    ', pr)
+    body += ['    U = 0.0']
+    for k in range(m):
+        base = nc + DRIVE_SLOTS * k
+        body += [f'    KS = P[{base}]', f'    pp = P[{base + 3}]', '    if pp != 0.0:',
+                 f'        U += (KS / (pp * pp)) * (1.0 - math.cos(pp * z{k}))', '    else:',
+                 f'        U += 0.5 * KS * z{k} * z{k}']
+    body += ['    return kin + pot + U']
+    out.append("\n\n@njit(cache=True, error_model='numpy')\ndef energy(y, P):\n"
+               '    """E* (eq. 13) at y."""\n' + '\n'.join(body) + '\n')
+    # linearization pieces
+    Mn = [f'M{i}_{j}' for i in range(N) for j in range(N)]
+    Fqn = [f'Fq{i}_{j}' for i in range(N) for j in range(n)]
+    Fvn = [f'Fv{i}_{j}' for i in range(N) for j in range(N)]
+    exprs = ([eq.Mbar[i, j] for i in range(N) for j in range(N)]
+             + [eq.F_q[i, j] for i in range(N) for j in range(n)]
+             + [eq.F_v[i, j] for i in range(N) for j in range(N)])
+    body = _unpack_lines(eq, nc, '    ') + _cse_lines(Mn + Fqn + Fvn, exprs, '    ', pr)
+
+    def mat(nm, r, c):
+        return '[' + ', '.join('[' + ', '.join(f'{nm}{i}_{j}' for j in range(c)) + ']'
+                               for i in range(r)) + ']'
+    body.append(f'    return ({mat("M", N, N)}, {mat("Fq", N, n)}, {mat("Fv", N, N)})')
+    out.append('\n\ndef lin(y, P):\n    """(Mbar, dF/dq, dF/dv) at y, without the drive '
+               'terms."""\n' + '\n'.join(body) + '\n')
+    out.append(_RUN)
+    return ''.join(out)
+
+
+@dataclasses.dataclass
+class CompiledSystem:
+    """The generated module of a system structure and how it was obtained."""
+
+    key: str
+    module: object
+    path: Path
+    from_cache: bool
+    seconds: float
+
+    @property
+    def rhs(self):
+        """Return the compiled right-hand side (arguments y, P, out)."""
+        return self.module.rhs
+
+    @property
+    def energy(self):
+        """Return the compiled E* (arguments y, P)."""
+        return self.module.energy
+
+
+_LOADED: dict[str, CompiledSystem] = {}
+
+
+def _import(path: Path, key: str):
+    name = f'gyro_rotor_generated_{key}'
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def compile_system(system: RotorSystem, *, warm: bool = True) -> CompiledSystem:
+    """Return the compiled equations of ``system``, generating them only if not cached.
+
+    ``warm`` runs each compiled function once, so that numba compiles (or loads from its
+    cache) now and not at the first use.
+    """
+    key = f'{system.structure_key()}_v{GENERATOR_VERSION}'
+    if key in _LOADED:
+        return _LOADED[key]
+    start = time.perf_counter()
+    folder = cache_dir() / key
+    path = folder / f'gen_{key}.py'
+    from_cache = path.is_file()
+    if not from_cache:
+        source = _source(system, derive(system))
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix='.tmp')
+        with os.fdopen(fd, 'w', encoding='utf-8') as f:
+            f.write(source)
+        os.replace(tmp, path)   # atomic: a concurrent reader sees the whole file or none
+    module = _import(path, key)
+    if warm:
+        ny = 2 * (system.n + system.m) + 1
+        y = np.zeros(ny)
+        P = pack(system)
+        module.rhs(y, P, np.empty(ny))
+        module.energy(y, P)
+        counts = np.zeros(4)
+        Y = np.empty((1, ny))
+        module.run(y, 0.0, np.array([1e-9]), P, 1e-6, 1e-6, 1e-9, 1.0, 10, Y, counts)
+    compiled = CompiledSystem(key=key, module=module, path=path, from_cache=from_cache,
+                              seconds=time.perf_counter() - start)
+    _LOADED[key] = compiled
+    return compiled

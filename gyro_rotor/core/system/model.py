@@ -1,0 +1,142 @@
+"""The model of a rotor system: compiled equations with numbers bound (Magnus 1980, eqs. 1-17).
+
+State ``y = (q, qdot, z, zdot, D)``, length 2 (n + m) + 1, with z = phi - Omega0 t
+(eq. 7) and D the work dissipated by the drives (dD/dt = zdot' K_D zdot). The
+energy-balance residual r = E* - E*(0) + D is zero along exact solutions of any system
+(eq. 17: E* is the Jacobi integral in (q, z)), so it measures the integration error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from gyro_rotor.core.system.codegen import compile_system, CompiledSystem, pack
+from gyro_rotor.core.system.system_file import RotorSystem
+from gyro_rotor.errors import IntegrationError, ParameterError
+import numpy as np
+
+__all__ = ['GeneralModel', 'GeneralRun', 'STATUS']
+
+#: status codes of the compiled run loop
+STATUS = {0: 'reached the end', -1: 'step size underflow', -2: 'the state became non-finite',
+          -3: 'step budget exhausted'}
+
+
+@dataclasses.dataclass
+class GeneralRun:
+    """Samples of one run: times ``t`` (k,), states ``y`` (k, 2 N + 1) and the counters."""
+
+    t: np.ndarray
+    y: np.ndarray
+    nfev: int
+    nsteps: int
+    nrejected: int
+    status: int
+
+
+class GeneralModel:
+    """Equations of motion of a :class:`RotorSystem` with its numbers bound (module doc)."""
+
+    def __init__(self, system: RotorSystem, compiled: CompiledSystem | None = None):
+        """Bind the numbers of ``system`` to its compiled equations (compiled if needed)."""
+        self.system = system
+        self.compiled = compiled or compile_system(system)
+        self.P = pack(system)
+        self.n, self.m = system.n, system.m
+        self.N = self.n + self.m
+        self.size = 2 * self.N + 1
+        self.iD = 2 * self.N
+
+    @property
+    def state_names(self) -> tuple:
+        """Names of the state components: q, NAME_dot, z_ROTOR, zdot_ROTOR, D."""
+        s = self.system
+        return (tuple(s.coordinates) + tuple(f'{c}_dot' for c in s.coordinates)
+                + tuple(f'z_{r}' for r in s.rotors) + tuple(f'zdot_{r}' for r in s.rotors)
+                + ('D',))
+
+    def slices(self) -> tuple:
+        """Slices of q, qdot, z, zdot in the state."""
+        n, m = self.n, self.m
+        return (slice(0, n), slice(n, 2 * n), slice(2 * n, 2 * n + m),
+                slice(2 * n + m, 2 * n + 2 * m))
+
+    def state(self, q=(), qdot=(), z=(), zdot=(), D: float = 0.0) -> np.ndarray:
+        """Pack a state vector (lengths n, n, m, m)."""
+        return np.concatenate([np.asarray(q, float).reshape(self.n),
+                               np.asarray(qdot, float).reshape(self.n),
+                               np.asarray(z, float).reshape(self.m),
+                               np.asarray(zdot, float).reshape(self.m), [D]])
+
+    def rhs(self, t: float, y) -> np.ndarray:
+        """dy/dt at y (the system is autonomous; t is ignored)."""
+        out = np.empty(self.size)
+        self.compiled.rhs(np.asarray(y, dtype=float), self.P, out)
+        return out
+
+    def lin(self, y) -> tuple:
+        """(Mbar, dF/dq, dF/dv) at the state y as arrays (exact derivatives, no drive terms).
+
+        Raises :class:`ParameterError` where an expression of the system is not defined
+        (a square root or logarithm of a negative number, a division by zero).
+        """
+        N, n = self.N, self.n
+        try:
+            parts = self.compiled.module.lin(np.asarray(y, dtype=float), self.P)
+        except (ValueError, ZeroDivisionError, OverflowError) as err:
+            raise ParameterError(f'system {self.system.name}: an expression is not defined at '
+                                 f'q = {np.asarray(y)[:n].tolist()}: {err}') from None
+        return tuple(np.array(a, dtype=float).reshape(s)
+                     for a, s in zip(parts, ((N, N), (N, n), (N, N))))
+
+    def energy(self, Y) -> np.ndarray:
+        """E* (eq. 13) of one state or of rows of states."""
+        Y = np.asarray(Y, dtype=float)
+        if Y.ndim == 1:
+            return np.float64(self.compiled.energy(Y, self.P))
+        return np.array([self.compiled.energy(y, self.P) for y in Y])
+
+    def residual(self, Y, E0: float | None = None) -> np.ndarray:
+        """Energy-balance residual r = E* - E*(0) + D of rows of states (eq. 17)."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        E = self.energy(Y)
+        if E0 is None:
+            E0 = E[0] + Y[0, self.iD]
+        return E - E0 + Y[:, self.iD]
+
+    def rate(self) -> float:
+        """Return a typical fastest rate [1/s] of the system, for the first step size."""
+        s = self.system
+        rates = [1.0] + [abs(d.Omega0) for d in s.drives]
+        return max(rates)
+
+    def integrate(self, y0, t_eval, *, rtol: float = 1e-9, atol: float = 1e-12,
+                  h_max: float = math.inf, max_steps: int = 50_000_000) -> GeneralRun:
+        """Integrate from ``y0`` at ``t_eval[0]`` and sample at ``t_eval`` (Dormand-Prince).
+
+        Raises :class:`IntegrationError` if the run stops early (the message says why).
+        """
+        y0 = np.asarray(y0, dtype=float).reshape(-1)
+        te = np.asarray(t_eval, dtype=float).reshape(-1)
+        if y0.size != self.size or not np.all(np.isfinite(y0)):
+            raise ParameterError(f'the initial state must be {self.size} finite numbers, got '
+                                 f'{y0.tolist()}')
+        if te.size == 0 or not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
+            raise ParameterError('t_eval must be a non-empty, finite, increasing array')
+        for name, v in (('rtol', rtol), ('atol', atol)):
+            if not (math.isfinite(v) and v > 0):
+                raise ParameterError(f'{name} must be positive and finite, got {v!r}')
+        Y = np.full((te.size, self.size), np.nan)
+        counts = np.zeros(4)
+        h0 = min(0.01 / self.rate(), (te[-1] - te[0]) or 1.0)
+        status = int(self.compiled.module.run(y0, float(te[0]), te, self.P, float(rtol),
+                                              float(atol), h0, float(h_max), int(max_steps),
+                                              Y, counts))
+        if status != 0:
+            k = int(np.count_nonzero(~np.isnan(Y[:, 0])))
+            last = te[k - 1] if k else te[0]
+            raise IntegrationError(f'system {self.system.name}: the integration stopped after '
+                                   f't = {last:.6g} s: {STATUS[status]}')
+        return GeneralRun(t=te, y=Y, nfev=int(counts[0]), nsteps=int(counts[1]),
+                          nrejected=int(counts[2]), status=status)

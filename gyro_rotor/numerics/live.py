@@ -1,0 +1,479 @@
+"""The live simulation behind ``rotor_sim``: pure Python, no rclpy (tested without ROS).
+
+:class:`LiveSimulation` owns everything the simulation node computes; the node only
+declares parameters, services and timers and copies the arrays of a
+:class:`SampleBlock` into messages. It holds the scene, its model, a stepper driven by a
+:class:`~gyro_rotor.numerics.realtime.Pacer` and the energy baseline, and does:
+
+* **parameter changes** (:meth:`LiveSimulation.check`, :meth:`LiveSimulation.apply`): a
+  change of the physical constants is validated by building the new model and stepper at
+  the current state; applied, it keeps the state (an Omega0 change keeps the rotor's
+  absolute spin: zdot jumps by -delta Omega0, the field angle stays continuous) and moves
+  the baseline of the residual by the jump of E* (eq. 13);
+* **ticks** (:meth:`LiveSimulation.tick`) with a work budget: a tick stops after
+  ``budget`` seconds of work (see the pacer's module doc); when that happens in
+  ``CUTS_TO_SWITCH`` consecutive ticks of one stepper, the method
+  that ``auto`` would choose for the current parameters
+  (:func:`~gyro_rotor.numerics.realtime.resolve_method`) takes over, if it is not the
+  one running already, and the diagnostics say so;
+* **the divergence guard**: an energy-balance residual r = E* + D - E_ref above
+  ``max_residual``, a non-finite E*, or *any* exception raised by the model or the
+  integrator (a diverging solution can make the right-hand side divide by zero) stops the
+  integration; the last good state is kept, the diagnostics turn ERROR, and
+  :meth:`LiveSimulation.reset` starts again;
+* **the sample block** (:class:`SampleBlock`): for every grid sample of a tick the
+  joint positions (3-1-3 angles theta, psi, the rotor angle phi_R = field + z + phi_M,
+  phi_M; wrapped to (-pi, pi]), their rates, the generalized forces of eqs. (19, 23), and
+  the ``energy`` columns (t_sim, E*, dE*/dt = -K_D zdot^2 (eq. 17), the dissipation, the
+  residual, z, zdot, the sample counter seq, D and the grid index k), all as arrays;
+* the services' actions (:meth:`reset`, :meth:`perturb`, :meth:`pause`), the diagnostics
+  (:meth:`diagnostics`) and the scene document (:meth:`scene_doc`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+import time
+from typing import Any, Callable, Mapping
+import warnings
+
+from gyro_rotor.core.model import make_model, Model
+from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
+from gyro_rotor.core.rotations import (axis_from_quaternion, euler_from_quaternion,
+                                       euler_rates_from_body)
+from gyro_rotor.core.scene import perturb_state, PERTURBATION_KEYS, Scene
+from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
+                                          Stepper)
+import numpy as np
+
+__all__ = ['LiveSimulation', 'SampleBlock', 'Level', 'TICK_BUDGET', 'CUTS_TO_SWITCH', 'FAST_CHUNK',
+           'STEPPER_KEYS', 'ENERGY_COLUMNS']
+
+#: most wall seconds of integration work in one tick; a tick that needs more is cut
+#: (services are answered between ticks, so this bounds their latency)
+TICK_BUDGET = 0.025
+#: a stepper counts as too slow after this many consecutive cut ticks (the first tick of a
+#: method may include loading or compiling its kernels)
+CUTS_TO_SWITCH = 2
+#: with real_time_factor 0, each tick advances this much simulated time [s] (whole samples)
+FAST_CHUNK = 0.04
+#: node keys whose change rebuilds the integrator at the current state
+STEPPER_KEYS = ('integrator', 'rtol', 'atol', 'step_size')
+#: the columns of :attr:`SampleBlock.energy` (the ``energy`` topic's layout)
+ENERGY_COLUMNS = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
+                  'D', 'k')
+_wrap = np.frompyfunc(math.remainder, 2, 1)
+
+
+class Level(enum.StrEnum):
+    """Level of the simulation's diagnostic status (diagnostic_msgs/DiagnosticStatus)."""
+
+    OK = 'OK'
+    WARN = 'WARN'
+    ERROR = 'ERROR'
+
+
+@dataclasses.dataclass(frozen=True)
+class SampleBlock:
+    """The grid samples of one tick with every derived output (m samples).
+
+    ``position``, ``velocity`` and ``effort`` are (m, 4) in joint order theta, psi, phi_R,
+    phi_M; ``energy`` maps each of :data:`ENERGY_COLUMNS` to an (m,) array; ``quaternion``
+    (4,) and ``axis`` (3,) (the symmetry axis in space axes) belong to the last sample.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+    energy: dict[str, np.ndarray]
+    quaternion: np.ndarray
+    axis: np.ndarray
+
+    def __len__(self) -> int:
+        """Return the number of samples."""
+        return len(self.t)
+
+
+def wrap_angles(a: np.ndarray) -> np.ndarray:
+    """Angles wrapped to (-pi, pi] (exactly: IEEE remainder, -pi maps to pi)."""
+    w = _wrap(np.asarray(a, dtype=float), 2 * math.pi).astype(float)
+    w[w == -math.pi] = math.pi
+    return w
+
+
+def _describe(err: BaseException) -> str:
+    """Return a one-line account of an exception for the diagnostics."""
+    if isinstance(err, GyroRotorError):
+        return str(err)
+    return f'{type(err).__name__} in the model or integrator: {err}'
+
+
+class LiveSimulation:
+    """A scene integrated in real time (see the module doc).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (its parameters and initial condition; ``t_end``).
+    cfg : mapping
+        The node keys of :data:`~gyro_rotor.core.scene.NODE_KEYS` (publish_rate,
+        real_time_factor, integrator, rtol, atol, step_size, max_catch_up, stop_at_t_end,
+        max_residual, ...); kept as :attr:`cfg` and updated by :meth:`apply`.
+    perturbation : mapping
+        The kick of :meth:`perturb` (keys of ``PERTURBATION_KEYS``).
+    budget : float or None
+        Work budget of a tick [s] (None: unbounded).
+    clock : callable
+        The steady clock [s]; must be ``time.monotonic`` (or agree with it) when a budget
+        is set, since the steppers check their deadline against it.
+    log : callable, optional
+        ``log(level, text)`` for events worth a log line (a :class:`Level`).
+    """
+
+    def __init__(self, scene: Scene, cfg: Mapping[str, Any], perturbation: Mapping[str, float],
+                 *, budget: float | None = TICK_BUDGET,
+                 clock: Callable[[], float] = time.monotonic,
+                 log: Callable[[Level, str], None] | None = None):
+        self.scene = scene
+        self.cfg = dict(cfg)
+        self.perturbation = {k: float(perturbation.get(k, 0.0)) for k in PERTURBATION_KEYS}
+        self.budget = budget
+        self.clock = clock
+        self._log = log or (lambda level, text: None)
+        self.model: Model = scene.make_model()
+        #: samples produced over the simulation's life (never reset)
+        self.seq = 0
+        #: the last work-budget event (a method switch), for the diagnostics
+        self.switch = ''
+        self._auto = False          # after a budget switch: 'auto' instead of cfg['integrator']
+        self._switched: Stepper | None = None      # the stepper a budget switch made
+        self.start(scene.initial_state(self.model))
+
+    # -- state -------------------------------------------------------------------------------
+    def start(self, y0: np.ndarray) -> None:
+        """(Re)start at t = 0 from y0."""
+        self.stepper = self._new_stepper(self.model, 0.0, y0, self.cfg)
+        self._cuts = 0              # consecutive ticks of this stepper cut by the budget
+        self.baseline = EnergyBaseline(self.model.energy, self.model.idiss, y0)
+        self._field = (0.0, 0.0)     # (t_c, field angle at t_c) for phi_R
+        self.pacer = Pacer(self.stepper, self.cfg['publish_rate'],
+                           rtf=self.cfg['real_time_factor'],
+                           max_catch_up=self.cfg['max_catch_up'],
+                           chunk_samples=max(1, math.ceil(self.cfg['publish_rate'] * FAST_CHUNK)),
+                           t_end=self._t_end())
+        #: (t, y) of the last good sample
+        self.last = (0.0, np.array(y0, dtype=float))
+        #: why the integration stopped (None while it runs)
+        self.diverged: str | None = None
+
+    def _t_end(self) -> float | None:
+        return self.scene.t_end if self.cfg['stop_at_t_end'] else None
+
+    def _new_stepper(self, model: Model, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
+        t_end = self.scene.t_end if cfg['stop_at_t_end'] else math.inf
+        method = 'auto' if self._auto else cfg['integrator']
+        method, self.method_reason = resolve_method(method, model.params, t_end)
+        if self._auto:
+            self.method_reason = f'work budget: {self.method_reason}'
+        return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
+                            step_size=cfg['step_size'], model=model)
+
+    def _restart_stepper(self, y: np.ndarray) -> None:
+        self._use(self._new_stepper(self.model, self.stepper.t, y, self.cfg))
+
+    def _use(self, stepper: Stepper) -> None:
+        """Continue with a new stepper at its t (its budget cuts are counted afresh)."""
+        self.stepper = stepper
+        self._cuts = 0
+        self.pacer.restart(stepper, self.clock())
+
+    def _field_angle(self, t: float) -> float:
+        t_c, a_c = self._field
+        return a_c + self.model.params.Omega0 * (t - t_c)
+
+    def _diverge(self, reason: str) -> None:
+        self.diverged = reason
+        self._log(Level.ERROR, f'integration stopped, last good state at t = '
+                               f'{self.last[0]:.6f} s kept: {reason}')
+
+    # -- parameter changes -------------------------------------------------------------------
+    @staticmethod
+    def _params(params: RotorParams, changes: Mapping[str, Any]) -> RotorParams:
+        phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
+        if not phys:
+            return params
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            return params.replace(**phys)
+
+    def check(self, changes: Mapping[str, Any]) -> None:
+        """Raise a GyroRotorError if the changes cannot be applied (nothing changes here).
+
+        New physical constants are validated by RotorParams, and with the integrator
+        settings by building the new model and stepper at the current (or, after a
+        divergence, the last good) state.
+        """
+        try:
+            new = self._params(self.scene.params, changes)
+            if new is not self.scene.params or any(k in changes for k in STEPPER_KEYS):
+                cfg = {**self.cfg, **{k: v for k, v in changes.items() if k in self.cfg}}
+                t, y = self.last if self.diverged else (self.stepper.t, self.stepper.y)
+                auto, self._auto = self._auto, self._auto and 'integrator' not in changes
+                try:
+                    self._new_stepper(make_model(self.scene.model, new), t, y, cfg)
+                finally:
+                    self._auto = auto
+        except GyroRotorError:
+            raise
+        except Exception as err:  # noqa: B902 -- a change the model cannot evaluate
+            raise ParameterError(f'{", ".join(changes)}: {_describe(err)}') from err
+
+    def apply(self, changes: Mapping[str, Any]) -> None:
+        """Apply checked changes without restart (the guard catches what still fails)."""
+        try:
+            self._apply(changes)
+        except Exception as err:  # noqa: B902 -- the divergence guard
+            self._diverge(_describe(err))
+
+    def _apply(self, changes: Mapping[str, Any]) -> None:
+        for k, v in changes.items():
+            if k in self.cfg:
+                self.cfg[k] = v
+            elif k.startswith('perturbation.'):
+                self.perturbation[k.split('.', 1)[1]] = float(v)
+        if 'integrator' in changes:
+            self._auto = False
+        if 't_end' in changes:
+            self.scene = dataclasses.replace(self.scene, t_end=changes['t_end'])
+        new = self._params(self.scene.params, changes)
+        if new is not self.scene.params and self.diverged:
+            # stopped: take the parameters for the next reset, integrate nothing
+            self.scene = dataclasses.replace(self.scene, params=new)
+            self.model = make_model(self.scene.model, new)
+        elif new is not self.scene.params:
+            self._apply_params(new)
+        elif not self.diverged and any(k in changes for k in STEPPER_KEYS):
+            self._restart_stepper(self.stepper.y.copy())
+        now = self.clock()
+        if 'real_time_factor' in changes:
+            self.pacer.set_rtf(self.cfg['real_time_factor'], now)
+        self.pacer.max_catch_up = self.cfg['max_catch_up']
+        self.pacer.t_end = self._t_end()
+
+    def _apply_params(self, new: RotorParams) -> None:
+        """Switch to new parameters at the current state (module doc)."""
+        y_old = self.stepper.y.copy()
+        t = self.stepper.t
+        y = y_old.copy()
+        dOmega = new.Omega0 - self.model.params.Omega0
+        if dOmega:
+            self._field = (t, self._field_angle(t))
+            y[self.model.izd] -= dOmega
+        self.scene = dataclasses.replace(self.scene, params=new)
+        self.model = make_model(self.scene.model, new)
+        jump = self.baseline.rebase(self.model.energy, y, y_old)
+        self._restart_stepper(y)
+        self._log(Level.OK, f'parameters changed; E* jumped by {jump:.6g} J (residual '
+                            f'baseline moved with it); integrator {self.stepper.method}')
+
+    # -- ticks -------------------------------------------------------------------------------
+    def tick(self) -> SampleBlock | None:
+        """Advance to the pacer's target now; return the new good samples (None if none).
+
+        Never raises for a failure of the model or the integrator: that is a divergence.
+        """
+        if self.diverged:
+            return None
+        now = self.clock()
+        deadline = None if self.budget is None else now + self.budget
+        block = None
+        try:
+            samples = self.pacer.tick(now, deadline)
+            if samples:
+                block = self._block(samples)
+        except Exception as err:  # noqa: B902 -- the divergence guard
+            self._diverge(_describe(err))
+        self.pacer.end_tick(self.clock())
+        self._cuts = self._cuts + 1 if self.pacer.cut else 0
+        if self._cuts >= CUTS_TO_SWITCH and not self.diverged:
+            self._over_budget()
+        return block
+
+    def _over_budget(self) -> None:
+        """Switch to auto's method for the current parameters, or say that none is better."""
+        cur = self.stepper.method
+        t_end = self.scene.t_end if self.cfg['stop_at_t_end'] else math.inf
+        method, reason = resolve_method('auto', self.model.params, t_end)
+        what = (f'tick work budget {1e3 * self.budget:g} ms exceeded with {cur} at '
+                f't = {self.stepper.t:.6f} s')
+        if method.lower() != cur.lower():
+            self._auto = True
+            try:
+                self._restart_stepper(self.stepper.y.copy())
+            except Exception as err:  # noqa: B902 -- the divergence guard
+                return self._diverge(_describe(err))
+            self.switch = f'{what}: switched to {self.stepper.method} ({reason})'
+            self._switched = self.stepper
+            self._log(Level.WARN, self.switch)
+        elif self.stepper is not self._switched and \
+                not self.switch.startswith(what.split(' at t = ')[0]):
+            # (the method a switch chose keeps that message: its first ticks may be slow too)
+            self.switch = f"{what}: {cur} is auto's choice already; simulation time falls " \
+                          'behind real time'
+            self._log(Level.WARN, self.switch)
+
+    def _block(self, samples) -> SampleBlock | None:
+        """Derive every output of the samples; stop before the first one the guard rejects."""
+        m = self.model
+        p = m.params
+        n = len(samples)
+        t = np.fromiter((s.t for s in samples), float, n)
+        Y = np.array([s.y for s in samples])
+        with np.errstate(all='ignore'):
+            E = np.asarray(m.energy(Y), dtype=float)
+        D = Y[:, m.idiss]
+        resid = E + D - self.baseline.E_ref
+        bad = ~(np.isfinite(E) & (np.abs(resid) <= self.cfg['max_residual']))
+        n_good = int(np.argmax(bad)) if bad.any() else n
+        block = self._outputs(samples[:n_good], t[:n_good], Y[:n_good], E[:n_good],
+                              resid[:n_good], p) if n_good else None
+        if n_good < n:
+            self._diverge(f'energy-balance residual {resid[n_good]:.6g} J at t = '
+                          f'{t[n_good]:.6f} s exceeds max_residual '
+                          f'{self.cfg["max_residual"]:g} J (or E* is not finite)')
+        return block
+
+    def _outputs(self, samples, t, Y, E, resid, p: RotorParams) -> SampleBlock:
+        m = self.model
+        n = len(t)
+        q = m.quaternion(Y)
+        psi, theta, phi_M = euler_from_quaternion(q)
+        psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, m.body_rates(Y))
+        z, zdot = Y[:, m.iz], Y[:, m.izd]
+        t_c, a_c = self._field
+        field = a_c + p.Omega0 * (t - t_c)
+        diss = p.K_D * zdot * zdot
+        energy = {'t_sim': t, 'E_star': E, 'dE_dt': -diss, 'dissipation': diss,
+                  'residual': resid, 'z': z, 'zdot': zdot,
+                  'seq': np.arange(self.seq, self.seq + n, dtype=float), 'D': Y[:, m.idiss],
+                  'k': np.fromiter((s.k for s in samples), float, n)}
+        self.seq += n
+        self.last = (samples[-1].t, samples[-1].y)
+        return SampleBlock(
+            t=t, position=wrap_angles(np.column_stack([theta, psi, field + z + phi_M, phi_M])),
+            velocity=np.column_stack([thetadot, psidot, p.Omega0 + zdot + phi_M_dot,
+                                      phi_M_dot]),
+            effort=np.asarray(m.generalized_forces(Y), dtype=float), energy=energy,
+            quaternion=q[-1], axis=axis_from_quaternion(q[-1]))
+
+    # -- services ----------------------------------------------------------------------------
+    def reset(self) -> str:
+        """Start the scene again at t = 0 (also after a divergence); return a message."""
+        y0 = self.scene.initial_state(self.model)
+        self.start(y0)
+        self.pacer.set_rtf(self.cfg['real_time_factor'], self.clock())
+        return f"reset to scene '{self.scene.name}' at t = 0"
+
+    def perturb(self) -> str:
+        """Kick the state by :attr:`perturbation`; move E*'s baseline by the jump."""
+        if self.diverged:
+            raise ParameterError('diverged: reset first')
+        y_old = self.stepper.y.copy()
+        y = perturb_state(self.model, y_old, self.perturbation)
+        try:       # the new stepper first: a state the model cannot evaluate changes nothing
+            stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
+        except GyroRotorError:
+            raise
+        except Exception as err:  # noqa: B902 -- e.g. the model's singularity at theta = pi
+            raise ParameterError(f'kick refused: {_describe(err)}') from err
+        jump = self.baseline.rebase(self.model.energy, y, y_old)
+        self._use(stepper)
+        return (f'kicked at t = {self.stepper.t:.6f} s with {self.perturbation}; E* changed '
+                f'by {jump:.6g} J')
+
+    def pause(self, paused: bool) -> str:
+        """Hold (True) or continue (False) simulation time."""
+        if paused:
+            self.pacer.pause(self.clock())
+        else:
+            self.pacer.resume(self.clock())
+        return 'paused' if paused else 'running'
+
+    # -- reports -----------------------------------------------------------------------------
+    def _status(self, w) -> tuple[Level, str]:
+        rtf = self.pacer.rtf
+        qn = float(self.model.quaternion_norm_error(self.last[1]))
+        if self.diverged:
+            return Level.ERROR, f'diverged: {self.diverged}'
+        if self.pacer.paused:
+            return Level.OK, 'paused'
+        if self.pacer.finished:
+            return Level.OK, f'stopped at t_end = {self.scene.t_end:g} s'
+        if w.budget_cuts:
+            return Level.WARN, (f'cannot keep up: {w.budget_cuts} ticks cut by the work '
+                                f'budget, {w.lost_sim_time:.3f} s of simulation time lost; '
+                                f'{self.switch}')
+        if w.capped:
+            return Level.WARN, (f'cannot keep up: {w.capped} ticks capped, '
+                                f'{w.lost_sim_time:.3f} s of simulation time lost')
+        if rtf > 0 and w.ticks > 2 and w.achieved_rtf < 0.9 * rtf:
+            return Level.WARN, f'achieved real-time factor {w.achieved_rtf:.3f} < {rtf:g}'
+        if abs(qn) > 1e-6:
+            return Level.WARN, f'quaternion norm drift {qn:.3e}'
+        return Level.OK, 'running'
+
+    def diagnostics(self) -> tuple[Level, str, dict[str, Any]]:
+        """Return (level, message, values) over the window since the last call."""
+        w = self.pacer.take_window(self.clock())
+        self.last_window = w
+        y = self.last[1]
+        st = self.stepper
+        level, msg = self._status(w)
+        values = {
+            'scene': self.scene.name, 'model': self.model.name, 'integrator': st.method,
+            'rtol': getattr(st, 'rtol', ''), 'atol': getattr(st, 'atol', ''),
+            'step_size': getattr(st, 'h', ''), 't_sim': st.t,
+            'real_time_factor': self.pacer.rtf, 'achieved_rtf': w.achieved_rtf,
+            'overruns': w.overruns, 'overruns_total': self.pacer.overruns,
+            'capped_ticks': w.capped, 'capped_total': self.pacer.capped,
+            'budget_cuts': w.budget_cuts, 'budget_cuts_total': self.pacer.budget_cuts,
+            'tick_budget': '' if self.budget is None else self.budget,
+            'method_switch': self.switch,
+            'lost_sim_time_total': self.pacer.lost_sim_time,
+            'tick_interval_mean': w.interval_mean, 'tick_jitter_std': w.interval_std,
+            'tick_interval_max': w.interval_max, 'tick_busy_max': w.busy_max,
+            'integrator_reason': self.method_reason, 'nfev': st.nfev,
+            'quaternion_norm_error': float(self.model.quaternion_norm_error(y)),
+            'residual': self.baseline.residual(y), 'E_star': float(self.model.energy(y)),
+            'samples': self.seq, 'publish_rate': self.cfg['publish_rate'],
+            'paused': self.pacer.paused}
+        return level, msg, values
+
+    def scene_doc(self) -> dict[str, Any]:
+        """Return the current scene as a document (the node's ``~/scene``)."""
+        return {'scene': self.scene.name, 'model': self.scene.model,
+                't_end': self.scene.t_end, 'params': self.scene.params.to_mapping(),
+                'initial': self._initial_doc(), 'perturbation': self.perturbation,
+                'node': self.cfg, 'integrator': self.stepper.method, 't_sim': self.stepper.t,
+                'path': self.scene.path}
+
+    def _initial_doc(self) -> dict[str, Any]:
+        """Return the initial condition as ``initial.*`` keys without the prefix."""
+        ic = self.scene.initial
+        keys = (('mode', 'theta0', 'branch', *PERTURBATION_KEYS) if ic.mode == 'steady'
+                else ('mode', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'))
+        out = {}
+        for k in keys:
+            v = getattr(ic, k)
+            if v is None:
+                continue
+            if isinstance(v, (tuple, list, np.ndarray)):
+                v = [float(x) for x in v]
+            elif not isinstance(v, (bool, int, str)):
+                v = float(v)
+            out[k] = v
+        return out

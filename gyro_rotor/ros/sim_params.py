@@ -1,0 +1,154 @@
+"""The parameters of ``rotor_sim``: descriptors (documentation, ranges) and their checks.
+
+Every scene key is a parameter of the node (:data:`~gyro_rotor.core.scene.SCENE_KEYS` gives
+its type). They are declared with ``dynamic_typing`` so that a value of the wrong type
+reaches the node's own check, which names the parameter, the value and the expected type
+(rclpy's own refusal says only "Wrong parameter type"): at start-up a bad
+``--ros-args -p`` value is a :class:`~gyro_rotor.errors.ParameterError` (one ``ERROR:``
+line from the runner, exit status 1), live it is the refusal's reason. The ranges stay in
+the descriptors (``ros2 param describe`` shows them; rclpy enforces them for values of
+the right type).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
+from gyro_rotor.core.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, PERTURBATION_KEYS,
+                                   Scene, scene_from_mapping, SCENE_KEYS)
+from gyro_rotor.errors import GyroRotorError, ParameterError
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+__all__ = ['declare_parameters', 'type_error', 'PARAM_RANGES', 'NODE_RANGES', 'READ_ONLY']
+
+_BIG = 1e9
+#: ranges of the RotorParams fields (RotorParams validates the rest)
+PARAM_RANGES = {
+    'A_R': (0.0, 1e6), 'A_M': (0.0, 1e6), 'C_R': (0.0, 1e6), 'C_M': (0.0, 1e6),
+    'G': (0.0, 1e7), 's': (-100.0, 100.0), 'c_theta': (0.0, _BIG), 'c_psi': (0.0, _BIG),
+    'K_S': (0.0, _BIG), 'K_D': (0.0, _BIG), 'Omega0': (-1e5, 1e5), 'pole_pairs': (0, 64),
+}
+#: ranges of the node keys
+NODE_RANGES = {
+    'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
+    'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
+    'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, _BIG), 't_end': (1e-6, _BIG),
+}
+#: node keys that only take effect at start
+READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers'}
+_TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
+          str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
+_TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double',
+               Parameter.Type.INTEGER: 'an integer', Parameter.Type.BOOL: 'true or false',
+               Parameter.Type.STRING: 'a string',
+               Parameter.Type.DOUBLE_ARRAY: 'a list of doubles such as [1.0, 0.0]'}
+_INITIAL_DOC = {
+    'mode': 'initial condition: steady (on a steady motion) or body (quaternion, rates)',
+    'theta0': 'tilt of the steady motion [rad]', 'branch': 'steady motion: 0 = solution I, '
+    '1 = precession, 2 = nutation branch', 'dtheta': 'offset of theta [rad]',
+    'dthetadot': 'offset of thetadot [rad/s]', 'dpsidot': 'offset of psidot [rad/s]',
+    'dchi': 'offset of the twist chi [rad]', 'dz': 'offset of z [rad]',
+    'dzdot': 'offset of zdot [rad/s]', 'quaternion': 'stator quaternion [w, x, y, z]',
+    'omega_body': 'stator body rates [rad/s]', 'z': 'rotor lag z [rad]',
+    'zdot': 'rate of z [rad/s]', 'chi': 'twist chi [rad]',
+}
+_PERTURB_UNITS = {'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s', 'dchi': 'rad',
+                  'dz': 'rad', 'dzdot': 'rad/s'}
+
+
+def _range(name: str) -> tuple | None:
+    return PARAM_RANGES.get(name) or NODE_RANGES.get(name)
+
+
+def _expected(name: str) -> str:
+    """Describe the expected value of a parameter: its type and range."""
+    typ = _TYPES[SCENE_KEYS[name]]
+    rng = _range(name)
+    return _TYPE_NAMES[typ] + (f' in [{rng[0]:g}, {rng[1]:g}]' if rng else '')
+
+
+def type_error(param: Parameter) -> str | None:
+    """Return why a parameter of the node has the wrong type (None if its type is right)."""
+    expected = _TYPES[SCENE_KEYS[param.name]] if param.name in SCENE_KEYS else None
+    if expected is None or param.type_ == expected:
+        return None
+    hint = (f' (write {float(param.value)!r})' if expected == Parameter.Type.DOUBLE
+            and param.type_ == Parameter.Type.INTEGER else '')
+    return (f'parameter {param.name}: {param.value!r} ({param.type_.name.lower()}) is not '
+            f'{_expected(param.name)}{hint}')
+
+
+def _declare(node: Node, name: str, value, doc: str, read_only: bool = False):
+    """Declare one parameter (dynamic typing, see the module doc); return its value."""
+    d = ParameterDescriptor(name=name, description=doc, read_only=read_only,
+                            dynamic_typing=True)
+    rng = _range(name)
+    if rng and SCENE_KEYS[name] is float:
+        d.floating_point_range = [FloatingPointRange(from_value=float(rng[0]),
+                                                     to_value=float(rng[1]), step=0.0)]
+    elif rng:
+        d.integer_range = [IntegerRange(from_value=int(rng[0]), to_value=int(rng[1]), step=1)]
+    try:
+        param = node.declare_parameter(name, value, d)
+    except ParameterException as err:
+        given = getattr(node, '_parameter_overrides', {}).get(name)
+        shown = repr(given.value) if given is not None else '(the given value)'
+        raise ParameterError(f'parameter {name}: {shown} is out of range: expected '
+                             f'{_expected(name)}') from err
+    reason = type_error(param)
+    if reason:
+        raise ParameterError(reason)
+    return param.value
+
+
+def declare_parameters(node: Node) -> tuple[Scene, dict, dict]:
+    """Declare every parameter; return (scene, node keys, perturbation) as given at start."""
+    name = _declare(node, 'scene', DEFAULT_SCENE, 'scene name (config/<name>.yaml) or path '
+                    'to a scene file; loaded at start, the other parameters override it', True)
+    base = load_scene(name)
+    flat: dict = {'scene': base.name}
+    flat['description'] = _declare(node, 'description', base.description,
+                                   'what the scene shows', True)
+    flat['model'] = _declare(node, 'model', base.model, 'full | locked_housing | upright_axis',
+                             True)
+    flat['t_end'] = _declare(node, 't_end', base.t_end, 'scene duration [s] (the node stops '
+                             'there if stop_at_t_end)')
+    for f in PARAM_FIELDS:
+        flat[f] = _declare(node, f, getattr(base.params, f),
+                           f'{PARAM_DESCRIPTIONS[f]} [{PARAM_UNITS[f]}]; live')
+    ic = base.initial
+    mode = _declare(node, 'initial.mode', ic.mode, _INITIAL_DOC['mode'], True)
+    keys = (('theta0', 'branch', *PERTURBATION_KEYS) if mode == 'steady'
+            else ('quaternion', 'omega_body', 'z', 'zdot'))
+    flat['initial.mode'] = mode
+    if mode == 'body' and ic.chi is not None:
+        keys = (*keys, 'chi')
+    for k in keys:
+        v = getattr(ic, k)
+        v = [float(x) for x in v] if isinstance(v, tuple) else v
+        flat[f'initial.{k}'] = _declare(node, f'initial.{k}', v, _INITIAL_DOC[k] + (
+            '' if k == 'chi' else '; read at start and by ~/reset'), True)
+    for k in PERTURBATION_KEYS:
+        flat[f'perturbation.{k}'] = _declare(
+            node, f'perturbation.{k}', float(base.perturbation.get(k, 0.0)),
+            f'kick of ~/perturb [{_PERTURB_UNITS[k]}]; live')
+    for k, (typ, default, doc) in NODE_KEYS.items():
+        if k != 'use_sim_time':
+            flat[k] = _declare(node, k, base.node.get(k, default),
+                               doc + ('' if k in READ_ONLY else '; live'), k in READ_ONLY)
+    try:           # the scene file loaded: what fails now comes from the parameters
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            scene = scene_from_mapping(flat, strict_float=False)
+    except GyroRotorError as err:
+        raise ParameterError(f"parameters of scene '{base.name}': "
+                             f"{str(err).removeprefix('scene: ')}") from None
+    scene = dataclasses.replace(scene, path=base.path)
+    cfg = {k: flat[k] for k in NODE_KEYS if k != 'use_sim_time'}
+    perturbation = {k: flat[f'perturbation.{k}'] for k in PERTURBATION_KEYS}
+    return scene, cfg, perturbation

@@ -1,0 +1,222 @@
+"""Pure tests of gyro_rotor.numerics.live (no ROS): the simulation behind rotor_sim."""
+
+import math
+import subprocess
+import sys
+import time
+
+from gyro_rotor.core.model import drive_torque
+from gyro_rotor.core.scene import load_scene, NODE_KEYS
+from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.numerics.live import ENERGY_COLUMNS, Level, LiveSimulation, wrap_angles
+from gyro_rotor.numerics.realtime import resolve_method
+import numpy as np
+import pytest
+
+RATE = 250.0
+
+
+class FakeClock:
+    """A steady clock the test moves by hand."""
+
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+
+def make_sim(clock=None, budget=None, **cfg):
+    scene = load_scene('precession')
+    base = {k: scene.node.get(k, spec[1]) for k, spec in NODE_KEYS.items()
+            if k != 'use_sim_time'}
+    base.update({'publish_rate': RATE, 'real_time_factor': 1.0, **cfg})
+    events = []
+    sim = LiveSimulation(scene, base, scene.perturbation, budget=budget,
+                         clock=clock or FakeClock(), log=lambda lv, text: events.append((lv,
+                                                                                        text)))
+    return sim, events
+
+
+def run_ticks(sim, clock, n, dt=0.02):
+    blocks = []
+    for _ in range(n):
+        clock.now += dt
+        b = sim.tick()
+        if b is not None:
+            blocks.append(b)
+    return blocks
+
+
+def test_sample_block_carries_every_derived_output_as_arrays():
+    clock = FakeClock()
+    sim, _ = make_sim(clock)
+    blocks = run_ticks(sim, clock, 11)
+    E = {c: np.concatenate([b.energy[c] for b in blocks]) for c in ENERGY_COLUMNS}
+    t = np.concatenate([b.t for b in blocks])
+    n = len(t)
+    assert n == 51                                       # t = 0 .. 0.2 s at 250 Hz, each once
+    np.testing.assert_array_equal(E['k'], np.arange(n))
+    np.testing.assert_array_equal(E['seq'], np.arange(n))
+    np.testing.assert_array_equal(E['t_sim'], E['k'] / RATE)
+    p = sim.scene.params
+    np.testing.assert_allclose(E['dissipation'], p.K_D * E['zdot'] ** 2, rtol=1e-15)
+    np.testing.assert_array_equal(E['dE_dt'], -E['dissipation'])
+    assert np.max(np.abs(E['residual'])) < 1e-8           # eq. 17: E* + D is conserved
+    assert np.all(np.diff(E['E_star']) <= 1e-10)
+    # joints: the model's own outputs at the same states (angles wrapped to (-pi, pi])
+    last = blocks[-1]
+    out = sim.model.outputs(last.t, np.array([sim.last[1]]))
+    assert last.t[-1] == sim.last[0]
+    np.testing.assert_allclose(last.position[-1, [0, 1, 3]],
+                               wrap_angles(np.array([out['theta'][0], out['psi'][0],
+                                                     out['phi_M'][0]])), atol=1e-12)
+    np.testing.assert_allclose(last.velocity[-1, [0, 1, 3]],
+                               [out['thetadot'][0], out['psidot'][0], out['phi_M_dot'][0]],
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(last.effort[:, 2], drive_torque(p, last.energy['z'],
+                                                               last.energy['zdot']), rtol=1e-12)
+    np.testing.assert_allclose(last.axis, out['axis'][0], atol=1e-12)
+    pos = np.concatenate([b.position for b in blocks])
+    assert np.all(pos > -math.pi) and np.all(pos <= math.pi)
+    assert wrap_angles(np.array([-math.pi, 3 * math.pi]))[0] == math.pi
+
+
+def test_parameter_changes_are_checked_then_applied_with_the_baseline_moved():
+    clock = FakeClock()
+    sim, _ = make_sim(clock)
+    run_ticks(sim, clock, 5)
+    before, stepper = sim.scene.params, sim.stepper
+    for bad in ({'K_D': -1.0}, {'A_R': 0.0}, {'integrator': 'euler'}, {'rtol': -1.0}):
+        with pytest.raises(GyroRotorError):
+            sim.check(bad)
+    assert sim.scene.params == before and sim.stepper is stepper
+    y, E_ref = sim.stepper.y.copy(), sim.baseline.E_ref
+    sim.check({'K_S': 40.0})
+    sim.apply({'K_S': 40.0})
+    assert sim.model.params.K_S == 40.0
+    assert sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
+                                                       abs=1e-15)
+    zdot = sim.stepper.y[8]
+    sim.apply({'Omega0': 320.0})                      # the rotor keeps its absolute spin
+    assert sim.stepper.y[8] == pytest.approx(zdot - (320.0 - before.Omega0))
+    blocks = run_ticks(sim, clock, 5)
+    assert max(np.max(np.abs(b.energy['residual'])) for b in blocks) < 1e-8
+
+
+def test_residual_guard_stops_keeps_the_last_good_state_and_reset_recovers():
+    clock = FakeClock()
+    sim, events = make_sim(clock)
+    run_ticks(sim, clock, 3)
+    sim.apply({'max_residual': 0.0})
+    run_ticks(sim, clock, 3)
+    assert sim.diverged and 'residual' in sim.diverged
+    t_stop, y_stop = sim.last
+    assert run_ticks(sim, clock, 3) == [] and sim.last[0] == t_stop
+    level, msg, values = sim.diagnostics()
+    assert level == Level.ERROR and msg.startswith('diverged')
+    assert events[-1][0] == Level.ERROR and f'{t_stop:.6f}' in events[-1][1]
+    sim.apply({'max_residual': 1.0})
+    assert sim.reset().startswith('reset')
+    assert sim.diverged is None and run_ticks(sim, clock, 2)
+
+
+def test_any_exception_of_the_integrator_is_caught_by_the_guard(monkeypatch):
+    """Issue 12: a ZeroDivisionError out of the compiled RHS crashed the node's timer."""
+    clock = FakeClock()
+    sim, events = make_sim(clock)
+    run_ticks(sim, clock, 3)
+    t_good, y_good = sim.last[0], sim.last[1].copy()
+
+    def divide(t, deadline=None):
+        raise ZeroDivisionError('division by zero')
+    monkeypatch.setattr(sim.stepper, 'advance_to', divide)
+    assert run_ticks(sim, clock, 2) == []              # no exception out of tick()
+    assert 'ZeroDivisionError' in sim.diverged
+    assert sim.last[0] == t_good and np.array_equal(sim.last[1], y_good)
+    level, msg, _ = sim.diagnostics()
+    assert level == Level.ERROR and 'ZeroDivisionError' in msg
+    with pytest.raises(GyroRotorError, match='reset first'):
+        sim.perturb()
+    sim.reset()
+    assert sim.diverged is None and run_ticks(sim, clock, 2)
+
+
+def test_a_real_blow_up_is_a_divergence_not_an_exception():
+    """rk4 with a 4 ms step on K_S = 1e8 (the flaky node test) ends as a divergence."""
+    clock = FakeClock()
+    sim, _ = make_sim(clock)
+    run_ticks(sim, clock, 3)
+    for change in ({'integrator': 'rk4'}, {'step_size': 0.004}, {'K_S': 1e8}):
+        sim.check(change)
+        sim.apply(change)
+    run_ticks(sim, clock, 20)
+    assert sim.diverged
+    assert np.all(np.isfinite(sim.last[1]))
+
+
+def test_work_budget_switches_to_autos_method_and_says_so():
+    # a deadline already past: every tick is cut after its first step (as fast as possible:
+    # each tick has a chunk of work whatever the clock)
+    sim, events = make_sim(time.monotonic, budget=-1.0, integrator='dop853',
+                           real_time_factor=0.0)
+    sim.tick()
+    assert sim.pacer.cut and sim.switch == ''       # one cut may be a kernel's first load
+    sim.tick()
+    assert sim.pacer.cut and sim.stepper.method == 'dop853'   # dop853 is auto's choice here
+    assert "auto's choice already" in sim.switch
+    sim.check({'K_D': 1e5})
+    sim.apply({'K_D': 1e5})                         # stiff: the drive damping root 1.5e7 1/s
+    assert sim.stepper.method == 'dop853'           # the user's method, until it is too slow
+    t0 = sim.stepper.t
+    sim.tick()
+    assert sim.stepper.method == 'dop853'
+    sim.tick()
+    auto, reason = resolve_method('auto', sim.model.params)
+    assert auto != 'dop853' and sim.stepper.method == auto      # rodas4 today
+    assert sim.stepper.t > t0                       # the cut tick made progress
+    assert f'switched to {auto} ({reason})' in sim.switch
+    assert (Level.WARN, sim.switch) in events
+    level, msg, values = sim.diagnostics()
+    assert level == Level.WARN and 'work budget' in msg and f'switched to {auto}' in msg
+    assert values['integrator'] == auto and values['budget_cuts'] == 4
+    assert values['integrator_reason'].startswith('work budget')
+    sim.apply({'real_time_factor': 2.0})            # a restart keeps auto's method ...
+    sim.perturb()
+    assert sim.stepper.method == auto
+    sim.check({'integrator': 'rk4'})
+    sim.apply({'integrator': 'rk4'})                # ... until the user picks one again
+    assert sim.stepper.method == 'rk4'
+
+
+def test_budget_cut_keeps_the_grid_whole():
+    """Cut ticks lose simulation time, never a sample: k runs on without gaps."""
+    sim, _ = make_sim(time.monotonic, budget=-1.0, real_time_factor=0.0)
+    ks = []
+    for _ in range(400):
+        b = sim.tick()
+        if b is not None:
+            ks += b.energy['k'].tolist()
+    assert sim.pacer.budget_cuts > 0 and len(ks) > 2
+    np.testing.assert_array_equal(ks, np.arange(len(ks)))
+
+
+def test_live_does_not_import_rclpy():
+    code = 'import sys, gyro_rotor.numerics.live; assert "rclpy" not in sys.modules'
+    subprocess.run([sys.executable, '-c', code], check=True)
+
+
+def test_a_kick_the_model_cannot_evaluate_is_refused_and_changes_nothing():
+    """The full model's right-hand side divides by 1 + cos(theta): zero with the axis down."""
+    clock = FakeClock()
+    sim, _ = make_sim(clock)
+    run_ticks(sim, clock, 3)
+    from gyro_rotor.core.rotations import euler_from_quaternion
+    theta = float(euler_from_quaternion(sim.model.quaternion(sim.stepper.y))[1])
+    sim.apply({'perturbation.dtheta': math.pi - theta})
+    y, E_ref, stepper = sim.stepper.y.copy(), sim.baseline.E_ref, sim.stepper
+    with pytest.raises(GyroRotorError, match='kick refused: ZeroDivisionError'):
+        sim.perturb()
+    assert sim.stepper is stepper and np.array_equal(sim.stepper.y, y)
+    assert sim.baseline.E_ref == E_ref and sim.diverged is None
+    assert run_ticks(sim, clock, 2)

@@ -1,0 +1,204 @@
+"""Sweeps on Dask (gyro_rotor.analysis.sweep, ``gyro-rotor sweep``): same numbers everywhere.
+
+Serial in-process and a LocalCluster of 2 worker processes give identical results; a
+worker killed mid-sweep costs nothing (every point exactly once, the same numbers);
+``--resume`` computes only the missing blocks; bad grids are refused before any work.
+"""
+
+import os
+import signal
+
+from gyro_rotor.analysis.sweep.metrics import PointStatus, well_passages
+from gyro_rotor.analysis.sweep.runner import Executor, run_sweep
+from gyro_rotor.analysis.sweep.store import SweepStore
+from gyro_rotor.analysis.sweep.task import make_spec, run_block
+from gyro_rotor.cli.main import main
+import numpy as np
+import pytest
+
+GRID = ['initial.dzdot=-150:150:12', 'K_D=0.02:0.2:2:log']
+METRIC_COLS = ('final_well', 'pole_slips', 'settling_time', 'peak_deviation', 'decay_rate',
+               'final_E_star', 'spectral_abscissa')
+
+
+def _spec(block=4):
+    return make_spec('pole_slip', GRID, t_end=0.4, rate=100.0, block_size=block)
+
+
+def _columns(out):
+    t = SweepStore(out).read()
+    return {c: t.column(c).to_numpy(zero_copy_only=False) for c in t.column_names}
+
+
+def _assert_same(a, b):
+    assert set(a) == set(b)
+    for c in METRIC_COLS + ('initial.dzdot', 'K_D'):
+        x, y = np.asarray(a[c], dtype=float), np.asarray(b[c], dtype=float)
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=0.0, equal_nan=True, err_msg=c)
+    np.testing.assert_array_equal(a['status'], b['status'])
+
+
+@pytest.fixture(scope='module')
+def serial_result(tmp_path_factory):
+    out = tmp_path_factory.mktemp('serial') / 'sweep'
+    r = run_sweep(_spec(), out, executor=Executor.SERIAL)
+    assert r.blocks_run == list(range(6)) and r.points_run == 24
+    return _columns(out)
+
+
+@pytest.fixture(scope='module')
+def cluster2():
+    distributed = pytest.importorskip('distributed')
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=':0') as cluster:
+        with distributed.Client(cluster) as client:
+            yield client
+
+
+def test_serial_result_is_a_pull_in_map(serial_result):
+    """Every point once, all OK; slow initial slips stay in well 0, fast ones slip poles."""
+    np.testing.assert_array_equal(serial_result['point'], np.arange(24))
+    assert np.all(serial_result['status'] == PointStatus.OK)
+    slow = np.abs(serial_result['initial.dzdot']) < 20
+    fast = np.abs(serial_result['initial.dzdot']) > 100
+    assert np.all(serial_result['final_well'][slow] == 0)
+    assert np.all(serial_result['pole_slips'][fast] >= 3)
+    # the sign of the initial slip decides the direction of the slips
+    dz = serial_result['initial.dzdot'][fast]
+    assert np.all(np.sign(serial_result['final_well'][fast]) == np.sign(dz))
+
+
+def test_serial_and_local_cluster_agree(serial_result, cluster2, tmp_path):
+    """2 worker processes, by client or by address, give the serial numbers (to 1e-12)."""
+    r = run_sweep(_spec(), tmp_path / 'dask', executor=Executor.LOCAL, client=cluster2)
+    assert r.workers == 2 and sorted(r.blocks_run) == list(range(6))
+    _assert_same(serial_result, _columns(tmp_path / 'dask'))
+    # the same cluster reached by its address, as --scheduler ADDRESS does
+    r = run_sweep(_spec(), tmp_path / 'addr', executor=Executor.ADDRESS,
+                  scheduler=cluster2.scheduler.address)
+    assert r.workers == 2 and sorted(r.blocks_run) == list(range(6))
+    _assert_same(serial_result, _columns(tmp_path / 'addr'))
+
+
+def test_worker_killed_mid_sweep(serial_result, tmp_path):
+    """SIGKILL a worker that is running a block: the scheduler reruns it; each point once."""
+    distributed = pytest.importorskip('distributed')
+    killed = []
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=':0') as cluster, \
+            distributed.Client(cluster) as client:
+        def kill_one(res):
+            if killed:
+                return
+            busy = [w for w, keys in client.processing().items() if keys]
+            assert busy, 'no block in flight to kill'
+            pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+            os.kill(pid, signal.SIGKILL)
+            killed.append((busy[0], pid, list(client.processing()[busy[0]])))
+        r = run_sweep(_spec(block=2), tmp_path / 'killed', executor=Executor.LOCAL,
+                      client=client, on_block=kill_one)
+    assert killed and killed[0][2], 'the killed worker had no task'
+    with pytest.raises(ProcessLookupError):
+        os.kill(killed[0][1], 0)
+    assert sorted(r.blocks_run) == list(range(12))       # each block written once
+    got = _columns(tmp_path / 'killed')
+    np.testing.assert_array_equal(got['point'], np.arange(24))
+    _assert_same(serial_result, got)
+
+
+def test_resume_computes_only_missing_blocks(serial_result, tmp_path):
+    """Interrupt after 2 blocks; --resume runs exactly the other 4; the result is complete."""
+    out = tmp_path / 'resume'
+
+    class Stop(Exception):
+        pass
+
+    first = []
+
+    def stop_after_two(res):
+        first.append(res.block)
+        if len(first) == 2:
+            raise Stop
+    with pytest.raises(Stop):
+        run_sweep(_spec(), out, executor=Executor.SERIAL, on_block=stop_after_two)
+    assert SweepStore(out).done_blocks(_spec()) == set(first)
+    r = run_sweep(_spec(), out, executor=Executor.SERIAL, resume=True)
+    assert r.blocks_skipped == 2
+    assert sorted(r.blocks_run) == sorted(set(range(6)) - set(first))
+    _assert_same(serial_result, _columns(out))
+    # a complete sweep resumed computes nothing
+    assert run_sweep(_spec(), out, executor=Executor.SERIAL, resume=True).blocks_run == []
+
+
+def test_cli_resume_and_refusals(tmp_path, capsys):
+    """The command: a sweep, the refusal to overwrite it, --resume with nothing to do."""
+    out = str(tmp_path / 'cli')
+    args = ['sweep', 'pole_slip', '--grid', 'initial.dzdot=-100:100:4', '--t-end', '0.2',
+            '--out', out, '--serial', '--metrics', 'well,peak', '--quiet']
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert '4/4 points' in text and (tmp_path / 'cli' / 'maps' / 'final_well.png').is_file()
+    assert main(args) == 1
+    assert 'already holds a sweep' in capsys.readouterr().err
+    assert main(args + ['--resume']) == 0
+    assert '0 blocks run, 1 already there' in capsys.readouterr().out
+    changed = [a if a != '0.2' else '0.3' for a in args]
+    assert main(changed + ['--resume']) == 1
+    assert 'differs in t_end' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('grid, message', [
+    ('K_D=0.1:0.1:5', 'empty range'),
+    ('K_D=0.1:1:0', 'empty range'),
+    ('K_X=0:1:3', "unknown key 'K_X'"),
+    ('K_D=0:1:-3', 'COUNT must be positive'),
+    ('K_D=-1:1:3', 'K_D = -1 is refused'),
+    ('A_R=0:0.1:3', 'A_R = 0 is refused'),
+    ('t_end=1:2:3', 'cannot be swept'),
+    ('pole_pairs=1:2:3', 'takes integers'),
+    ('K_D=1e-3:1:3:log2', "spacing must be 'lin' or 'log'"),
+    ('K_D=0:1:3:log', 'log axis'),
+    ('K_D=a:1:3', 'is not a number'),
+    ('K_D', 'KEY=START:STOP:COUNT'),
+])
+def test_bad_grid_is_an_error_before_any_work(grid, message, tmp_path, capsys):
+    """One ERROR line naming the problem, exit status 1, nothing written."""
+    out = tmp_path / 'never'
+    assert main(['sweep', 'pole_slip', '--grid', grid, '--out', str(out), '--serial']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and message in err and err.count('\n') == 1, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize('extra, message', [
+    (['--metrics', 'well,speed'], "unknown metric 'speed'"),
+    (['--workers', '0'], '--workers must be positive'),
+    (['--t-end', '-1'], '--t-end must be positive'),
+])
+def test_bad_options_are_errors_before_any_work(extra, message, tmp_path, capsys):
+    """Bad --metrics, --workers, --t-end: one ERROR line, exit 1, nothing written."""
+    out = tmp_path / 'never'
+    assert main(['sweep', 'pole_slip', '--grid', 'K_D=0.1:1:3', '--out', str(out)]
+                + extra) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and message in err and err.count('\n') == 1, err
+    assert not out.exists()
+
+
+def test_scene_initial_condition_matches_simulate():
+    """The sweep point at the pole_slip scene's own initial slip slips as simulate says."""
+    from gyro_rotor.numerics.simulate import simulate
+    spec = make_spec('pole_slip', ['initial.dzdot=-60:-60:1'], metrics=['well'])
+    res = run_block(spec, 0).columns
+    tr = simulate('pole_slip')
+    p = tr.scene.params.pole_pairs
+    well_sim = int(round(tr.z[-1] * p / (2 * np.pi)))
+    assert well_sim == -3                                  # the reference of the README
+    assert res['final_well'][0] == well_sim
+    assert res['pole_slips'][0] == well_passages(tr.z * p / (2 * np.pi)) == 3
+
+
+def test_well_passages_counts_with_hysteresis():
+    """Jitter on a maximum counts nothing; a jump over two wells between samples counts 2."""
+    u = np.array([0.0, 0.3, 0.5, 0.45, 0.55, 0.49, 0.2, 0.0, 0.9, 1.1, 3.05, 2.5, 2.1])
+    assert well_passages(u) == 1 + 2 + 1
