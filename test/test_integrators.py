@@ -234,3 +234,35 @@ def test_failed_solver_refuses_to_step():
         s.step()
     r = integrate(m, y0, (0, 1.0), None, 'gauss6', step=0.01)
     assert not r.success and r.status == -4
+
+
+# -- failures end the run ----------------------------------------------------------------------
+@pytest.mark.parametrize('method', list(METHODS))
+@pytest.mark.parametrize('fault', ['axis_down', 'nan_parameter'])
+def test_each_compiled_method_ends_on_a_non_finite_right_hand_side(method, fault):
+    """A right-hand side that is NaN or inf (no exception: numpy's error model) ends the run.
+
+    The axis straight down (theta = pi) divides by zero in the model; a NaN parameter makes
+    every derivative NaN. Either way each compiled loop returns 'non-finite' (-2) at once,
+    instead of rejecting NaN steps forever.
+    """
+    _, m, y0 = _setup('precession')
+    if fault == 'axis_down':
+        y0 = y0.copy()
+        y0[:4] = (0.0, 1.0, 0.0, 0.0)
+    solver = make_integrator(method, m, y0, 0.0, 1.0)
+    if fault == 'nan_parameter':
+        solver.P[1] = np.nan            # C_R of kernels.pack_params
+    r = solver.run(np.linspace(0.0, 1.0, 3))
+    assert r.status == -2 and not r.success, (r.status, r.message)
+    assert r.t[-1] == 0.0 and np.all(np.isfinite(r.y))
+
+
+@pytest.mark.parametrize('method', [m for m in METHODS if m != 'split8'])   # exact sub-flows
+def test_each_method_ends_when_its_steps_overflow(method):
+    """Stages that overflow give a non-finite error norm: the run ends with a failure status."""
+    _, m, y0 = _setup('precession')
+    y0 = y0.copy()
+    y0[4:7] = 1e150                     # body rates whose squares overflow
+    r = make_integrator(method, m, y0, 0.0, 1.0).run(np.linspace(0.0, 1.0, 3))
+    assert r.status < 0 and not r.success, (r.status, r.message)

@@ -176,11 +176,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     y0 : ndarray, optional
         Initial state instead of the scene's.
     """
-    if isinstance(scene, Scene):
-        if overrides:
-            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
-    else:
-        scene = load_scene(scene, overrides=overrides)
+    scene = _load(scene, overrides)
     t_end = scene.t_end if t_end is None else float(t_end)
     if not (np.isfinite(t_end) and t_end > 0):
         raise ParameterError(f't_end must be positive and finite, got {t_end!r}')
@@ -199,6 +195,31 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
     if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
         raise ParameterError(f'the initial state must be {model.n} finite numbers')
+    t_eval = _sample_times(t_end, rate)
+    if method in METHODS:
+        run = _run_own(model, y_init, t_eval, method, rtol, atol, step)
+    else:
+        run = _run_scipy(scene, model, y_init, t_eval, method, rtol, atol)
+    if run.status < 0 or not np.all(np.isfinite(run.y)):
+        raise IntegrationError(_failure(scene, model, method, run))
+    return Trajectory(scene=scene, model=model, t=run.t, y=run.y,
+                      out=model.outputs(run.t, run.y), method=method, rtol=run.rtol,
+                      atol=run.atol, nfev=int(run.nfev), nsteps=int(run.nsteps),
+                      wall_time=run.wall, success=True, message=run.message,
+                      method_reason=reason, step=run.step)
+
+
+def _load(scene: Scene | str, overrides: Mapping[str, Any] | None) -> Scene:
+    """The scene itself, or the one loaded from a name or path (with ``overrides``)."""
+    if isinstance(scene, Scene):
+        if overrides:
+            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
+        return scene
+    return load_scene(scene, overrides=overrides)
+
+
+def _sample_times(t_end: float, rate: float) -> np.ndarray:
+    """Sample times 0, 1/rate, ... and t_end itself."""
     if t_end * rate > MAX_SAMPLES:
         raise ParameterError(f't_end x rate = {t_end * rate:.3g} samples is more than '
                              f'{MAX_SAMPLES:g}: lower --rate or --t-end')
@@ -206,42 +227,70 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     t_eval = np.arange(n + 1) / rate
     if t_eval[-1] < t_end - 1e-12:
         t_eval = np.append(t_eval, t_end)
+    return t_eval
+
+
+@dataclasses.dataclass
+class _Run:
+    """What one integrator run gave: samples, counts, status and the setting it used."""
+
+    t: np.ndarray
+    y: np.ndarray
+    nfev: int
+    nsteps: int
+    status: int
+    message: str
+    wall: float
+    rtol: float | None
+    atol: float | None
+    step: float | None = None
+
+
+def _run_own(model: Model, y_init: np.ndarray, t_eval: np.ndarray, method: str,
+             rtol: float, atol: float, step: float | None) -> _Run:
+    """Run one of gyro_rotor's compiled integrators (their failures come as a status)."""
     t0 = time.perf_counter()
-    used_step = None
-    if method in METHODS:
-        try:
-            solver = make_integrator(method, model, y_init, 0.0, t_end, rtol=rtol, atol=atol,
-                                     step=step)
-            res = solver.run(t_eval)
-        except ZeroDivisionError as err:
-            raise IntegrationError(
-                f'integration of scene {scene.name} failed: the axis reached theta = pi '
-                f'(pointing straight down), where the model is singular ({err})') from err
-        wall = time.perf_counter() - t0
-        t_s, Y, nfev, nsteps = res.t, res.y, res.nfev, res.nsteps
-        status, message = res.status, res.message
-        if not solver.adaptive:
-            used_step = solver.h
-            if not solver.step_from_tolerance or step is not None:
-                rtol = atol = None      # rk4, rk8, gauss6 do not use tolerances
-    else:
-        from scipy.integrate import solve_ivp
-        try:
-            sol = solve_ivp(model.rhs, (0.0, t_end), y_init, method=method, t_eval=t_eval,
-                            rtol=rtol, atol=atol)
-        except ValueError as err:
-            raise ParameterError(f'integrator {method}: {err}') from err
-        except ZeroDivisionError as err:
-            raise IntegrationError(
-                f'integration of scene {scene.name} failed: the axis reached theta = pi '
-                f'(pointing straight down), where the model is singular ({err})') from err
-        wall = time.perf_counter() - t0
-        t_s, Y, nfev, nsteps = sol.t, sol.y.T, int(sol.nfev), 0
-        status, message = sol.status, sol.message
-    if status < 0 or not np.all(np.isfinite(Y)):
-        raise IntegrationError(f'integration of scene {scene.name} with {method} failed at '
-                               f't = {t_s[-1] if t_s.size else 0.0}: {message}')
-    return Trajectory(scene=scene, model=model, t=t_s, y=Y, out=model.outputs(t_s, Y),
-                      method=method, rtol=rtol, atol=atol, nfev=int(nfev), nsteps=int(nsteps),
-                      wall_time=wall, success=True, message=message, method_reason=reason,
-                      step=used_step)
+    solver = make_integrator(method, model, y_init, 0.0, float(t_eval[-1]), rtol=rtol,
+                             atol=atol, step=step)
+    res = solver.run(t_eval)
+    run = _Run(res.t, res.y, res.nfev, res.nsteps, res.status, res.message,
+               time.perf_counter() - t0, rtol, atol)
+    if not solver.adaptive:
+        run.step = solver.h
+        if not solver.step_from_tolerance or step is not None:
+            run.rtol = run.atol = None      # rk4, rk8, gauss6 do not use tolerances
+    return run
+
+
+def _run_scipy(scene: Scene, model: Model, y_init: np.ndarray, t_eval: np.ndarray,
+               method: str, rtol: float, atol: float) -> _Run:
+    """Run scipy's ``solve_ivp`` (a baseline) on the model's plain right-hand side."""
+    from scipy.integrate import solve_ivp
+    t0 = time.perf_counter()
+    try:
+        sol = solve_ivp(model.rhs, (0.0, float(t_eval[-1])), y_init, method=method,
+                        t_eval=t_eval, rtol=rtol, atol=atol)
+    except ValueError as err:
+        raise ParameterError(f'integrator {method}: {err}') from err
+    except ZeroDivisionError as err:
+        raise IntegrationError(f'integration of scene {scene.name} failed: {AXIS_DOWN} '
+                               f'({err})') from err
+    return _Run(sol.t, sol.y.T, int(sol.nfev), 0, sol.status, sol.message,
+                time.perf_counter() - t0, rtol, atol)
+
+
+#: why a run can fail at a finite state: the one singular orientation of the model
+AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
+
+
+def _failure(scene: Scene, model: Model, method: str, run: _Run) -> str:
+    """The error text of a failed run, naming theta = pi where the axis points down."""
+    good = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
+    t_fail = run.t[-1] if run.t.size else 0.0
+    text = f'integration of scene {scene.name} with {method} failed at t = {t_fail}'
+    if np.any(good):
+        k = int(np.flatnonzero(good)[-1])
+        theta = model.outputs(run.t[k:k + 1], run.y[k:k + 1])['theta'][0]
+        if np.pi - abs(theta) < 1e-6:
+            return f'{text}: {AXIS_DOWN}; {run.message}'
+    return f'{text}: {run.message}'

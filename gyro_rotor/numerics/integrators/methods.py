@@ -130,7 +130,7 @@ class DOP853(Integrator):
             self.nfev += 1
         h = min(self._h_next, self.h_max)
         while True:
-            if h < 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):
+            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
                 return False, STATUS_MESSAGES[-1]
             clipped = self.t + h >= t_limit
             if clipped:
@@ -261,7 +261,7 @@ class Rodas4(Integrator):
         self.njev += 1
         h = min(self._h_next, self.h_max)
         while True:
-            if h < 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):
+            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
                 return False, STATUS_MESSAGES[-1]
             clipped = self.t + h >= t_limit
             h_try = t_limit - self.t if clipped else h

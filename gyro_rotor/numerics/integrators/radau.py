@@ -198,9 +198,9 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         h = initial_step(kind, P, y, f, rtol, atol, 5, h_max, ytmp, ftmp)
         nfev += 1
     h_old = 0.0
-    status = OK
-    while t < t_end:
-        if h < 10.0 * abs(math.nextafter(t, math.inf) - t):
+    status = OK if _all_finite(f) else NONFINITE
+    while status == OK and t < t_end:
+        if not h >= 10.0 * abs(math.nextafter(t, math.inf) - t):   # also a NaN step
             status = UNDERFLOW
             break
         if h > h_max:

@@ -34,7 +34,7 @@ from gyro_rotor.numerics.integrators.kernels import _all_finite, BUDGET, njit, N
 __all__ = ['kick', 'drift', 'composed_step', 'split_run']
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def kick(P, y, t):
     """Advance the state by the flow of the torques over ``t`` (module doc), in place."""
     I_ = P[0]
@@ -68,7 +68,7 @@ def kick(P, y, t):
     y[8] = zd_new
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def drift(P, y, t):
     """Advance the state by the exact free-gyrostat flow over ``t`` (module doc), in place."""
     I_ = P[0]
@@ -129,7 +129,7 @@ def drift(P, y, t):
     y[7] += y[8] * t
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def composed_step(P, y, h, W):
     """One step of the composition of Strang steps with fractions ``W`` (adjacent kicks merged)."""
     s = W.shape[0]
@@ -141,7 +141,7 @@ def composed_step(P, y, h, W):
     kick(P, y, 0.5 * W[s - 1] * h)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def split_run(P, y0, t0, t_eval, h_max, W, max_steps, Y_out, counts):
     """Fixed-step composition through the sample times (as the other fixed-step runs).
 
