@@ -266,3 +266,20 @@ def test_each_method_ends_when_its_steps_overflow(method):
     y0[4:7] = 1e150                     # body rates whose squares overflow
     r = make_integrator(method, m, y0, 0.0, 1.0).run(np.linspace(0.0, 1.0, 3))
     assert r.status < 0 and not r.success, (r.status, r.message)
+
+
+@pytest.mark.parametrize('method', ['dop853', 'rodas4', 'radau9'])
+def test_step_by_step_takes_the_steps_of_the_compiled_run(method):
+    """advance_to (one step per call, as the live node steps) grows the step like run().
+
+    radau9 steps by one-step runs of its compiled loop; the loop kept the step it had
+    before the step-size update when it stopped at its step budget, so the live node
+    crawled at its first tiny step after a stiff change (issue 12's live K_D = 1e5).
+    """
+    _, m, y0 = _setup('precession', K_D=1e5)
+    T = 0.05
+    whole = make_integrator(method, m, y0, 0.0, T)
+    assert whole.run(np.array([0.0, T])).success
+    stepwise = make_integrator(method, m, y0, 0.0, T)
+    assert stepwise.advance_to(T) == 'finished'
+    assert stepwise.nsteps <= 2 * whole.nsteps + 5, (stepwise.nsteps, whole.nsteps)

@@ -95,8 +95,11 @@ def _check_finite(t: float, y: np.ndarray, method: str) -> None:
 
 
 def _check_rhs(t: float, f: np.ndarray, method: str) -> None:
-    """Refuse a start where the right-hand side is not finite (the compiled kernels, with
-    numpy's error model, give inf or NaN where the model divides by zero: theta = pi)."""
+    """Refuse a start where the right-hand side is not finite.
+
+    The compiled kernels (numpy's error model) give inf or NaN where the model divides by
+    zero (the axis at theta = pi) instead of raising.
+    """
     if not np.all(np.isfinite(f)):
         raise IntegrationError(f'{method}: the right-hand side is not finite at t = {t:.9g} s '
                                '(a state the model cannot evaluate, e.g. the axis at '

@@ -210,7 +210,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
 
 
 def _load(scene: Scene | str, overrides: Mapping[str, Any] | None) -> Scene:
-    """The scene itself, or the one loaded from a name or path (with ``overrides``)."""
+    """Return the scene itself, or the one loaded from a name or path (with ``overrides``)."""
     if isinstance(scene, Scene):
         if overrides:
             raise ParameterError('overrides need a scene name or path, not a loaded Scene')
@@ -284,7 +284,7 @@ AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the mod
 
 
 def _failure(scene: Scene, model: Model, method: str, run: _Run) -> str:
-    """The error text of a failed run, naming theta = pi where the axis points down."""
+    """Return the error text of a failed run, naming theta = pi where the axis points down."""
     good = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
     t_fail = run.t[-1] if run.t.size else 0.0
     text = f'integration of scene {scene.name} with {method} failed at t = {t_fail}'

@@ -266,11 +266,13 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
             for j in range(n):
                 Y_out[kk, j] = y[j]
             kk += 1
+        # the next step before the budget test: a run resumed after max_steps steps (the
+        # one-step calls of Radau9._step_impl) continues with it, not with this step
+        fac = MAX_FACTOR if e == 0.0 else min(MAX_FACTOR, SAFETY * e ** (-1.0 / (s + 1)))
+        h = max(h * fac, h_free) if clipped else h * fac
         if nsteps >= max_steps:
             status = BUDGET
             break
-        fac = MAX_FACTOR if e == 0.0 else min(MAX_FACTOR, SAFETY * e ** (-1.0 / (s + 1)))
-        h = max(h * fac, h_free) if clipped else h * fac
     counts[0] = nfev
     counts[1] = nsteps
     counts[2] = nrej
