@@ -2,8 +2,8 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`, Radau9 where
-the drive damping makes the scene stiff, Split8 for long conservative runs), at
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`,
+Radau9 where the drive damping makes the scene stiff, Split8 for long conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -17,7 +17,6 @@ import time
 from typing import Any, Mapping
 
 from gyro_rotor.core.model import Model
-from gyro_rotor.core.rotations import axis_from_quaternion
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
 from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
@@ -129,8 +128,8 @@ class Trajectory:
 def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    See :func:`gyro_rotor.numerics.integrators.choose_method`: Radau9 where the drive damping makes
-    the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
+    See :func:`gyro_rotor.numerics.integrators.choose_method`: Radau9 where the drive
+    damping makes the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
     """
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
                              scene.model)
@@ -160,8 +159,8 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4, radau9,
-        split8) or a
+        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4,
+        radau9, split8) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
         Tolerances of adaptive methods (split8 derives its step from rtol); a fixed-step
@@ -174,11 +173,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     y0 : ndarray, optional
         Initial state instead of the scene's.
     """
-    if isinstance(scene, Scene):
-        if overrides:
-            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
-    else:
-        scene = load_scene(scene, overrides=overrides)
+    scene = _load(scene, overrides)
     t_end = scene.t_end if t_end is None else float(t_end)
     if not (np.isfinite(t_end) and t_end > 0):
         raise ParameterError(f't_end must be positive and finite, got {t_end!r}')
@@ -197,32 +192,47 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
     if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
         raise ParameterError(f'the initial state must be {model.n} finite numbers')
-    if t_end * rate > MAX_SAMPLES:
-        raise ParameterError(f't_end x rate = {t_end * rate:.3g} samples is more than '
-                             f'{MAX_SAMPLES:g}: lower --rate or --t-end')
     t_eval = _sample_times(t_end, rate)
     if method in METHODS:
         run = _run_own(model, y_init, t_eval, method, rtol, atol, step)
     else:
-        run = _run_scipy(model, y_init, t_eval, method, rtol, atol)
-    if run.status < 0 or not np.all(np.isfinite(run.Y)):
-        why = _singularity(model, run.Y)
-        raise IntegrationError(f'integration of scene {scene.name} with {method} failed at '
-                               f't = {run.t[-1] if run.t.size else 0.0}: '
-                               f'{why or run.message}')
-    return Trajectory(scene=scene, model=model, t=run.t, y=run.Y,
-                      out=model.outputs(run.t, run.Y), method=method, rtol=run.rtol,
-                      atol=run.atol, nfev=run.nfev, nsteps=run.nsteps, wall_time=run.wall,
-                      success=True, message=run.message, method_reason=reason,
-                      step=run.step)
+        run = _run_scipy(scene, model, y_init, t_eval, method, rtol, atol)
+    if run.status < 0 or not np.all(np.isfinite(run.y)):
+        raise IntegrationError(_failure(scene, model, method, run))
+    return Trajectory(scene=scene, model=model, t=run.t, y=run.y,
+                      out=model.outputs(run.t, run.y), method=method, rtol=run.rtol,
+                      atol=run.atol, nfev=int(run.nfev), nsteps=int(run.nsteps),
+                      wall_time=run.wall, success=True, message=run.message,
+                      method_reason=reason, step=run.step)
+
+
+def _load(scene: Scene | str, overrides: Mapping[str, Any] | None) -> Scene:
+    """Return the scene itself, or the one loaded from a name or path (with ``overrides``)."""
+    if isinstance(scene, Scene):
+        if overrides:
+            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
+        return scene
+    return load_scene(scene, overrides=overrides)
+
+
+def _sample_times(t_end: float, rate: float) -> np.ndarray:
+    """Sample times 0, 1/rate, ... and t_end itself."""
+    if t_end * rate > MAX_SAMPLES:
+        raise ParameterError(f't_end x rate = {t_end * rate:.3g} samples is more than '
+                             f'{MAX_SAMPLES:g}: lower --rate or --t-end')
+    n = int(np.floor(t_end * rate + 1e-9))
+    t_eval = np.arange(n + 1) / rate
+    if t_eval[-1] < t_end - 1e-12:
+        t_eval = np.append(t_eval, t_end)
+    return t_eval
 
 
 @dataclasses.dataclass
 class _Run:
-    """What one integration returned (before it becomes a :class:`Trajectory`)."""
+    """What one integrator run gave: samples, counts, status and the setting it used."""
 
     t: np.ndarray
-    Y: np.ndarray
+    y: np.ndarray
     nfev: int
     nsteps: int
     status: int
@@ -233,33 +243,25 @@ class _Run:
     step: float | None = None
 
 
-def _sample_times(t_end: float, rate: float) -> np.ndarray:
-    """0, 1/rate, 2/rate, ... and t_end itself when it is not on that grid."""
-    n = int(np.floor(t_end * rate + 1e-9))
-    t_eval = np.arange(n + 1) / rate
-    if t_eval[-1] < t_end - 1e-12:
-        t_eval = np.append(t_eval, t_end)
-    return t_eval
-
-
-def _run_own(model, y_init, t_eval, method, rtol, atol, step) -> _Run:
-    """Integrate with one of the project's methods (compiled kernels)."""
+def _run_own(model: Model, y_init: np.ndarray, t_eval: np.ndarray, method: str,
+             rtol: float, atol: float, step: float | None) -> _Run:
+    """Run one of gyro_rotor's compiled integrators (their failures come as a status)."""
     t0 = time.perf_counter()
     solver = make_integrator(method, model, y_init, 0.0, float(t_eval[-1]), rtol=rtol,
                              atol=atol, step=step)
     res = solver.run(t_eval)
-    wall = time.perf_counter() - t0
-    used_step = None
+    run = _Run(res.t, res.y, res.nfev, res.nsteps, res.status, res.message,
+               time.perf_counter() - t0, rtol, atol)
     if not solver.adaptive:
-        used_step = solver.h
+        run.step = solver.h
         if not solver.step_from_tolerance or step is not None:
-            rtol = atol = None      # rk4, rk8, gauss6 do not use tolerances
-    return _Run(res.t, res.y, int(res.nfev), int(res.nsteps), int(res.status), res.message,
-                wall, rtol, atol, used_step)
+            run.rtol = run.atol = None      # rk4, rk8, gauss6 do not use tolerances
+    return run
 
 
-def _run_scipy(model, y_init, t_eval, method, rtol, atol) -> _Run:
-    """Integrate with scipy's ``solve_ivp`` (a baseline); a singular state is a failure."""
+def _run_scipy(scene: Scene, model: Model, y_init: np.ndarray, t_eval: np.ndarray,
+               method: str, rtol: float, atol: float) -> _Run:
+    """Run scipy's ``solve_ivp`` (a baseline) on the model's plain right-hand side."""
     from scipy.integrate import solve_ivp
     t0 = time.perf_counter()
     try:
@@ -268,23 +270,24 @@ def _run_scipy(model, y_init, t_eval, method, rtol, atol) -> _Run:
     except ValueError as err:
         raise ParameterError(f'integrator {method}: {err}') from err
     except ZeroDivisionError as err:
-        return _Run(np.zeros(1), y_init[None, :], 0, 0, -2, str(err),
-                    time.perf_counter() - t0, rtol, atol)
-    return _Run(sol.t, sol.y.T, int(sol.nfev), 0, int(sol.status), sol.message,
+        raise IntegrationError(f'integration of scene {scene.name} failed: {AXIS_DOWN} '
+                               f'({err})') from err
+    return _Run(sol.t, sol.y.T, int(sol.nfev), 0, sol.status, sol.message,
                 time.perf_counter() - t0, rtol, atol)
 
 
-def _singularity(model, Y: np.ndarray) -> str:
-    """Name the model's singular state if the last finite sample of a failed run is at it.
+#: why a run can fail at a finite state: the one singular orientation of the model
+AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
 
-    The full model divides by 1 + cos(theta) (docs/model.md section 3): at theta = pi, the
-    axis pointing straight down, its right-hand side is not defined.
-    """
-    ok = np.all(np.isfinite(Y), axis=1)
-    if model.name != 'full' or not ok.any():
-        return ''
-    k3 = axis_from_quaternion(Y[np.nonzero(ok)[0][-1], :4])[2]
-    if k3 > -1.0 + 1e-6:
-        return ''
-    return ('the axis reached theta = pi (pointing straight down), where the model is '
-            'singular')
+
+def _failure(scene: Scene, model: Model, method: str, run: _Run) -> str:
+    """Return the error text of a failed run, naming theta = pi where the axis points down."""
+    good = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
+    t_fail = run.t[-1] if run.t.size else 0.0
+    text = f'integration of scene {scene.name} with {method} failed at t = {t_fail}'
+    if np.any(good):
+        k = int(np.flatnonzero(good)[-1])
+        theta = model.outputs(run.t[k:k + 1], run.y[k:k + 1])['theta'][0]
+        if np.pi - abs(theta) < 1e-6:
+            return f'{text}: {AXIS_DOWN}; {run.message}'
+    return f'{text}: {run.message}'

@@ -52,6 +52,7 @@ def _fmt(v) -> str:
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     """Write the markdown report and return its text."""
     table = bench.best_table(rows)
+    load = (getattr(args, 'load_before', math.nan), getattr(args, 'load_after', math.nan))
     scenes = list(dict.fromkeys(r.scene for r in rows))
     methods = list(dict.fromkeys(r.method for r in rows))
     lines = [f'Best wall seconds per simulated second at error <= 1e-3 / 1e-6 / 1e-9 '
@@ -59,7 +60,9 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
              f'a reference; `-` = not reached within the sweep or budget). Machine: '
              f'{platform.machine()}, {os.cpu_count()} cores, shared and noisy; '
              f'{"quick" if args.quick else "full"} sweep, {args.repeats} repeats, '
-             f"{elapsed / 60:.1f} min. Methods in lower case are gyro_rotor's, upper case "
+             f'{elapsed / 60:.1f} min, load average {load[0]:.1f} at the start and '
+             f'{load[1]:.1f} at the end (all ratios are side by side in this one run). '
+             f"Methods in lower case are gyro_rotor's, upper case "
              f'scipy solve_ivp.', '',
              '| scene | ' + ' | '.join(methods) + ' |',
              '|---|' + '---|' * len(methods)]
@@ -148,8 +151,12 @@ def write_plot(path, rows) -> str | None:
     return None
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the sweep and write CSV, markdown and plot."""
+def resolve_settings(args: argparse.Namespace) -> str | None:
+    """Fill the defaults that depend on --quick; return an error text, or None if valid.
+
+    The output directory defaults to a new ``bench-YYYYmmdd-HHMMSS``: the committed
+    ``bench/`` is written only when ``--out bench`` is given.
+    """
     if args.repeats is None:
         args.repeats = 1 if args.quick else 3
     if args.drift_t_end is None:
@@ -159,18 +166,26 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         args.out = bench.default_out_dir()
     if args.repeats < 1:
-        print(f'ERROR: --repeats must be >= 1, got {args.repeats}', file=sys.stderr)
-        return 1
+        return f'--repeats must be >= 1, got {args.repeats}'
     if not (math.isfinite(args.drift_t_end) and args.drift_t_end >= 0):
-        print(f'ERROR: --drift-t-end must be >= 0, got {args.drift_t_end}', file=sys.stderr)
+        return f'--drift-t-end must be >= 0, got {args.drift_t_end}'
+    try:
+        for spec in args.scenes.split(','):
+            if spec.strip():
+                bench.parse_scene_spec(spec.strip())
+    except (GyroRotorError, ValueError) as err:
+        return f'--scenes: {err}'
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep and write CSV, markdown and plot."""
+    err = resolve_settings(args)
+    if err:
+        print(f'ERROR: {err}', file=sys.stderr)
         return 1
     specs = [s.strip() for s in args.scenes.split(',') if s.strip()]
-    try:
-        for spec in specs:
-            bench.parse_scene_spec(spec)
-    except (GyroRotorError, ValueError) as err:
-        print(f'ERROR: --scenes: {err}', file=sys.stderr)
-        return 1
+    args.load_before = os.getloadavg()[0]
     os.makedirs(args.out, exist_ok=True)
     print(f'writing to {args.out}')
     t0 = time.perf_counter()
@@ -185,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
     if poles:
         print('pole counts:', poles)
     elapsed = time.perf_counter() - t0
+    args.load_after = os.getloadavg()[0]
     csv_path = os.path.join(args.out, 'work_precision.csv')
     with open(csv_path, 'w', newline='') as fh:
         w = csv.writer(fh)

@@ -14,6 +14,10 @@ numba first-class function (:func:`rhs`); the parameters travel as one float arr
 Status codes returned by the run loops: :class:`Status` (0 finished, -1 step size
 underflow, -2 non-finite state, -3 step budget exhausted, -4 Newton/fixed-point iteration
 did not converge), as the plain int constants OK, UNDERFLOW, ... that numba reads.
+Every kernel is compiled with numpy's error model (a division by zero gives inf or NaN,
+never an exception); a loop whose right-hand side is non-finite at its start ends at once
+with -2, and a non-finite error norm shrinks the step until it ends with -1 (a NaN step
+fails the ``h >= min_step`` test), so no loop can reject steps forever.
 """
 
 from __future__ import annotations
@@ -119,7 +123,7 @@ def _model_rhs(kind, y, P, out):
         locked_rhs(y, P, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def normalize_quaternion(kind, y, f):
     """Apply the projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
 
@@ -137,7 +141,7 @@ def normalize_quaternion(kind, y, f):
         f[i] *= s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def _rms_error(err, y, y_new, rtol, atol):
     n = y.shape[0]
     acc = 0.0
@@ -148,7 +152,7 @@ def _rms_error(err, y, y_new, rtol, atol):
     return math.sqrt(acc / n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def _all_finite(y):
     for i in range(y.shape[0]):
         if not math.isfinite(y[i]):
@@ -157,7 +161,7 @@ def _all_finite(y):
 
 
 # -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     """One explicit RK step of tableau (A, B) from (y, f0 = f(y)); result in ``y_new``.
 
@@ -181,7 +185,7 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
         y_new[m] = y[m] + h * acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, counts):
     """Fixed-step explicit RK from t0 through the sample times ``t_eval`` (increasing).
 
@@ -208,6 +212,10 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
             h = span / m
             for i in range(m):
                 rhs(kind, y, P, f)
+                if not _all_finite(f):
+                    counts[0] = nfev + 1
+                    counts[1] = nsteps
+                    return NONFINITE
                 rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
                 nfev += s
                 nsteps += 1
@@ -232,7 +240,7 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
 
 
 # -- DOP853, adaptive with dense output --------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_new):
     """One trial step of DOP853 (12 stages, FSAL). Returns the scaled error norm.
 
@@ -274,7 +282,7 @@ def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_ne
     return abs(h) * e5 / math.sqrt(denom * n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
     """Coefficients ``F`` (7, n) of the 7th-order dense output over the last step.
 
@@ -300,7 +308,7 @@ def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
             F[3 + r, m] = h * acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dense_eval(F, y_old, x, out):
     """Evaluate the DOP853 interpolant at fraction ``x`` of the step into ``out``."""
     n = y_old.shape[0]
@@ -315,7 +323,7 @@ def dense_eval(F, y_old, x, out):
         out[m] = v + y_old[m]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
     """Return the starting step size.
 
@@ -350,7 +358,7 @@ def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
     return min(100.0 * h0, h1, h_max)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
                A, B, C, D, E3, E5, Y_out, counts):
     """Adaptive DOP853 from t0 to t_eval[-1], sampling ``t_eval`` with the dense output.
@@ -440,7 +448,7 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
 
 
 # -- Gauss-Legendre collocation (implicit, fixed step) -----------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
     """One step of the s-stage Gauss method; stages by fixed-point iteration to round-off.
 
@@ -485,7 +493,7 @@ def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
     return nfev
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, counts):
     """Fixed-step Gauss method through the sample times (as :func:`rk_run`)."""
     n = y0.shape[0]
@@ -507,6 +515,10 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
             h = span / m
             for i in range(m):
                 rhs(kind, y, P, f)
+                if not _all_finite(f):
+                    counts[0] = nfev + 1
+                    counts[1] = nsteps
+                    return NONFINITE
                 ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
                 if ne < 0:
                     counts[0] = nfev
@@ -533,7 +545,7 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
 
 
 # -- RODAS4 (Rosenbrock, L-stable) -------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def fd_jacobian(kind, P, y, J, ytmp, fa, fb):
     """Jacobian df/dy by forward differences from ``fa`` = f(y) (one evaluation per column).
 
@@ -557,7 +569,7 @@ def fd_jacobian(kind, P, y, J, ytmp, fa, fb):
     return n - 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def lu_factor(M, piv):
     """In-place LU factorization with partial pivoting; False if singular."""
     n = M.shape[0]
@@ -586,7 +598,7 @@ def lu_factor(M, piv):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def lu_solve(M, piv, b):
     """Solve with the factors of :func:`lu_factor`, in place on ``b``."""
     n = M.shape[0]
@@ -608,7 +620,7 @@ def lu_solve(M, piv, b):
         b[i] = acc / M[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new, W, piv,
                rhs_buf):
     """Take one trial step of RODAS4 with Jacobian ``J`` at y.
@@ -651,7 +663,7 @@ def rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new,
     return _rms_error(K[s - 1], y, y_new, rtol, atol)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
               A, C, Mw, gamma, Y_out, counts):
     """Adaptive RODAS4 through the sample times: steps are clipped to land on each sample.

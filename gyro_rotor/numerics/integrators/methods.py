@@ -130,7 +130,7 @@ class DOP853(Integrator):
             self.nfev += 1
         h = min(self._h_next, self.h_max)
         while True:
-            if h < 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):
+            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
                 return False, STATUS_MESSAGES[-1]
             clipped = self.t + h >= t_limit
             if clipped:
@@ -261,7 +261,7 @@ class Rodas4(Integrator):
         self.njev += 1
         h = min(self._h_next, self.h_max)
         while True:
-            if h < 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):
+            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
                 return False, STATUS_MESSAGES[-1]
             clipped = self.t + h >= t_limit
             h_try = t_limit - self.t if clipped else h
@@ -348,8 +348,10 @@ class Split8(Integrator):
     Li's s17odr8a: symmetric, and for K_D = 0 a Lie-Poisson (symplectic) map, so the E*
     error stays bounded over long conservative runs, at explicit cost. The quaternion is
     moved only by unit quaternions (exactly on the unit sphere up to round-off). Full model
-    only. Default step from the tolerance: ``h = 0.27 (rtol / 1e-8)^(1/8) / model_rate``
-    (calibrated on the conservative scene: axis error near rtol over 100 s).
+    only. Default step from the tolerance: ``h = 0.365 (rtol / 1e-8)^(1/8) / model_rate``
+    (calibrated on the conservative scene over 100 s: at rtol 1e-10 the axis error is that
+    of dop853 at the same rtol, about 1e-11; the former 0.27 gave 8.5e-13 at 2.3 times
+    dop853's cost).
     """
 
     name = 'split8'
@@ -367,7 +369,7 @@ class Split8(Integrator):
         rtol = kwargs.get('rtol')
         r = self.default_rtol if rtol is None else rtol
         if isinstance(r, (int, float)) and math.isfinite(r) and r > 0:
-            self.step_factor = 0.27 * (r / 1e-8) ** 0.125
+            self.step_factor = 0.365 * (r / 1e-8) ** 0.125
         super().__init__(model, *args, **kwargs)
 
     def _step_impl(self, t_limit):
