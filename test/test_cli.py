@@ -134,3 +134,18 @@ def test_soak_load_starts_busy_processes_and_stops_them(capsys):
     assert all(read_cpu_s(pid) is None for pid in pids)        # stopped and reaped
     assert main(['soak', '--load', '-1', '--duration', '1']) == 1
     assert '--load must be >= 0' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('argv', [['bench'], ['bench', '--quick']])
+def test_bench_writes_to_a_new_directory_unless_told_bench(argv):
+    """Issue 12: --quick overwrote the committed bench/ results (resolved without running)."""
+    import re
+    from gyro_rotor.cli.commands.bench import resolve_settings
+    from gyro_rotor.cli.main import build_parser
+    args = build_parser().parse_args(argv)
+    assert resolve_settings(args) is None
+    assert re.fullmatch(r'bench-\d{8}-\d{6}', args.out), args.out
+    args = build_parser().parse_args(argv + ['--out', 'bench'])
+    assert resolve_settings(args) is None and args.out == 'bench'
+    args = build_parser().parse_args(argv + ['--scenes', 'no_such_scene'])
+    assert resolve_settings(args).startswith('--scenes:')

@@ -360,7 +360,7 @@ def test_live_stiff_change_keeps_services_answering_and_switches_the_method():
         (res,) = node.set_parameters([Parameter('K_D', value=1e5)])
         assert res.successful, res.reason
         auto, reason = resolve_method('auto', node.sim.model.params)
-        assert auto != 'dop853'                              # stiff: rodas4 today
+        assert auto != 'dop853'                              # stiff: radau9 today
         answer, took = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
         assert answer.success and took < 2.0, took
         rig.spin_until(lambda: any(f'switched to {auto}' in msg

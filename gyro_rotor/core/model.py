@@ -48,9 +48,30 @@ from gyro_rotor.core.rotations import (axis_from_quaternion, body_rates_from_eul
 import numpy as np
 
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
-           'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin']
+           'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
+           'pack_params', 'tilt_twist_torque', 'full_rhs', 'upright_rhs', 'locked_rhs',
+           'numba_able']
+
+try:  # pragma: no cover - exercised by whichever branch the install has
+    from numba.extending import register_jitable as numba_able
+except ImportError:  # pragma: no cover
+    def numba_able(f):
+        """Stand-in for numba's register_jitable: the function as it is."""
+        return f
 
 _SERIES_LIMIT = 1e-4
+
+#: layout of the packed parameter array P (:func:`pack_params`)
+P_I, P_C_R, P_C_M, P_GS, P_C_THETA, P_C_PSI, P_K_S, P_K_D, P_OMEGA0, P_PP = range(10)
+
+
+def pack_params(p: RotorParams) -> np.ndarray:
+    """Pack RotorParams into the float array P read by the right-hand sides below.
+
+    The order is (I, C_R, C_M, G s, c_theta, c_psi, K_S, K_D, Omega0, p).
+    """
+    return np.array([p.I, p.C_R, p.C_M, p.Gs, p.c_theta, p.c_psi, p.K_S, p.K_D, p.Omega0,
+                     float(p.pole_pairs)])
 
 
 def theta_over_sin(sin_t: float, cos_t: float) -> float:
@@ -62,15 +83,102 @@ def theta_over_sin(sin_t: float, cos_t: float) -> float:
     return theta / sin_t
 
 
-def drive_torque(p: RotorParams, z, zdot):
-    """Drive torque Q on the rotor (eq. 23, or its sine law with p = pole_pairs).
+# -- the equations, written once ---------------------------------------------------------------
+# Each function below is plain arithmetic that runs unchanged on floats (Python lists, the
+# plain-float right-hand side for scipy), on numpy arrays of trajectories (the ensemble's numpy
+# backend: y of shape (n, N)) and compiled by numba inside the integrators' kernels
+# (``numba_able`` = numba's register_jitable). Branches on values are written as 0/1 blends
+# so that they hold elementwise on arrays; for floats they give the same bits as an if.
+@numba_able
+def drive_law(z, zdot, K_S, K_D, pp):
+    """Drive torque Q on the rotor (eq. 23, or its sine law with pp = pole_pairs > 0).
 
-    Q = -K_S z - K_D zdot  (linear),   Q = -(K_S/p) sin(p z) - K_D zdot  (p pole pairs).
+    Q = -K_S z - K_D zdot  (linear, pp = 0),   Q = -(K_S/pp) sin(pp z) - K_D zdot  (sine).
     """
-    if p.pole_pairs == 0:
-        return -p.K_S * z - p.K_D * zdot
-    pp = p.pole_pairs
-    return -(p.K_S / pp) * np.sin(pp * z) - p.K_D * zdot
+    lin = 1.0 * (pp == 0)
+    ppn = pp + lin
+    return lin * (-K_S * z) + (1.0 - lin) * (-(K_S / ppn) * np.sin(ppn * z)) - K_D * zdot
+
+
+@numba_able
+def tilt_twist_torque(qw, qx, qy, qz, Gs, c_theta, c_psi):
+    """Restoring torques of eq. (19) in body axes from the stator quaternion (module doc).
+
+    Returns (M_1, M_2, M_3): tilt M = -(dV/dcos theta) (e_3 x k) with dV/dcos theta =
+    G s - c_theta theta/sin theta, plus twist -c_psi chi w, chi = 2 atan2(q_z, q_w).
+    """
+    n = qw * qw + qx * qx + qy * qy + qz * qz
+    k1 = 2.0 * (qx * qz - qw * qy) / n
+    k2 = 2.0 * (qy * qz + qw * qx) / n
+    k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
+    st = np.sqrt(k1 * k1 + k2 * k2)
+    th = np.arctan2(st, k3)
+    t2 = th * th
+    small = 1.0 * (th < _SERIES_LIMIT)
+    ratio = (small * (1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0)
+             + (1.0 - small) * (th / (st + small)))
+    dV = Gs - c_theta * ratio
+    tw = c_psi * 2.0 * np.arctan2(qz, qw)
+    tw_k = tw / (1.0 + k3)
+    return dV * k2 - tw_k * k1, -dV * k1 - tw_k * k2, -tw
+
+
+@numba_able
+def full_rhs(y, P, out):
+    """dy/dt of the full model (module doc) at y into out; P from :func:`pack_params`."""
+    I_ = P[0]
+    C_R = P[1]
+    C_M = P[2]
+    qw = y[0]
+    qx = y[1]
+    qy = y[2]
+    qz = y[3]
+    W1 = y[4]
+    W2 = y[5]
+    W3 = y[6]
+    zd = y[8]
+    M1, M2, M3 = tilt_twist_torque(qw, qx, qy, qz, P[3], P[4], P[5])
+    Q = drive_law(y[7], zd, P[6], P[7], P[9])
+    g = C_M * W3 + C_R * (W3 + P[8] + zd) - I_ * W3   # H_3 - I W_3
+    dW3 = (M3 - Q) / C_M
+    out[0] = 0.5 * (-qx * W1 - qy * W2 - qz * W3)
+    out[1] = 0.5 * (qw * W1 + qy * W3 - qz * W2)
+    out[2] = 0.5 * (qw * W2 + qz * W1 - qx * W3)
+    out[3] = 0.5 * (qw * W3 + qx * W2 - qy * W1)
+    out[4] = (M1 - W2 * g) / I_
+    out[5] = (M2 + W1 * g) / I_
+    out[6] = dW3
+    out[7] = zd
+    out[8] = Q / C_R - dW3
+    out[9] = P[7] * zd * zd
+
+
+@numba_able
+def upright_rhs(y, P, out):
+    """dy/dt of the upright_axis model (state chi chidot z zdot D)."""
+    zd = y[3]
+    Q = drive_law(y[2], zd, P[6], P[7], P[9])
+    chidd = (-P[5] * y[0] - Q) / P[2]
+    out[0] = y[1]
+    out[1] = chidd
+    out[2] = zd
+    out[3] = Q / P[1] - chidd
+    out[4] = P[7] * zd * zd
+
+
+@numba_able
+def locked_rhs(y, P, out):
+    """dy/dt of the locked_housing model (state z zdot D)."""
+    zd = y[1]
+    Q = drive_law(y[0], zd, P[6], P[7], P[9])
+    out[0] = zd
+    out[1] = Q / P[1]
+    out[2] = P[7] * zd * zd
+
+
+def drive_torque(p: RotorParams, z, zdot):
+    """Drive torque Q on the rotor for parameters ``p`` (:func:`drive_law`, eq. 23)."""
+    return drive_law(z, zdot, p.K_S, p.K_D, float(p.pole_pairs))
 
 
 def drive_potential(p: RotorParams, z):
@@ -81,11 +189,39 @@ def drive_potential(p: RotorParams, z):
     return (p.K_S / pp ** 2) * (1.0 - np.cos(pp * z))
 
 
+_COMPILED: dict = {}
+
+
+def _compiled(fn):
+    """Return ``fn`` compiled by numba (cached per function), or None without numba."""
+    if fn not in _COMPILED:
+        try:
+            from numba import njit
+        except ImportError:  # pragma: no cover
+            _COMPILED[fn] = None
+        else:
+            _COMPILED[fn] = njit(cache=True)(fn)
+    return _COMPILED[fn]
+
+
+def _list_rhs(fn, params: RotorParams, n: int):
+    """Plain-float right-hand side ``f(t, y_list) -> list`` of one of the functions above."""
+    P = pack_params(params).tolist()
+
+    def f(t, y):
+        out = [0.0] * n
+        fn(y, P, out)
+        return out
+    return f
+
+
 class Model:
     """Common interface of the models (see module doc); subclasses fill in the physics."""
 
     name = ''
     state_names: tuple = ()
+    #: the model's right-hand side ``f(y, P, out)`` (one of the numba-able functions above)
+    rhs_function = None
     #: index of z, zdot and D in the state vector
     iz = izd = idiss = -1
 
@@ -101,16 +237,26 @@ class Model:
         return len(self.state_names)
 
     def make_rhs(self) -> Callable[[float, np.ndarray], np.ndarray]:
-        """Return ``f(t, y) -> dy/dt`` (ndarray), with the parameters bound as floats."""
-        fl = self.make_rhs_list()
+        """Return ``f(t, y) -> dy/dt`` (ndarray), compiled by numba where it is installed."""
+        fn = _compiled(self.rhs_function)
+        if fn is None:
+            fl = self.make_rhs_list()
 
-        def rhs(t, y):
-            return np.array(fl(t, y.tolist()))
-        return rhs
+            def rhs(t, y):
+                return np.array(fl(t, y.tolist()))
+            return rhs
+        P = pack_params(self.params)
+        n = self.n
 
-    def make_rhs_list(self) -> Callable[[float, list], list]:  # pragma: no cover
+        def rhs_c(t, y):
+            out = np.empty(n)
+            fn(np.asarray(y, dtype=float), P, out)
+            return out
+        return rhs_c
+
+    def make_rhs_list(self) -> Callable[[float, list], list]:
         """Return a plain-float right-hand side ``f(t, y_list) -> list``."""
-        raise NotImplementedError
+        return _list_rhs(self.rhs_function, self.params, self.n)
 
     # -- energy ----------------------------------------------------------------------------
     def energy(self, Y) -> np.ndarray:  # pragma: no cover
@@ -217,53 +363,7 @@ class FullModel(Model):
     state_names = ('q_w', 'q_x', 'q_y', 'q_z', 'W_1', 'W_2', 'W_3', 'z', 'zdot', 'D')
     iz, izd, idiss = 7, 8, 9
 
-    def make_rhs_list(self):
-        """Plain-float right-hand side of the full model (no numpy per call)."""
-        p = self.params
-        I, C_R, C_M = p.I, p.C_R, p.C_M
-        Gs, c_theta, c_psi = p.Gs, p.c_theta, p.c_psi
-        K_S, K_D, Omega0 = p.K_S, p.K_D, p.Omega0
-        pp = p.pole_pairs
-        K_Sp = K_S / pp if pp else 0.0
-        inv_I, inv_CR, inv_CM = 1.0 / I, 1.0 / C_R, 1.0 / C_M
-        atan2, sqrt, sin = math.atan2, math.sqrt, math.sin
-        lim = _SERIES_LIMIT
-
-        def f(t, y):
-            qw, qx, qy, qz, W1, W2, W3, z, zd, _ = y
-            n = qw * qw + qx * qx + qy * qy + qz * qz
-            k1 = 2.0 * (qx * qz - qw * qy) / n
-            k2 = 2.0 * (qy * qz + qw * qx) / n
-            k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
-            st = sqrt(k1 * k1 + k2 * k2)
-            th = atan2(st, k3)
-            if th < lim:
-                t2 = th * th
-                ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
-            else:
-                ratio = th / st
-            dV = Gs - c_theta * ratio
-            tw = c_psi * 2.0 * atan2(qz, qw)
-            tw_k = tw / (1.0 + k3)
-            M1 = dV * k2 - tw_k * k1
-            M2 = -dV * k1 - tw_k * k2
-            if pp:
-                Q = -K_Sp * sin(pp * z) - K_D * zd
-            else:
-                Q = -K_S * z - K_D * zd
-            g = C_M * W3 + C_R * (W3 + Omega0 + zd) - I * W3   # H_3 - I W_3
-            dW3 = (-tw - Q) * inv_CM
-            return [0.5 * (-qx * W1 - qy * W2 - qz * W3),
-                    0.5 * (qw * W1 + qy * W3 - qz * W2),
-                    0.5 * (qw * W2 + qz * W1 - qx * W3),
-                    0.5 * (qw * W3 + qx * W2 - qy * W1),
-                    (M1 - W2 * g) * inv_I,
-                    (M2 + W1 * g) * inv_I,
-                    dW3,
-                    zd,
-                    Q * inv_CR - dW3,
-                    K_D * zd * zd]
-        return f
+    rhs_function = staticmethod(full_rhs)
 
     def energy(self, Y):
         """E* = I (W_1^2+W_2^2)/2 + C_M W_3^2/2 + C_R (zdot+W_3)^2/2 + U(z) + V (eq. 13)."""
@@ -314,19 +414,7 @@ class UprightAxisModel(Model):
     state_names = ('chi', 'chidot', 'z', 'zdot', 'D')
     iz, izd, idiss = 2, 3, 4
 
-    def make_rhs_list(self):
-        """Plain-float right-hand side."""
-        p = self.params
-        C_R, C_M, c_psi, K_S, K_D, pp = p.C_R, p.C_M, p.c_psi, p.K_S, p.K_D, p.pole_pairs
-        K_Sp = K_S / pp if pp else 0.0
-        sin = math.sin
-
-        def f(t, y):
-            chi, chid, z, zd, _ = y
-            Q = (-K_Sp * sin(pp * z) if pp else -K_S * z) - K_D * zd
-            chidd = (-c_psi * chi - Q) / C_M
-            return [chid, chidd, zd, Q / C_R - chidd, K_D * zd * zd]
-        return f
+    rhs_function = staticmethod(upright_rhs)
 
     def energy(self, Y):
         """E* at theta = 0: C_M chidot^2/2 + C_R (zdot + chidot)^2/2 + U + G s + c_psi chi^2/2."""
@@ -372,18 +460,7 @@ class LockedHousingModel(Model):
     state_names = ('z', 'zdot', 'D')
     iz, izd, idiss = 0, 1, 2
 
-    def make_rhs_list(self):
-        """Plain-float right-hand side."""
-        p = self.params
-        C_R, K_S, K_D, pp = p.C_R, p.K_S, p.K_D, p.pole_pairs
-        K_Sp = K_S / pp if pp else 0.0
-        sin = math.sin
-
-        def f(t, y):
-            z, zd, _ = y
-            Q = (-K_Sp * sin(pp * z) if pp else -K_S * z) - K_D * zd
-            return [zd, Q / C_R, K_D * zd * zd]
-        return f
+    rhs_function = staticmethod(locked_rhs)
 
     def energy(self, Y):
         """E* = C_R zdot^2/2 + U(z) + G s (housing at rest, axis vertical)."""

@@ -3,8 +3,8 @@
 For every scene (and the K_D variants of stiff_drive) and every method over a sweep of
 tolerances (adaptive) or steps (fixed-step), one run over the scene's duration sampled at
 SAMPLE_RATE Hz is compared with a high-accuracy reference (this project's DOP853 at
-rtol 1e-13, or RODAS4 at 1e-13 where the scene is stiff; RODAS4 agrees with scipy's Radau
-at 1e-12 to 2e-12 on stiff_drive). Recorded per run:
+rtol 1e-13, or RODAS4 at 1e-13 where the scene is stiff, not the stiff default radau9;
+RODAS4 agrees with scipy's Radau at 1e-12 to 2e-12 on stiff_drive). Recorded per run:
 
 - ``err``: the benchmark error, max over samples of max(angle between simulated and
   reference symmetry axes [rad], |z - z_ref| [rad]);
@@ -15,9 +15,10 @@ at 1e-12 to 2e-12 on stiff_drive). Recorded per run:
   cost rate over the part it did, with err = nan; after such a run, or one slower than
   SLOW_RUN wall seconds, the method's tighter settings are skipped).
 
-scipy's ``solve_ivp`` (RK45, DOP853, Radau, LSODA) runs on the same model (its plain-float
-right-hand side) as the baseline. Also: the E* drift of each method on the conservative
-scene over 1000 s, and the slipped-pole count on pole_slip at each method's default
+scipy's ``solve_ivp`` (RK45, DOP853, Radau, LSODA) runs on the same model as the baseline,
+with the model's right-hand side compiled by numba (``Model.rhs``; about 1.4 us a call, so
+scipy's own per-step overhead dominates its cost). Also: the E* drift of each method on the
+conservative scene over 1000 s, and the slipped-pole count on pole_slip at each method's default
 tolerance. Results are data; :mod:`gyro_rotor.commands.bench` prints and plots.
 """
 
@@ -33,19 +34,27 @@ from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.numerics.integrators import integrate, METHODS
 import numpy as np
 
-__all__ = ['BenchRow', 'DEFAULT_SCENES', 'run_sweep', 'reference', 'best_table',
-           'energy_drift', 'pole_counts', 'parse_scene_spec', 'ERROR_LEVELS']
+__all__ = ['BenchRow', 'DEFAULT_SCENES', 'QUICK_SCENES', 'run_sweep', 'reference',
+           'best_table', 'energy_drift', 'pole_counts', 'parse_scene_spec', 'ERROR_LEVELS',
+           'auto_choice', 'default_out_dir']
 
 SAMPLE_RATE = 100.0
 ERROR_LEVELS = (1e-3, 1e-6, 1e-9)
-DEFAULT_SCENES = ('precession', 'nutation', 'upright', 'stiff_drive', 'stiff_drive@K_D=100',
-                  'stiff_drive@K_D=1e6', 'fast_spin', 'conservative', 'pole_slip')
+DEFAULT_SCENES = ('precession', 'nutation', 'upright', 'stiff_drive@K_D=100', 'stiff_drive',
+                  'stiff_drive@K_D=1e6', 'fast_spin', 'conservative', 'conservative@t_end=100',
+                  'pole_slip')
+#: the short sweep (``--quick``, under a minute): one scene per kind of method
+QUICK_SCENES = ('precession', 'stiff_drive', 'conservative')
 SCIPY = ('RK45', 'DOP853', 'Radau', 'LSODA')
+QUICK_SCIPY = ('LSODA',)
 # tolerance sweeps (atol = rtol * ATOL_RATIO) and step sweeps (step = factor / model rate)
 RTOLS = {'full': (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
-         'quick': (1e-4, 1e-7, 1e-10)}
+         'quick': (1e-5, 1e-8)}
 STEP_FACTORS = {'rk4': (0.2, 0.1, 0.05, 0.02, 0.01, 0.005), 'rk8': (0.8, 0.4, 0.2, 0.1, 0.05),
-                'gauss6': (0.4, 0.2, 0.1, 0.05, 0.025)}
+                'gauss6': (0.4, 0.2, 0.1, 0.05, 0.025),
+                'split8': (0.6, 0.45, 0.33, 0.25, 0.18, 0.13, 0.1)}
+#: the quick sweep runs only these of our methods (the ones auto picks, and dop853)
+QUICK_METHODS = ('dop853', 'radau9', 'split8')
 ATOL_RATIO = 1e-2
 #: budgets: our compiled methods stop after this many steps, scipy after this many RHS calls
 MAX_STEPS = 3_000_000
@@ -85,14 +94,25 @@ def parse_scene_spec(spec: str) -> tuple[Scene, str]:
     return load_scene(name, overrides=overrides or None), spec
 
 
+def default_out_dir(now: float | None = None) -> str:
+    """Return a new output directory name, ``bench-YYYYmmdd-HHMMSS`` (not the committed bench/)."""
+    return time.strftime('bench-%Y%m%d-%H%M%S', time.localtime(now))
+
+
 def _t_eval(t_end: float) -> np.ndarray:
     n = int(round(t_end * SAMPLE_RATE))
     return np.linspace(0.0, t_end, n + 1)
 
 
+def auto_choice(scene: Scene) -> str:
+    """Return the method 'auto' picks for the scene over its duration."""
+    from gyro_rotor.numerics.integrators import choose_method
+    return choose_method(scene.params, scene.t_end, scene.model)[0]
+
+
 def _is_stiff(scene: Scene) -> bool:
     from gyro_rotor.numerics.integrators import choose_method
-    return choose_method(scene.params)[0] == 'rodas4'
+    return choose_method(scene.params)[0] == 'radau9'
 
 
 def reference(scene: Scene, t_eval: np.ndarray) -> np.ndarray:
@@ -195,23 +215,28 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
     stiff = _is_stiff(scene)
     rtols = RTOLS['quick' if quick else 'full']
     jobs = []
-    for name in (methods or METHODS):
-        if name in ('dop853', 'rodas4'):
+    for name in (methods or (QUICK_METHODS if quick else METHODS)):
+        if METHODS[name].adaptive:
             for r in rtols:
                 jobs.append(('gyro_rotor', name, f'rtol={r:.0e}',
                              {'rtol': r, 'atol': r * ATOL_RATIO}))
         elif name in STEP_FACTORS:
             if name == 'gauss6' and stiff:
                 continue       # fixed-point stages cannot converge at useful steps
+            if name == 'split8' and (stiff or scene.model != 'full'):
+                continue       # explicit sub-flows; full model only
             facs = STEP_FACTORS[name]
-            facs = facs[::2] if quick else facs
+            facs = facs[1::3] if quick else facs
             for f in facs:
                 h = min(f / rate, scene.t_end)
                 jobs.append(('gyro_rotor', name, f'h={h:.2e}', {'step': h}))
     if scipy:
-        for name in SCIPY:
+        for name in (QUICK_SCIPY if quick else SCIPY):
             for r in rtols:
                 jobs.append(('scipy', name, f'rtol={r:.0e}', {'rtol': r, 'atol': r * ATOL_RATIO}))
+    for name in dict.fromkeys(j[1] for j in jobs if j[0] == 'gyro_rotor'):
+        # compile (or load from numba's cache) before timing
+        integrate(model, y0, (0.0, te[1]), te[:2], name, max_steps=1000)
     rows = []
     over_budget = set()
     for family, name, setting, kw in jobs:
@@ -248,18 +273,22 @@ def best_table(rows: list[BenchRow], levels=ERROR_LEVELS) -> dict:
     return out
 
 
+QUICK_DRIFT_METHODS = ('auto', 'dop853')
+DRIFT_METHODS = ('auto', 'split8', 'gauss6', 'dop853', 'rk8', 'rk4', 'rodas4', 'radau9',
+                 'scipy:DOP853', 'scipy:LSODA')
+
+
 def energy_drift(t_end: float = 1000.0, checkpoints=(10.0, 100.0, 1000.0),
-                 methods=('gauss6', 'dop853', 'rk8', 'rk4', 'rodas4', 'scipy:DOP853',
-                          'scipy:LSODA'), progress=None) -> dict:
+                 methods=DRIFT_METHODS, progress=None) -> dict:
     """Relative E* drift |E*(t) - E*(0)| / E*(0) on the conservative scene at checkpoints.
 
-    Each method at its default setting; scipy's at rtol 1e-10, atol 1e-12.
-    Returns {method: (drifts at checkpoints, wall seconds)}.
+    Each method at its default setting ('auto': the default method over ``t_end``); scipy's
+    at rtol 1e-10, atol 1e-12. Returns {method: (drifts at checkpoints, wall seconds)}.
     """
     scene = load_scene('conservative')
     model = scene.make_model()
     y0 = scene.initial_state(model)
-    cps = np.array([c for c in checkpoints if c <= t_end])
+    cps = np.array([c for c in checkpoints if c <= t_end] or [t_end])
     te = np.concatenate([[0.0], cps])
     E0 = float(model.energy(y0))
     out = {}
@@ -287,7 +316,8 @@ def slip_count(model, y_end) -> int:
     return int(round(float(y_end[model.iz]) * p / (2.0 * math.pi)))
 
 
-def pole_counts(methods=('dop853', 'rodas4', 'rk4', 'rk8', 'gauss6', 'scipy:RK45',
+def pole_counts(methods=('dop853', 'rodas4', 'radau9', 'rk4', 'rk8', 'gauss6', 'split8',
+                         'scipy:RK45',
                          'scipy:DOP853', 'scipy:Radau', 'scipy:LSODA')) -> dict:
     """Slipped-pole count on pole_slip per method at its default tolerance, and the reference.
 

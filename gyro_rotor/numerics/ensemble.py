@@ -6,8 +6,8 @@ backends run the same equations:
 
 ``numba``   one compiled loop over trajectories calling the same right-hand side kernel as
             the single-trajectory integrators (:mod:`gyro_rotor.numerics.integrators.kernels`);
-``numpy``   the full model's equations vectorized over the ensemble (arrays of shape
-            (N,)), for installs without numba.
+``numpy``   the same right-hand side (core.model.full_rhs) run elementwise on arrays of
+            shape (N,), for installs without numba.
 
 The quaternion hook of the integrators (renormalization after each step) applies too.
 """
@@ -18,7 +18,7 @@ import dataclasses
 import math
 import time
 
-from gyro_rotor.core.model import Model
+from gyro_rotor.core.model import full_rhs, Model
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import kernels, tableaux as tb
@@ -52,25 +52,6 @@ class EnsembleResult:
 
 
 @njit(cache=True)
-def _rk4_step(kind, P, y, f, h, K, ytmp, y_new):
-    # the classical RK4 of tableaux.RK4_* written out (no loops over zero coefficients)
-    n = y.shape[0]
-    h2 = 0.5 * h
-    for m in range(n):
-        ytmp[m] = y[m] + h2 * f[m]
-    kernels.rhs(kind, ytmp, P, K[1])
-    for m in range(n):
-        ytmp[m] = y[m] + h2 * K[1, m]
-    kernels.rhs(kind, ytmp, P, K[2])
-    for m in range(n):
-        ytmp[m] = y[m] + h * K[2, m]
-    kernels.rhs(kind, ytmp, P, K[3])
-    h6 = h / 6.0
-    for m in range(n):
-        y_new[m] = y[m] + h6 * (f[m] + 2.0 * (K[1, m] + K[2, m]) + K[3, m])
-
-
-@njit(cache=True)
 def _ens_run(kind, P, Y, t_eval, h_max, A, B, renorm, Y_out):
     N = Y.shape[0]
     n = Y.shape[1]
@@ -97,10 +78,7 @@ def _ens_run(kind, P, Y, t_eval, h_max, A, B, renorm, Y_out):
             h = span / m
             for i in range(m):
                 kernels.rhs(kind, y, Pr, f)
-                if s == 4:
-                    _rk4_step(kind, Pr, y, f, h, K, ytmp, y_new)
-                else:
-                    kernels.rk_step(kind, Pr, y, f, h, A, B, K, ytmp, y_new)
+                kernels.rk_step(kind, Pr, y, f, h, A, B, K, ytmp, y_new)
                 if renorm:
                     kernels.normalize_quaternion(kind, y_new, f)
                 for j in range(n):
@@ -114,33 +92,14 @@ def _ens_run(kind, P, Y, t_eval, h_max, A, B, renorm, Y_out):
 
 
 def _rhs_full_vec(Y: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Evaluate the full model's right-hand side on columns: Y (10, N), P (10, N) -> (10, N)."""
-    I_, C_R, C_M, Gs, c_theta, c_psi, K_S, K_D, Omega0, pp = P
-    qw, qx, qy, qz, W1, W2, W3, z, zd, _ = Y
-    n = qw * qw + qx * qx + qy * qy + qz * qz
-    k1 = 2.0 * (qx * qz - qw * qy) / n
-    k2 = 2.0 * (qy * qz + qw * qx) / n
-    k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
-    st = np.sqrt(k1 * k1 + k2 * k2)
-    th = np.arctan2(st, k3)
-    t2 = th * th
-    small = th < 1e-4
-    ratio = np.where(small, 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0,
-                     th / np.where(small, 1.0, st))
-    dV = Gs - c_theta * ratio
-    tw = c_psi * 2.0 * np.arctan2(qz, qw)
-    tw_k = tw / (1.0 + k3)
-    ppn = np.where(pp != 0.0, pp, 1.0)
-    Q = np.where(pp != 0.0, -(K_S / ppn) * np.sin(ppn * z), -K_S * z) - K_D * zd
-    g = C_M * W3 + C_R * (W3 + Omega0 + zd) - I_ * W3
-    dW3 = (-tw - Q) / C_M
-    return np.stack([0.5 * (-qx * W1 - qy * W2 - qz * W3),
-                     0.5 * (qw * W1 + qy * W3 - qz * W2),
-                     0.5 * (qw * W2 + qz * W1 - qx * W3),
-                     0.5 * (qw * W3 + qx * W2 - qy * W1),
-                     (dV * k2 - tw_k * k1 - W2 * g) / I_,
-                     (-dV * k1 - tw_k * k2 + W1 * g) / I_,
-                     dW3, zd, Q / C_R - dW3, K_D * zd * zd])
+    """Evaluate the full model's right-hand side on columns: Y (10, N), P (10, N) -> (10, N).
+
+    The same function as the compiled kernels and the model (core.model.full_rhs), run
+    elementwise on arrays.
+    """
+    out = np.empty_like(Y)
+    full_rhs(Y, P, out)
+    return out
 
 
 def _numpy_run(P, Y0, t_eval, h_max, A, B, renorm):

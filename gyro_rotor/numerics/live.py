@@ -44,7 +44,7 @@ from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.rotations import (axis_from_quaternion, euler_from_quaternion,
                                        euler_rates_from_body)
 from gyro_rotor.core.scene import perturb_state, PERTURBATION_KEYS, Scene
-from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.errors import GyroRotorError, IntegrationError, ParameterError
 from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
                                           Stepper)
 import numpy as np
@@ -386,8 +386,10 @@ class LiveSimulation:
         y = perturb_state(self.model, y_old, self.perturbation)
         try:       # the new stepper first: a state the model cannot evaluate changes nothing
             stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
-        except GyroRotorError:
-            raise
+        except GyroRotorError as err:
+            if not isinstance(err, IntegrationError):
+                raise
+            raise ParameterError(f'kick refused: {err}') from err
         except Exception as err:  # noqa: B902 -- e.g. the model's singularity at theta = pi
             raise ParameterError(f'kick refused: {_describe(err)}') from err
         jump = self.baseline.rebase(self.model.energy, y, y_old)

@@ -94,6 +94,18 @@ def _check_finite(t: float, y: np.ndarray, method: str) -> None:
         raise IntegrationError(f'{method}: the state became non-finite at t = {t:.9g} s')
 
 
+def _check_rhs(t: float, f: np.ndarray, method: str) -> None:
+    """Refuse a start where the right-hand side is not finite.
+
+    The compiled kernels (numpy's error model) give inf or NaN where the model divides by
+    zero (the axis at theta = pi) instead of raising.
+    """
+    if not np.all(np.isfinite(f)):
+        raise IntegrationError(f'{method}: the right-hand side is not finite at t = {t:.9g} s '
+                               '(a state the model cannot evaluate, e.g. the axis at '
+                               'theta = pi)')
+
+
 def _arithmetic(method: str, t: float, err: ArithmeticError) -> IntegrationError:
     """Return the IntegrationError for an exception raised by the right-hand side.
 
@@ -128,6 +140,7 @@ class DenseStepper:
         _check_finite(t0, y0, method)
         self._solver = getattr(scipy.integrate, method)(fun, float(t0), y0, np.inf,
                                                         rtol=rtol, atol=atol)
+        _check_rhs(t0, np.asarray(fun(float(t0), y0), dtype=float), method)
         self.t = float(t0)
         self.y = y0
         self._dense = None
@@ -183,7 +196,8 @@ class RK4Stepper:
         self.t = float(t0)
         self.y = np.array(y0, dtype=float)
         _check_finite(self.t, self.y, self.method)
-        self.nfev = 0
+        _check_rhs(self.t, self.fun(self.t, self.y), self.method)
+        self.nfev = 1
 
     def _step(self, h: float) -> None:
         f, t, y = self.fun, self.t, self.y
@@ -232,6 +246,7 @@ class IntegratorStepper:
         self.atol = integrator.atol
         self.t = float(integrator.t)
         self.y = np.array(integrator.y, dtype=float)
+        _check_rhs(self.t, integrator.f, self.method)
 
     @property
     def nfev(self) -> int:

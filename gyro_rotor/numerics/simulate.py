@@ -2,8 +2,8 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`, RODAS4 where
-the drive damping makes the scene stiff, Gauss6 for long conservative runs), at
+(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`,
+Radau9 where the drive damping makes the scene stiff, Split8 for long conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -19,7 +19,8 @@ from typing import Any, Mapping
 from gyro_rotor.core.model import Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.numerics.integrators import choose_method as choose_integrator, integrate, METHODS
+from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
+                                             make_integrator, METHODS)
 import numpy as np
 
 __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
@@ -50,8 +51,9 @@ class Trajectory:
     y: np.ndarray
     out: dict
     method: str
-    rtol: float
-    atol: float
+    #: tolerances the method used (None for a fixed-step method, which uses ``step``)
+    rtol: float | None
+    atol: float | None
     nfev: int
     nsteps: int
     wall_time: float
@@ -59,6 +61,18 @@ class Trajectory:
     message: str = ''
     #: why 'auto' chose this method ('' when the method was given)
     method_reason: str = ''
+    #: step of a fixed-step method [s] (None for adaptive methods)
+    step: float | None = None
+
+    @property
+    def setting(self) -> str:
+        """Return the method's setting as text: its tolerances, or its fixed step."""
+        parts = []
+        if self.rtol is not None:
+            parts.append(f'rtol {self.rtol:g}, atol {self.atol:g}')
+        if self.step is not None:
+            parts.append(f'fixed step {self.step:.3g} s')
+        return '; '.join(parts)
 
     def __getattr__(self, name: str) -> Any:
         out = self.__dict__.get('out')
@@ -101,7 +115,8 @@ class Trajectory:
         o = self.out
         return {
             'scene': self.scene.name, 'model': self.model.name, 'method': self.method,
-            'rtol': self.rtol, 'atol': self.atol, 't_end': float(self.t[-1]),
+            'rtol': self.rtol, 'atol': self.atol, 'step': self.step, 'setting': self.setting,
+            't_end': float(self.t[-1]),
             'samples': len(self.t), 'theta_end': float(o['theta'][-1]),
             'psidot_end': float(o['psidot'][-1]), 'chi_end': float(o['chi'][-1]),
             'z_end': float(o['z'][-1]), 'zdot_end': float(o['zdot'][-1]),
@@ -116,10 +131,11 @@ class Trajectory:
 def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    See :func:`gyro_rotor.numerics.integrators.choose_method`: RODAS4 where the drive damping makes
-    the scene stiff, Gauss6 for long conservative runs, DOP853 otherwise.
+    See :func:`gyro_rotor.numerics.integrators.choose_method`: Radau9 where the drive
+    damping makes the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
     """
-    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end)
+    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
+                             scene.model)
 
 
 def check_tolerances(rtol: float, atol: float) -> None:
@@ -146,23 +162,21 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4) or a
+        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4,
+        radau9, split8) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
-        Tolerances of adaptive methods.
+        Tolerances of adaptive methods (split8 derives its step from rtol); a fixed-step
+        method's trajectory reports None for them.
     step : float, optional
-        Step of the fixed-step methods (rk4, rk8, gauss6) [s]; default from the model's
-        fastest rate.
+        Step of the fixed-step methods (rk4, rk8, gauss6, split8) [s]; default from the
+        model's fastest rate.
     overrides : mapping, optional
         Flat scene keys to change (e.g. ``{'K_D': 0.1}``), validated like the file.
     y0 : ndarray, optional
         Initial state instead of the scene's.
     """
-    if isinstance(scene, Scene):
-        if overrides:
-            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
-    else:
-        scene = load_scene(scene, overrides=overrides)
+    scene = _load(scene, overrides)
     t_end = scene.t_end if t_end is None else float(t_end)
     if not (np.isfinite(t_end) and t_end > 0):
         raise ParameterError(f't_end must be positive and finite, got {t_end!r}')
@@ -181,6 +195,31 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
     if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
         raise ParameterError(f'the initial state must be {model.n} finite numbers')
+    t_eval = _sample_times(t_end, rate)
+    if method in METHODS:
+        run = _run_own(model, y_init, t_eval, method, rtol, atol, step)
+    else:
+        run = _run_scipy(scene, model, y_init, t_eval, method, rtol, atol)
+    if run.status < 0 or not np.all(np.isfinite(run.y)):
+        raise IntegrationError(_failure(scene, model, method, run))
+    return Trajectory(scene=scene, model=model, t=run.t, y=run.y,
+                      out=model.outputs(run.t, run.y), method=method, rtol=run.rtol,
+                      atol=run.atol, nfev=int(run.nfev), nsteps=int(run.nsteps),
+                      wall_time=run.wall, success=True, message=run.message,
+                      method_reason=reason, step=run.step)
+
+
+def _load(scene: Scene | str, overrides: Mapping[str, Any] | None) -> Scene:
+    """Return the scene itself, or the one loaded from a name or path (with ``overrides``)."""
+    if isinstance(scene, Scene):
+        if overrides:
+            raise ParameterError('overrides need a scene name or path, not a loaded Scene')
+        return scene
+    return load_scene(scene, overrides=overrides)
+
+
+def _sample_times(t_end: float, rate: float) -> np.ndarray:
+    """Sample times 0, 1/rate, ... and t_end itself."""
     if t_end * rate > MAX_SAMPLES:
         raise ParameterError(f't_end x rate = {t_end * rate:.3g} samples is more than '
                              f'{MAX_SAMPLES:g}: lower --rate or --t-end')
@@ -188,35 +227,70 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     t_eval = np.arange(n + 1) / rate
     if t_eval[-1] < t_end - 1e-12:
         t_eval = np.append(t_eval, t_end)
+    return t_eval
+
+
+@dataclasses.dataclass
+class _Run:
+    """What one integrator run gave: samples, counts, status and the setting it used."""
+
+    t: np.ndarray
+    y: np.ndarray
+    nfev: int
+    nsteps: int
+    status: int
+    message: str
+    wall: float
+    rtol: float | None
+    atol: float | None
+    step: float | None = None
+
+
+def _run_own(model: Model, y_init: np.ndarray, t_eval: np.ndarray, method: str,
+             rtol: float, atol: float, step: float | None) -> _Run:
+    """Run one of gyro_rotor's compiled integrators (their failures come as a status)."""
     t0 = time.perf_counter()
-    if method in METHODS:
-        try:
-            res = integrate(model, y_init, (0.0, t_end), t_eval, method, rtol=rtol,
-                            atol=atol, step=step)
-        except ZeroDivisionError as err:
-            raise IntegrationError(
-                f'integration of scene {scene.name} failed: the axis reached theta = pi '
-                f'(pointing straight down), where the model is singular ({err})') from err
-        wall = time.perf_counter() - t0
-        t_s, Y, nfev, nsteps = res.t, res.y, res.nfev, res.nsteps
-        status, message = res.status, res.message
-    else:
-        from scipy.integrate import solve_ivp
-        try:
-            sol = solve_ivp(model.rhs, (0.0, t_end), y_init, method=method, t_eval=t_eval,
-                            rtol=rtol, atol=atol)
-        except ValueError as err:
-            raise ParameterError(f'integrator {method}: {err}') from err
-        except ZeroDivisionError as err:
-            raise IntegrationError(
-                f'integration of scene {scene.name} failed: the axis reached theta = pi '
-                f'(pointing straight down), where the model is singular ({err})') from err
-        wall = time.perf_counter() - t0
-        t_s, Y, nfev, nsteps = sol.t, sol.y.T, int(sol.nfev), 0
-        status, message = sol.status, sol.message
-    if status < 0 or not np.all(np.isfinite(Y)):
-        raise IntegrationError(f'integration of scene {scene.name} with {method} failed at '
-                               f't = {t_s[-1] if t_s.size else 0.0}: {message}')
-    return Trajectory(scene=scene, model=model, t=t_s, y=Y, out=model.outputs(t_s, Y),
-                      method=method, rtol=rtol, atol=atol, nfev=int(nfev), nsteps=int(nsteps),
-                      wall_time=wall, success=True, message=message, method_reason=reason)
+    solver = make_integrator(method, model, y_init, 0.0, float(t_eval[-1]), rtol=rtol,
+                             atol=atol, step=step)
+    res = solver.run(t_eval)
+    run = _Run(res.t, res.y, res.nfev, res.nsteps, res.status, res.message,
+               time.perf_counter() - t0, rtol, atol)
+    if not solver.adaptive:
+        run.step = solver.h
+        if not solver.step_from_tolerance or step is not None:
+            run.rtol = run.atol = None      # rk4, rk8, gauss6 do not use tolerances
+    return run
+
+
+def _run_scipy(scene: Scene, model: Model, y_init: np.ndarray, t_eval: np.ndarray,
+               method: str, rtol: float, atol: float) -> _Run:
+    """Run scipy's ``solve_ivp`` (a baseline) on the model's plain right-hand side."""
+    from scipy.integrate import solve_ivp
+    t0 = time.perf_counter()
+    try:
+        sol = solve_ivp(model.rhs, (0.0, float(t_eval[-1])), y_init, method=method,
+                        t_eval=t_eval, rtol=rtol, atol=atol)
+    except ValueError as err:
+        raise ParameterError(f'integrator {method}: {err}') from err
+    except ZeroDivisionError as err:
+        raise IntegrationError(f'integration of scene {scene.name} failed: {AXIS_DOWN} '
+                               f'({err})') from err
+    return _Run(sol.t, sol.y.T, int(sol.nfev), 0, sol.status, sol.message,
+                time.perf_counter() - t0, rtol, atol)
+
+
+#: why a run can fail at a finite state: the one singular orientation of the model
+AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
+
+
+def _failure(scene: Scene, model: Model, method: str, run: _Run) -> str:
+    """Return the error text of a failed run, naming theta = pi where the axis points down."""
+    good = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
+    t_fail = run.t[-1] if run.t.size else 0.0
+    text = f'integration of scene {scene.name} with {method} failed at t = {t_fail}'
+    if np.any(good):
+        k = int(np.flatnonzero(good)[-1])
+        theta = model.outputs(run.t[k:k + 1], run.y[k:k + 1])['theta'][0]
+        if np.pi - abs(theta) < 1e-6:
+            return f'{text}: {AXIS_DOWN}; {run.message}'
+    return f'{text}: {run.message}'

@@ -2,7 +2,11 @@
 
 Writes ``work_precision.csv`` (every run), ``work_precision.md`` (best wall seconds per
 simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
-and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out.
+and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
+by default a new directory ``bench-YYYYmmdd-HHMMSS``: the committed results in ``bench/``
+are replaced only when ``--out bench`` is given. ``--quick`` is a smoke run of under a
+minute (3 scenes, 2 tolerances, the methods auto picks and dop853, scipy's LSODA, 1
+repeat, 100-s drift study, no pole counts).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import platform
 import sys
 import time
 
+from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.numerics.bench as bench
 
 HELP = 'work-precision benchmark of the integrators (and scipy) on the hard scenes'
@@ -23,14 +28,21 @@ HELP = 'work-precision benchmark of the integrators (and scipy) on the hard scen
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Arguments of ``bench``."""
-    p.add_argument('--scenes', default=','.join(bench.DEFAULT_SCENES),
-                   help='comma-separated scene specs, e.g. precession,stiff_drive@K_D=1e6')
-    p.add_argument('--quick', action='store_true', help='a short sweep (3 tolerances)')
-    p.add_argument('--repeats', type=int, default=3, help='repeats per run (median wall)')
-    p.add_argument('--out', default='bench', help='output directory (default: bench)')
+    p.add_argument('--scenes', default=None,
+                   help='comma-separated scene specs, e.g. precession,stiff_drive@K_D=1e6 '
+                   '(default: all benchmark scenes; with --quick: '
+                   + ','.join(bench.QUICK_SCENES) + ')')
+    p.add_argument('--quick', action='store_true',
+                   help='a smoke run of well under a minute (see the module doc)')
+    p.add_argument('--repeats', type=int, default=None,
+                   help='repeats per run, median wall (default 3; 1 with --quick)')
+    p.add_argument('--out', default=None,
+                   help='output directory (default: a new bench-YYYYmmdd-HHMMSS; the '
+                   'committed results are in bench)')
     p.add_argument('--no-scipy', action='store_true', help='skip the scipy baselines')
-    p.add_argument('--drift-t-end', type=float, default=1000.0,
-                   help='horizon of the E* drift study on conservative [s] (0 = skip)')
+    p.add_argument('--drift-t-end', type=float, default=None,
+                   help='horizon of the E* drift study on conservative [s] (0 = skip; '
+                   'default 1000, 100 with --quick)')
 
 
 def _fmt(v) -> str:
@@ -40,6 +52,7 @@ def _fmt(v) -> str:
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     """Write the markdown report and return its text."""
     table = bench.best_table(rows)
+    load = (getattr(args, 'load_before', math.nan), getattr(args, 'load_after', math.nan))
     scenes = list(dict.fromkeys(r.scene for r in rows))
     methods = list(dict.fromkeys(r.method for r in rows))
     lines = [f'Best wall seconds per simulated second at error <= 1e-3 / 1e-6 / 1e-9 '
@@ -47,7 +60,9 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
              f'a reference; `-` = not reached within the sweep or budget). Machine: '
              f'{platform.machine()}, {os.cpu_count()} cores, shared and noisy; '
              f'{"quick" if args.quick else "full"} sweep, {args.repeats} repeats, '
-             f"{elapsed / 60:.1f} min. Methods in lower case are gyro_rotor's, upper case "
+             f'{elapsed / 60:.1f} min, load average {load[0]:.1f} at the start and '
+             f'{load[1]:.1f} at the end (all ratios are side by side in this one run). '
+             f"Methods in lower case are gyro_rotor's, upper case "
              f'scipy solve_ivp.', '',
              '| scene | ' + ' | '.join(methods) + ' |',
              '|---|' + '---|' * len(methods)]
@@ -57,24 +72,29 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
             v = table.get((s, m))
             cells.append('' if v is None else ' / '.join(_fmt(x) for x in v))
         lines.append(f'| {s} | ' + ' | '.join(cells) + ' |')
-    lines += ['', 'Speed-up of the default method (auto) over the fastest scipy method at the '
-              'same error:', '', '| scene | auto | at 1e-6 | at 1e-9 |', '|---|---|---|---|']
-    from gyro_rotor.numerics.integrators import choose_method
+    lines += ['', 'The default method (auto): speed-up over the fastest scipy method at the '
+              "same error, and its cost over the fastest of gyro_rotor's own methods (1.0 = "
+              'auto is the fastest):', '',
+              '| scene | auto | vs scipy at 1e-6 | at 1e-9 | vs own best at 1e-6 | at 1e-9 |',
+              '|---|---|---|---|---|---|']
     for s in scenes:
-        scene, _ = bench.parse_scene_spec(s)
-        auto = choose_method(scene.params, scene.t_end)[0]
+        auto = bench.auto_choice(bench.parse_scene_spec(s)[0])
         cells = []
-        for i in (1, 2):
-            ours = (table.get((s, auto)) or [None] * 3)[i]
-            sp = [table[(s, m)][i] for m in bench.SCIPY
-                  if (s, m) in table and table[(s, m)][i] is not None]
-            if ours is None or not sp:
-                cells.append('-')
-            else:
-                cells.append(f'{min(sp) / ours:.1f}x')
+        for family in (bench.SCIPY, None):
+            for i in (1, 2):
+                ours = (table.get((s, auto)) or [None] * 3)[i]
+                other = [table[(s, m)][i] for m in methods
+                         if (family is None) == m.islower() and (s, m) in table
+                         and table[(s, m)][i] is not None]
+                if ours is None or not other:
+                    cells.append('-')
+                elif family is None:
+                    cells.append(f'{ours / min(other):.2f}')
+                else:
+                    cells.append(f'{min(other) / ours:.1f}x')
         lines.append(f'| {s} | {auto} | ' + ' | '.join(cells) + ' |')
     if drift:
-        cps = [c for c in (10.0, 100.0, 1000.0) if c <= args.drift_t_end]
+        cps = [c for c in (10.0, 100.0, 1000.0) if c <= args.drift_t_end] or [args.drift_t_end]
         lines += ['', f'Relative E* drift on conservative (K_D = 0) at '
                   f'{", ".join(f"{c:g}" for c in cps)} s (default settings; scipy at rtol '
                   f'1e-10):', '', '| method | ' + ' | '.join(f'{c:g} s' for c in cps)
@@ -131,22 +151,56 @@ def write_plot(path, rows) -> str | None:
     return None
 
 
+def resolve_settings(args: argparse.Namespace) -> str | None:
+    """Fill the defaults that depend on --quick; return an error text, or None if valid.
+
+    The output directory defaults to a new ``bench-YYYYmmdd-HHMMSS``: the committed
+    ``bench/`` is written only when ``--out bench`` is given.
+    """
+    if args.repeats is None:
+        args.repeats = 1 if args.quick else 3
+    if args.drift_t_end is None:
+        args.drift_t_end = 100.0 if args.quick else 1000.0
+    if args.scenes is None:
+        args.scenes = ','.join(bench.QUICK_SCENES if args.quick else bench.DEFAULT_SCENES)
+    if args.out is None:
+        args.out = bench.default_out_dir()
+    if args.repeats < 1:
+        return f'--repeats must be >= 1, got {args.repeats}'
+    if not (math.isfinite(args.drift_t_end) and args.drift_t_end >= 0):
+        return f'--drift-t-end must be >= 0, got {args.drift_t_end}'
+    try:
+        for spec in args.scenes.split(','):
+            if spec.strip():
+                bench.parse_scene_spec(spec.strip())
+    except (GyroRotorError, ValueError) as err:
+        return f'--scenes: {err}'
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the sweep and write CSV, markdown and plot."""
-    if args.repeats < 1:
-        print(f'ERROR: --repeats must be >= 1, got {args.repeats}', file=sys.stderr)
+    err = resolve_settings(args)
+    if err:
+        print(f'ERROR: {err}', file=sys.stderr)
         return 1
+    specs = [s.strip() for s in args.scenes.split(',') if s.strip()]
+    args.load_before = os.getloadavg()[0]
     os.makedirs(args.out, exist_ok=True)
+    print(f'writing to {args.out}')
     t0 = time.perf_counter()
     rows = []
-    for spec in [s.strip() for s in args.scenes.split(',') if s.strip()]:
+    for spec in specs:
         rows += bench.run_sweep(spec, quick=args.quick, repeats=args.repeats,
                                 scipy=not args.no_scipy, progress=print)
-    drift = (bench.energy_drift(args.drift_t_end, progress=print)
+    methods = bench.QUICK_DRIFT_METHODS if args.quick else bench.DRIFT_METHODS
+    drift = (bench.energy_drift(args.drift_t_end, methods=methods, progress=print)
              if args.drift_t_end > 0 else None)
-    poles = bench.pole_counts()
-    print('pole counts:', poles)
+    poles = None if args.quick else bench.pole_counts()
+    if poles:
+        print('pole counts:', poles)
     elapsed = time.perf_counter() - t0
+    args.load_after = os.getloadavg()[0]
     csv_path = os.path.join(args.out, 'work_precision.csv')
     with open(csv_path, 'w', newline='') as fh:
         w = csv.writer(fh)

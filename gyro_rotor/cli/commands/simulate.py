@@ -42,16 +42,6 @@ def write_csv(tr, path: str) -> None:
                header=header, comments='', fmt='%.17g')
 
 
-def _tolerances(tr) -> str:
-    """How the run was controlled: tolerances of adaptive methods, the step of the others."""
-    from gyro_rotor.numerics.integrators import METHODS
-    from gyro_rotor.numerics.simulate import SCIPY_METHODS
-    cls = METHODS.get(tr.method)
-    if tr.method in SCIPY_METHODS or (cls is not None and cls.adaptive):
-        return f'rtol {tr.rtol:g}, atol {tr.atol:g}'
-    return 'fixed step: rtol and atol do not apply'
-
-
 def _pole_slips(tr) -> str:
     """Pole slips of a synchronous drive (z over a potential maximum), '' without poles."""
     if not tr.scene.params.pole_pairs:
@@ -76,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         tr.save(args.out)
     s = tr.summary()
     print(f"scene {s['scene']} (model {s['model']}), {s['t_end']:g} s with {s['method']} "
-          f'({_tolerances(tr)})')
+          f"({s['setting']})")
     if s['method_reason']:
         print(f"  auto: {s['method']}, {s['method_reason']}")
     print(f"  final state:  theta {s['theta_end']:.9f} rad, psidot {s['psidot_end']:.9f} "

@@ -99,6 +99,8 @@ class Integrator:
     #: order of the method (global error ~ h^order)
     order = 0
     adaptive = False
+    #: a fixed-step method that derives its default step from rtol (split8)
+    step_from_tolerance = False
     implicit = False
     renormalize = True
     default_rtol = 1e-10

@@ -10,14 +10,21 @@ Models are selected by an integer ``kind`` (0 full, 1 upright_axis, 2 locked_hou
 the parameters travel as one float array ``P`` (see :func:`pack_params`), so a single
 compiled kernel serves every scene without first-class function arguments.
 
-Status codes returned by the run loops: 0 finished, -1 step size underflow, -2 non-finite
-state, -3 step budget exhausted, -4 Newton/fixed-point iteration did not converge.
+Status codes returned by the run loops: :class:`Status` (0 finished, -1 step size
+underflow, -2 non-finite state, -3 step budget exhausted, -4 Newton/fixed-point iteration
+did not converge), as the plain int constants OK, UNDERFLOW, ... that numba reads.
+Every kernel is compiled with numpy's error model (a division by zero gives inf or NaN,
+never an exception); a loop whose right-hand side is non-finite at its start ends at once
+with -2, and a non-finite error norm shrinks the step until it ends with -1 (a NaN step
+fails the ``h >= min_step`` test), so no loop can reject steps forever.
 """
 
 from __future__ import annotations
 
+import enum
 import math
 
+from gyro_rotor.core.model import full_rhs, locked_rhs, pack_params, upright_rhs
 import numpy as np
 
 try:  # pragma: no cover - exercised by whichever branch the install has
@@ -32,12 +39,11 @@ except ImportError:  # pragma: no cover
             return args[0]
         return lambda f: f
 
-__all__ = ['HAVE_NUMBA', 'KIND', 'pack_params', 'rhs', 'rk_run', 'dop853_run',
+__all__ = ['HAVE_NUMBA', 'KIND', 'Status', 'pack_params', 'rhs', 'rk_run', 'dop853_run',
            'gauss_run', 'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense',
            'gauss_step', 'rodas_step', 'fd_jacobian', 'normalize_quaternion']
 
 KIND = {'full': 0, 'upright_axis': 1, 'locked_housing': 2}
-_SERIES_LIMIT = 1e-4
 
 # step size control (as scipy's rk.py and Hairer's codes)
 SAFETY = 0.9
@@ -45,13 +51,22 @@ MIN_FACTOR = 0.2   # smallest decrease of the step in one go
 MAX_FACTOR = 10.0  # largest increase of the step in one go
 
 
-def pack_params(p) -> np.ndarray:
-    """Pack RotorParams into a float array.
+class Status(enum.IntEnum):
+    """Status codes of the run loops and steppers (read by numba as integer constants)."""
 
-    The order is (I, C_R, C_M, G s, c_theta, c_psi, K_S, K_D, Omega0, p).
-    """
-    return np.array([p.I, p.C_R, p.C_M, p.Gs, p.c_theta, p.c_psi, p.K_S, p.K_D, p.Omega0,
-                     float(p.pole_pairs)])
+    FINISHED = 0
+    STEP_UNDERFLOW = -1
+    NON_FINITE = -2
+    BUDGET = -3
+    NO_CONVERGENCE = -4
+
+
+# numba reads module-level ints as compile-time constants (IntEnum members it does not)
+OK = int(Status.FINISHED)
+UNDERFLOW = int(Status.STEP_UNDERFLOW)
+NONFINITE = int(Status.NON_FINITE)
+BUDGET = int(Status.BUDGET)
+NOCONV = int(Status.NO_CONVERGENCE)
 
 
 def rhs(kind, y, P, out):
@@ -78,7 +93,7 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
     from numba import types
     from numba.extending import overload
 
-    @overload(rhs)
+    @overload(rhs, jit_options={'error_model': 'numpy'})
     def _rhs_typed(kind, y, P, out):
         if isinstance(kind, types.Integer):
             return _model_rhs.py_func
@@ -91,89 +106,23 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
         return lambda kind: False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def _model_rhs(kind, y, P, out):
-    """dy/dt of model ``kind`` at state ``y`` into ``out`` (see gyro_rotor.core.model)."""
-    C_R = P[1]
-    C_M = P[2]
-    c_psi = P[5]
-    K_S = P[6]
-    K_D = P[7]
-    pp = P[9]
+    """dy/dt of model ``kind`` at state ``y`` into ``out`` (the functions of core.model).
+
+    Compiled with numpy's error model: a division by zero (a state with q = 0, or the axis
+    exactly at theta = pi) gives inf or nan, which the loops report as a non-finite state
+    (status -2) or a rejected step, never as an exception out of a run.
+    """
     if kind == 0:
-        I_ = P[0]
-        Gs = P[3]
-        c_theta = P[4]
-        Omega0 = P[8]
-        qw = y[0]
-        qx = y[1]
-        qy = y[2]
-        qz = y[3]
-        W1 = y[4]
-        W2 = y[5]
-        W3 = y[6]
-        z = y[7]
-        zd = y[8]
-        n = qw * qw + qx * qx + qy * qy + qz * qz
-        k1 = 2.0 * (qx * qz - qw * qy) / n
-        k2 = 2.0 * (qy * qz + qw * qx) / n
-        k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
-        st = math.sqrt(k1 * k1 + k2 * k2)
-        th = math.atan2(st, k3)
-        if th < _SERIES_LIMIT:
-            t2 = th * th
-            ratio = 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
-        else:
-            ratio = th / st
-        dV = Gs - c_theta * ratio
-        tw = c_psi * 2.0 * math.atan2(qz, qw)
-        tw_k = tw / (1.0 + k3)
-        M1 = dV * k2 - tw_k * k1
-        M2 = -dV * k1 - tw_k * k2
-        if pp != 0.0:
-            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
-        else:
-            Q = -K_S * z - K_D * zd
-        g = C_M * W3 + C_R * (W3 + Omega0 + zd) - I_ * W3
-        dW3 = (-tw - Q) / C_M
-        out[0] = 0.5 * (-qx * W1 - qy * W2 - qz * W3)
-        out[1] = 0.5 * (qw * W1 + qy * W3 - qz * W2)
-        out[2] = 0.5 * (qw * W2 + qz * W1 - qx * W3)
-        out[3] = 0.5 * (qw * W3 + qx * W2 - qy * W1)
-        out[4] = (M1 - W2 * g) / I_
-        out[5] = (M2 + W1 * g) / I_
-        out[6] = dW3
-        out[7] = zd
-        out[8] = Q / C_R - dW3
-        out[9] = K_D * zd * zd
+        full_rhs(y, P, out)
     elif kind == 1:
-        chi = y[0]
-        chid = y[1]
-        z = y[2]
-        zd = y[3]
-        if pp != 0.0:
-            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
-        else:
-            Q = -K_S * z - K_D * zd
-        chidd = (-c_psi * chi - Q) / C_M
-        out[0] = chid
-        out[1] = chidd
-        out[2] = zd
-        out[3] = Q / C_R - chidd
-        out[4] = K_D * zd * zd
+        upright_rhs(y, P, out)
     else:
-        z = y[0]
-        zd = y[1]
-        if pp != 0.0:
-            Q = -(K_S / pp) * math.sin(pp * z) - K_D * zd
-        else:
-            Q = -K_S * z - K_D * zd
-        out[0] = zd
-        out[1] = Q / C_R
-        out[2] = K_D * zd * zd
+        locked_rhs(y, P, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def normalize_quaternion(kind, y, f):
     """Apply the projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
 
@@ -191,7 +140,7 @@ def normalize_quaternion(kind, y, f):
         f[i] *= s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def _rms_error(err, y, y_new, rtol, atol):
     n = y.shape[0]
     acc = 0.0
@@ -202,7 +151,7 @@ def _rms_error(err, y, y_new, rtol, atol):
     return math.sqrt(acc / n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def _all_finite(y):
     for i in range(y.shape[0]):
         if not math.isfinite(y[i]):
@@ -211,7 +160,7 @@ def _all_finite(y):
 
 
 # -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     """One explicit RK step of tableau (A, B) from (y, f0 = f(y)); result in ``y_new``.
 
@@ -235,7 +184,7 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
         y_new[m] = y[m] + h * acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, counts):
     """Fixed-step explicit RK from t0 through the sample times ``t_eval`` (increasing).
 
@@ -262,6 +211,10 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
             h = span / m
             for i in range(m):
                 rhs(kind, y, P, f)
+                if not _all_finite(f):
+                    counts[0] = nfev + 1
+                    counts[1] = nsteps
+                    return NONFINITE
                 rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
                 nfev += s
                 nsteps += 1
@@ -272,21 +225,21 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
                 if not _all_finite(y):
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -2
+                    return NONFINITE
                 if nsteps >= max_steps:
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -3
+                    return BUDGET
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
     counts[0] = nfev
     counts[1] = nsteps
-    return 0
+    return OK
 
 
 # -- DOP853, adaptive with dense output --------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_new):
     """One trial step of DOP853 (12 stages, FSAL). Returns the scaled error norm.
 
@@ -328,7 +281,7 @@ def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_ne
     return abs(h) * e5 / math.sqrt(denom * n)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
     """Coefficients ``F`` (7, n) of the 7th-order dense output over the last step.
 
@@ -354,7 +307,7 @@ def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
             F[3 + r, m] = h * acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dense_eval(F, y_old, x, out):
     """Evaluate the DOP853 interpolant at fraction ``x`` of the step into ``out``."""
     n = y_old.shape[0]
@@ -369,7 +322,7 @@ def dense_eval(F, y_old, x, out):
         out[m] = v + y_old[m]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
     """Return the starting step size.
 
@@ -404,7 +357,7 @@ def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
     return min(100.0 * h0, h1, h_max)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
                A, B, C, D, E3, E5, Y_out, counts):
     """Adaptive DOP853 from t0 to t_eval[-1], sampling ``t_eval`` with the dense output.
@@ -436,11 +389,11 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
     else:
         h = initial_step(kind, P, y, f, rtol, atol, 7, h_max, ytmp, ftmp)
         nfev += 1
-    status = 0
-    while t < t_end:
+    status = OK if _all_finite(f) else NONFINITE
+    while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if h < min_step:
-            status = -1
+        if not h >= min_step:   # also a NaN step (from a non-finite error norm)
+            status = UNDERFLOW
             break
         if h > h_max:
             h = h_max
@@ -475,10 +428,10 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
         t = t_new
         nsteps += 1
         if not _all_finite(y):
-            status = -2
+            status = NONFINITE
             break
         if nsteps >= max_steps:
-            status = -3
+            status = BUDGET
             break
         if err == 0.0:
             fac = MAX_FACTOR
@@ -493,7 +446,7 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
 
 
 # -- Gauss-Legendre collocation (implicit, fixed step) -----------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
     """One step of the s-stage Gauss method; stages by fixed-point iteration to round-off.
 
@@ -538,7 +491,7 @@ def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
     return nfev
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, counts):
     """Fixed-step Gauss method through the sample times (as :func:`rk_run`)."""
     n = y0.shape[0]
@@ -560,11 +513,15 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
             h = span / m
             for i in range(m):
                 rhs(kind, y, P, f)
+                if not _all_finite(f):
+                    counts[0] = nfev + 1
+                    counts[1] = nsteps
+                    return NONFINITE
                 ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
                 if ne < 0:
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -4
+                    return NOCONV
                 nfev += ne + 1
                 nsteps += 1
                 for j in range(n):
@@ -572,42 +529,45 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
                 if not _all_finite(y):
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -2
+                    return NONFINITE
                 if nsteps >= max_steps:
                     counts[0] = nfev
                     counts[1] = nsteps
-                    return -3
+                    return BUDGET
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
     counts[0] = nfev
     counts[1] = nsteps
-    return 0
+    return OK
 
 
 # -- RODAS4 (Rosenbrock, L-stable) -------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def fd_jacobian(kind, P, y, J, ytmp, fa, fb):
-    """Jacobian df/dy by central differences (10 pairs of evaluations for the full model).
+    """Jacobian df/dy by forward differences from ``fa`` = f(y) (one evaluation per column).
 
-    Truncation error ~ eps^(2/3) relative; the stiff entries (linear in zdot) are exact
-    up to round-off.
+    The last state (the dissipated work D) enters no right-hand side: its column is zero
+    and costs nothing. The stiff entries (linear in zdot, docs/model.md section 7) are
+    exact up to round-off; the others carry a relative error near sqrt(eps), which the
+    Rosenbrock method tolerates (its error terms in J - df/dy are of order h^2).
     """
     n = y.shape[0]
-    for j in range(n):
-        for m in range(n):
-            ytmp[m] = y[m]
-        d = 6e-6 * max(1.0, abs(y[j]))
+    for m in range(n):
+        ytmp[m] = y[m]
+    for j in range(n - 1):
+        d = 1.5e-8 * max(1.0, abs(y[j]))
         ytmp[j] = y[j] + d
-        rhs(kind, ytmp, P, fa)
-        ytmp[j] = y[j] - d
         rhs(kind, ytmp, P, fb)
+        ytmp[j] = y[j]
         for m in range(n):
-            J[m, j] = (fa[m] - fb[m]) / (2.0 * d)
-    return 2 * n
+            J[m, j] = (fb[m] - fa[m]) / d
+    for m in range(n):
+        J[m, n - 1] = 0.0
+    return n - 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def lu_factor(M, piv):
     """In-place LU factorization with partial pivoting; False if singular."""
     n = M.shape[0]
@@ -636,7 +596,7 @@ def lu_factor(M, piv):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def lu_solve(M, piv, b):
     """Solve with the factors of :func:`lu_factor`, in place on ``b``."""
     n = M.shape[0]
@@ -658,7 +618,7 @@ def lu_solve(M, piv, b):
         b[i] = acc / M[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new, W, piv,
                rhs_buf):
     """Take one trial step of RODAS4 with Jacobian ``J`` at y.
@@ -701,7 +661,7 @@ def rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new,
     return _rms_error(K[s - 1], y, y_new, rtol, atol)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model='numpy')
 def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
               A, C, Mw, gamma, Y_out, counts):
     """Adaptive RODAS4 through the sample times: steps are clipped to land on each sample.
@@ -739,12 +699,12 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     else:
         h = initial_step(kind, P, y, f, rtol, atol, 3, h_max, ytmp, fa)
         nfev += 1
-    status = 0
+    status = OK if _all_finite(f) else NONFINITE
     jac_fresh = False
-    while t < t_end:
+    while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if h < min_step:
-            status = -1
+        if not h >= min_step:   # also a NaN step (from a non-finite error norm)
+            status = UNDERFLOW
             break
         if h > h_max:
             h = h_max
@@ -755,7 +715,7 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
             h = t_next - t
             clipped = True
         if not jac_fresh:
-            nfev += fd_jacobian(kind, P, y, J, ytmp, fa, fb)
+            nfev += fd_jacobian(kind, P, y, J, ytmp, f, fb)
             njev += 1
             jac_fresh = True
         err = rodas_step(kind, P, y, f, J, h, rtol, atol, A, C, Mw, gamma, K, ytmp, y_new,
@@ -778,14 +738,14 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         jac_fresh = False
         nsteps += 1
         if not _all_finite(y):
-            status = -2
+            status = NONFINITE
             break
         while k < t_eval.shape[0] and t_eval[k] <= t:
             for j in range(n):
                 Y_out[k, j] = y[j]
             k += 1
         if nsteps >= max_steps:
-            status = -3
+            status = BUDGET
             break
         fac = 6.0 if err == 0.0 else min(6.0, SAFETY * err ** (-0.25))
         fac = max(MIN_FACTOR, fac)

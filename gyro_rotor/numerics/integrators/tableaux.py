@@ -149,3 +149,57 @@ RODAS4_C[5, :5] = [8.083246795921522, -7.981132988064893, -31.52159432874371,
 RODAS4_M = np.array([1.221224509226641, 6.019134481288629, 12.53708332932087,
                      -0.687886036105895, 1.0, 1.0])
 RODAS4_E = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+
+# -- symmetric compositions of a symmetric 2nd-order method (Strang splitting) ---------------
+# W. Kahan, R.-C. Li, Composition constants for raising the orders of unconventional schemes
+# for ordinary differential equations, Math. Comp. 66 (1997) 1089-1099: s9odr6a (order 6,
+# 9 stages) and s17odr8a (order 8, 17 stages). The step fractions w_1 ... w_s (symmetric).
+_KL6 = [0.39216144400731413927925056, 0.33259913678935943859974864,
+        -0.70624617255763935980996482, 0.08221359629355080023149045,
+        0.79854399093482996339895035]
+_KL8 = [0.13020248308889008087881763, 0.56116298177510838456196441,
+        -0.38947496264484728640807860, 0.15884190655515560089621075,
+        -0.39590389413323757733623154, 0.18453964097831570709183254,
+        0.25837438768632204729397911, 0.29501172360931029887096624,
+        -0.60550853383003451169892108]
+KL6_W = np.array(_KL6 + _KL6[-2::-1])
+KL8_W = np.array(_KL8 + _KL8[-2::-1])
+
+
+# -- Radau IIA collocation, s stages, order 2s - 1 (L-stable, stiffly accurate) ---------------
+def radau_iia(s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (A, B, C) of the s-stage Radau IIA method (Hairer and Wanner II, sec. IV.5).
+
+    The nodes C are the zeros of P_s(2x - 1) - P_{s-1}(2x - 1) (C[-1] = 1); the rows of A
+    integrate the Lagrange basis of the nodes (the collocation conditions
+    sum_j A_ij c_j^(k-1) = c_i^k / k, k = 1..s); B = A[-1].
+    """
+    leg = np.polynomial.legendre
+    coef = np.zeros(s + 1)
+    coef[s], coef[s - 1] = 1.0, -1.0
+    x = np.sort(leg.legroots(coef).real)
+    C = 0.5 * (x + 1.0)
+    C[-1] = 1.0
+    V = np.vander(C, s, increasing=True)                 # V_jk = c_j^(k-1)
+    k = np.arange(1, s + 1)
+    W = C[:, None] ** k / k                               # W_ik = c_i^k / k
+    A = np.linalg.solve(V.T, W.T).T                       # sum_j A_ij c_j^(k-1) = c_i^k/k
+    return A, A[-1].copy(), C
+
+
+def radau_estimator(C: np.ndarray, gamma0: float) -> np.ndarray:
+    """Weights BH of the embedded order-s formula y_n + h (gamma0 f(y_n) + sum BH_i k_i).
+
+    From the quadrature conditions gamma0 0^(k-1) + sum BH_i c_i^(k-1) = 1/k, k = 1..s.
+    """
+    s = C.shape[0]
+    V = np.vander(C, s, increasing=True).T
+    rhs = 1.0 / np.arange(1, s + 1)
+    rhs[0] -= gamma0
+    return np.linalg.solve(V, rhs)
+
+
+RADAU5_A, RADAU5_B, RADAU5_C = radau_iia(5)
+RADAU5_AINV = np.linalg.inv(RADAU5_A)
+RADAU5_GAMMA0 = 0.2
+RADAU5_BH = radau_estimator(RADAU5_C, RADAU5_GAMMA0)

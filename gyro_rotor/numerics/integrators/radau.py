@@ -1,0 +1,283 @@
+"""Compiled kernels of radau9: Radau IIA (5 stages, order 9) with the drive's exact Jacobian.
+
+The stiffness of a stiff drive sits in one linear term, the drive damping -K_D zdot of
+eq. (23): its root near -lambda = -K_D (1/C_R + 1/C_M) (docs/model.md section 7). That term
+is f_I(y) = -K_D b y_k with k the index of zdot and b the response of the state's rates to a
+unit rotor torque (b_zdot = 1/C_R + 1/C_M, b_W3 = -1/C_M for the full model), so its
+Jacobian L = -K_D b e_k^T = -lambda P is of rank one (P = b e_k^T / b_k a projector).
+
+Radau IIA collocation is L-stable and stiffly accurate (y_new is the last stage, on the slow
+manifold) with stage order 5, so its high order survives the stiff limit. Its stage
+equations Z = h (A x I) F(y + Z) are solved by simplified Newton iterations whose matrix
+keeps only the stiff part, M = I - h A x L: then
+
+    M^-1 = I x (I - P) + (I + h lambda A)^-1 x P,
+
+a 5 x 5 inverse per step and O(n) work per stage, whatever K_D: no Jacobian evaluation, no
+n x n factorization. The non-stiff rest converges as a fixed-point iteration (rate about
+h rho(A) |df/dy|), from a start extrapolated along the last step's collocation polynomial.
+The error estimate is Hairer's: an embedded formula of order 5 with the weight gamma0 on
+f(y_n), filtered by (I - h gamma0 L)^-1 for the stiff direction (Hairer and Wanner II,
+sec. IV.8).
+"""
+
+from __future__ import annotations
+
+import math
+
+from gyro_rotor.numerics.integrators.kernels import (_all_finite, BUDGET, initial_step,
+                                                     MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
+                                                     normalize_quaternion, OK, rhs, SAFETY,
+                                                     UNDERFLOW)
+import numpy as np
+
+__all__ = ['stiff_direction', 'radau_run', 'MAX_ITER']
+
+#: most simplified-Newton iterations per step before the step is retried at half size
+MAX_ITER = 20
+#: the stage iteration stops when its update is this small, in tolerance units
+ITER_TOL = 0.01
+#: ... in units of a relative tolerance of at most this (loose tolerances do not leave the
+#: stages unsolved: the step's error is then the method's, not the iteration's); the
+#: kernels take it as the argument ``itol_max``
+ITER_RTOL_MAX = 1e-6
+
+
+@njit(cache=True, error_model='numpy')
+def stiff_direction(kind, P, b):
+    """Fill ``b`` and return (k, lambda) of the stiff part f_I = -K_D b y_k (module doc)."""
+    for m in range(b.shape[0]):
+        b[m] = 0.0
+    inv_cr = 1.0 / P[1]
+    if kind == 2:
+        k = 1
+        b[k] = inv_cr
+    else:
+        inv_cm = 1.0 / P[2]
+        k = 8 if kind == 0 else 3
+        b[k] = inv_cr + inv_cm
+        b[6 if kind == 0 else 1] = -inv_cm
+    return k, P[7] * b[k]
+
+
+@njit(cache=True, error_model='numpy')
+def _inverse(M, out):
+    """Gauss-Jordan inverse of the small matrix M (destroyed) into ``out``."""
+    s = M.shape[0]
+    for i in range(s):
+        for j in range(s):
+            out[i, j] = 1.0 if i == j else 0.0
+    for c in range(s):
+        p = c
+        for r in range(c + 1, s):
+            if abs(M[r, c]) > abs(M[p, c]):
+                p = r
+        for j in range(s):
+            tmp = M[c, j]
+            M[c, j] = M[p, j]
+            M[p, j] = tmp
+            tmp = out[c, j]
+            out[c, j] = out[p, j]
+            out[p, j] = tmp
+        inv = 1.0 / M[c, c]
+        for j in range(s):
+            M[c, j] *= inv
+            out[c, j] *= inv
+        for r in range(s):
+            if r != c:
+                fac = M[r, c]
+                for j in range(s):
+                    M[r, j] -= fac * M[c, j]
+                    out[r, j] -= fac * out[c, j]
+
+
+@njit(cache=True, error_model='numpy')
+def _extrapolate(C, Zp, ratio, Z):
+    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio)."""
+    s = C.shape[0]
+    n = Z.shape[1]
+    for i in range(s):
+        th = 1.0 + C[i] * ratio
+        for m in range(n):
+            Z[i, m] = -Zp[s - 1, m]
+        for j in range(s):
+            lj = th / C[j]                    # the node 0 of the basis
+            for q in range(s):
+                if q != j:
+                    lj *= (th - C[q]) / (C[j] - C[q])
+            for m in range(n):
+                Z[i, m] += lj * Zp[j, m]
+
+
+@njit(cache=True, error_model='numpy')
+def radau_solve(kind, P, y, f, h, rtol, atol, A, C, b, k, lam, Z, F, V, T, Tm, ytmp, sc,
+                itol_max):
+    """Solve the stage equations for Z (start values in Z); return the iterations or -1."""
+    s = C.shape[0]
+    n = y.shape[0]
+    bk = b[k]
+    for i in range(s):
+        for j in range(s):
+            Tm[i, j] = (1.0 if i == j else 0.0) + h * lam * A[i, j]
+    _inverse(Tm, T)
+    ra = min(rtol, itol_max)
+    aa = min(atol, itol_max * 1e-2)
+    for m in range(n):
+        sc[m] = aa + ra * abs(y[m])
+    prev = math.inf
+    for it in range(MAX_ITER):
+        for i in range(s):
+            for m in range(n):
+                ytmp[m] = y[m] + Z[i, m]
+            rhs(kind, ytmp, P, F[i])
+        for i in range(s):
+            for m in range(n):
+                acc = 0.0
+                for j in range(s):
+                    acc += A[i, j] * F[j, m]
+                V[i, m] = h * acc - Z[i, m]
+        norm = 0.0
+        for i in range(s):
+            acc = 0.0
+            for j in range(s):
+                acc += T[i, j] * V[j, k]
+            corr = (acc - V[i, k]) / bk
+            for m in range(n):
+                d = V[i, m] + corr * b[m]
+                Z[i, m] += d
+                e = d / sc[m]
+                norm += e * e
+        norm = math.sqrt(norm / (s * n))
+        if not math.isfinite(norm) or (it > 2 and norm > prev):
+            return -1               # the non-normal start may grow; later growth diverges
+        if norm <= ITER_TOL:
+            return it + 1
+        prev = norm
+    return -1
+
+
+@njit(cache=True, error_model='numpy')
+def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
+              A, Ainv, C, BH, gamma0, itol_max, Y_out, counts, y_last):
+    """Adaptive Radau IIA through the sample times: steps are clipped to land on each sample.
+
+    Returns the status; ``counts`` = (nfev, nsteps, rejected, next step size, -, t at the
+    end) and ``y_last`` the state there (after ``max_steps`` steps, or the end).
+    """
+    n = y0.shape[0]
+    s = C.shape[0]
+    b = np.empty(n)
+    k, lam = stiff_direction(kind, P, b)
+    y = y0.copy()
+    f = np.empty(n)
+    ytmp = np.empty(n)
+    ftmp = np.empty(n)
+    sc = np.empty(n)
+    err = np.empty(n)
+    Z = np.empty((s, n))
+    Zp = np.empty((s, n))
+    F = np.empty((s, n))
+    V = np.empty((s, n))
+    T = np.empty((s, s))
+    Tm = np.empty((s, s))
+    t = t0
+    t_end = t_eval[t_eval.shape[0] - 1]
+    nfev = 0
+    nsteps = 0
+    nrej = 0
+    kk = 0
+    while kk < t_eval.shape[0] and t_eval[kk] <= t:
+        for j in range(n):
+            Y_out[kk, j] = y[j]
+        kk += 1
+    rhs(kind, y, P, f)
+    nfev += 1
+    if h_init > 0.0:
+        h = h_init
+    else:
+        h = initial_step(kind, P, y, f, rtol, atol, 5, h_max, ytmp, ftmp)
+        nfev += 1
+    h_old = 0.0
+    status = OK if _all_finite(f) else NONFINITE
+    while status == OK and t < t_end:
+        if not h >= 10.0 * abs(math.nextafter(t, math.inf) - t):   # also a NaN step
+            status = UNDERFLOW
+            break
+        if h > h_max:
+            h = h_max
+        h_free = h
+        clipped = False
+        t_next = t_eval[kk] if kk < t_eval.shape[0] else t_end
+        if t + h >= t_next:
+            h = t_next - t
+            clipped = True
+        if h_old > 0.0:
+            _extrapolate(C, Zp, h / h_old, Z)
+        else:
+            for i in range(s):
+                for m in range(n):
+                    Z[i, m] = C[i] * h * f[m]
+        it = radau_solve(kind, P, y, f, h, rtol, atol, A, C, b, k, lam, Z, F, V, T, Tm,
+                         ytmp, sc, itol_max)
+        if it < 0:
+            nfev += MAX_ITER * s
+            nrej += 1
+            h *= 0.5
+            continue
+        nfev += it * s
+        # error estimate (module doc): h gamma0 f_n + sum (BH_i - B_i) h k_i, h k = A^-1 Z
+        for m in range(n):
+            acc = 0.0
+            for i in range(s):
+                hk = 0.0
+                for j in range(s):
+                    hk += Ainv[i, j] * Z[j, m]
+                acc += (BH[i] - A[s - 1, i]) * hk
+            err[m] = gamma0 * h * f[m] + acc
+        ek = err[k] / (1.0 + h * gamma0 * lam)
+        corr = (ek - err[k]) / b[k]
+        e = 0.0
+        for m in range(n):
+            em = err[m] + corr * b[m]
+            sc_m = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
+            e += (em / sc_m) ** 2
+        e = math.sqrt(e / n)
+        if not math.isfinite(e) or e > 1.0:
+            nrej += 1
+            h *= max(MIN_FACTOR, SAFETY * e ** (-1.0 / (s + 1))) if math.isfinite(e) \
+                else MIN_FACTOR
+            continue
+        t = t_next if clipped else t + h
+        for j in range(n):
+            y[j] += Z[s - 1, j]
+        rhs(kind, y, P, f)
+        nfev += 1
+        if renorm:
+            normalize_quaternion(kind, y, f)
+        for i in range(s):
+            for j in range(n):
+                Zp[i, j] = Z[i, j]
+        h_old = h
+        nsteps += 1
+        if not _all_finite(y):
+            status = NONFINITE
+            break
+        while kk < t_eval.shape[0] and t_eval[kk] <= t:
+            for j in range(n):
+                Y_out[kk, j] = y[j]
+            kk += 1
+        # the next step before the budget test: a run resumed after max_steps steps (the
+        # one-step calls of Radau9._step_impl) continues with it, not with this step
+        fac = MAX_FACTOR if e == 0.0 else min(MAX_FACTOR, SAFETY * e ** (-1.0 / (s + 1)))
+        h = max(h * fac, h_free) if clipped else h * fac
+        if nsteps >= max_steps:
+            status = BUDGET
+            break
+    counts[0] = nfev
+    counts[1] = nsteps
+    counts[2] = nrej
+    counts[3] = h
+    counts[5] = t
+    for j in range(n):
+        y_last[j] = y[j]
+    return status
