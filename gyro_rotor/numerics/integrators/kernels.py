@@ -94,10 +94,10 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
     from numba import types
     from numba.extending import overload
 
-    @overload(rhs)
+    @overload(rhs, jit_options={'error_model': 'numpy'})
     def _rhs_typed(kind, y, P, out):
         if isinstance(kind, types.Integer):
-            return lambda kind, y, P, out: _model_rhs(kind, y, P, out)
+            return _model_rhs.py_func
         return lambda kind, y, P, out: kind(y, P, out)
 
     @overload(_is_full)
@@ -109,7 +109,7 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
 
 @njit(cache=True, error_model='numpy')
 def _model_rhs(kind, y, P, out):
-    """dy/dt of hand-written model ``kind`` at state ``y`` into ``out`` (core.model's functions).
+    """dy/dt of model ``kind`` at state ``y`` into ``out`` (the functions of core.model).
 
     Compiled with numpy's error model: a division by zero (a state with q = 0, or the axis
     exactly at theta = pi) gives inf or nan, which the loops report as a non-finite state
