@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
 from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FIELDS, MODE_LABEL
@@ -96,6 +97,8 @@ class RotorAnalysisNode(Node):
         self.session = AnalysisSession(scene, **self.options)
         self.errors: list[str] = []
         self.last_result = None
+        # the recorder feeds the session from its spool thread; results are read here
+        self._lock = threading.Lock()
 
         topics = sim_topics(self.sim_node)
         self.scene_topic = self.resolve_topic_name(f'{self.sim_node}/scene')
@@ -133,6 +136,10 @@ class RotorAnalysisNode(Node):
 
     # -- input ----------------------------------------------------------------------------
     def _on_bytes(self, topic: str, data: bytes) -> None:
+        with self._lock:
+            self._feed(topic, data)
+
+    def _feed(self, topic: str, data: bytes) -> None:
         try:
             if topic == self.energy_topic:      # decoded by layout, not by rclpy: 3x faster
                 self.session.on_energy(energy_from_cdr(data))
@@ -178,7 +185,8 @@ class RotorAnalysisNode(Node):
 
     def _publish_results(self) -> None:
         try:
-            res = self.session.result()
+            with self._lock:
+                res = self.session.result()
         except GyroRotorError as err:
             self._publish_diag('STALE', str(err), {})
             return
@@ -204,6 +212,8 @@ class RotorAnalysisNode(Node):
             values[f'evidence_{i}'] = line
         for i, err in enumerate(self.errors[-3:]):
             values[f'error_{i}'] = err
+        if self.recorder is not None:
+            values.update(self.recorder.stats())
         level = 'ERROR' if self.errors and res.level == 'OK' else res.level
         self._publish_diag(level, str(res.verdict), values)
 
@@ -220,6 +230,7 @@ class RotorAnalysisNode(Node):
         if self.recorder is None or self.recorder.writer.closed:
             return
         try:
+            self.recorder.drain()           # every received message reached the session
             self.session.finish()
             res = self.session.result()
             self.recorder.add_metadata('gyro_rotor.live_result', {
