@@ -122,7 +122,8 @@ class RotorAnalysisNode(Node):
                                         metadata=meta, on_message=self._on_bytes,
                                         compression=compression, on_error=self._error,
                                         latched=(f'{self.sim_node}/scene',
-                                                 'analysis_verdict'))
+                                                 'analysis_verdict'), start=False)
+            self.recorder.start()           # on_message may use self.recorder from now on
             self.get_logger().info(f'recording to {self.recorder.path}')
         else:
             deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

@@ -134,6 +134,8 @@ class BagRecorder:
         Payload bytes the spool's FIFO holds before the receiving thread waits.
     poll_period : float
         Seconds the receiving thread sleeps when no message was queued.
+    start : bool
+        Start receiving now; False: at :meth:`start` (once the owner can take messages).
     """
 
     def __init__(self, node: Node, path: str | os.PathLike, topics: Mapping[str, str], *,
@@ -142,7 +144,8 @@ class BagRecorder:
                  on_message: Callable[[str, bytes], None] | None = None,
                  latched: tuple = (), compression: str = 'none',
                  on_error: Callable[[str], None] | None = None,
-                 max_bytes: int = DEFAULT_MAX_BYTES, poll_period: float = POLL_PERIOD):
+                 max_bytes: int = DEFAULT_MAX_BYTES, poll_period: float = POLL_PERIOD,
+                 start: bool = True):
         self.node = node
         self.path = Path(path)
         self.on_error = on_error
@@ -191,7 +194,14 @@ class BagRecorder:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._receive, name='bag-receiver',
                                         daemon=True)
-        self._thread.start()
+        if start:
+            self._thread.start()
+
+    def start(self) -> None:
+        """Start the receiving thread (if the constructor was told not to)."""
+        if self._thread is not None and not self._thread.is_alive() and \
+                not self._stop.is_set():
+            self._thread.start()
 
     @property
     def closed(self) -> bool:
@@ -294,7 +304,8 @@ class BagRecorder:
                 'recorder_queue': st.queued, 'recorder_queue_max': st.max_queued,
                 'recorder_queue_max_mb': round(st.max_queued_bytes / 1e6, 3),
                 'recorder_blocked_s': round(st.blocked_s, 3),
-                'recorder_not_written': self.spool.not_written}
+                'recorder_not_written': self.spool.not_written,
+                'recorder_consumer_errors': self.spool.consumer_errors}
 
     def summary(self) -> str:
         """One line for the log at exit: counts per topic, losses, FIFO high water."""
@@ -305,7 +316,8 @@ class BagRecorder:
              'queue_max': st.max_queued, 'queue_max_bytes': st.max_queued_bytes,
              'blocked_s': round(st.blocked_s, 3), 'blocks': st.blocks,
              'not_written': self.spool.not_written,
-             'consumer_errors': self.spool.consumer_errors}))
+             'consumer_errors': self.spool.consumer_errors,
+             'first_consumer_error': self.spool.consumer_error}))
 
     def _fail(self, err) -> None:
         """Stop writing after a failed write (disk full, ...) and say so loudly, once."""
@@ -331,7 +343,8 @@ class BagRecorder:
         if self._thread is None:
             return
         self._stop.set()
-        self._thread.join()
+        if self._thread.is_alive():
+            self._thread.join()
         self._thread = None
         try:
             while self.receive_once():

@@ -47,8 +47,9 @@ import yaml
 
 __all__ = ['RotorSimNode', 'main', 'STATE_QOS']
 
-#: QoS of the state topics: reliable, deep enough for a recorder to keep up
-STATE_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+#: QoS of the state topics: reliable; the history (10 s at 1000 Hz) is what a reader can still
+#: have repaired after a dropped datagram (1000 lost messages under load: issue 12)
+STATE_QOS = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
 _LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: flow control at real_time_factor 0: longest block per tick waiting for acknowledgements
