@@ -6,7 +6,7 @@ latched ``~/scene`` document), so the bag holds the serialized bytes exactly as 
 re-encoded. A topic's channel is registered at its first message, with the QoS profiles its
 publishers offer and the type hash they announce (``Node.get_publishers_info_by_topic``),
 as ``ros2 bag record`` does;
-``log_time`` is the receive time (when the recorder took the message, wall clock) and
+``log_time`` is the receive time (when DDS received the message for this reader, wall clock) and
 ``publish_time`` the publisher's DDS source timestamp (both ns since the epoch, this host's
 clock); the simulation time is only in the messages (stamps, ``/clock``).
 
