@@ -82,6 +82,7 @@ class BagSpool:
         self._cond = threading.Condition()
         self._closing = False
         self._flushes_done = 0
+        self._flushes_asked = 0
         self._thread = threading.Thread(target=self._run, name='bag-spool', daemon=True)
         self._thread.start()
 
@@ -126,8 +127,12 @@ class BagSpool:
         takes). Called from the spool's own thread it only queues the flush.
         """
         with self._cond:
-            target = self._flushes_done + sum(1 for c in self._fifo if c[0] == _FLUSH) + 1
-        self._command(_FLUSH, None)
+            if self._closing:
+                raise BagError(f'bag {self.writer.path} is closing')
+            self._flushes_asked += 1
+            target = self._flushes_asked
+            self._fifo.append((_FLUSH, None, 0))
+            self._cond.notify_all()
         if threading.current_thread() is self._thread:
             return False
         with self._cond:
@@ -182,7 +187,7 @@ class BagSpool:
                 if kind == _FLUSH:
                     last_flush = time.monotonic()
             if dirty and time.monotonic() - last_flush >= self.flush_period:
-                self._do(_FLUSH, None, 0)
+                self._do(_FLUSH, 'periodic', 0)
                 last_flush, dirty = time.monotonic(), False
 
     def _do(self, kind: int, arg, size: int) -> bool:
@@ -196,9 +201,10 @@ class BagSpool:
                     self.writer.flush()
                 except (OSError, BagError) as err:
                     self._fail(err)
-            with self._cond:
-                self._flushes_done += 1
-                self._cond.notify_all()
+            if arg is None:             # asked for by flush(): count it for the waiter
+                with self._cond:
+                    self._flushes_done += 1
+                    self._cond.notify_all()
             return False
         if self.failed:
             return False
