@@ -53,6 +53,8 @@ OWN_TOPICS = {'analysis': 'std_msgs/msg/Float64MultiArray',
               'analysis_modes': 'std_msgs/msg/Float64MultiArray',
               'analysis_verdict': 'std_msgs/msg/String'}
 _QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: received messages that may wait for the analysis while it computes a result
+_PENDING_MAX = 20000
 _LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -99,6 +101,7 @@ class RotorAnalysisNode(Node):
         self.last_result = None
         # the recorder feeds the session from its spool thread; results are read here
         self._lock = threading.Lock()
+        self._pending: list = []
 
         topics = sim_topics(self.sim_node)
         self.scene_topic = self.resolve_topic_name(f'{self.sim_node}/scene')
@@ -137,8 +140,19 @@ class RotorAnalysisNode(Node):
 
     # -- input ----------------------------------------------------------------------------
     def _on_bytes(self, topic: str, data: bytes) -> None:
-        with self._lock:
+        # spool thread: while a result is computed (lock held) messages wait here, so the
+        # bag writing goes on; beyond _PENDING_MAX the spool waits (nothing is dropped)
+        self._pending.append((topic, data))
+        if self._lock.acquire(blocking=len(self._pending) >= _PENDING_MAX):
+            try:
+                self._feed_pending()
+            finally:
+                self._lock.release()
+
+    def _feed_pending(self) -> None:
+        for topic, data in self._pending:
             self._feed(topic, data)
+        self._pending.clear()
 
     def _feed(self, topic: str, data: bytes) -> None:
         try:
@@ -232,6 +246,8 @@ class RotorAnalysisNode(Node):
             return
         try:
             self.recorder.drain()           # every received message reached the session
+            with self._lock:
+                self._feed_pending()
             self.session.finish()
             res = self.session.result()
             self.recorder.add_metadata('gyro_rotor.live_result', {
