@@ -22,6 +22,7 @@ from gyro_rotor.analysis.decay import envelope_decay_rate, fit_energy
 from gyro_rotor.analysis.modes import check_modes, ModeCheck
 from gyro_rotor.analysis.prediction import predict, Prediction
 from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
+from gyro_rotor.analysis.ring import RowRing
 from gyro_rotor.analysis.samples import Sample
 from gyro_rotor.analysis.verdict import (combine, ModeStatus, SyncState, Verdict)
 from gyro_rotor.core.scene import Scene
@@ -72,7 +73,7 @@ class _Segment:
                  max_samples: int):
         self.index, self.reason, self.scene, self.pred = index, reason, scene, pred
         self.max_samples = max_samples
-        self.rows: list[tuple] = []
+        self.rows = RowRing(max_samples)
         self.samples = 0
         self.t_start = math.nan
         self.E_first = math.nan
@@ -90,8 +91,6 @@ class _Segment:
             self.t_start, self.E_first = s.t, s.E_star
         self.samples += 1
         self.rows.append(row)
-        if len(self.rows) > self.max_samples:
-            del self.rows[:len(self.rows) - self.max_samples]
         self.last = s
 
 
@@ -346,9 +345,9 @@ class RotorAnalyzer:
         return self.lyapunov_tol + self.lyapunov_rtol * abs(seg.E_last)
 
     def _window(self, seg: _Segment) -> np.ndarray:
-        R = np.asarray(seg.rows, dtype=float)
+        R = seg.rows.array()
         if R.size == 0:
-            return R.reshape(0, 5)
+            return R
         if math.isfinite(self.window_s):
             R = R[R[:, 0] >= R[-1, 0] - self.window_s - 1e-9]
         return R

@@ -78,11 +78,11 @@ def sim_topics(sim_node: str = 'rotor_sim') -> dict[str, str]:
 
 
 #: QoS profiles (rosbag2 version 9 keys; unset keys are the defaults of normalize_qos):
-#: ``state`` for the sampled topics (reliable, 1000 deep: a second at 1000 Hz for a
+#: ``state`` for the sampled topics (reliable, 10000 deep: 10 s at 1000 Hz for a
 #: subscriber that falls behind), ``latched`` for documents (scene, verdict), ``results``
 #: for the analysis' periodic output, ``monitor`` for a passive viewer (best effort).
 QOS = {
-    'state': {'history': 'keep_last', 'depth': 1000, 'reliability': 'reliable',
+    'state': {'history': 'keep_last', 'depth': 10000, 'reliability': 'reliable',
               'durability': 'volatile'},
     'latched': {'history': 'keep_last', 'depth': 1, 'reliability': 'reliable',
                 'durability': 'transient_local'},

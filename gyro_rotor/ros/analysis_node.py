@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
 from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FIELDS, MODE_LABEL
@@ -55,6 +56,8 @@ OWN_TOPICS = {'analysis': 'std_msgs/msg/Float64MultiArray',
               'analysis_modes': 'std_msgs/msg/Float64MultiArray',
               'analysis_verdict': 'std_msgs/msg/String'}
 _QOS = profile('results')
+#: received messages that may wait for the analysis while it computes a result
+_PENDING_MAX = 20000
 _LATCHED = profile('latched')
 
 
@@ -98,6 +101,9 @@ class RotorAnalysisNode(Node):
         self.session = AnalysisSession(scene, **self.options)
         self.errors: list[str] = []
         self.last_result = None
+        # the recorder feeds the session from its spool thread; results are read here
+        self._lock = threading.Lock()
+        self._pending: list = []
 
         topics = sim_topics(self.sim_node)
         self.scene_topic = self.resolve_topic_name(f'{self.sim_node}/scene')
@@ -121,7 +127,8 @@ class RotorAnalysisNode(Node):
                                         metadata=meta, on_message=self._on_bytes,
                                         compression=compression, on_error=self._error,
                                         latched=(f'{self.sim_node}/scene',
-                                                 'analysis_verdict'))
+                                                 'analysis_verdict'), start=False)
+            self.recorder.start()           # on_message may use self.recorder from now on
             self.get_logger().info(f'recording to {self.recorder.path}')
         else:
             deep = profile('state')
@@ -139,6 +146,21 @@ class RotorAnalysisNode(Node):
 
     # -- input ----------------------------------------------------------------------------
     def _on_bytes(self, topic: str, data: bytes) -> None:
+        # spool thread: while a result is computed (lock held) messages wait here, so the
+        # bag writing goes on; beyond _PENDING_MAX the spool waits (nothing is dropped)
+        self._pending.append((topic, data))
+        if self._lock.acquire(blocking=len(self._pending) >= _PENDING_MAX):
+            try:
+                self._feed_pending()
+            finally:
+                self._lock.release()
+
+    def _feed_pending(self) -> None:
+        for topic, data in self._pending:
+            self._feed(topic, data)
+        self._pending.clear()
+
+    def _feed(self, topic: str, data: bytes) -> None:
         try:
             if topic == self.energy_topic:      # decoded by layout, not by rclpy: 3x faster
                 self.session.on_energy(energy_from_cdr(data))
@@ -184,7 +206,8 @@ class RotorAnalysisNode(Node):
 
     def _publish_results(self) -> None:
         try:
-            res = self.session.result()
+            with self._lock:
+                res = self.session.result()
         except GyroRotorError as err:
             self._publish_diag('STALE', str(err), {})
             return
@@ -210,6 +233,8 @@ class RotorAnalysisNode(Node):
             values[f'evidence_{i}'] = line
         for i, err in enumerate(self.errors[-3:]):
             values[f'error_{i}'] = err
+        if self.recorder is not None:
+            values.update(self.recorder.stats())
         level = 'ERROR' if self.errors and res.level == 'OK' else res.level
         self._publish_diag(level, str(res.verdict), values)
 
@@ -228,6 +253,9 @@ class RotorAnalysisNode(Node):
         if self.recorder is None or self.recorder.writer.closed:
             return
         try:
+            self.recorder.drain()           # every received message reached the session
+            with self._lock:
+                self._feed_pending()
             self.session.finish()
             res = self.session.result()
             self.recorder.add_metadata('gyro_rotor.live_result', {

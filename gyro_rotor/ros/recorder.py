@@ -6,40 +6,58 @@ latched ``~/scene`` document), so the bag holds the serialized bytes exactly as 
 re-encoded. A topic's channel is registered at its first message, with the QoS profiles its
 publishers offer and the type hash they announce (``Node.get_publishers_info_by_topic``),
 as ``ros2 bag record`` does;
-``log_time`` is the receive time (when the recorder took the message, wall clock) and
+``log_time`` is the receive time (when DDS received the message for this reader, wall clock) and
 ``publish_time`` the publisher's DDS source timestamp (both ns since the epoch, this host's
-clock); the simulation time is only in the messages (stamps, ``/clock``). Each callback
-drains its subscription (up to ``DRAIN_MAX`` messages), which the executor's per-callback
-cost makes necessary at 1000 Hz. A timer flushes the open chunk every ``flush_period`` seconds
-and the writer ends a chunk at least every ``flush_period`` while messages arrive, so a
-killed recorder loses at most about a second.
+clock); the simulation time is only in the messages (stamps, ``/clock``).
 
-Each received message may also be handed to a callback (``on_message(topic, data)``) so
-that the analysis uses the very bytes that were recorded.
+**Threads (issue 12).** Profiled at 1000 Hz, most of the recorder's CPU went into rclpy's
+executor (one wake-up, wait-set rebuild and callback dispatch per few messages), and the
+node's 1-Hz analysis blocked the executor for 50 ms (CPU) to 0.5 s (wall, under load) per
+second. The subscriptions therefore live on a hidden node of their own (``_<node>_recorder``,
+never spun by an executor), and a *receiving thread* polls them every ``poll_period``
+seconds: it takes everything queued (``take_message``, raw CDR) and hands the batch to a
+:class:`~gyro_rotor.bag.spool.BagSpool`, whose thread writes the MCAP file and calls
+``on_message``. The spool's FIFO never drops; when it is full the receiving thread waits
+and DDS holds the messages (the KEEP_ALL reader history, 5000 samples per topic in Fast
+DDS, then the publisher's history). A message DDS still had to give up is reported by the
+reader's MESSAGE_LOST event, polled per topic: :attr:`BagRecorder.lost`. The spool ends the
+open chunk every ``flush_period`` seconds, so a killed recorder loses at most about a
+second.
+
+Each received message may also be handed to a callback (``on_message(topic, data)``, in the
+spool's thread) so that the analysis uses the very bytes that were recorded.
 """
 
 from __future__ import annotations
 
-import functools
 import os
 from pathlib import Path
 import shutil
+import threading
 import time
 from typing import Callable, Mapping
 
 from gyro_rotor.bag.bagio import BagWriter, normalize_qos, qos_profile_dict
+from gyro_rotor.bag.spool import BagSpool, DEFAULT_MAX_BYTES
 from gyro_rotor.bag.wire import sim_topics
 from gyro_rotor.errors import BagError
+import rclpy
+from rclpy.event_handler import QoSSubscriptionEventType
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 __all__ = ['BagRecorder', 'sim_topics', 'default_bag_path', 'check_writable', 'DRAIN_MAX',
-           'MIN_FREE_BYTES']
+           'MIN_FREE_BYTES', 'POLL_PERIOD']
 
 #: free space check_writable requires [bytes] (about a minute at 1000 Hz)
 MIN_FREE_BYTES = 32 * 1024 * 1024
-#: most messages one callback takes from its subscription beyond the one it was given
-DRAIN_MAX = 200
+#: most messages the receiving thread takes from one subscription in one pass
+DRAIN_MAX = 2000
+#: seconds the receiving thread sleeps when nothing was queued
+POLL_PERIOD = 0.01
+#: seconds between polls of the MESSAGE_LOST events
+_LOST_PERIOD = 0.5
 
 
 def default_bag_path(root: str | os.PathLike = 'bags_out') -> Path:
@@ -87,6 +105,8 @@ class BagRecorder:
     Parameters
     ----------
     node : rclpy.node.Node
+        The node whose namespace and remappings resolve the topic names; the
+        subscriptions live on a hidden node of the same context.
     path : path
         Bag directory to create (must not exist).
     topics : mapping of topic name to type name
@@ -102,7 +122,7 @@ class BagRecorder:
     flush_period : float
         Seconds between flushes of the open chunk.
     on_message : callable, optional
-        ``on_message(resolved_topic, data)`` for every received message.
+        ``on_message(resolved_topic, data)`` for every received message (spool thread).
     latched : iterable of str
         Topics to subscribe TRANSIENT_LOCAL (latched documents).
     compression : {'none', 'zstd', 'lz4'}
@@ -110,6 +130,12 @@ class BagRecorder:
     on_error : callable, optional
         ``on_error(text)`` once when a write fails (disk full, I/O error): recording then
         stops, ``on_message`` still gets every message, and :meth:`close` raises.
+    max_bytes : int
+        Payload bytes the spool's FIFO holds before the receiving thread waits.
+    poll_period : float
+        Seconds the receiving thread sleeps when no message was queued.
+    start : bool
+        Start receiving now; False: at :meth:`start` (once the owner can take messages).
     """
 
     def __init__(self, node: Node, path: str | os.PathLike, topics: Mapping[str, str], *,
@@ -117,24 +143,34 @@ class BagRecorder:
                  flush_period: float = 0.5,
                  on_message: Callable[[str, bytes], None] | None = None,
                  latched: tuple = (), compression: str = 'none',
-                 on_error: Callable[[str], None] | None = None):
+                 on_error: Callable[[str], None] | None = None,
+                 max_bytes: int = DEFAULT_MAX_BYTES, poll_period: float = POLL_PERIOD,
+                 start: bool = True):
         self.node = node
         self.path = Path(path)
-        self.on_message = on_message
+        self.on_error = on_error
         self.writer = BagWriter(self.path, flush_interval_s=flush_period, metadata=metadata,
                                 compression=compression)
+        self.spool = BagSpool(self.writer, max_bytes=max_bytes, flush_period=flush_period,
+                              on_message=on_message, on_error=self._fail)
+        #: messages taken from DDS, per resolved topic
         self.received: dict[str, int] = {}
+        #: messages DDS reported lost before this reader got them (MESSAGE_LOST), per topic
+        self.lost: dict[str, int] = {}
         #: why recording stopped (a failed write), None while all is well
         self.failed: str | None = None
-        #: messages received after a failed write (not in the bag)
-        self.not_written = 0
-        self.on_error = on_error
         self._types: dict[str, str] = {}
         #: per recorded topic: whether its type hash came from the graph
         self.graph_hashes: dict[str, bool] = {}
-        self._subs = []
-        self._sub_of: dict = {}
         self.drain_max = DRAIN_MAX
+        self.poll_period = float(poll_period)
+        self._last_log: dict[str, int] = {}
+        self._rx = rclpy.create_node(
+            f'_{node.get_name()}_recorder', namespace=node.get_namespace(),
+            context=node.context, use_global_arguments=False, enable_rosout=False,
+            start_parameter_services=False)
+        self._subs: list = []
+        self._events: dict = {}
         latched_names = {node.resolve_topic_name(t) for t in latched}
         for topic, type_name in topics.items():
             name = node.resolve_topic_name(topic)
@@ -148,12 +184,29 @@ class BagRecorder:
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL
                                          if latched_topic
                                          else DurabilityPolicy.VOLATILE))
-            sub = node.create_subscription(
-                _import_type(type_name), name, functools.partial(self._on_raw, name), qos,
-                raw=True)
-            self._subs.append(sub)
-            self._sub_of[name] = sub
-        self._timer = node.create_timer(flush_period, self.flush)
+            sub = self._rx.create_subscription(_import_type(type_name), name, _never, qos,
+                                               raw=True)
+            self._subs.append((name, sub))
+            self.lost[name] = 0
+            with sub.handle:
+                self._events[name] = _rclpy.EventHandle(
+                    sub.handle, QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._receive, name='bag-receiver',
+                                        daemon=True)
+        if start:
+            self._thread.start()
+
+    def start(self) -> None:
+        """Start the receiving thread (if the constructor was told not to)."""
+        if self._thread is not None and not self._thread.is_alive() and \
+                not self._stop.is_set():
+            self._thread.start()
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` has run."""
+        return self.writer.closed
 
     def _add_topic(self, topic: str) -> None:
         """Register ``topic`` at its first message with what its publishers offer.
@@ -162,87 +215,154 @@ class BagRecorder:
         the graph (``get_publishers_info_by_topic``); the hash falls back to the installed
         type description when no publisher offers a valid one.
         """
-        infos = self.node.get_publishers_info_by_topic(topic)
+        infos = self._rx.get_publishers_info_by_topic(topic)
         profiles = [normalize_qos(i.qos_profile)[0] for i in infos] or [qos_profile_dict()]
         hashes = {str(i.topic_type_hash) for i in infos
                   if getattr(i, 'topic_type_hash', None) is not None}
         hashes.discard('INVALID')
         digest = hashes.pop() if len(hashes) == 1 else None
-        self.writer.add_topic(topic, self._types[topic], profiles, topic_type_hash=digest)
+        self.spool.add_topic(topic, self._types[topic], profiles, topic_type_hash=digest)
         self.received[topic] = 0
         self.graph_hashes[topic] = digest is not None
 
-    def _on_raw(self, topic: str, data: bytes, info) -> None:
-        """Record a message, then take and record what else is queued on the topic.
-
-        ``info`` has no default, so that rclpy passes the MessageInfo (with the DDS source
-        timestamp, the bag's ``publish_time``).
-
-        The executor costs far more per callback than a take does, so each callback drains
-        up to ``drain_max`` further messages of its subscription itself.
-        """
-        self._record(topic, data, info)
-        sub = self._sub_of.get(topic)
-        if sub is None:
-            return
-        for _ in range(self.drain_max):
-            if self.writer.closed:
-                return
+    # -- the receiving thread -----------------------------------------------------------------
+    def _receive(self) -> None:
+        """Take what DDS queued, hand it to the spool; poll the MESSAGE_LOST events."""
+        next_lost = time.monotonic() + _LOST_PERIOD
+        while not self._stop.is_set():
             try:
-                with sub.handle:
-                    got = sub.handle.take_message(sub.msg_type, sub.raw)
-            except Exception:   # noqa: B902 -- a destroyed handle (shutdown): stop draining
+                taken = self.receive_once()
+            except Exception as err:    # noqa: B902 -- handles destroyed at shutdown
+                if not self._stop.is_set():
+                    self._fail(err)
                 return
-            if got is None:
-                return
-            self._record(topic, got[0], got[1])
+            now = time.monotonic()
+            if now >= next_lost:
+                self._poll_lost()
+                next_lost = now + _LOST_PERIOD
+            if not taken:
+                self._stop.wait(self.poll_period)
+
+    def receive_once(self) -> int:
+        """Take up to ``drain_max`` queued messages per topic into the spool; return how many."""
+        batch = []
+        for name, sub in self._subs:
+            handle, msg_type = sub.handle, sub.msg_type
+            with handle:
+                for _ in range(self.drain_max):
+                    got = handle.take_message(msg_type, True)
+                    if got is None:
+                        break
+                    batch.append(self._stamp(name, got[0], got[1]))
+        if batch:
+            self.spool.put_many(batch)
+        return len(batch)
+
+    def _stamp(self, topic: str, data: bytes, info) -> tuple:
+        """Return the spool entry of a taken message (log_time: DDS reception time)."""
+        if topic not in self.received:
+            self._add_topic(topic)
+        self.received[topic] += 1
+        # rclpy gives the MessageInfo as a dict: received_timestamp is when DDS received
+        # the message, source_timestamp when it was sent (both this host's clock)
+        recv = info.get('received_timestamp') if type(info) is dict else None
+        publish = info.get('source_timestamp') if type(info) is dict else None
+        log = recv if recv and recv > 0 else time.time_ns()
+        last = self._last_log.get(topic, 0)
+        if log <= last:             # receive order stays the bag's log-time order
+            log = last + 1
+        self._last_log[topic] = log
+        return (topic, data, log, publish if publish and publish > 0 else log)
+
+    def _poll_lost(self) -> None:
+        for name, ev in self._events.items():
+            with ev:
+                status = ev.take_event()
+            if status is not None and status.total_count > self.lost[name]:
+                self.lost[name] = int(status.total_count)
 
     def _record(self, topic: str, data: bytes, info=None) -> None:
-        now = time.time_ns()
-        if self.writer.closed:
-            return
-        if self.failed:
-            self.not_written += 1
-        else:
-            # rclpy gives the MessageInfo as a dict (source_timestamp: the DDS send time)
-            publish = info.get('source_timestamp') if type(info) is dict else None
-            try:
-                if topic not in self.received:
-                    self._add_topic(topic)
-                self.writer.write(topic, data, now, publish if publish and publish > 0 else now)
-                self.received[topic] += 1
-            except (OSError, BagError) as err:
-                self._fail(err)
-                self.not_written += 1
-        if self.on_message is not None:
-            self.on_message(topic, data)
+        """Queue one message as if it had been taken from ``topic`` (tests, tools)."""
+        self.spool.put_many([self._stamp(topic, data, info)])
 
+    # -- control -----------------------------------------------------------------------------
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
         """Write an MCAP metadata record (e.g. the scene when it becomes known)."""
         if not self.writer.closed:
-            self.writer.add_metadata(name, data)
+            self.spool.add_metadata(name, data)
 
     def flush(self) -> None:
-        """End the open chunk and write it (timer callback)."""
-        if not self.writer.closed and not self.failed:
-            try:
-                self.writer.flush()
-            except (OSError, BagError) as err:
-                self._fail(err)
+        """Write everything received so far and end the open chunk (waits for the spool)."""
+        if not self.writer.closed:
+            self.spool.flush()
 
-    def _fail(self, err: Exception) -> None:
+    def stats(self) -> dict:
+        """Counters for diagnostics: received, lost in DDS, spool FIFO and back-pressure."""
+        st = self.spool.stats
+        return {'recorder_received': sum(self.received.values()),
+                'recorder_lost_in_dds': sum(self.lost.values()),
+                'recorder_queue': st.queued, 'recorder_queue_max': st.max_queued,
+                'recorder_queue_max_mb': round(st.max_queued_bytes / 1e6, 3),
+                'recorder_blocked_s': round(st.blocked_s, 3),
+                'recorder_not_written': self.spool.not_written,
+                'recorder_consumer_errors': self.spool.consumer_errors}
+
+    def summary(self) -> str:
+        """One line for the log at exit: counts per topic, losses, FIFO high water."""
+        import json
+        st = self.spool.stats
+        return ('recorder counts: ' + json.dumps(
+            {'received': self.received, 'lost_in_dds': self.lost,
+             'queue_max': st.max_queued, 'queue_max_bytes': st.max_queued_bytes,
+             'blocked_s': round(st.blocked_s, 3), 'blocks': st.blocks,
+             'not_written': self.spool.not_written,
+             'consumer_errors': self.spool.consumer_errors,
+             'first_consumer_error': self.spool.consumer_error}))
+
+    def _fail(self, err) -> None:
         """Stop writing after a failed write (disk full, ...) and say so loudly, once."""
         if self.failed:
             return
-        total = sum(self.received.values())
-        self.failed = (f'recording stopped after {total} messages: cannot write {self.path}: '
-                       f'{getattr(err, "strerror", None) or err}')
+        self.failed = err if isinstance(err, str) else (
+            f'recording stopped after {sum(self.received.values())} messages: cannot write '
+            f'{self.path}: {getattr(err, "strerror", None) or err}')
         self.node.get_logger().error(self.failed)
         if self.on_error is not None:
             self.on_error(self.failed)
 
+    @property
+    def not_written(self) -> int:
+        """Messages received after a failed write (not in the bag)."""
+        return self.spool.not_written
+
+    def drain(self) -> None:
+        """Stop receiving: take what DDS still holds, wait until the spool wrote it all.
+
+        Afterwards ``on_message`` has seen every received message. Idempotent.
+        """
+        if self._thread is None:
+            return
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+        self._thread = None
+        try:
+            while self.receive_once():
+                pass
+            self._poll_lost()
+        except Exception:       # noqa: B902 -- context already shut down
+            pass
+        for ev in self._events.values():
+            ev.destroy_when_not_in_use()
+        self._rx.destroy_node()
+        if not self.writer.closed:
+            self.spool.flush()
+        self.node.get_logger().info(self.summary())
+
     def close(self) -> None:
-        """Finalize the bag (summary, footer, metadata.yaml); idempotent.
+        """Drain (:meth:`drain`), then finalize the bag (summary, footer, metadata.yaml).
+
+        Idempotent.
 
         Raises
         ------
@@ -250,13 +370,15 @@ class BagRecorder:
             If writing failed during the recording or at close (the bag is then
             incomplete; ``gyro-rotor recover`` salvages what reached the disk).
         """
-        if self._timer is not None:
-            self.node.destroy_timer(self._timer)
-            self._timer = None
-        if not self.writer.closed:
-            try:
-                self.writer.close()
-            except (OSError, BagError) as err:
-                self._fail(err)
+        self.drain()
+        try:
+            self.spool.close()
+        except BagError:
+            if not self.failed:
+                raise
         if self.failed:
             raise BagError(f'{self.failed}; {self.not_written} messages not recorded')
+
+
+def _never(*_args) -> None:
+    """Subscription callback never called: the receiving thread takes the messages."""

@@ -47,7 +47,8 @@ import yaml
 
 __all__ = ['RotorSimNode', 'main', 'STATE_QOS']
 
-#: QoS of the state topics: reliable, deep enough for a recorder to keep up
+#: QoS of the state topics (bag/wire.QOS['state']): reliable; the history (10 s at 1000 Hz)
+#: is what a reader can still have repaired after a dropped datagram (issue 12)
 STATE_QOS = profile('state')
 _LATCHED = profile('latched')
 #: flow control at real_time_factor 0: longest block per tick waiting for acknowledgements

@@ -40,6 +40,9 @@ SIM_TOPICS = {'joint_states': '/joint_states', 'energy': '/energy', 'axis': '/ax
 #: samples the analysis may hold back while pairing (SamplePairer's default keep)
 PAIRER_KEEP = 64
 _PUBLISHED_RE = re.compile(r'published counts: (\{.*\})')
+_RECORDER_RE = re.compile(r'recorder counts: (\{.*\})')
+#: share of the run at the start left out of the memory trend (warm-up: imports, histories)
+WARMUP_SHARE = 0.25
 
 
 def read_rss_kb(pid: int) -> int | None:
@@ -89,7 +92,34 @@ class SoakResult:
     cpu_s: dict = dataclasses.field(default_factory=dict)     # CPU time per node [s]
     cpu_first: dict = dataclasses.field(default_factory=dict)  # ... at the first sample
     rss_t0: float = 0.0
+    loadavg_samples: list = dataclasses.field(default_factory=list)  # 1-min load, every 5 s
+    recorder: dict = dataclasses.field(default_factory=dict)   # the recorder's exit counts
     notes: list = dataclasses.field(default_factory=list)
+
+    @property
+    def lost_in_dds(self) -> dict:
+        """Return messages DDS reported lost to the recorder (MESSAGE_LOST), per topic."""
+        lost = self.recorder.get('lost_in_dds', {})
+        return {k: int(lost.get(t, 0)) for k, t in SIM_TOPICS.items() if t in lost}
+
+    def rss_trend(self, which: int) -> float:
+        """Return the RSS trend [MB/min]: least-squares slope after the warm-up; 1 = sim, 2 = ana.
+
+        The first :data:`WARMUP_SHARE` of the run is left out (imports, DDS histories and
+        the analysis window filling); a fit over all later samples, not first/last.
+        """
+        pts = [(t, r[which - 1]) for t, *r in self.rss_kb if r[which - 1] is not None]
+        if len(pts) < 3:
+            return math.nan
+        t_from = WARMUP_SHARE * pts[-1][0]
+        late = [p for p in pts if p[0] >= t_from]
+        if len(late) < 3:
+            return math.nan
+        t = [p[0] / 60.0 for p in late]
+        y = [p[1] / 1024.0 for p in late]
+        tm, ym = sum(t) / len(t), sum(y) / len(y)
+        den = sum((a - tm) ** 2 for a in t)
+        return sum((a - tm) * (b - ym) for a, b in zip(t, y)) / den if den > 0 else math.nan
 
     @property
     def lost(self) -> dict:
@@ -131,6 +161,9 @@ class SoakResult:
         d['rss_growth_sim_kb'], d['rss_growth_sim_kb_per_min'] = self.rss_growth_kb(1)
         d['rss_growth_analysis_kb'], d['rss_growth_analysis_kb_per_min'] = self.rss_growth_kb(2)
         d['bag_mb_per_min'] = self.bag_mb_per_min
+        d['rss_trend_sim_mb_per_min'] = self.rss_trend(1)
+        d['rss_trend_analysis_mb_per_min'] = self.rss_trend(2)
+        d['lost_in_dds'] = self.lost_in_dds
         return d
 
     def text(self) -> str:
@@ -140,11 +173,19 @@ class SoakResult:
                  f'  wall {self.wall_s:.1f} s, achieved real-time factor '
                  f'{self.achieved_rtf:.4f} (lowest 1-s window {self.rtf_min:.3f}), '
                  f'capped ticks {self.capped_total}',
-                 f'  {"topic":14s} {"published":>10s} {"recorded":>10s} {"lost":>7s}']
+                 f'  {"topic":14s} {"published":>10s} {"recorded":>10s} {"lost":>7s} '
+                 f'{"of it lost in DDS (MESSAGE_LOST)":>33s}']
+        dds = self.lost_in_dds
         for k in SIM_TOPICS:
             if k in self.published:
                 lines.append(f'  {k:14s} {self.published[k]:10d} '
-                             f'{self.recorded.get(k, 0):10d} {self.lost[k]:7d}')
+                             f'{self.recorded.get(k, 0):10d} {self.lost[k]:7d} '
+                             f'{dds.get(k, "?"):>33}')
+        if self.recorder:
+            lines.append(f'  recorder FIFO: high water {self.recorder.get("queue_max", 0)} '
+                         f'messages ({self.recorder.get("queue_max_bytes", 0) / 1e6:.1f} MB), '
+                         f'receiving thread blocked {self.recorder.get("blocked_s", 0):.1f} s, '
+                         f'not written {self.recorder.get("not_written", 0)}')
         lines.append(f'  energy seq gaps in the bag: {self.seq_gaps}')
         for i, name in ((1, 'rotor_sim'), (2, 'rotor_analysis')):
             pts = [r[i - 1] for _, *r in self.rss_kb if r[i - 1] is not None]
@@ -152,7 +193,9 @@ class SoakResult:
             if pts:
                 lines.append(f'  RSS {name}: {pts[0] / 1024:.1f} -> {pts[-1] / 1024:.1f} MB '
                              f'(max {max(pts) / 1024:.1f}); second half of the run '
-                             f'{g / 1024:.2f} MB ({gm:.1f} kB/min)')
+                             f'{g / 1024:.2f} MB ({gm:.1f} kB/min); trend (least-squares '
+                             f'fit after {WARMUP_SHARE:.0%} of the run) '
+                             f'{self.rss_trend(i):+.3f} MB/min')
         n = self.recorded.get('energy', 0)
         for name, cpu in self.cpu_s.items():
             first = self.cpu_first.get(name)
@@ -163,6 +206,10 @@ class SoakResult:
                              'a core)')
         lines.append(f'  busy processes: {self.load}; load average (1 min) '
                      + ', '.join(f'{x:.1f}' for x in self.loadavg))
+        if self.loadavg_samples:
+            la = self.loadavg_samples
+            lines.append(f'  load average during the run: min {min(la):.1f}, mean '
+                         f'{sum(la) / len(la):.1f}, max {max(la):.1f}')
         lines.append(f'  bag {self.bag_bytes / 1e6:.1f} MB = {self.bag_mb_per_min:.1f} MB per '
                      f'wall minute')
         if self.rtf == 0:
@@ -324,6 +371,7 @@ def _run_to_t_end(res: SoakResult, sim, ana, listener: _Listener, out: Path,
                              'rotor_analysis': read_cpu_s(ana.pid)}
         if now >= next_rss:
             res.rss_kb.append((round(now - t0, 2), read_rss_kb(sim.pid), read_rss_kb(ana.pid)))
+            res.loadavg_samples.append(os.getloadavg()[0])
             next_rss = now + rss_period
         if now >= next_say:
             say(f'  wall {now - t0:6.0f} s  t_sim {t_sim:8.2f} s  achieved rtf '
@@ -373,6 +421,8 @@ def _stop_nodes(res: SoakResult, sim, ana, listener: _Listener, out: Path) -> No
     res.rss_kb.append((round(time.monotonic() - res.rss_t0, 2), None, read_rss_kb(ana.pid)))
     res.cpu_s['rotor_analysis'] = read_cpu_s(ana.pid)
     res.analysis_exit = ana.stop(timeout=60.0)
+    found = _RECORDER_RE.findall((out / 'rotor_analysis.log').read_text(errors='replace'))
+    res.recorder = json.loads(found[-1]) if found else {}
 
 
 def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'precession',
