@@ -66,6 +66,7 @@ Reduced models: ``upright_axis`` x = (chi, chidot, z, zdot) (the last block abov
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
 
 from gyro_rotor.core.model import drive_torque, FullModel, make_model
@@ -74,7 +75,7 @@ from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
-__all__ = ['LinearSystem', 'linearize', 'jacobian_analytic', 'jacobian_fd',
+__all__ = ['Coords', 'LinearSystem', 'linearize', 'jacobian_analytic', 'jacobian_fd',
            'reduced_rhs', 'reduced_rhs_lagrange', 'equilibrium', 'coordinates',
            'STATE_NAMES_II', 'STATE_NAMES_I', 'STATE_NAMES_UPRIGHT', 'STATE_NAMES_LOCKED']
 
@@ -102,7 +103,7 @@ class LinearSystem:
     ``A`` = ``A0 - K_D * np.outer(b, c)``: ``b`` is the acceleration response to a unit
     torque on z (column), ``c`` picks zdot. ``groups`` names the coordinate group of
     each state ('tilt', 'twist', 'drive'); ``weights`` scale the states to sqrt(energy)
-    units (for modal energy shares); ``coords`` is 'II', 'I', 'upright' or 'locked'.
+    units (for modal energy shares); ``coords`` a :class:`Coords`.
     """
 
     A: np.ndarray
@@ -112,7 +113,7 @@ class LinearSystem:
     c: np.ndarray
     groups: tuple
     weights: np.ndarray
-    coords: str
+    coords: Coords
     motion: SteadyMotion
     model: str
     params: RotorParams
@@ -125,25 +126,38 @@ class LinearSystem:
         return self.A0 - float(K_D) * np.outer(self.b, self.c)
 
 
-def coordinates(model: str, motion: SteadyMotion) -> str:
-    """Which coordinate system serves ``model`` about ``motion`` ('II', 'I', ...)."""
+class Coords(enum.StrEnum):
+    """The reduced coordinates of a linearization (module doc).
+
+    II: about solution II (tilted axis, psi cyclic); I: about solution I (axis vertical,
+    tilt components); UPRIGHT: the upright_axis model; LOCKED: the locked_housing model.
+    """
+
+    II = 'II'
+    I = 'I'  # noqa: E741 -- the paper's name of solution I
+    UPRIGHT = 'upright'
+    LOCKED = 'locked'
+
+
+def coordinates(model: str, motion: SteadyMotion) -> Coords:
+    """Which coordinate system serves ``model`` about ``motion``."""
     if model == 'locked_housing':
-        return 'locked'
+        return Coords.LOCKED
     if model == 'upright_axis':
         if motion.branch != 0:
             raise ParameterError(f'model upright_axis holds the axis vertical: it has only '
                                  f'solution I, not {motion.name}')
-        return 'upright'
+        return Coords.UPRIGHT
     if model != 'full':
         raise ParameterError(f"unknown model '{model}'; valid: full, upright_axis, "
                              'locked_housing')
-    return 'I' if motion.branch == 0 else 'II'
+    return Coords.I if motion.branch == 0 else Coords.II
 
 
 def equilibrium(model: str, motion: SteadyMotion) -> np.ndarray:
     """Return the steady motion as an equilibrium of the reduced coordinates."""
     coords = coordinates(model, motion)
-    if coords == 'II':
+    if coords == Coords.II:
         return np.array([motion.theta0, 0.0, motion.psidot0, 0.0, 0.0, 0.0, 0.0])
     return np.zeros(len(_names(coords)))
 
@@ -158,7 +172,7 @@ def _analytic_A0_b(p: RotorParams, coords: str, motion: SteadyMotion):
     """(A0, b) of the analytic linearization (module doc); A = A0 - K_D b c^T."""
     I, C_R, Cs = p.I, p.C_R, p.C_R + p.C_M
     Om = p.Omega0
-    if coords == 'II':
+    if coords == Coords.II:
         th, w = motion.theta0, motion.psidot0
         s0, c0 = math.sin(th), math.cos(th)
         u0 = 1.0 - c0
@@ -189,7 +203,7 @@ def _analytic_A0_b(p: RotorParams, coords: str, motion: SteadyMotion):
     # the chi-z block: M [chidd, zdd] = [-c_psi chi - Q... ] in (chi, z) velocities
     Mcz = np.array([[Cs, C_R], [C_R, C_R]])
     Mi = np.linalg.inv(Mcz)
-    if coords == 'locked':
+    if coords == Coords.LOCKED:
         A0 = np.array([[0.0, 1.0], [-p.K_S / C_R, 0.0]])
         return A0, np.array([0.0, 1.0 / C_R])
     # upright block (chi, chidot, z, zdot); generalized forces (-c_psi chi, Q)
@@ -200,7 +214,7 @@ def _analytic_A0_b(p: RotorParams, coords: str, motion: SteadyMotion):
     blk[1, [0, 2]] = acc[0]
     blk[3, [0, 2]] = acc[1]
     bb = np.array([0.0, Mi[0, 1], 0.0, Mi[1, 1]])
-    if coords == 'upright':
+    if coords == Coords.UPRIGHT:
         return blk, bb
     # solution I, Cartesian tilt
     k = p.c_theta - p.Gs
@@ -244,13 +258,13 @@ def reduced_rhs(params: RotorParams, x, coords: str = 'II', *, _model=None) -> n
     module doc, hence a check of it.
     """
     x = np.asarray(x, dtype=float)
-    if coords in ('upright', 'locked'):
-        m = _model or make_model('upright_axis' if coords == 'upright' else 'locked_housing',
+    if coords in (Coords.UPRIGHT, Coords.LOCKED):
+        m = _model or make_model('upright_axis' if coords == Coords.UPRIGHT else 'locked_housing',
                                  params)
         y = np.append(x, 0.0)
         return m.rhs(0.0, y)[:-1]
     m = _model or FullModel(params)
-    if coords == 'II':
+    if coords == Coords.II:
         th, thd, psd, chi, chid, z, zd = x
         y = m.state_from_euler(theta=th, thetadot=thd, psi=0.0, psidot=psd, phi_M=chi,
                                phi_M_dot=chid - psd, z=z, zdot=zd)
@@ -263,7 +277,7 @@ def reduced_rhs(params: RotorParams, x, coords: str = 'II', *, _model=None) -> n
         psdd = (dW1 * sf + dW2 * cf + phd * thd - psd * ct * thd) / st
         chidd = psdd + dW3 - psdd * ct + psd * st * thd
         return np.array([thd, thdd, psdd, chid, chidd, zd, dy[8]])
-    if coords == 'I':
+    if coords == Coords.I:
         al, be, W1, W2, chi, W3, z, zd = x
         q = np.array([1.0, al / 2, be / 2, chi / 2])
         q /= np.linalg.norm(q)
@@ -331,12 +345,12 @@ def _weights(p: RotorParams, coords: str, motion: SteadyMotion) -> np.ndarray:
     tiny = 1e-12
     k_th = max(abs(p.c_theta - p.Gs), tiny)
     Cs = p.C_R + p.C_M
-    if coords == 'II':
+    if coords == Coords.II:
         s0, u0 = math.sin(motion.theta0), 1.0 - math.cos(motion.theta0)
         w = [k_th, p.I, p.I * s0 * s0 + Cs * u0 * u0, p.c_psi, Cs, p.K_S, p.C_R]
-    elif coords == 'I':
+    elif coords == Coords.I:
         w = [k_th, k_th, p.I, p.I, p.c_psi, Cs, p.K_S, p.C_R]
-    elif coords == 'upright':
+    elif coords == Coords.UPRIGHT:
         w = [p.c_psi, Cs, p.K_S, p.C_R]
     else:
         w = [p.K_S, p.C_R]

@@ -16,7 +16,7 @@ import math
 from typing import Callable, Sequence
 
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import LinearSystem
+from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
 __all__ = ['spectrum', 'track', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL',
@@ -153,7 +153,7 @@ def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None) ->
     if _cyclic_z(lin) is not None:          # spectrum() appends the root of z last
         names[n - 1] = ZERO_ROOT_Z
         free.remove(n - 1)
-    if lin.coords == 'II':
+    if lin.coords == Coords.II:
         mag = np.abs(lam[free])
         if d is not None:
             near = mag <= 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
@@ -187,7 +187,7 @@ def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None) ->
         for j in u:
             names[j] = nm
     # the two tilt modes about solution I: the faster one is the nutation
-    if lin.coords == 'I':
+    if lin.coords == Coords.I:
         tilt = [ui for ui, u in enumerate(units)
                 if names[u[0]] in ('nutation', 'precession')]
         if len(tilt) == 2:

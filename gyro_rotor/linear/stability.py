@@ -28,7 +28,7 @@ from typing import Sequence
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linear.linearize import linearize, LinearSystem
+from gyro_rotor.linear.linearize import Coords, linearize, LinearSystem
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # noqa: F401
                                         spectrum, STRUCTURAL, TOL_RE_REL, TOL_SENS_REL, track,
                                         ZERO_ROOT, ZERO_ROOT_Z)
@@ -268,7 +268,7 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     else:
         verdict = Stability.ASYMPTOTICALLY_STABLE
         reason = (f'every root except the cyclic zero root has Re < 0; slowest: {slowest} '
-                  f'(Re = {absc:.4g} 1/s)' if lin.coords == 'II' else
+                  f'(Re = {absc:.4g} 1/s)' if lin.coords == Coords.II else
                   f'every root has Re < 0; slowest: {slowest} (Re = {absc:.4g} 1/s)')
     return StabilityReport(scene=scene, model=model, motion=motion, coords=lin.coords,
                            state_names=lin.state_names, K_D=K_D, modes=ms,
