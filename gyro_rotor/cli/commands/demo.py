@@ -335,7 +335,8 @@ def _conclude(out: Path, exp: dict, codes: dict) -> bool:
     bad_exit = {m: c for m, c in codes.items() if c not in (0, -2)}
     checks = [(res.confirmed, f'verdict {res.verdict}: {res.reason}'),
               (res.verdict == exp['verdict'],
-               f'verdict {str(res.verdict)!r}, expected by the linear theory {exp["verdict"]!r}')]
+               f'verdict {str(res.verdict)!r}, expected by the linear theory '
+               f'{str(exp["verdict"])!r}')]
     if exp['pole_slips'] is not None:
         checks.append((res.pole_slips == exp['pole_slips'] and res.pole_slips > 0,
                        f'pole slips {res.pole_slips}, reference {exp["pole_slips"]}'))
