@@ -10,6 +10,7 @@ import dataclasses
 import math
 
 from gyro_rotor.core.scene import Scene
+from gyro_rotor.linear.stability import analyze_scene, ModeKind
 import numpy as np
 
 __all__ = ['PredictedMode', 'Prediction', 'predict']
@@ -67,10 +68,6 @@ class Prediction:
         return max(re) if re else math.nan
 
 
-def _marginal(ev: complex) -> bool:
-    return abs(ev.real) <= 1e-9 * max(1.0, abs(ev))
-
-
 def _steady_state(scene: Scene) -> np.ndarray:
     """Model state on the unperturbed steady motion of the scene."""
     model = scene.make_model()
@@ -85,9 +82,8 @@ def _steady_state(scene: Scene) -> np.ndarray:
 def predict(scene: Scene) -> Prediction:
     """Predicted eigenvalues, named modes and verdict of a scene's steady motion.
 
-    Uses :func:`gyro_rotor.linear.stability.analyze_scene` when present, else the eigenvalues of
-    :func:`gyro_rotor.linear.linearize.linearize` with modes named by their dominant coordinate
-    group (tilt, twist, drive; weighted to energy units).
+    From :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
+    modal energy at K_D = 0, followed by continuity).
     """
     model = scene.make_model()
     E_inf = float(model.energy(_steady_state(scene)))
@@ -95,58 +91,11 @@ def predict(scene: Scene) -> Prediction:
     p = scene.params
     common = {'scene': scene.name, 'E_inf': E_inf, 'theta0': sm.theta0,
               'psidot0': sm.psidot0, 'pole_pairs': int(p.pole_pairs), 'K_D': float(p.K_D)}
-    try:
-        import gyro_rotor.linear.stability as stability
-        analyze_scene = stability.analyze_scene
-    except (ImportError, AttributeError):
-        analyze_scene = None
-    if analyze_scene is not None:
-        rep = analyze_scene(scene)
-        marginal = {str(getattr(m, 'name', m)) for m in rep.marginal_modes}
-        modes = []
-        for m in rep.modes:
-            ev = complex(m.eigenvalue)
-            if ev.imag < -1e-12:
-                continue
-            modes.append(PredictedMode(str(m.name), ev, bool(m.reached_by_drive),
-                                       str(m.name) in marginal,
-                                       structural=getattr(m, 'kind', '') == 'zero'))
-        coords = getattr(rep, 'coords', '') or _coords(scene)
-        return Prediction(coords=coords, modes=tuple(modes),
-                          spectral_abscissa=float(rep.spectral_abscissa),
-                          verdict=str(rep.verdict), source='stability.analyze_scene',
-                          **common)
-    from gyro_rotor.linear.linearize import linearize
-    lin = linearize(p, sm, scene.model)
-    ev, vec = np.linalg.eig(lin.A)
-    ev0 = np.linalg.eigvals(lin.A0)
-    modes = []
-    for i in np.argsort(-ev.real):
-        lam = complex(ev[i])
-        if lam.imag < -1e-12:
-            continue      # conjugate partner
-        if abs(lam) < 1e-9:
-            modes.append(PredictedMode('zero root', lam, False, False, structural=True))
-            continue
-        share = {}
-        for g, w, v in zip(lin.groups, lin.weights, vec[:, i]):
-            share[g] = share.get(g, 0.0) + (w * abs(v)) ** 2
-        group = max(share, key=share.get)
-        # reached by the drive: the root moved off the K_D = 0 root
-        moved = np.min(np.abs(ev0 - lam)) > 1e-9 * max(1.0, abs(lam))
-        name = f'{group} {abs(lam.imag) / _TWO_PI:.3g} Hz'
-        modes.append(PredictedMode(name, lam, bool(moved), _marginal(lam)))
-    alpha = max((m.eigenvalue.real for m in modes if not m.structural), default=0.0)
-    if alpha > 1e-9:
-        verdict = 'unstable'
-    elif any(m.marginal for m in modes):
-        verdict = 'marginal'
-    else:
-        verdict = 'asymptotically stable'
-    return Prediction(coords=lin.coords, modes=tuple(modes), spectral_abscissa=alpha,
-                      verdict=verdict, source='linearize', **common)
-
-
-def _coords(scene: Scene) -> str:
-    from gyro_rotor.linear.linearize import coordinates
-    return coordinates(scene.model, scene.steady())
+    rep = analyze_scene(scene)
+    marginal = {str(m) for m in rep.marginal_modes}
+    modes = tuple(PredictedMode(str(m.name), complex(m.eigenvalue), bool(m.reached_by_drive),
+                                str(m.name) in marginal, structural=m.kind == ModeKind.ZERO)
+                  for m in rep.modes if complex(m.eigenvalue).imag >= -1e-12)
+    return Prediction(coords=rep.coords, modes=modes,
+                      spectral_abscissa=float(rep.spectral_abscissa),
+                      verdict=str(rep.verdict), source='stability.analyze_scene', **common)

@@ -335,17 +335,3 @@ def sweep(params: RotorParams, name: str, values: Sequence[float], *, theta0: fl
         return lam, V
 
     return names, track(fn, values, names)
-
-
-#: names that moved to :mod:`gyro_rotor.linear.locus` and :mod:`gyro_rotor.linear.tune` when
-#: this module was split (issue 13); resolved lazily, since both import this module
-_MOVED = {'RootLocus': 'locus', 'ClaimsReport': 'locus', 'root_locus': 'locus',
-          'check_claims': 'locus', 'asymptotes': 'locus', 'default_grid': 'locus',
-          'TuneResult': 'tune', 'best_K_D': 'tune'}
-
-
-def __getattr__(name: str):
-    if name in _MOVED:
-        import importlib
-        return getattr(importlib.import_module(f'gyro_rotor.linear.{_MOVED[name]}'), name)
-    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
