@@ -470,7 +470,7 @@ def test_scene_overrides_reach_the_system(tmp_path):
 def test_initial_state_is_taken_from_the_scene():
     scene = load_general_scene('twin_gimbal')
     y0 = scene.initial_state()
-    assert y0.tolist() == [0.02, 0.05, -0.03, 0.0, 0.2, 0.0, 0.01, 0.0, 0.5, -0.3, 0.0]
+    assert y0.tolist() == [0.006, 0.015, -0.009, 0.0, 0.06, 0.0, 0.003, 0.0, 0.15, -0.09, 0.0]
 
 
 def test_non_steady_motion_names_its_size_and_the_steady_command(tmp_path, capsys):

@@ -25,7 +25,9 @@ from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
 from gyro_rotor.analysis.ring import RowRing
 from gyro_rotor.analysis.samples import Sample
 from gyro_rotor.analysis.verdict import (combine, ModeStatus, SyncState, Verdict)
+from gyro_rotor.analysis.prediction import GENERAL_COORDS
 from gyro_rotor.core.scene import Scene
+from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import AnalysisError, ParameterError
 import numpy as np
 
@@ -82,7 +84,7 @@ class _Segment:
         self.residual_max = 0.0
         self.slips = 0
         self.last_slip_t = -math.inf
-        self.well_index: int | None = None   # the well z last arrived in (hysteresis)
+        self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
         self.last: Sample | None = None
         self.fit: dict = {}
 
@@ -140,8 +142,8 @@ class RotorAnalyzer:
                  diverge_residual: float = 1e-2, sync_hold_s: float = 1.0,
                  min_fit_s: float = 2.0, max_window_samples: int = 20000,
                  blas_threads: int = 1):
-        if not isinstance(scene, Scene):
-            raise AnalysisError('RotorAnalyzer needs a gyro_rotor.scene.Scene')
+        if not isinstance(scene, (Scene, GeneralScene)):
+            raise AnalysisError('RotorAnalyzer needs a Scene or a GeneralScene')
         self.window_s = check_window(window_s)
         self.lyapunov_tol = float(lyapunov_tol)
         self.lyapunov_rtol = float(lyapunov_rtol)
@@ -172,9 +174,7 @@ class RotorAnalyzer:
     # -- input --------------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> bool:
         """Switch to new scene parameters (a new segment); return whether they changed."""
-        if scene == self.scene or (scene.params == self.scene.params
-                                   and scene.model == self.scene.model
-                                   and scene.initial == self.scene.initial):
+        if scene == self.scene or _same_physics(scene, self.scene):
             return False
         self.scene = scene
         self.prediction = predict(scene)
@@ -219,7 +219,7 @@ class RotorAnalyzer:
                     reason = f'kick (E* rose by {rise:.6g} J)'
                     self.kicks += 1
         self.samples += 1
-        if not all(math.isfinite(v) for v in (s.t, s.E_star, s.z, s.zdot)):
+        if not all(math.isfinite(v) for v in (s.t, s.E_star, *self._lags(s))):
             self.non_finite += 1
         if reason is not None:
             self._new_segment(reason)
@@ -246,22 +246,36 @@ class RotorAnalyzer:
                 seg.lyap_violations += 1
         if math.isfinite(s.residual):
             seg.residual_max = max(seg.residual_max, abs(s.residual))
-        # synchronism: passages of z over the potential maxima (2k+1) pi / p
+        # synchronism: passages of each z over the potential maxima (2k+1) pi / p
         # with hysteresis: the well index changes only once z is within pi/(2p) of the
         # bottom of another well, so jitter on a maximum counts nothing
-        p = pred.pole_pairs
-        if p > 0 and math.isfinite(s.z):
-            u = p * s.z / _TWO_PI                      # z in wells (bottoms at integers)
-            k = round(u)
-            if abs(u - k) <= 0.25:
-                if seg.well_index is not None and k != seg.well_index:
-                    seg.slips += abs(k - seg.well_index)
-                    seg.last_slip_t = s.t
-                seg.well_index = k
+        for r, (p, z) in enumerate(zip(self._poles(pred), self._lags(s))):
+            if p > 0 and math.isfinite(z):
+                u = p * z / _TWO_PI                    # z in wells (bottoms at integers)
+                k = round(u)
+                if abs(u - k) <= 0.25:
+                    if r in seg.wells and k != seg.wells[r]:
+                        seg.slips += abs(k - seg.wells[r])
+                        seg.last_slip_t = s.t
+                    seg.wells[r] = k
         seg.add(s, self._row(s, pred))
+
+    def _lags(self, s: Sample) -> tuple:
+        """The rotor lags z of a sample (a general system's are joints after q)."""
+        if self.prediction.coords == GENERAL_COORDS:
+            n, m = len(self.prediction.steady[0]), len(self.prediction.steady[2])
+            # a sample without its joint state has no lags (counted as unpaired, not here)
+            return tuple(s.positions[n:]) if len(s.positions) == n + m else ()
+        return (s.z,)
+
+    @staticmethod
+    def _poles(pred: Prediction) -> tuple:
+        return pred.rotor_pole_pairs if pred.coords == GENERAL_COORDS else (pred.pole_pairs,)
 
     def _row(self, s: Sample, pred: Prediction) -> tuple:
         """(t, E*, residual, z, zdot, deviation channels...) of one sample."""
+        if pred.coords == GENERAL_COORDS:
+            return _general_row(s, pred)
         th, psi = s.positions[0], s.positions[1]
         thd, psid, _, phiMd = s.velocities
         p = pred.pole_pairs
@@ -356,7 +370,9 @@ class RotorAnalyzer:
         pred, last = seg.pred, seg.last
         if pred.pole_pairs <= 0 or last is None:
             return SyncState.SYNCHRONOUS, 0
-        well = int(round(pred.pole_pairs * last.z / _TWO_PI))
+        r, p = next((r, p) for r, p in enumerate(self._poles(pred)) if p > 0)
+        z = self._lags(last)[r]
+        well = int(round(p * z / _TWO_PI)) if math.isfinite(z) else 0
         if last.t - seg.last_slip_t <= self.sync_hold_s:
             return SyncState.LOST, well
         return (SyncState.RESYNCHRONIZED if seg.slips else SyncState.SYNCHRONOUS), well
@@ -411,3 +427,36 @@ class RotorAnalyzer:
 def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:
     """Return the prediction a segment was recorded under."""
     return analyzer.segments[seg.index].pred
+
+
+def _same_physics(a, b) -> bool:
+    """Return True if two scenes differ in nothing the analysis depends on."""
+    if isinstance(a, GeneralScene) or isinstance(b, GeneralScene):
+        return (isinstance(a, GeneralScene) and isinstance(b, GeneralScene)
+                and a.system == b.system and a.steady_q == b.steady_q
+                and a.steady_qdot == b.steady_qdot and a.steady_z == b.steady_z)
+    return a.params == b.params and a.model == b.model and a.initial == b.initial
+
+
+def _general_row(s: Sample, pred: Prediction) -> tuple:
+    """(t, E*, residual, z_1, zdot_1, deviation channels) of a general system's sample.
+
+    Channels: the coordinates' deviation from the steady motion q_s + qdot_s t projected
+    on :attr:`Prediction.active_q`, then qdot - qdot_s, z - z_s (about the nearest well
+    bottom for a sine law) and zdot.
+    """
+    q_s, qd_s, z_s = pred.steady
+    n, m = len(q_s), len(z_s)
+    if len(s.positions) != n + m or len(s.velocities) != n + m:
+        nan = (math.nan,) * (len(pred.active_q) + n + 2 * m)
+        return (s.t, s.E_star, s.residual, math.nan, math.nan) + nan
+    q = np.asarray(s.positions[:n]) - np.asarray(q_s) - np.asarray(qd_s) * s.t
+    dq = tuple(float(np.dot(row, q)) for row in pred.active_q)
+    dqd = tuple(v - w for v, w in zip(s.velocities[:n], qd_s))
+    dz = []
+    for p, z, z0 in zip(pred.rotor_pole_pairs, s.positions[n:], z_s):
+        d = z - z0
+        dz.append(d - _TWO_PI / p * round(p * d / _TWO_PI) if p > 0 else d)
+    zd = tuple(s.velocities[n:])
+    return (s.t, s.E_star, s.residual, s.positions[n], s.velocities[n]) + dq + dqd + \
+        tuple(dz) + zd

@@ -13,7 +13,7 @@ from gyro_rotor.core.scene import Scene
 from gyro_rotor.linear.stability import analyze_scene, ModeKind
 import numpy as np
 
-__all__ = ['PredictedMode', 'Prediction', 'predict']
+__all__ = ['PredictedMode', 'Prediction', 'predict', 'predict_general', 'GENERAL_COORDS']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -55,6 +55,14 @@ class Prediction:
     pole_pairs: int
     K_D: float
     source: str = ''
+    #: general systems: the steady motion (q, qdot, z) the deviations are taken from
+    steady: tuple = ()
+    #: general systems: the pole pairs of each rotor's drive
+    rotor_pole_pairs: tuple = ()
+    #: general systems: rows that map the coordinates' deviation q - q_s to the deviation
+    #: channels: a basis of the complement of the zero roots' directions (a cyclic
+    #: combination of coordinates drifts after a kick and is left out)
+    active_q: tuple = ()
 
     @property
     def marginal_modes(self) -> tuple:
@@ -79,12 +87,15 @@ def _steady_state(scene: Scene) -> np.ndarray:
                                   phi_M_dot=-sm.psidot0)
 
 
-def predict(scene: Scene) -> Prediction:
+def predict(scene) -> Prediction:
     """Predicted eigenvalues, named modes and verdict of a scene's steady motion.
 
-    From :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
+    A general scene goes to :func:`predict_general`. Otherwise from :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
     modal energy at K_D = 0, followed by continuity).
     """
+    from gyro_rotor.core.system.scene import GeneralScene
+    if isinstance(scene, GeneralScene):
+        return predict_general(scene)
     model = scene.make_model()
     E_inf = float(model.energy(_steady_state(scene)))
     sm = scene.steady()
@@ -99,3 +110,58 @@ def predict(scene: Scene) -> Prediction:
     return Prediction(coords=rep.coords, modes=modes,
                       spectral_abscissa=float(rep.spectral_abscissa),
                       verdict=str(rep.verdict), source='stability.analyze_scene', **common)
+
+
+#: :attr:`Prediction.coords` of a general system (deviations of q, qdot, z, zdot)
+GENERAL_COORDS = 'general'
+
+
+def predict_general(scene) -> Prediction:
+    """What the linearization of a general scene predicts (:mod:`gyro_rotor.linear.general`).
+
+    Modes: the roots of A(K) at the scene's drives, one of each conjugate pair, named by
+    their largest state; a zero root is structural (a cyclic coordinate), a root the
+    drives do not reach (PBH) is marginal. Verdict: unstable if a root has Re > 0,
+    marginal if a mode is not reached, else asymptotically stable.
+    """
+    from gyro_rotor.linear.general import linearize_scene, modes, REL_AXIS
+    from gyro_rotor.linear.stability import Stability
+    model = scene.make_model()
+    lin = linearize_scene(scene, model=model)
+    roots = modes(lin)
+    scale = max([1.0] + [abs(r.value) for r in roots])
+    out = tuple(PredictedMode(r.name, r.value, r.reached,
+                              marginal=not (r.reached or r.structural_zero),
+                              structural=r.structural_zero)
+                for r in roots if r.value.imag >= -1e-12 * scale)
+    live = [m.eigenvalue.real for m in out if not m.structural]
+    abscissa = max(live) if live else -math.inf
+    if abscissa > REL_AXIS * scale:
+        verdict = Stability.UNSTABLE
+    elif any(m.marginal for m in out):
+        verdict = Stability.MARGINAL
+    else:
+        verdict = Stability.ASYMPTOTICALLY_STABLE
+    n = lin.n
+    active = _position_channels(lin.A_scene(), n, scale)
+    drives = scene.system.drives
+    return Prediction(
+        scene=scene.name, coords=GENERAL_COORDS, modes=out, spectral_abscissa=abscissa,
+        verdict=str(verdict), E_inf=float(model.energy(scene.steady_state(model))),
+        theta0=math.nan, psidot0=math.nan,
+        pole_pairs=max(int(d.pole_pairs) for d in drives), K_D=max(d.K_D for d in drives),
+        source='linear.general.modes',
+        steady=(tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z)),
+        rotor_pole_pairs=tuple(int(d.pole_pairs) for d in drives), active_q=active)
+
+
+def _position_channels(A: np.ndarray, n: int, scale: float) -> tuple:
+    """Rows spanning the position directions orthogonal to the zero roots' eigenvectors."""
+    lam, V = np.linalg.eig(A)
+    zero = np.abs(lam) <= 1e-7 * scale
+    if not zero.any() or n == 0:
+        return tuple(tuple(float(v) for v in row) for row in np.eye(n))
+    Z = np.concatenate([V[:n, zero].real, V[:n, zero].imag], axis=1)
+    U, sv, _ = np.linalg.svd(Z)
+    rank = int(np.count_nonzero(sv > 1e-8 * max(1.0, float(sv.max()))))
+    return tuple(tuple(float(v) for v in row) for row in U[:, rank:].T)

@@ -13,7 +13,8 @@ from typing import Mapping, Sequence
 from gyro_rotor.errors import AnalysisError
 import numpy as np
 
-__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'samples_from_trajectory']
+__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'samples_from_trajectory',
+           'samples_from_general_run']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -23,8 +24,9 @@ class Sample:
     """One paired sample of ``energy`` and ``joint_states`` at simulation time ``t``.
 
     ``positions``/``velocities`` are (theta, psi, phi_R, phi_M) and their rates as
-    published (angles wrapped); the rest are the ``energy`` fields of
-    :mod:`gyro_rotor.ros_msgs` (t_sim, E_star, dE_dt, residual, z, zdot, seq, D, k).
+    published (angles wrapped), for a general system its coordinates q and rotor lags z;
+    the rest are the ``energy`` fields of :mod:`gyro_rotor.ros.messages` (t_sim, E_star,
+    dE_dt, residual, z, zdot, seq, D, k; a general system's energy has no z, zdot: NaN).
     """
 
     t: float
@@ -138,7 +140,8 @@ class SamplePairer:
         nan4 = (math.nan,) * 4
         return Sample(t=e['t_sim'], seq=int(e['seq']), k=int(e.get('k', -1)),
                       E_star=e['E_star'], dE_dt=e.get('dE_dt', math.nan),
-                      residual=e.get('residual', math.nan), z=e['z'], zdot=e['zdot'],
+                      residual=e.get('residual', math.nan), z=e.get('z', math.nan),
+                      zdot=e.get('zdot', math.nan),
                       D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4)
 
 
@@ -154,3 +157,28 @@ def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
                    z=float(o['z'][i]), zdot=float(o['zdot'][i]), D=float(D[i]),
                    positions=tuple(pos[i]), velocities=tuple(vel[i]))
             for i, t in enumerate(tr.t)]
+
+
+def samples_from_general_run(model, run, y_ref=None, seq0: int = 0) -> list[Sample]:
+    """Samples as rotor_sim publishes them for a general system, from a GeneralRun.
+
+    Positions (q, z) and rates (qdot, zdot) as integrated; the residual against the first
+    sample (or ``y_ref``).
+    """
+    Y = run.y
+    sq, sqd, sz, szd = model.slices()
+    E = model.energy(Y)
+    y0 = Y[0] if y_ref is None else y_ref
+    E_ref = float(model.energy(y0)) + float(y0[model.iD])
+    K_D = np.array([d.K_D for d in model.system.drives])
+    out = []
+    for i, t in enumerate(run.t):
+        y = Y[i]
+        zd = y[szd]
+        out.append(Sample(t=float(t), seq=seq0 + i, k=i, E_star=float(E[i]),
+                          dE_dt=float(-(zd * zd) @ K_D),
+                          residual=float(E[i] + y[model.iD] - E_ref), z=math.nan,
+                          zdot=math.nan, D=float(y[model.iD]),
+                          positions=tuple(np.concatenate([y[sq], y[sz]]).tolist()),
+                          velocities=tuple(np.concatenate([y[sqd], zd]).tolist())))
+    return out

@@ -41,6 +41,7 @@ import warnings
 
 from gyro_rotor.core.model import make_model, Model
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
+from gyro_rotor.bag.wire import JOINT_NAMES
 from gyro_rotor.core.rotations import (axis_from_quaternion, euler_from_quaternion,
                                        euler_rates_from_body)
 from gyro_rotor.core.scene import perturb_state, PERTURBATION_KEYS, Scene
@@ -176,11 +177,52 @@ class LiveSimulation:
     def _new_stepper(self, model: Model, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
         t_end = self.scene.t_end if cfg['stop_at_t_end'] else math.inf
         method = 'auto' if self._auto else cfg['integrator']
-        method, self.method_reason = resolve_method(method, model.params, t_end)
+        method, self.method_reason = self._resolve(method, model, y, t_end)
         if self._auto:
             self.method_reason = f'work budget: {self.method_reason}'
+        return self._make_stepper(method, model, t, y, cfg)
+
+    # -- what depends on the kind of scene (GeneralLiveSimulation overrides these) -----------
+    #: names of the joint_states columns and of the energy array's fields
+    joint_names: tuple = JOINT_NAMES
+    energy_fields: tuple = ENERGY_COLUMNS
+
+    def _resolve(self, method: str, model: Model, y: np.ndarray, t_end: float) -> tuple:
+        """Return (method, reason) for ``method`` ('auto': the automatic choice)."""
+        return resolve_method(method, model.params, t_end)
+
+    def _make_stepper(self, method: str, model: Model, t: float, y: np.ndarray,
+                      cfg: Mapping) -> Stepper:
         return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
                             step_size=cfg['step_size'], model=model)
+
+    def _changed_scene(self, changes: Mapping[str, Any]):
+        """Return the scene with the physical changes (None if there are none)."""
+        new = self._params(self.scene.params, changes)
+        return None if new is self.scene.params else dataclasses.replace(self.scene,
+                                                                         params=new)
+
+    def _model_of(self, scene) -> Model:
+        return make_model(scene.model, scene.params)
+
+    def _jump(self, model: Model, t: float, y: np.ndarray) -> np.ndarray:
+        """The state under ``model``'s parameters: an Omega0 change keeps the absolute spin."""
+        dOmega = model.params.Omega0 - self.model.params.Omega0
+        if dOmega:
+            self._field = (t, self._field_angle(t))
+            y = y.copy()
+            y[self.model.izd] -= dOmega
+        return y
+
+    def _set_perturbation(self, key: str, value: Any) -> None:
+        self.perturbation[key] = float(value)
+
+    def _kicked(self, y: np.ndarray) -> np.ndarray:
+        return perturb_state(self.model, y, self.perturbation)
+
+    def _norm_error(self, y: np.ndarray) -> float:
+        """Drift of the quaternion's norm (0 for a model without one)."""
+        return float(self.model.quaternion_norm_error(y))
 
     def _restart_stepper(self, y: np.ndarray) -> None:
         self._use(self._new_stepper(self.model, self.stepper.t, y, self.cfg))
@@ -218,13 +260,14 @@ class LiveSimulation:
         divergence, the last good) state.
         """
         try:
-            new = self._params(self.scene.params, changes)
-            if new is not self.scene.params or any(k in changes for k in STEPPER_KEYS):
+            new = self._changed_scene(changes)
+            if new is not None or any(k in changes for k in STEPPER_KEYS):
                 cfg = {**self.cfg, **{k: v for k, v in changes.items() if k in self.cfg}}
                 t, y = self.last if self.diverged else (self.stepper.t, self.stepper.y)
                 auto, self._auto = self._auto, self._auto and 'integrator' not in changes
+                model = self.model if new is None else self._model_of(new)
                 try:
-                    self._new_stepper(make_model(self.scene.model, new), t, y, cfg)
+                    self._new_stepper(model, t, y, cfg)
                 finally:
                     self._auto = auto
         except GyroRotorError:
@@ -244,17 +287,20 @@ class LiveSimulation:
             if k in self.cfg:
                 self.cfg[k] = v
             elif k.startswith('perturbation.'):
-                self.perturbation[k.split('.', 1)[1]] = float(v)
+                self._set_perturbation(k.split('.', 1)[1], v)
         if 'integrator' in changes:
             self._auto = False
+        new = self._changed_scene(changes)
         if 't_end' in changes:
-            self.scene = dataclasses.replace(self.scene, t_end=changes['t_end'])
-        new = self._params(self.scene.params, changes)
-        if new is not self.scene.params and self.diverged:
+            if new is None:
+                self.scene = dataclasses.replace(self.scene, t_end=changes['t_end'])
+            else:
+                new = dataclasses.replace(new, t_end=changes['t_end'])
+        if new is not None and self.diverged:
             # stopped: take the parameters for the next reset, integrate nothing
-            self.scene = dataclasses.replace(self.scene, params=new)
-            self.model = make_model(self.scene.model, new)
-        elif new is not self.scene.params:
+            self.scene = new
+            self.model = self._model_of(new)
+        elif new is not None:
             self._apply_params(new)
         elif not self.diverged and any(k in changes for k in STEPPER_KEYS):
             self._restart_stepper(self.stepper.y.copy())
@@ -264,17 +310,13 @@ class LiveSimulation:
         self.pacer.max_catch_up = self.cfg['max_catch_up']
         self.pacer.t_end = self._t_end()
 
-    def _apply_params(self, new: RotorParams) -> None:
-        """Switch to new parameters at the current state (module doc)."""
+    def _apply_params(self, new) -> None:
+        """Switch to the scene's new parameters at the current state (module doc)."""
         y_old = self.stepper.y.copy()
-        t = self.stepper.t
-        y = y_old.copy()
-        dOmega = new.Omega0 - self.model.params.Omega0
-        if dOmega:
-            self._field = (t, self._field_angle(t))
-            y[self.model.izd] -= dOmega
-        self.scene = dataclasses.replace(self.scene, params=new)
-        self.model = make_model(self.scene.model, new)
+        model = self._model_of(new)
+        y = self._jump(model, self.stepper.t, y_old)
+        self.scene = new
+        self.model = model
         jump = self.baseline.rebase(self.model.energy, y, y_old)
         self._restart_stepper(y)
         self._log(Level.OK, f'parameters changed; E* jumped by {jump:.6g} J (residual '
@@ -307,7 +349,7 @@ class LiveSimulation:
         """Switch to auto's method for the current parameters, or say that none is better."""
         cur = self.stepper.method
         t_end = self.scene.t_end if self.cfg['stop_at_t_end'] else math.inf
-        method, reason = resolve_method('auto', self.model.params, t_end)
+        method, reason = self._resolve('auto', self.model, self.stepper.y, t_end)
         what = (f'tick work budget {1e3 * self.budget:g} ms exceeded with {cur} at '
                 f't = {self.stepper.t:.6f} s')
         if method.lower() != cur.lower():
@@ -383,7 +425,7 @@ class LiveSimulation:
         if self.diverged:
             raise ParameterError('diverged: reset first')
         y_old = self.stepper.y.copy()
-        y = perturb_state(self.model, y_old, self.perturbation)
+        y = self._kicked(y_old)
         try:       # the new stepper first: a state the model cannot evaluate changes nothing
             stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
         except GyroRotorError as err:
@@ -408,7 +450,7 @@ class LiveSimulation:
     # -- reports -----------------------------------------------------------------------------
     def _status(self, w) -> tuple[Level, str]:
         rtf = self.pacer.rtf
-        qn = float(self.model.quaternion_norm_error(self.last[1]))
+        qn = self._norm_error(self.last[1])
         if self.diverged:
             return Level.ERROR, f'diverged: {self.diverged}'
         if self.pacer.paused:
@@ -449,7 +491,7 @@ class LiveSimulation:
             'tick_interval_mean': w.interval_mean, 'tick_jitter_std': w.interval_std,
             'tick_interval_max': w.interval_max, 'tick_busy_max': w.busy_max,
             'integrator_reason': self.method_reason, 'nfev': st.nfev,
-            'quaternion_norm_error': float(self.model.quaternion_norm_error(y)),
+            'quaternion_norm_error': self._norm_error(y),
             'residual': self.baseline.residual(y), 'E_star': float(self.model.energy(y)),
             'samples': self.seq, 'publish_rate': self.cfg['publish_rate'],
             'paused': self.pacer.paused}

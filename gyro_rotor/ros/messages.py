@@ -26,7 +26,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, Vector3Stamped
 # the wire layouts are written once, in gyro_rotor.bag.wire
-from gyro_rotor.bag.wire import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES
+from gyro_rotor.bag.wire import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: F401
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -56,24 +56,29 @@ def _wrap(a: float) -> float:
     return math.pi if w == -math.pi else w
 
 
-def joint_state(t: Time, positions, velocities, efforts) -> JointState:
-    """Build a JointState with JOINT_NAMES; angles wrapped to (-pi, pi] (theta in [0, pi])."""
+def joint_state(t: Time, positions, velocities, efforts, names=JOINT_NAMES,
+                wrap: bool = True) -> JointState:
+    """Build a JointState (default: JOINT_NAMES, angles wrapped to (-pi, pi], theta in [0, pi]).
+
+    ``names`` and ``wrap=False``: a general system's coordinates and rotor lags, as
+    integrated.
+    """
     msg = JointState()
     msg.header.stamp = t
-    msg.name = list(JOINT_NAMES)
-    msg.position = [_wrap(float(a)) for a in positions]
+    msg.name = list(names)
+    msg.position = [_wrap(float(a)) if wrap else float(a) for a in positions]
     msg.velocity = [float(v) for v in velocities]
     msg.effort = [float(e) for e in efforts]
     return msg
 
 
-def energy_array(values: Mapping[str, float]) -> Float64MultiArray:
-    """Float64MultiArray of ENERGY_FIELDS (see module doc); every field must be given."""
+def energy_array(values: Mapping[str, float], fields=ENERGY_FIELDS) -> Float64MultiArray:
+    """Float64MultiArray of ``fields`` (default ENERGY_FIELDS, see module doc), all given."""
     msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=ENERGY_LABEL, size=len(ENERGY_FIELDS),
-                                          stride=len(ENERGY_FIELDS))]
+    msg.layout.dim = [MultiArrayDimension(label=','.join(fields), size=len(fields),
+                                          stride=len(fields))]
     msg.layout.data_offset = 0
-    msg.data = [float(values[f]) for f in ENERGY_FIELDS]
+    msg.data = [float(values[f]) for f in fields]
     return msg
 
 

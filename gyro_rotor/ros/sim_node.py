@@ -28,7 +28,9 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.numerics.live import Level, LiveSimulation
+from gyro_rotor.numerics.live_general import GeneralLiveSimulation
 import gyro_rotor.ros.messages as ros_msgs
 from gyro_rotor.ros.qos import profile
 from gyro_rotor.ros.runner import run_node
@@ -114,7 +116,8 @@ class RotorSimNode(Node):
                                    'and publishes /clock; set it on the other nodes instead')
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         #: the simulation (everything but ROS)
-        self.sim = LiveSimulation(scene, cfg, perturbation, log=self._log)
+        kind = GeneralLiveSimulation if isinstance(scene, GeneralScene) else LiveSimulation
+        self.sim = kind(scene, cfg, perturbation, log=self._log)
         self.pub = {'joint_states': self.create_publisher(JointState, 'joint_states', STATE_QOS),
                     'energy': self.create_publisher(Float64MultiArray, 'energy', STATE_QOS),
                     # one message per tick: as deep as the state topics, so that a recorder
@@ -126,9 +129,10 @@ class RotorSimNode(Node):
                     'clock': self.create_publisher(ClockMsg, '/clock', STATE_QOS),
                     'scene': self.create_publisher(String, '~/scene', _LATCHED)}
         # reused for every sample (publish serializes synchronously)
-        self._msg_joints = ros_msgs.joint_state(ros_msgs.stamp(0), (0.0,) * 4, (0.0,) * 4,
-                                                (0.0,) * 4)
-        self._msg_energy = ros_msgs.energy_array(dict.fromkeys(ros_msgs.ENERGY_FIELDS, 0.0))
+        names, fields = self.sim.joint_names, self.sim.energy_fields
+        self._msg_joints = ros_msgs.joint_state(ros_msgs.stamp(0), (0.0,) * len(names),
+                                                (0.0,) * len(names), (), names=names)
+        self._msg_energy = ros_msgs.energy_array(dict.fromkeys(fields, 0.0), fields)
         #: messages published per topic over the node's life (in the diagnostics)
         self.published = dict.fromkeys(_TOPICS, 0)
         self.acks = AckWindow((self.pub['joint_states'], self.pub['energy']), self.get_logger())
@@ -180,7 +184,7 @@ class RotorSimNode(Node):
     def _on_set(self, params) -> SetParametersResult:
         """Validate a change before it is accepted (types, then the simulation's check)."""
         for p in params:
-            reason = type_error(p)
+            reason = type_error(p, self.parameter_types)
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         try:
@@ -247,7 +251,7 @@ class RotorSimNode(Node):
         js, en = self._msg_joints, self._msg_energy
         stamp = js.header.stamp
         ns = np.round(b.t * 1e9).astype(np.int64).tolist()
-        rows = np.column_stack([b.energy[f] for f in ros_msgs.ENERGY_FIELDS]).tolist()
+        rows = np.column_stack([b.energy[f] for f in self.sim.energy_fields]).tolist()
         pos, vel, eff = b.position.tolist(), b.velocity.tolist(), b.effort.tolist()
         pub_j, pub_e = self.pub['joint_states'].publish, self.pub['energy'].publish
         for i in range(n):
@@ -257,13 +261,16 @@ class RotorSimNode(Node):
             en.data = rows[i]
             pub_e(en)
         self.acks.unacked += n
+        self.published['joint_states'] += n
+        self.published['energy'] += n
+        if b.quaternion is None:          # a general system: no 3-D pose of its own
+            return
         st, frame = ros_msgs.stamp(ns[-1]), self.sim.cfg['frame_id']
         self.pub['axis'].publish(ros_msgs.axis_vector(st, frame, b.axis))
         self.pub['stator_pose'].publish(ros_msgs.stator_pose(st, frame, b.quaternion))
         self.pub['axis_marker'].publish(ros_msgs.axis_marker(st, frame, b.axis))
-        for topic, count in (('joint_states', n), ('energy', n), ('axis', 1),
-                             ('stator_pose', 1), ('axis_marker', 1)):
-            self.published[topic] += count
+        for topic in ('axis', 'stator_pose', 'axis_marker'):
+            self.published[topic] += 1
 
     # -- diagnostics, scene, services --------------------------------------------------------
     def _publish_diagnostics(self) -> None:

@@ -65,30 +65,42 @@ def _range(name: str) -> tuple | None:
     return PARAM_RANGES.get(name) or NODE_RANGES.get(name)
 
 
-def _expected(name: str) -> str:
+def _expected(name: str, typ: type) -> str:
     """Describe the expected value of a parameter: its type and range."""
-    typ = _TYPES[SCENE_KEYS[name]]
     rng = _range(name)
-    return _TYPE_NAMES[typ] + (f' in [{rng[0]:g}, {rng[1]:g}]' if rng else '')
+    return _TYPE_NAMES[_TYPES[typ]] + (f' in [{rng[0]:g}, {rng[1]:g}]' if rng else '')
 
 
-def type_error(param: Parameter) -> str | None:
-    """Return why a parameter of the node has the wrong type (None if its type is right)."""
-    expected = _TYPES[SCENE_KEYS[param.name]] if param.name in SCENE_KEYS else None
+def type_error(param: Parameter, types: dict | None = None) -> str | None:
+    """Return why a parameter of the node has the wrong type (None if its type is right).
+
+    ``types``: the Python type of each parameter as declared (default: the centrifuge
+    scene's keys, SCENE_KEYS).
+    """
+    typ = (SCENE_KEYS if types is None else types).get(param.name)
+    expected = _TYPES[typ] if typ is not None else None
     if expected is None or param.type_ == expected:
         return None
     hint = (f' (write {float(param.value)!r})' if expected == Parameter.Type.DOUBLE
             and param.type_ == Parameter.Type.INTEGER else '')
     return (f'parameter {param.name}: {param.value!r} ({param.type_.name.lower()}) is not '
-            f'{_expected(param.name)}{hint}')
+            f'{_expected(param.name, typ)}{hint}')
 
 
-def _declare(node: Node, name: str, value, doc: str, read_only: bool = False):
-    """Declare one parameter (dynamic typing, see the module doc); return its value."""
+def _declare(node: Node, name: str, value, doc: str, read_only: bool = False,
+             typ: type | None = None):
+    """Declare one parameter (dynamic typing, see the module doc); return its value.
+
+    ``typ``: its Python type (default: SCENE_KEYS'); recorded in ``node.parameter_types``.
+    """
+    typ = typ or SCENE_KEYS[name]
+    if not hasattr(node, 'parameter_types'):
+        node.parameter_types = {}
+    node.parameter_types[name] = typ
     d = ParameterDescriptor(name=name, description=doc, read_only=read_only,
                             dynamic_typing=True)
     rng = _range(name)
-    if rng and SCENE_KEYS[name] is float:
+    if rng and typ is float:
         d.floating_point_range = [FloatingPointRange(from_value=float(rng[0]),
                                                      to_value=float(rng[1]), step=0.0)]
     elif rng:
@@ -99,17 +111,26 @@ def _declare(node: Node, name: str, value, doc: str, read_only: bool = False):
         given = getattr(node, '_parameter_overrides', {}).get(name)
         shown = repr(given.value) if given is not None else '(the given value)'
         raise ParameterError(f'parameter {name}: {shown} is out of range: expected '
-                             f'{_expected(name)}') from err
-    reason = type_error(param)
+                             f'{_expected(name, typ)}') from err
+    reason = type_error(param, node.parameter_types)
     if reason:
         raise ParameterError(reason)
     return param.value
 
 
-def declare_parameters(node: Node) -> tuple[Scene, dict, dict]:
-    """Declare every parameter; return (scene, node keys, perturbation) as given at start."""
-    name = _declare(node, 'scene', DEFAULT_SCENE, 'scene name (config/<name>.yaml) or path '
-                    'to a scene file; loaded at start, the other parameters override it', True)
+def declare_parameters(node: Node) -> tuple:
+    """Declare every parameter; return (scene, node keys, perturbation) as given at start.
+
+    The scene is a centrifuge :class:`Scene`, or a
+    :class:`~gyro_rotor.core.system.scene.GeneralScene` for a scene file with a ``system``
+    key (its parameters: :func:`_declare_general`).
+    """
+    name = _declare(node, 'scene', DEFAULT_SCENE, 'scene name (config/<name>.yaml), a general '
+                    "scene's name (config/systems/scenes) or a path to a scene file; loaded "
+                    'at start, the other parameters override it', True)
+    from gyro_rotor.core.system.scene import is_general_scene
+    if is_general_scene(name):
+        return _declare_general(node, name)
     base = load_scene(name)
     flat: dict = {'scene': base.name}
     flat['description'] = _declare(node, 'description', base.description,
@@ -137,10 +158,7 @@ def declare_parameters(node: Node) -> tuple[Scene, dict, dict]:
         flat[f'perturbation.{k}'] = _declare(
             node, f'perturbation.{k}', float(base.perturbation.get(k, 0.0)),
             f'kick of ~/perturb [{_PERTURB_UNITS[k]}]; live')
-    for k, (typ, default, doc) in NODE_KEYS.items():
-        if k != 'use_sim_time':
-            flat[k] = _declare(node, k, base.node.get(k, default),
-                               doc + ('' if k in READ_ONLY else '; live'), k in READ_ONLY)
+    flat.update(_node_keys(node, base.node))
     try:           # the scene file loaded: what fails now comes from the parameters
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')
@@ -152,3 +170,73 @@ def declare_parameters(node: Node) -> tuple[Scene, dict, dict]:
     cfg = {k: flat[k] for k in NODE_KEYS if k != 'use_sim_time'}
     perturbation = {k: flat[f'perturbation.{k}'] for k in PERTURBATION_KEYS}
     return scene, cfg, perturbation
+
+
+def _node_keys(node: Node, base_node: dict) -> dict:
+    """Declare the node keys (publish_rate, integrator, ...); return their values."""
+    return {k: _declare(node, k, base_node.get(k, default),
+                        doc + ('' if k in READ_ONLY else '; live'), k in READ_ONLY)
+            for k, (typ, default, doc) in NODE_KEYS.items() if k != 'use_sim_time'}
+
+
+def _declare_general(node: Node, name: str) -> tuple:
+    """Declare the parameters of a general scene; return (scene, node keys, perturbation).
+
+    ``system`` (read only), ``t_end``, ``constants.NAME`` and ``drive.ROTOR.KEY`` (live),
+    ``initial.q``/``qdot``/``z``/``zdot`` and ``steady.*`` (read at start),
+    ``perturbation.q``/``qdot``/``z``/``zdot`` (the kick of ~/perturb, live) and the node
+    keys.
+    """
+    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.core.system.system_file import DRIVE_KEYS
+    base = load_general_scene(name)
+    system, flat = base.full_system, dict(base.flat)
+    decl = {}
+    decl['description'] = _declare(node, 'description', base.description,
+                                   'what the scene shows', True, str)
+    _declare(node, 'system', flat['system'], 'the rotor system (a name or a system file)',
+             True, str)
+    decl['t_end'] = _declare(node, 't_end', base.t_end, 'scene duration [s]', typ=float)
+    for c, v in system.constants.items():
+        decl[f'constants.{c}'] = _declare(node, f'constants.{c}', float(v),
+                                          f'constant {c} of system {system.name}; live',
+                                          typ=float)
+    for r, d in zip(system.rotors, system.drives):
+        for k in DRIVE_KEYS:
+            typ = int if k == 'pole_pairs' else float
+            decl[f'drive.{r}.{k}'] = _declare(
+                node, f'drive.{r}.{k}', typ(getattr(d, k)),
+                f'drive of rotor {r}: {_DRIVE_DOC[k]}; live', typ=typ)
+    sizes = {'q': system.n, 'qdot': system.n, 'z': system.m, 'zdot': system.m}
+    for part in ('initial', 'steady'):
+        for k, size in sizes.items():
+            key = f'{part}.{k}'
+            if part == 'steady' and k == 'zdot':
+                continue
+            default = [float(x) for x in flat.get(key, [0.0] * size)]
+            if not default:
+                continue        # an empty list has no ROS type: nothing to set
+            decl[key] = _declare(node, key, default, f'{part} {k} ({size} numbers); read at '
+                                 'start' + (' and by ~/reset' if part == 'initial' else ''),
+                                 True, list)
+    kick = {}
+    for k, size in sizes.items():
+        if size:
+            kick[k] = _declare(node, f'perturbation.{k}',
+                               [float(x) for x in flat.get(f'perturbation.{k}', [0.0] * size)],
+                               f'kick of ~/perturb added to {k} ({size} numbers); live',
+                               typ=list)
+    cfg = _node_keys(node, base.node)
+    overrides = {k: (list(v) if isinstance(v, (list, tuple)) else v)
+                 for k, v in decl.items() if v != flat.get(k)}
+    try:
+        scene = base.with_changes(overrides) if overrides else base
+    except GyroRotorError as err:
+        raise ParameterError(f"parameters of scene '{base.name}': {err}") from None
+    return scene, cfg, kick
+
+
+_DRIVE_DOC = {'K_S': 'synchronizing stiffness K_S [N m/rad] (eq. 8)',
+              'K_D': 'damping K_D [N m s/rad] (eq. 8)',
+              'Omega0': 'field speed Omega0 [rad/s] (eq. 7)',
+              'pole_pairs': 'pole pairs p (0: linear law, > 0: sine law)'}

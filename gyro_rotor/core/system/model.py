@@ -35,6 +35,21 @@ class GeneralModel:
         self.iD = 2 * self.N
 
     @property
+    def name(self) -> str:
+        """Return the model's name: ``system NAME``."""
+        return f'system {self.system.name}'
+
+    @property
+    def params(self) -> RotorSystem:
+        """Return the system with its numbers (what the centrifuge model calls params)."""
+        return self.system
+
+    @property
+    def idiss(self) -> int:
+        """Return the index of the dissipated work D in the state."""
+        return self.iD
+
+    @property
     def state_names(self) -> tuple:
         """Names of the state components: q, NAME_dot, z_ROTOR, zdot_ROTOR, D."""
         s = self.system

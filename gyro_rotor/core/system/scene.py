@@ -13,6 +13,7 @@
         constants: {c_a: 40.0}       # overrides of the system's constants
         K_D: 0.1                     # a drive value for every rotor (K_S, K_D, Omega0, pole_pairs)
         drive: {R1: {K_D: 0.2}}      # or for one rotor
+        perturbation: {qdot: [...]}  # the kick of rotor_sim's ~/perturb (q, qdot, z, zdot)
 
 A steady motion is one where the accelerations vanish (z = steady.z, zdot = 0); the
 coordinates that move (steady.qdot != 0) must be cyclic up to that motion, so that the
@@ -28,27 +29,35 @@ import dataclasses
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from gyro_rotor.core.scene import flatten, NODE_KEYS, NODE_NAMES, scene_path
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.core.system.system_file import (DRIVE_KEYS, load_system, RotorSystem)
+from gyro_rotor.core.system.system_file import (DRIVE_KEYS, load_system, RotorSystem,
+                                                 system_from_mapping)
 from gyro_rotor.errors import did_you_mean, SceneError, SystemFileError
 import numpy as np
 import sympy
 
 __all__ = ['GeneralScene', 'load_general_scene', 'is_general_scene', 'lock',
            'general_scene_path', 'list_general_scenes', 'check_steady',
-           'steady_residual', 'GENERAL_KEYS']
+           'steady_residual', 'GENERAL_KEYS', 'general_scene_from_mapping',
+           'general_scene_to_flat', 'general_scene_from_flat', 'is_general_flat', 'SYSTEM_DOC']
 
 #: fixed keys of a general scene (constants.NAME and drive.ROTOR.KEY come on top)
 GENERAL_KEYS: dict[str, type] = {
     'scene': str, 'description': str, 'system': str, 't_end': float,
     'initial.q': list, 'initial.qdot': list, 'initial.z': list, 'initial.zdot': list,
     'steady.q': list, 'steady.qdot': list, 'steady.z': list, 'locked': list,
+    'perturbation.q': list, 'perturbation.qdot': list, 'perturbation.z': list,
+    'perturbation.zdot': list,
     'K_S': float, 'K_D': float, 'Omega0': float, 'pole_pairs': int,
     **{name: spec[0] for name, spec in NODE_KEYS.items()},
 }
+
+
+#: key of the embedded system document in :func:`general_scene_to_flat`
+SYSTEM_DOC = 'system_doc'
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,6 +79,26 @@ class GeneralScene:
     description: str = ''
     path: str | None = None
     node: dict = dataclasses.field(default_factory=dict)
+    #: the typed flat keys the scene was built from (overrides included)
+    flat: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
+    #: the system as its file defines it (before the scene's constants and drives)
+    base_system: RotorSystem | None = dataclasses.field(default=None, compare=False,
+                                                        repr=False)
+
+    @property
+    def pole_pairs(self) -> tuple:
+        """Pole pairs of each rotor's drive (0: linear law)."""
+        return tuple(int(d.pole_pairs) for d in self.system.drives)
+
+    def with_changes(self, changes: Mapping[str, Any]) -> 'GeneralScene':
+        """Copy with flat keys changed (constants.NAME, drive.ROTOR.KEY, K_D, ..., t_end).
+
+        Validated as in a scene file (SceneError names the problem); the steady motion
+        is checked again, since constants move it.
+        """
+        flat = {**self.flat, **changes}
+        return general_scene_from_mapping(flat, path=self.path, system=self.base_system,
+                                          where=f'scene {self.name}')
 
     def make_model(self) -> GeneralModel:
         """Return the compiled model of the (reduced) system."""
@@ -170,11 +199,11 @@ def _typed(key: str, value: Any, where: str) -> Any:
             raise SceneError(f'{where}: {key} must be a string, got {value!r}')
         return value
     if key == 'locked':
-        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
             raise SceneError(f'{where}: locked must be a list of coordinate names, got '
                              f'{value!r}')
         return tuple(value)
-    if not isinstance(value, list) or not all(
+    if not isinstance(value, (list, tuple)) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
         raise SceneError(f'{where}: {key} must be a list of numbers, got {value!r}')
     if not all(math.isfinite(v) for v in value):
@@ -225,11 +254,23 @@ def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None =
     ``check=False`` skips the steadiness check (for the command that solves for one).
     """
     path = general_scene_path(name_or_path)
-    where = f'scene file {path}'
     flat = _read(path)
     for key, value in (overrides or {}).items():
         flat[key] = float(value) if isinstance(value, int) and not isinstance(value, bool) \
             and key != 'pole_pairs' and not key.endswith('.pole_pairs') else value
+    return general_scene_from_mapping(flat, path=str(path), check=check)
+
+
+def general_scene_from_mapping(flat: Mapping[str, Any], *, path: str | None = None,
+                               system: RotorSystem | None = None, check: bool = True,
+                               where: str | None = None) -> GeneralScene:
+    """Build a general scene from its flat dotted keys (a scene file's, or a document's).
+
+    ``system``: the system as its file defines it (before the scene's constants and
+    drives); default: loaded from the ``system`` key (a name, or a path relative to
+    ``path``). The scene keeps the typed keys as :attr:`GeneralScene.flat`.
+    """
+    where = where or (f'scene file {path}' if path else 'general scene')
     vals = {}
     for key, value in flat.items():
         if key not in GENERAL_KEYS and not key.startswith(('constants.', 'drive.')):
@@ -238,22 +279,39 @@ def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None =
     if 'system' not in vals:
         raise SceneError(f'{where}: the key system is missing')
     try:
-        system = load_system(vals['system'], relative_to=str(path))
+        if system is None:
+            system = load_system(vals['system'], relative_to=path)
+        base = system
         system = system.with_constants({k.split('.', 1)[1]: v for k, v in vals.items()
                                         if k.startswith('constants.')},
                                        where=f'{where}: constants')
         system = _drives(system, vals, where)
     except SystemFileError as err:
         raise SceneError(f'{where}: {err}') from None
+    scene = _build(vals, system, where, path)
+    scene = dataclasses.replace(scene, base_system=base, flat={
+        k: list(v) if isinstance(v, tuple) else v for k, v in vals.items()})
+    model = scene.make_model()
+    _check_mass(scene, model, scene.initial_state(model), 'initial', where)
+    if any(k.startswith('steady.') for k in vals):
+        _check_mass(scene, model, scene.steady_state(model), 'steady', where)
+        if check:
+            check_steady(scene, model, where)
+    return scene
+
+
+def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> GeneralScene:
+    """The scene of typed keys ``vals`` on ``system`` (constants, drives applied)."""
     n, m = system.n, system.m
     coords = ', '.join(system.coordinates) or 'none'
-    q0 = _vector(vals, 'initial.q', n, f'one per coordinate: {coords}', where)
-    qd0 = _vector(vals, 'initial.qdot', n, f'one per coordinate: {coords}', where)
-    z0 = _vector(vals, 'initial.z', m, f'one per rotor: {", ".join(system.rotors)}', where)
-    zd0 = _vector(vals, 'initial.zdot', m, f'one per rotor: {", ".join(system.rotors)}', where)
-    sq = _vector(vals, 'steady.q', n, f'one per coordinate: {coords}', where)
-    sqd = _vector(vals, 'steady.qdot', n, f'one per coordinate: {coords}', where)
-    sz = _vector(vals, 'steady.z', m, f'one per rotor: {", ".join(system.rotors)}', where)
+    per_q, per_r = f'one per coordinate: {coords}', f'one per rotor: {", ".join(system.rotors)}'
+    q0 = _vector(vals, 'initial.q', n, per_q, where)
+    qd0 = _vector(vals, 'initial.qdot', n, per_q, where)
+    z0 = _vector(vals, 'initial.z', m, per_r, where)
+    zd0 = _vector(vals, 'initial.zdot', m, per_r, where)
+    sq = _vector(vals, 'steady.q', n, per_q, where)
+    sqd = _vector(vals, 'steady.qdot', n, per_q, where)
+    sz = _vector(vals, 'steady.z', m, per_r, where)
     locked = vals.get('locked', ())
     for i, name in enumerate(locked):
         if name not in system.coordinates:
@@ -269,22 +327,50 @@ def load_general_scene(name_or_path: str | os.PathLike, overrides: dict | None =
     t_end = vals.get('t_end', 10.0)
     if not t_end > 0:
         raise SceneError(f'{where}: t_end must be positive, got {t_end!r}')
+    for k, size, what in (('q', n, per_q), ('qdot', n, per_q), ('z', m, per_r),
+                          ('zdot', m, per_r)):
+        _vector(vals, f'perturbation.{k}', size, what, where)
 
     def pick(v):
         return tuple(v[i] for i in keep)
-    scene = GeneralScene(
-        name=vals.get('scene', path.stem), system=lock(system, locked, sq),
-        full_system=system, t_end=t_end, q0=pick(q0), qdot0=pick(qd0), z0=z0, zdot0=zd0,
-        steady_q=pick(sq), steady_qdot=pick(sqd), steady_z=sz, locked=tuple(locked),
-        description=vals.get('description', ''), path=str(path),
-        node={k: v for k, v in vals.items() if k in NODE_KEYS})
-    model = scene.make_model()
-    _check_mass(scene, model, scene.initial_state(model), 'initial', where)
-    if any(k.startswith('steady.') for k in vals):
-        _check_mass(scene, model, scene.steady_state(model), 'steady', where)
-        if check:
-            check_steady(scene, model, where)
-    return scene
+    return GeneralScene(
+        name=vals.get('scene', Path(path).stem if path else system.name),
+        system=lock(system, locked, sq), full_system=system, t_end=t_end, q0=pick(q0),
+        qdot0=pick(qd0), z0=z0, zdot0=zd0, steady_q=pick(sq), steady_qdot=pick(sqd),
+        steady_z=sz, locked=tuple(locked), description=vals.get('description', ''),
+        path=path, node={k: v for k, v in vals.items() if k in NODE_KEYS})
+
+
+def general_scene_to_flat(scene: GeneralScene) -> dict[str, Any]:
+    """Return the flat keys of a scene with the system's document embedded (``system_doc``).
+
+    What a bag or a scene document carries: :func:`general_scene_from_flat` rebuilds the
+    scene from it on a machine without the system file.
+    """
+    flat = dict(scene.flat)
+    doc = scene.base_system.document if scene.base_system is not None else None
+    if doc is not None:
+        flat[SYSTEM_DOC] = doc
+    return flat
+
+
+def general_scene_from_flat(flat: Mapping[str, Any], *, check: bool = True) -> GeneralScene:
+    """Rebuild a scene from :func:`general_scene_to_flat`'s keys (system file not needed)."""
+    flat = dict(flat)
+    doc = flat.pop(SYSTEM_DOC, None)
+    system = None
+    if doc is not None:
+        try:
+            system = system_from_mapping(doc)
+        except SystemFileError as err:
+            raise SceneError(f'the embedded system document: {err}') from None
+    return general_scene_from_mapping(flat, system=system, check=check,
+                                      where=f"general scene '{flat.get('scene', '?')}'")
+
+
+def is_general_flat(flat: Mapping[str, Any]) -> bool:
+    """Return True if flat scene keys (a bag's record, a document) are a general scene's."""
+    return 'system' in flat
 
 
 def _check_mass(scene: GeneralScene, model: GeneralModel, y: np.ndarray, what: str,

@@ -22,6 +22,7 @@ Python). Every error names the file, the key, the row and column and the offendi
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import hashlib
 import math
@@ -82,6 +83,9 @@ class RotorSystem:
     drives: tuple
     description: str = ''
     path: str | None = None
+    #: the parsed system file this was built from (what a scene document or a bag carries,
+    #: so that a reader needs no file: :func:`system_from_mapping` rebuilds it)
+    document: Mapping | None = dataclasses.field(default=None, compare=False, repr=False)
 
     @property
     def n(self) -> int:
@@ -282,7 +286,7 @@ def system_from_mapping(doc: Any, path: str | None = None) -> RotorSystem:
         rotor_inertia=A, guidance=sympy.ImmutableMatrix(m, n, [e for row in B for e in row]),
         potential=V, drives=tuple(_drive(d, f'{where}: drives[{i}]')
                                   for i, d in enumerate(drives)),
-        description=description, path=path)
+        description=description, path=path, document=copy.deepcopy(doc))
     _check_numbers(system, where)
     return system
 
