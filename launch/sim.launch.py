@@ -2,10 +2,13 @@
 
     ros2 launch gyro_rotor sim.launch.py scene:=precession rviz:=true
 
-Arguments: ``scene`` (a shipped scene name; its parameter file
-``share/gyro_rotor/config/<scene>.yaml`` configures rotor_sim), ``robot_description``
-(true: robot_state_publisher turns ``joint_states`` into TF with
-``share/gyro_rotor/urdf/centrifuge.urdf``; only meaningful for the centrifuge scenes),
+Arguments: ``scene`` (rotor_sim's ``scene`` parameter: a shipped centrifuge scene,
+``share/gyro_rotor/config/<scene>.yaml``, a shipped general scene of any rotor system,
+``share/gyro_rotor/config/systems/scenes/<scene>.yaml`` such as ``twin_gimbal``, or the path
+of a scene file; rotor_sim reads the file and declares every key of it as a parameter),
+``robot_description`` (true: robot_state_publisher turns ``joint_states`` into TF with
+``share/gyro_rotor/urdf/centrifuge.urdf``; only meaningful for the centrifuge scenes: pass
+false for a general system, whose joints are its coordinates and rotor lags z_ROTOR),
 ``rviz`` (start RViz2 with ``share/gyro_rotor/rviz/gyro_rotor.rviz``),
 ``wait_for_subscribers`` (hold simulation time at 0 until ``joint_states`` and ``energy``
 each have this many subscribers; 0: start at once; gyro_rotor.launch.py sets 1 so that
@@ -20,7 +23,7 @@ from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
@@ -33,15 +36,15 @@ def generate_launch_description():
     scene = LaunchConfiguration('scene')
     return LaunchDescription([
         DeclareLaunchArgument('scene', default_value='precession',
-                              description='shipped scene (config/<scene>.yaml)'),
+                              description='scene name (config/<scene>.yaml, '
+                                          'config/systems/scenes/<scene>.yaml) or path'),
         DeclareLaunchArgument('robot_description', default_value='true',
                               description='publish TF of the centrifuge from joint_states'),
         DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
         DeclareLaunchArgument('wait_for_subscribers', default_value='0',
                               description='hold t = 0 until this many subscribers'),
         Node(package='gyro_rotor', executable='rotor_sim', name='rotor_sim', output='screen',
-             parameters=[PathJoinSubstitution([share, 'config', [scene, '.yaml']]),
-                         {'publish_clock': True,
+             parameters=[{'scene': scene, 'publish_clock': True,
                           'wait_for_subscribers': ParameterValue(
                               LaunchConfiguration('wait_for_subscribers'), value_type=int)}]),
         Node(package='robot_state_publisher', executable='robot_state_publisher',

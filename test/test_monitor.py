@@ -23,10 +23,12 @@ def test_topic_stats_rate_jitter_and_gaps():
 
 
 @pytest.mark.ros
-def test_monitor_sees_the_simulation_topics():
+@pytest.mark.parametrize('scene, joints', [('precession', ('theta', 'phi_M')),
+                                           ('twin_gimbal', ('alpha', 'z_R2'))])
+def test_monitor_sees_the_simulation_topics(scene, joints):
     env = dict(os.environ)
     sim = subprocess.Popen([sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args',
-                            '-p', 'scene:=precession', '-p', 'real_time_factor:=1.0'],
+                            '-p', f'scene:={scene}', '-p', 'real_time_factor:=1.0'],
                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                            text=True)
     try:
@@ -42,6 +44,8 @@ def test_monitor_sees_the_simulation_topics():
     assert 'E_star' in last and 'residual' in last
     line = next(ln for ln in last.splitlines() if ln.startswith('/joint_states '))
     assert float(line.split()[3]) > 0      # it counted messages
+    values = next(ln for ln in last.splitlines() if ln.startswith('/joint_states: '))
+    assert all(f' {j} ' in values for j in joints), values
 
 
 def test_array_values_names_numbers_by_the_messages_own_labels():

@@ -252,8 +252,10 @@ def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
     rsp = nodes['robot_state_publisher'].kwargs['parameters'][0]
     assert rsp['robot_description'] == URDF.read_text()
     assert rsp['use_sim_time'] is True
-    sim_params = nodes['rotor_sim'].kwargs['parameters'][1]
+    sim_params = nodes['rotor_sim'].kwargs['parameters'][0]
     assert sim_params['publish_clock'] is True
+    # rotor_sim reads the scene file itself: a centrifuge scene or any rotor system's
+    assert sim_params['scene'].args[0] == 'scene'
     assert sim_params['wait_for_subscribers'].args[0].args[0] == 'wait_for_subscribers'
     assert all(p.get('use_sim_time') is not True for p in nodes['rotor_sim'].kwargs[
         'parameters'] if isinstance(p, dict))          # the simulator keeps its own time
@@ -322,3 +324,27 @@ def test_foxglove_layout_plots_published_topics():
     for p in paths:
         assert p.split('.')[0] in published
     assert panels['RawMessages!verdict']['topicPath'] in published
+
+
+# -- package.xml: every dependency resolvable by rosdep ------------------------------------
+#: rosdep keys of package.xml that the rosdep index defines (ros/rosdistro, rosdep/python.yaml
+#: and base.yaml at commit 662921b, 2026-08-22, read for this list) or that are ROS packages
+INDEX_KEYS = {'python3-numpy', 'python3-scipy', 'python3-yaml', 'python3-sympy',
+              'python3-numba', 'python3-matplotlib', 'python3-pytest', 'python3-hypothesis',
+              'mcap-ros2-support'}
+ROS_PACKAGES = {'rclpy', 'builtin_interfaces', 'rcl_interfaces', 'std_msgs', 'sensor_msgs',
+                'geometry_msgs', 'diagnostic_msgs', 'visualization_msgs', 'rosgraph_msgs',
+                'std_srvs', 'ament_index_python', 'launch', 'launch_ros',
+                'robot_state_publisher', 'rviz2', 'ament_flake8', 'ament_pep257'}
+
+
+def test_every_package_xml_key_is_in_the_index_or_our_rosdep_file():
+    root = ET.parse(REPO / 'package.xml').getroot()
+    keys = {e.text.strip() for e in root if e.tag.endswith('depend')}
+    ours = set(yaml.safe_load((REPO / 'rosdep' / 'gyro_rotor.yaml').read_text()))
+    assert not ours & INDEX_KEYS               # never shadow a key of the index
+    unknown = keys - INDEX_KEYS - ROS_PACKAGES - ours
+    assert not unknown, f'rosdep cannot resolve {sorted(unknown)}'
+    assert ours <= keys                        # the file defines nothing unused
+    for key, rule in yaml.safe_load((REPO / 'rosdep' / 'gyro_rotor.yaml').read_text()).items():
+        assert set(rule) >= {'ubuntu', 'debian'}, key

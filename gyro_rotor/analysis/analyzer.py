@@ -20,12 +20,11 @@ from typing import Iterable
 from gyro_rotor.analysis import criteria as crit
 from gyro_rotor.analysis.decay import envelope_decay_rate, fit_energy
 from gyro_rotor.analysis.modes import check_modes, ModeCheck
-from gyro_rotor.analysis.prediction import predict, Prediction
+from gyro_rotor.analysis.prediction import GENERAL_COORDS, predict, Prediction
 from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
 from gyro_rotor.analysis.ring import RowRing
 from gyro_rotor.analysis.samples import Sample
 from gyro_rotor.analysis.verdict import (combine, ModeStatus, SyncState, Verdict)
-from gyro_rotor.analysis.prediction import GENERAL_COORDS
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import AnalysisError, ParameterError
@@ -261,7 +260,7 @@ class RotorAnalyzer:
         seg.add(s, self._row(s, pred))
 
     def _lags(self, s: Sample) -> tuple:
-        """The rotor lags z of a sample (a general system's are joints after q)."""
+        """Return the rotor lags z of a sample (a general system's are joints after q)."""
         if self.prediction.coords == GENERAL_COORDS:
             n, m = len(self.prediction.steady[0]), len(self.prediction.steady[2])
             # a sample without its joint state has no lags (counted as unpaired, not here)

@@ -120,12 +120,14 @@ def _json_record(reader, name: str, key: str, default):
 
 def _scene_source(path, reader, scene, scene_topic) -> tuple:
     """Return (fixed scene, base scene, where from) for :func:`analyze_bag`."""
-    from gyro_rotor.core.scene import load_scene, scene_from_mapping
+    from gyro_rotor.core.scene import scene_from_mapping
+    from gyro_rotor.core.system.scene import (general_scene_from_flat, GeneralScene,
+                                              is_general_flat, load_any_scene)
     import yaml
-    if isinstance(scene, Scene):
+    if isinstance(scene, (Scene, GeneralScene)):
         return scene, None, 'given'
     if scene:
-        return load_scene(scene), None, f'given ({scene})'
+        return load_any_scene(scene), None, f'given ({scene})'
     if 'gyro_rotor.scene' in reader.metadata:
         rec = reader.metadata['gyro_rotor.scene']
         try:
@@ -134,7 +136,10 @@ def _scene_source(path, reader, scene, scene_topic) -> tuple:
             raise AnalysisError(f'{path}: the scene record is not YAML: {err}') from err
         if not isinstance(flat, dict):
             raise AnalysisError(f'{path}: the gyro_rotor.scene record holds no parameters')
-        base = scene_from_mapping(flat, strict_float=False)
+        if is_general_flat(flat):
+            base = general_scene_from_flat(flat, check=False)
+        else:
+            base = scene_from_mapping(flat, strict_float=False)
         return None, base, f"bag metadata (scene '{base.name}')"
     if scene_topic is not None:
         return None, None, f'scene documents on {scene_topic}'

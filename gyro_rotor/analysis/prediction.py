@@ -13,7 +13,8 @@ from gyro_rotor.core.scene import Scene
 from gyro_rotor.linear.stability import analyze_scene, ModeKind
 import numpy as np
 
-__all__ = ['PredictedMode', 'Prediction', 'predict', 'predict_general', 'GENERAL_COORDS']
+__all__ = ['PredictedMode', 'Prediction', 'predict', 'predict_general',
+           'GENERAL_COORDS']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -90,7 +91,8 @@ def _steady_state(scene: Scene) -> np.ndarray:
 def predict(scene) -> Prediction:
     """Predicted eigenvalues, named modes and verdict of a scene's steady motion.
 
-    A general scene goes to :func:`predict_general`. Otherwise from :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
+    A general scene goes to :func:`predict_general`. Otherwise from
+    :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
     modal energy at K_D = 0, followed by continuity).
     """
     from gyro_rotor.core.system.scene import GeneralScene
@@ -117,7 +119,7 @@ GENERAL_COORDS = 'general'
 
 
 def predict_general(scene) -> Prediction:
-    """What the linearization of a general scene predicts (:mod:`gyro_rotor.linear.general`).
+    """Predict the modes and verdict of a general scene (:mod:`gyro_rotor.linear.general`).
 
     Modes: the roots of A(K) at the scene's drives, one of each conjugate pair, named by
     their largest state; a zero root is structural (a cyclic coordinate), a root the

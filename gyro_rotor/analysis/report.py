@@ -177,20 +177,42 @@ def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
     files.append(out / 'eigenvalues.png')
     fig.savefig(files[-1], dpi=100)
     plt.close(fig)
-    # state over time
-    fig, axs = plt.subplots(4, 1, figsize=(7, 7), sharex=True)
-    theta = np.array([s.positions[0] for s in S])
-    z = np.array([s.z for s in S])
-    zd = np.array([s.zdot for s in S])
+    files.append(_plot_state(plt, res, S, t, out))
+    return files
+
+
+def _state_series(res, S) -> tuple:
+    """Return (first coordinate, z, zdot, labels) of the samples.
+
+    theta and the rotor's lag, or a general system's first coordinate and its first
+    rotor's lag.
+    """
+    steady = res.prediction.steady
+    if not steady:
+        return (np.array([s.positions[0] for s in S]), np.array([s.z for s in S]),
+                np.array([s.zdot for s in S]), ('theta [rad]', 'z [rad]', 'zdot [rad/s]'))
+    n = len(steady[0])
+
+    def col(attr, i):
+        return np.array([getattr(s, attr)[i] if len(getattr(s, attr)) > n else np.nan
+                         for s in S])
+    return (col('positions', 0), col('positions', n), col('velocities', n),
+            ('first coordinate q_1', 'z of rotor 1 [rad]', 'zdot of rotor 1 [rad/s]'))
+
+
+def _plot_state(plt, res, S, t, out: Path) -> Path:
+    """state.png: the first coordinate, z, zdot and the residual over time."""
+    theta, z, zd, labels = _state_series(res, S)
     r = np.array([s.residual for s in S])
-    labels = ('theta [rad]', 'z [rad]', 'zdot [rad/s]', 'residual [J]')
+    labels = labels + ('residual [J]',)
+    fig, axs = plt.subplots(4, 1, figsize=(7, 7), sharex=True)
     for a, y, lab in zip(axs, (theta, z, zd, r), labels):
         a.plot(t, y, lw=0.7)
         a.set_ylabel(lab, fontsize=8)
     axs[-1].set_xlabel('simulation time t [s]')
     axs[0].set_title(f'{res.scene}: state over time')
     fig.tight_layout()
-    files.append(out / 'state.png')
-    fig.savefig(files[-1], dpi=100)
+    path = out / 'state.png'
+    fig.savefig(path, dpi=100)
     plt.close(fig)
-    return files
+    return path

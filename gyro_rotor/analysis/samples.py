@@ -160,7 +160,7 @@ def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
 
 
 def samples_from_general_run(model, run, y_ref=None, seq0: int = 0) -> list[Sample]:
-    """Samples as rotor_sim publishes them for a general system, from a GeneralRun.
+    """Return samples as rotor_sim publishes them for a general system, from a GeneralRun.
 
     Positions (q, z) and rates (qdot, zdot) as integrated; the residual against the first
     sample (or ``y_ref``).

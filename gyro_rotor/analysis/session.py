@@ -12,13 +12,21 @@ from gyro_rotor.analysis.analyzer import RotorAnalyzer
 from gyro_rotor.analysis.results import AnalysisResult
 from gyro_rotor.analysis.samples import energy_sample_fields, Sample, SamplePairer
 from gyro_rotor.core.scene import Scene
+from gyro_rotor.core.system.scene import (general_scene_from_flat, general_scene_to_flat,
+                                          GeneralScene, is_general_flat)
 from gyro_rotor.errors import AnalysisError
 
 __all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc']
 
 
-def scene_to_flat(scene: Scene) -> dict[str, Any]:
-    """Return the flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it."""
+def scene_to_flat(scene) -> dict[str, Any]:
+    """Return the flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it.
+
+    A general scene: its keys with the system document embedded
+    (:func:`~gyro_rotor.core.system.scene.general_scene_to_flat`).
+    """
+    if isinstance(scene, GeneralScene):
+        return general_scene_to_flat(scene)
     flat: dict[str, Any] = {'scene': scene.name, 'model': scene.model, 't_end': scene.t_end}
     if scene.description:
         flat['description'] = scene.description
@@ -55,6 +63,10 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
         For an unknown scene without a base, or invalid values.
     """
     from gyro_rotor.core.scene import load_scene, scene_from_mapping
+    if isinstance(doc, Mapping) and isinstance(doc.get('flat'), Mapping) and \
+            is_general_flat(doc['flat']):
+        # a general system's document carries its whole scene (live changes included)
+        return general_scene_from_flat(doc['flat'], check=False)
     if not isinstance(doc, Mapping) or 'params' not in doc:
         raise AnalysisError(f'not a scene document of rotor_sim: {str(doc)[:80]!r}')
     if isinstance(base, Scene):
@@ -79,6 +91,15 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
     for k, v in (doc.get('perturbation') or {}).items():
         flat[f'perturbation.{k}'] = v
     return scene_from_mapping(flat, strict_float=False)
+
+
+def joint_names(scene) -> tuple:
+    """Return the ``joint_states`` names rotor_sim publishes for a scene."""
+    if isinstance(scene, GeneralScene):
+        from gyro_rotor.numerics.live_general import general_joint_names
+        return general_joint_names(scene.system.coordinates, scene.system.rotors)
+    from gyro_rotor.bag.wire import JOINT_NAMES
+    return JOINT_NAMES
 
 
 class AnalysisSession:
@@ -111,6 +132,7 @@ class AnalysisSession:
         self.max_pending = max_pending
         self.scene_docs = 0
         self.energy_fields: tuple = ()
+        self._joint_names: tuple = ()
         #: simulation time of the newest paired sample [s]: the time base of the stamps the
         #: analysis node writes (0 before the first sample)
         self.t_sim = 0.0
@@ -154,7 +176,22 @@ class AnalysisSession:
         self._take(self.pairer.add_energy(stamp, fields))
 
     def on_joints(self, msg: Any) -> None:
-        """Feed a ``joint_states`` message (sensor_msgs/JointState)."""
+        """Feed a ``joint_states`` message (sensor_msgs/JointState).
+
+        Raises
+        ------
+        AnalysisError
+            If its joints are not the scene's (a recording of another system).
+        """
+        names = tuple(msg.name)
+        if names != self._joint_names and self.scene is not None:
+            want = joint_names(self.scene)
+            if names != want:
+                raise AnalysisError(
+                    f"joint_states names {', '.join(names) or 'no joints'} but scene "
+                    f"'{self.scene.name}' has the joints {', '.join(want)}: a recording "
+                    f'of another system')
+            self._joint_names = names
         stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
         self._take(self.pairer.add_joints(stamp, msg.position, msg.velocity))
 

@@ -41,7 +41,6 @@ import warnings
 
 from gyro_rotor.core.model import make_model, Model
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.bag.wire import JOINT_NAMES
 from gyro_rotor.core.rotations import (axis_from_quaternion, euler_from_quaternion,
                                        euler_rates_from_body)
 from gyro_rotor.core.scene import perturb_state, PERTURBATION_KEYS, Scene
@@ -183,8 +182,9 @@ class LiveSimulation:
         return self._make_stepper(method, model, t, y, cfg)
 
     # -- what depends on the kind of scene (GeneralLiveSimulation overrides these) -----------
-    #: names of the joint_states columns and of the energy array's fields
-    joint_names: tuple = JOINT_NAMES
+    #: names of the joint_states columns (the wire layout's JOINT_NAMES; a test checks that
+    #: they agree) and of the energy array's fields
+    joint_names: tuple = ('theta', 'psi', 'phi_R', 'phi_M')
     energy_fields: tuple = ENERGY_COLUMNS
 
     def _resolve(self, method: str, model: Model, y: np.ndarray, t_end: float) -> tuple:
@@ -206,7 +206,7 @@ class LiveSimulation:
         return make_model(scene.model, scene.params)
 
     def _jump(self, model: Model, t: float, y: np.ndarray) -> np.ndarray:
-        """The state under ``model``'s parameters: an Omega0 change keeps the absolute spin."""
+        """Return the state under ``model``'s parameters (Omega0: the absolute spin is kept)."""
         dOmega = model.params.Omega0 - self.model.params.Omega0
         if dOmega:
             self._field = (t, self._field_angle(t))

@@ -2,7 +2,9 @@
 
 The node declares every scene key as a parameter (:mod:`gyro_rotor.ros.sim_params`),
 loads the scene named by ``scene`` and hands it to a
-:class:`~gyro_rotor.numerics.live.LiveSimulation`, which integrates it from a
+:class:`~gyro_rotor.numerics.live.LiveSimulation` (for a general scene of any rotor
+system, a :class:`~gyro_rotor.numerics.live_general.GeneralLiveSimulation`: joints q and
+z_ROTOR, no 3-D topics), which integrates it from a
 steady-clock timer and returns each tick's samples on the output grid
 t_k = k / publish_rate with every derived output. The node publishes them:
 
@@ -27,8 +29,8 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
-from gyro_rotor.errors import GyroRotorError
 from gyro_rotor.core.system.scene import GeneralScene
+from gyro_rotor.errors import GyroRotorError
 from gyro_rotor.numerics.live import Level, LiveSimulation
 from gyro_rotor.numerics.live_general import GeneralLiveSimulation
 import gyro_rotor.ros.messages as ros_msgs

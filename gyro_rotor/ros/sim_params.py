@@ -17,7 +17,7 @@ import warnings
 
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
 from gyro_rotor.core.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, PERTURBATION_KEYS,
-                                   Scene, scene_from_mapping, SCENE_KEYS)
+                                   scene_from_mapping, SCENE_KEYS)
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException

@@ -3,7 +3,8 @@
 Subscribes (raw, best effort, so that it never slows a publisher) to every topic of a
 running gyro_rotor system, however it was started, and prints once a second: the rate
 and jitter per topic, missing sequence numbers of ``energy``, the latest E*, dE*/dt,
-residual and z, the latest diagnostics of each node and the analysis verdict.
+residual and z, the latest joint positions by name (a general system's coordinates and
+rotor lags z_ROTOR), the latest diagnostics of each node and the analysis verdict.
 """
 
 from __future__ import annotations
@@ -77,9 +78,11 @@ class Monitor:
         def cb(data: bytes) -> None:
             seq = None
             name = cls.__name__
-            if name in ('Float64MultiArray', 'DiagnosticArray', 'String'):
+            if name in ('Float64MultiArray', 'DiagnosticArray', 'String', 'JointState'):
                 msg = deserialize_message(data, cls)
-                if name == 'Float64MultiArray' and msg.layout.dim:
+                if name == 'JointState':      # the joints by name: a general system's too
+                    self.latest[topic] = dict(zip(msg.name, msg.position))
+                elif name == 'Float64MultiArray' and msg.layout.dim:
                     values = array_values(array_labels(msg.layout.dim), msg.data)
                     self.latest[topic] = values
                     if 'seq' in values:

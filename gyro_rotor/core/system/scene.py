@@ -33,8 +33,8 @@ from typing import Any, Mapping
 
 from gyro_rotor.core.scene import flatten, NODE_KEYS, NODE_NAMES, scene_path
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.core.system.system_file import (DRIVE_KEYS, load_system, RotorSystem,
-                                                 system_from_mapping)
+from gyro_rotor.core.system.system_file import (
+    DRIVE_KEYS, load_system, RotorSystem, system_from_mapping)
 from gyro_rotor.errors import did_you_mean, SceneError, SystemFileError
 import numpy as np
 import sympy
@@ -42,7 +42,8 @@ import sympy
 __all__ = ['GeneralScene', 'load_general_scene', 'is_general_scene', 'lock',
            'general_scene_path', 'list_general_scenes', 'check_steady',
            'steady_residual', 'GENERAL_KEYS', 'general_scene_from_mapping',
-           'general_scene_to_flat', 'general_scene_from_flat', 'is_general_flat', 'SYSTEM_DOC']
+           'general_scene_to_flat', 'general_scene_from_flat', 'is_general_flat', 'SYSTEM_DOC',
+           'load_any_scene']
 
 #: fixed keys of a general scene (constants.NAME and drive.ROTOR.KEY come on top)
 GENERAL_KEYS: dict[str, type] = {
@@ -301,7 +302,7 @@ def general_scene_from_mapping(flat: Mapping[str, Any], *, path: str | None = No
 
 
 def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> GeneralScene:
-    """The scene of typed keys ``vals`` on ``system`` (constants, drives applied)."""
+    """Return the scene of typed keys ``vals`` on ``system`` (constants, drives applied)."""
     n, m = system.n, system.m
     coords = ', '.join(system.coordinates) or 'none'
     per_q, per_r = f'one per coordinate: {coords}', f'one per rotor: {", ".join(system.rotors)}'
@@ -366,6 +367,14 @@ def general_scene_from_flat(flat: Mapping[str, Any], *, check: bool = True) -> G
             raise SceneError(f'the embedded system document: {err}') from None
     return general_scene_from_mapping(flat, system=system, check=check,
                                       where=f"general scene '{flat.get('scene', '?')}'")
+
+
+def load_any_scene(name_or_path, overrides: dict | None = None):
+    """Load a general scene (a file with a ``system`` key) or else a centrifuge scene."""
+    if is_general_scene(name_or_path):
+        return load_general_scene(name_or_path, overrides)
+    from gyro_rotor.core.scene import load_scene
+    return load_scene(name_or_path, overrides=overrides)
 
 
 def is_general_flat(flat: Mapping[str, Any]) -> bool:

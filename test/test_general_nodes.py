@@ -1,0 +1,240 @@
+"""Any rotor system in the nodes (issue 16 item 1).
+
+The live simulation of a general scene, rotor_sim's parameters for it, and ``gyro-rotor
+demo`` on every shipped general scene (the bag read by three readers, offline verdict ==
+live verdict == the linear theory's).
+"""
+
+import json
+import math
+from pathlib import Path
+import subprocess
+import sys
+
+from gyro_rotor.analysis.offline import analyze_bag
+from gyro_rotor.analysis.prediction import predict_general
+from gyro_rotor.bag.bagio import open_bag
+from gyro_rotor.core.scene import NODE_KEYS
+from gyro_rotor.core.system.scene import (general_scene_from_flat, general_scene_to_flat,
+                                          list_general_scenes, load_general_scene)
+from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.numerics.live_general import (GENERAL_ENERGY_FIELDS, general_joint_names,
+                                              GeneralLiveSimulation)
+import numpy as np
+import pytest
+import yaml
+
+SHIPPED = ('centrifuge_euler', 'elastic_frame', 'twin_gimbal')
+
+
+def _sim(name='twin_gimbal', **kick):
+    cfg = {k: v[1] for k, v in NODE_KEYS.items()}
+    cfg['real_time_factor'] = 0.0
+    return GeneralLiveSimulation(load_general_scene(name), cfg, kick, budget=None)
+
+
+def _run_to(sim, t):
+    blocks = []
+    while sim.stepper.t < t and not sim.diverged:
+        b = sim.tick()
+        if b is not None:
+            blocks.append(b)
+    return blocks
+
+
+def test_the_shipped_general_scenes_are_the_ones_tested():
+    assert tuple(list_general_scenes()) == SHIPPED
+
+
+def test_outputs_name_coordinates_and_rotor_lags():
+    sim = _sim()
+    scene = sim.scene
+    assert sim.joint_names == ('alpha', 'beta1', 'beta2', 'z_R1', 'z_R2')
+    assert sim.joint_names == general_joint_names(scene.system.coordinates,
+                                                  scene.system.rotors)
+    b = _run_to(sim, 0.2)[-1]
+    assert b.position.shape[1] == b.velocity.shape[1] == 5 and b.effort.shape[1] == 0
+    assert set(b.energy) == set(GENERAL_ENERGY_FIELDS) and b.quaternion is None
+    y = sim.last[1]
+    m = sim.model
+    sq, sqd, sz, szd = m.slices()
+    np.testing.assert_array_equal(b.position[-1], np.concatenate([y[sq], y[sz]]))
+    np.testing.assert_array_equal(b.velocity[-1], np.concatenate([y[sqd], y[szd]]))
+    K_D = np.array([d.K_D for d in scene.system.drives])
+    assert b.energy['dE_dt'][-1] == pytest.approx(-(y[szd] ** 2) @ K_D, rel=1e-12)
+    assert abs(b.energy['residual']).max() < 1e-9
+
+
+def test_a_bad_constant_is_refused_and_changes_nothing():
+    sim = _sim()
+    _run_to(sim, 0.1)
+    y, E_ref, scene = sim.stepper.y.copy(), sim.baseline.E_ref, sim.scene
+    for change, word in (({'constants.J_g': -1.0}, 'not positive definite'),
+                         ({'constants.nope': 1.0}, "unknown constant 'nope'"),
+                         ({'drive.R1.K_D': -1.0}, 'K_D'),
+                         ({'drive.R3.K_D': 1.0}, "unknown key 'drive.R3.K_D'"),
+                         ({'perturbation.qdot': [1.0]}, '3 finite numbers'),
+                         ({'integrator': 'radau9'}, 'general systems integrate with')):
+        with pytest.raises(GyroRotorError, match=word):
+            sim.check(change)
+    assert sim.scene is scene and sim.baseline.E_ref == E_ref
+    np.testing.assert_array_equal(sim.stepper.y, y)
+
+
+def test_a_constant_change_moves_the_baseline_by_the_jump_of_E_star():
+    sim = _sim()
+    _run_to(sim, 0.2)
+    y = sim.stepper.y.copy()
+    E_old = float(sim.model.energy(y))
+    E_ref = sim.baseline.E_ref
+    sim.check({'constants.c_a': 60.0})
+    sim.apply({'constants.c_a': 60.0})
+    assert sim.diverged is None and sim.scene.system.constants['c_a'] == 60.0
+    # V = c_a alpha^2 / 2: E* jumps by (60 - 40) alpha^2 / 2, the baseline with it
+    assert sim.baseline.E_ref - E_ref == pytest.approx(10.0 * y[0] ** 2, rel=1e-9)
+    assert float(sim.model.energy(y)) - E_old == pytest.approx(10.0 * y[0] ** 2, rel=1e-9)
+    blocks = _run_to(sim, 0.6)
+    resid = np.concatenate([b.energy['residual'] for b in blocks])
+    assert np.abs(resid).max() < 1e-9
+    E = np.concatenate([b.energy['E_star'] for b in blocks])
+    assert np.all(np.diff(E) <= 1e-12)          # still a Lyapunov function (eq. 17)
+
+
+def test_an_omega0_change_keeps_the_absolute_spin_of_that_rotor():
+    sim = _sim()
+    _run_to(sim, 0.1)
+    zdot = sim.stepper.y[sim.model.slices()[3]].copy()
+    sim.apply({'drive.R2.Omega0': 260.0})
+    np.testing.assert_allclose(sim.stepper.y[sim.model.slices()[3]],
+                               zdot - np.array([0.0, 10.0]), rtol=0, atol=1e-12)
+
+
+def test_a_kick_adds_to_the_state_and_moves_the_baseline():
+    sim = _sim(qdot=[0.0, 0.0, 0.05])
+    _run_to(sim, 0.1)
+    y = sim.stepper.y.copy()
+    E_ref = sim.baseline.E_ref
+    sim.perturb()
+    assert sim.stepper.y[5] == pytest.approx(y[5] + 0.05, abs=1e-15)
+    assert sim.baseline.E_ref > E_ref
+    blocks = _run_to(sim, 0.3)
+    assert np.abs(np.concatenate([b.energy['residual'] for b in blocks])).max() < 1e-9
+
+
+def test_the_scene_document_rebuilds_the_scene_without_the_system_file():
+    for name in SHIPPED:
+        scene = load_general_scene(name)
+        flat = yaml.safe_load(yaml.safe_dump(general_scene_to_flat(scene)))
+        flat['system'] = 'a/file/that/does/not/exist.yaml'
+        again = general_scene_from_flat(flat)
+        assert again.system.constants == scene.system.constants
+        assert again.system.drives == scene.system.drives
+        np.testing.assert_array_equal(again.initial_state(), scene.initial_state())
+
+
+def _readers(bag: Path) -> dict:
+    """Message counts of joint_states by three readers: mcap, rosbags, the package's own."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import get_typestore, Stores
+    (mcap_file,) = bag.glob('*.mcap')
+    with open(mcap_file, 'rb') as f:
+        names = [dec.name for _, ch, _, dec in make_reader(
+            f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(
+                topics=['/joint_states'])]
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+        conns = [c for c in r.connections if c.topic == '/joint_states']
+        rb = [r.deserialize(raw, c.msgtype).name for c, _, raw in r.messages(connections=conns)]
+    own = open_bag(bag)
+    return {'mcap': (len(names), names[0]), 'rosbags': (len(rb), list(rb[0])),
+            'own': (own.topics['/joint_states'].count, None)}
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.parametrize('name', SHIPPED)
+def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_path):
+    out = tmp_path / 'demo'
+    r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'demo', name, '--duration', '10',
+                        '--rtf', '0', '--quiet', '--out', str(out)], capture_output=True,
+                       text=True, timeout=300)
+    assert 'Traceback' not in r.stderr, r.stderr[-3000:]
+    scene = load_general_scene(name)
+    expected = predict_general(scene).verdict
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    assert f'RESULT: CONFIRMED: {expected}' in r.stdout
+    bag = out / 'bag'
+    counts = _readers(bag)
+    joints = list(general_joint_names(scene.system.coordinates, scene.system.rotors))
+    assert counts['mcap'][1] == counts['rosbags'][1] == joints
+    assert counts['mcap'][0] == counts['rosbags'][0] == counts['own'][0] == 2501
+    reader = open_bag(bag)
+    assert reader.topics['/energy'].count == 2501
+    assert '/axis' not in reader.topics or reader.topics['/axis'].count == 0
+    live = json.loads(reader.metadata['gyro_rotor.live_result']['json'])
+    offline = analyze_bag(bag)
+    assert live['verdict'] == str(offline.result.verdict) == expected
+    assert offline.result.samples == 2501 and offline.result.unpaired == 0
+    assert {c.name: str(c.status) for c in offline.result.criteria} == {
+        'Lyapunov': 'PASS', 'energy balance': 'PASS', 'decay': 'PASS', 'modes': 'PASS',
+        'data': 'PASS'}
+    assert math.isfinite(offline.result.judged.E_last)
+    # the analysis of a recording of another system is refused with one line
+    r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'analyze', str(bag), '--scene',
+                        'precession'], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.startswith('ERROR: joint_states names ')
+    assert r.stderr.count('\n') == 1 and 'a recording of another system' in r.stderr
+
+
+def test_a_centrifuge_bag_is_not_analysed_as_a_general_system():
+    bag = Path(__file__).resolve().parents[1] / 'bags' / 'precession'
+    r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'analyze', str(bag), '--scene',
+                        'twin_gimbal'], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1, r.stdout[-2000:]
+    assert r.stderr == ('ERROR: joint_states names theta, psi, phi_R, phi_M but scene '
+                        "'twin_gimbal' has the joints alpha, beta1, beta2, z_R1, z_R2: a "
+                        'recording of another system\n')
+
+
+@pytest.mark.ros
+def test_rotor_sim_declares_a_general_scenes_parameters_and_checks_changes():
+    rclpy = pytest.importorskip('rclpy')
+    from gyro_rotor.ros.sim_node import RotorSimNode
+    from rclpy.parameter import Parameter
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = RotorSimNode(context=ctx, parameter_overrides=[
+            Parameter('scene', value='twin_gimbal'), Parameter('constants.c_a', value=50.0),
+            Parameter('real_time_factor', value=0.0)])
+        try:
+            names = set(node._parameters)
+            assert {'system', 'constants.c_a', 'drive.R1.K_D', 'drive.R2.pole_pairs',
+                    'initial.q', 'perturbation.zdot'} <= names
+            assert node.sim.scene.system.constants['c_a'] == 50.0     # the start override
+            for params, word in (([Parameter('constants.J_g', value=-1.0)],
+                                  'not positive definite'),
+                                 ([Parameter('constants.c_a', value=40)], 'write 40.0'),
+                                 ([Parameter('drive.R1.K_D', value=-1.0)], 'K_D'),
+                                 ([Parameter('initial.q', value=[0.0, 0.0, 0.0])],
+                                  'read-only')):
+                (res,) = node.set_parameters(params)
+                assert not res.successful and word in res.reason, res.reason
+            E_ref = node.sim.baseline.E_ref
+            (res,) = node.set_parameters([Parameter('drive.R1.K_S', value=12.0)])
+            assert res.successful, res.reason
+            assert node.sim.scene.system.drives[0].K_S == 12.0
+            z1 = node.sim.stepper.y[node.sim.model.slices()[2]][0]
+            assert node.sim.baseline.E_ref - E_ref == pytest.approx(1.0 * z1 ** 2, abs=1e-15)
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def test_the_live_layouts_are_the_wire_layouts():
+    from gyro_rotor.bag import wire
+    from gyro_rotor.numerics.live import ENERGY_COLUMNS, LiveSimulation
+    assert LiveSimulation.joint_names == wire.JOINT_NAMES
+    assert LiveSimulation.energy_fields == ENERGY_COLUMNS == wire.ENERGY_FIELDS
