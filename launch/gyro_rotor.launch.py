@@ -31,5 +31,7 @@ def generate_launch_description():
         IncludeLaunchDescription(
             PythonLaunchDescriptionSource(os.path.join(launch_dir, 'sim.launch.py')),
             launch_arguments={'scene': scene, 'rviz': LaunchConfiguration('rviz'),
-                              'wait_for_subscribers': '1'}.items()),   # the recorder
+                              # the recorder: rotor_sim holds t = 0 until it subscribes
+                              'wait_for_subscribers': '1',
+                              'wait_for_node': 'rotor_analysis'}.items()),
     ])

@@ -11,8 +11,9 @@ of a scene file; rotor_sim reads the file and declares every key of it as a para
 false for a general system, whose joints are its coordinates and rotor lags z_ROTOR),
 ``rviz`` (start RViz2 with ``share/gyro_rotor/rviz/gyro_rotor.rviz``),
 ``wait_for_subscribers`` (hold simulation time at 0 until ``joint_states`` and ``energy``
-each have this many subscribers; 0: start at once; gyro_rotor.launch.py sets 1 so that
-rotor_analysis records from t = 0).
+each have this many subscribers; 0: start at once), ``wait_for_node`` (and until that
+node subscribes to both; gyro_rotor.launch.py sets 1 and rotor_analysis, so that the
+recorder gets every sample from t = 0 even when Foxglove or rqt subscribes first).
 rotor_sim publishes ``/clock`` (simulation time); every other node here runs with
 ``use_sim_time`` so that its TF and displays follow the simulated time.
 """
@@ -43,10 +44,13 @@ def generate_launch_description():
         DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
         DeclareLaunchArgument('wait_for_subscribers', default_value='0',
                               description='hold t = 0 until this many subscribers'),
+        DeclareLaunchArgument('wait_for_node', default_value='',
+                              description='... and until this node subscribes'),
         Node(package='gyro_rotor', executable='rotor_sim', name='rotor_sim', output='screen',
              parameters=[{'scene': scene, 'publish_clock': True,
                           'wait_for_subscribers': ParameterValue(
-                              LaunchConfiguration('wait_for_subscribers'), value_type=int)}]),
+                              LaunchConfiguration('wait_for_subscribers'), value_type=int),
+                          'wait_for_node': LaunchConfiguration('wait_for_node')}]),
         Node(package='robot_state_publisher', executable='robot_state_publisher',
              name='robot_state_publisher', output='screen',
              condition=IfCondition(LaunchConfiguration('robot_description')),

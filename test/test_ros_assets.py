@@ -270,6 +270,7 @@ def test_combined_launch_records_from_t0(launch_env):
     inc = {Path(e.args[0].args[0]).name: dict(e.kwargs['launch_arguments'])
            for e in _walk(ld) if type(e).__name__ == 'IncludeLaunchDescription'}
     assert inc['sim.launch.py']['wait_for_subscribers'] == '1'
+    assert inc['sim.launch.py']['wait_for_node'] == 'rotor_analysis'
     assert inc['analysis.launch.py']['scene'].args[0] == 'scene'
 
 

@@ -325,3 +325,39 @@ def test_live_change_of_the_wrong_type_names_parameter_value_and_type(rig):
         assert not result.successful and reason in result.reason, result.reason
     assert rig.node.sim.scene.params.K_S == 20.0
     assert rig.node.get_parameter('K_S').value == 20.0
+
+
+def test_wait_for_node_holds_time_until_that_node_subscribes():
+    """A viewer that subscribes first cannot stand in for the recorder (wait_for_node)."""
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    ex = SingleThreadedExecutor(context=context)
+    try:
+        node = RotorSimNode(context=context, parameter_overrides=[
+            Parameter('scene', value='precession'), Parameter('real_time_factor', value=0.0),
+            Parameter('wait_for_subscribers', value=1),
+            Parameter('wait_for_node', value='rotor_analysis')])
+        ex.add_node(node)
+        viewer = rclpy.create_node('foxglove_bridge', context=context)
+        for topic, cls in (('energy', Float64MultiArray), ('joint_states', JointState)):
+            viewer.create_subscription(cls, topic, lambda m: None, PROBE_QOS)
+        ex.add_node(viewer)
+        ticks = []
+        node.create_timer(0.0, lambda: ticks.append(node.stepper.t))
+        deadline = time.monotonic() + 20
+        while not (node.pub['energy'].get_subscription_count() >= 1 and len(ticks) > 200):
+            assert time.monotonic() < deadline
+            ex.spin_once(timeout_sec=0.01)
+        assert node.stepper.t == 0.0 and node._waiting      # the viewer alone: held at 0
+        # the recorder's hidden node counts as rotor_analysis
+        rec = rclpy.create_node('_rotor_analysis_recorder', context=context)
+        for topic, cls in (('energy', Float64MultiArray), ('joint_states', JointState)):
+            rec.create_subscription(cls, topic, lambda m: None, PROBE_QOS)
+        ex.add_node(rec)
+        while node.stepper.t == 0.0:
+            assert time.monotonic() < deadline
+            ex.spin_once(timeout_sec=0.01)
+        assert not node._waiting
+    finally:
+        ex.shutdown()
+        rclpy.try_shutdown(context=context)

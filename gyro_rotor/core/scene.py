@@ -75,6 +75,10 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
     'wait_for_subscribers': (int, 0, 'hold simulation time at 0 until joint_states and '
                                      'energy each have this many subscribers (a recorder '
                                      'then gets every sample from t = 0; 0 = start at once)'),
+    'wait_for_node': (str, '', "and until a subscriber of this node (its recorder's hidden "
+                               'node _<name>_recorder counts as it) is among them: another '
+                               'subscriber, such as Foxglove, cannot stand in for the '
+                               "recorder ('' = any subscribers)"),
     'use_sim_time': (bool, False, 'ROS: must stay false for the simulator itself'),
 }
 

@@ -143,7 +143,7 @@ class RotorSimNode(Node):
         self.create_service(Trigger, '~/reset', reset)
         self.create_service(Trigger, '~/perturb', self._service(self.sim.perturb))
         self.create_service(SetBool, '~/pause', self._service(self.sim.pause))
-        self._waiting = cfg['wait_for_subscribers'] > 0
+        self._waiting = cfg['wait_for_subscribers'] > 0 or bool(cfg['wait_for_node'])
         self._timer = self._diag_timer = None
         self._make_timers(tick=True, diag=True)
         self.add_on_set_parameters_callback(self._on_set)
@@ -221,12 +221,13 @@ class RotorSimNode(Node):
     def _tick(self) -> None:
         sim = self.sim
         if self._waiting:
-            n = sim.cfg['wait_for_subscribers']
-            if min(self.pub['joint_states'].get_subscription_count(),
-                   self.pub['energy'].get_subscription_count()) < n:
+            if not self._subscribers_ready():
                 return self._idle()       # the pacer anchors its clock at the first real tick
             self._waiting = False
-            self.get_logger().info(f'{n} subscriber(s) matched: simulation time starts')
+            self.get_logger().info(f"{sim.cfg['wait_for_subscribers']} subscriber(s) "
+                                   + (f"of them {sim.cfg['wait_for_node']}, " if
+                                      sim.cfg['wait_for_node'] else '')
+                                   + 'matched: simulation time starts')
         if sim.pacer.rtf == 0 and not sim.diverged and not self.acks.ready(
                 sim.pacer.chunk_samples):
             return
@@ -241,6 +242,18 @@ class RotorSimNode(Node):
             self.published['clock'] += 1
         if block is None and (sim.pacer.paused or sim.pacer.finished or sim.diverged):
             self._idle()
+
+    def _subscribers_ready(self) -> bool:
+        """Return whether joint_states and energy have the subscribers to wait for."""
+        n, node = self.sim.cfg['wait_for_subscribers'], self.sim.cfg['wait_for_node']
+        pubs = (self.pub['joint_states'], self.pub['energy'])
+        if min(p.get_subscription_count() for p in pubs) < n:
+            return False
+        if not node:
+            return True
+        names = {node, f'_{node}_recorder'}
+        return all(any(i.node_name in names for i in
+                       self.get_subscriptions_info_by_topic(p.topic_name)) for p in pubs)
 
     def _idle(self) -> None:
         """At real_time_factor 0 the timer has period 0: do not spin hot with nothing to do."""

@@ -40,7 +40,8 @@ NODE_RANGES = {
     'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, _BIG), 't_end': (1e-6, _BIG),
 }
 #: node keys that only take effect at start
-READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers'}
+READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers',
+             'wait_for_node'}
 _TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
           str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
 _TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double',

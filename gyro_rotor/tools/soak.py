@@ -349,6 +349,7 @@ def _start_nodes(res: SoakResult, scene_arg: str, bag: Path, domain_id: int, log
     sim = NodeProcess('gyro_rotor.ros.sim_node', {
         'scene': scene_arg, 'publish_rate': res.rate, 'real_time_factor': res.rtf,
         't_end': res.duration, 'stop_at_t_end': True, 'wait_for_subscribers': 1,
+        'wait_for_node': 'rotor_analysis',
         'diagnostics_period': 1.0},
         domain_id=domain_id, stdout=logs['rotor_sim'], stderr=logs['rotor_sim'], env=env)
     return sim, ana

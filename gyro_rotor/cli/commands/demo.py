@@ -261,7 +261,8 @@ def _start_sim(args, scene_arg: str, domain_id: int, logs: dict, t_stop: float):
     return NodeProcess('gyro_rotor.ros.sim_node', {
         'scene': str(scene_arg), 'real_time_factor': float(args.rtf),
         'publish_rate': float(args.rate), 't_end': float(t_stop),
-        'stop_at_t_end': True, 'wait_for_subscribers': SUBSCRIBERS}, domain_id=domain_id,
+        'stop_at_t_end': True, 'wait_for_subscribers': SUBSCRIBERS,
+        'wait_for_node': 'rotor_analysis'}, domain_id=domain_id,
         stdout=logs['rotor_sim'], stderr=logs['rotor_sim'])
 
 
