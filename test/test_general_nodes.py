@@ -238,3 +238,17 @@ def test_the_live_layouts_are_the_wire_layouts():
     from gyro_rotor.numerics.live import ENERGY_COLUMNS, LiveSimulation
     assert LiveSimulation.joint_names == wire.JOINT_NAMES
     assert LiveSimulation.energy_fields == ENERGY_COLUMNS == wire.ENERGY_FIELDS
+
+
+def test_the_committed_general_bag_gives_the_live_verdict_offline():
+    """bags/twin_gimbal (bags/record.sh): read without the system file, live == offline."""
+    bag = Path(__file__).resolve().parents[1] / 'bags' / 'twin_gimbal'
+    ana = analyze_bag(bag)
+    assert ana.live is not None and ana.live['verdict'] == str(ana.result.verdict)
+    assert str(ana.result.verdict) == 'asymptotically stable'
+    assert ana.result.samples == ana.live['samples'] == 3001
+    assert ana.result.dropped == 0 and ana.result.unpaired == 0 and not ana.truncated
+    live_modes = {m['name']: m['status'] for m in ana.live['segments'][-1]['modes']}
+    assert {m.name: str(m.status) for m in ana.result.judged.modes} == live_modes
+    record = yaml.safe_load(open_bag(bag).metadata['gyro_rotor.scene']['flat'])
+    assert record['system_doc']['name'] == 'twin_gimbal'     # the system travels in the bag

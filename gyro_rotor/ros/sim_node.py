@@ -224,10 +224,10 @@ class RotorSimNode(Node):
             if not self._subscribers_ready():
                 return self._idle()       # the pacer anchors its clock at the first real tick
             self._waiting = False
-            self.get_logger().info(f"{sim.cfg['wait_for_subscribers']} subscriber(s) "
-                                   + (f"of them {sim.cfg['wait_for_node']}, " if
-                                      sim.cfg['wait_for_node'] else '')
-                                   + 'matched: simulation time starts')
+            node = sim.cfg['wait_for_node']
+            self.get_logger().info(f"{sim.cfg['wait_for_subscribers']} subscriber(s) matched"
+                                   + (f', {node} among them' if node else '')
+                                   + ': simulation time starts')
         if sim.pacer.rtf == 0 and not sim.diverged and not self.acks.ready(
                 sim.pacer.chunk_samples):
             return
