@@ -252,3 +252,15 @@ def test_the_committed_general_bag_gives_the_live_verdict_offline():
     assert {m.name: str(m.status) for m in ana.result.judged.modes} == live_modes
     record = yaml.safe_load(open_bag(bag).metadata['gyro_rotor.scene']['flat'])
     assert record['system_doc']['name'] == 'twin_gimbal'     # the system travels in the bag
+
+
+def test_a_scene_document_of_the_same_scene_changes_nothing_in_the_analysis():
+    """The scene from a file and the same scene from rotor_sim's document (no file path)."""
+    from gyro_rotor.analysis.analyzer import RotorAnalyzer
+    scene = load_general_scene('twin_gimbal')
+    again = general_scene_from_flat(yaml.safe_load(yaml.safe_dump(
+        general_scene_to_flat(scene))))
+    assert again.system.path is None and scene.system.path is not None
+    a = RotorAnalyzer(scene)
+    assert not a.set_scene(again) and a.param_changes == 0
+    assert a.set_scene(scene.with_changes({'drive.R1.K_D': 0.05})) and a.param_changes == 1

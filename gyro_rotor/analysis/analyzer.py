@@ -431,10 +431,18 @@ def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:
 def _same_physics(a, b) -> bool:
     """Return True if two scenes differ in nothing the analysis depends on."""
     if isinstance(a, GeneralScene) or isinstance(b, GeneralScene):
+        # the systems by content: a system rebuilt from a bag's document has no file path,
+        # and its constants may come in another order (a YAML dump sorted by key)
         return (isinstance(a, GeneralScene) and isinstance(b, GeneralScene)
-                and a.system == b.system and a.steady_q == b.steady_q
+                and _content(a.system) == _content(b.system) and a.steady_q == b.steady_q
                 and a.steady_qdot == b.steady_qdot and a.steady_z == b.steady_z)
     return a.params == b.params and a.model == b.model and a.initial == b.initial
+
+
+def _content(system) -> tuple:
+    """Return what a rotor system is, without its file path or the order of its constants."""
+    return (system.coordinates, system.rotors, dict(system.constants), system.mass_matrix,
+            tuple(system.rotor_inertia), system.guidance, system.potential, system.drives)
 
 
 def _general_row(s: Sample, pred: Prediction) -> tuple:

@@ -61,6 +61,15 @@ _PENDING_MAX = 20000
 _LATCHED = profile('latched')
 
 
+def _flat_text(scene) -> str:
+    """Return the scene's flat keys as YAML in their own order.
+
+    A general system's constants keep the order of its file, so that the offline analysis
+    reuses the compiled equations.
+    """
+    return yaml.safe_dump(scene_to_flat(scene), sort_keys=False)
+
+
 def _float_range(lo: float, hi: float) -> list:
     return [FloatingPointRange(from_value=lo, to_value=hi, step=0.0)]
 
@@ -121,8 +130,7 @@ class RotorAnalysisNode(Node):
                 'options': json.dumps(self.options), 'sim_node': self.sim_node,
                 'scene_parameter': scene_ref(scene_name) if '/' in scene_name else scene_name}}
             if scene is not None:
-                meta['gyro_rotor.scene'] = {'name': scene.name,
-                                            'flat': yaml.safe_dump(scene_to_flat(scene))}
+                meta['gyro_rotor.scene'] = {'name': scene.name, 'flat': _flat_text(scene)}
             self.recorder = BagRecorder(self, path, {**topics, **OWN_TOPICS},
                                         metadata=meta, on_message=self._on_bytes,
                                         compression=compression, on_error=self._error,
@@ -179,7 +187,7 @@ class RotorAnalysisNode(Node):
             return
         if self.recorder is not None and not self._scene_recorded:
             self.recorder.add_metadata('gyro_rotor.scene', {
-                'name': scene.name, 'flat': yaml.safe_dump(scene_to_flat(scene)),
+                'name': scene.name, 'flat': _flat_text(scene),
                 'document': scene_doc_for_bag(text)})
             self._scene_recorded = True
 
