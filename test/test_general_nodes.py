@@ -264,3 +264,12 @@ def test_a_scene_document_of_the_same_scene_changes_nothing_in_the_analysis():
     a = RotorAnalyzer(scene)
     assert not a.set_scene(again) and a.param_changes == 0
     assert a.set_scene(scene.with_changes({'drive.R1.K_D': 0.05})) and a.param_changes == 1
+
+
+def test_the_scene_list_names_the_general_scenes(capsys):
+    from gyro_rotor.cli.main import main
+    assert main(['scenes']) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for name in SHIPPED:
+        line = next(ln for ln in lines if ln.startswith(name + ' '))
+        assert f'system {load_general_scene(name).system.name}' in line

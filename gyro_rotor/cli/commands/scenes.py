@@ -1,4 +1,4 @@
-"""``gyro-rotor scenes``: list the shipped scenes."""
+"""``gyro-rotor scenes``: list the shipped scenes (the centrifuge's and general systems')."""
 
 from __future__ import annotations
 
@@ -14,8 +14,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print one line per scene."""
+    """Print one line per scene: the centrifuge's, then those of general rotor systems."""
+    from gyro_rotor.core.system.scene import list_general_scenes, load_general_scene
     for name in list_scenes():
         s = load_scene(name)
-        print(f'{name:16s} {s.model:15s} t_end {s.t_end:6g} s  {s.description}')
+        print(f'{name:16s} {s.model:23s} t_end {s.t_end:6g} s  {s.description}')
+    for name in list_general_scenes():
+        s = load_general_scene(name)
+        what = f'system {s.system.name}'
+        print(f'{name:16s} {what:23s} t_end {s.t_end:6g} s  {s.description}')
     return 0
