@@ -195,6 +195,35 @@ def test_auto_choice():
     assert 'stiff' in choose_method(load_scene('stiff_drive').params)[1]
 
 
+def test_auto_conservative_threshold_counts_periods_of_the_fastest_oscillation():
+    # 100 s of conservative is 870 periods of its fastest oscillation (54.8 rad/s): dop853's
+    # E* drift stays below a tenth of rtol there, and split8 is about twice as costly per
+    # trajectory error (bench), so auto keeps dop853; over 1000 s it takes split8
+    p = load_scene('conservative').params
+    method, reason = choose_method(p, 100.0)
+    assert method == 'dop853' and 'periods' in reason and 'conservative' in reason
+    assert choose_method(p, 1000.0)[0] == 'split8'
+    # the threshold is a number of periods, not of seconds: ten times the spin makes the
+    # nutation (C_R Omega0 / I = 483 rad/s) the fastest oscillation, and 100 s long
+    fast = load_scene('conservative', overrides={'Omega0': 3141.6}).params
+    assert choose_method(fast, 100.0)[0] == 'split8'
+    assert choose_method(fast, 10.0)[0] == 'dop853'
+
+
+def test_drift_per_period_matches_dop853():
+    # the constant behind the threshold: dop853's relative E* drift on conservative per
+    # period of the fastest oscillation, in units of rtol (within a factor 2)
+    from gyro_rotor.numerics.integrators.methods import DRIFT_PER_PERIOD
+    sc, m, y0 = _setup('conservative')
+    T = 100.0
+    periods = T * math.sqrt(sc.params.K_S * (1 / sc.params.C_R + 1 / sc.params.C_M)) \
+        / (2 * math.pi)
+    for rtol in (1e-10, 1e-11):
+        y = integrate(m, y0, (0.0, T), None, 'dop853', rtol=rtol, atol=rtol * 1e-2).y
+        drift = abs(m.energy(y[-1]) - m.energy(y0)) / m.energy(y0)
+        assert 0.5 < drift / (rtol * periods) / DRIFT_PER_PERIOD < 2.0, (rtol, drift)
+
+
 # -- misuse and bad input ----------------------------------------------------------------------
 @pytest.mark.parametrize('kwargs, match', [
     ({'y0': np.full(10, np.nan)}, 'finite'), ({'rtol': -1e-6}, 'rtol'),
