@@ -312,3 +312,19 @@ def test_step_by_step_takes_the_steps_of_the_compiled_run(method):
     stepwise = make_integrator(method, m, y0, 0.0, T)
     assert stepwise.advance_to(T) == 'finished'
     assert stepwise.nsteps <= 2 * whole.nsteps + 5, (stepwise.nsteps, whole.nsteps)
+
+
+def test_dop853_lands_on_samples_instead_of_interpolating():
+    # steps about as long as the sample spacing: each step ends exactly on its sample (no
+    # dense output, 3 evaluations more), and the samples are as accurate as the steps
+    sc, m, y0 = _setup('upright')
+    te = np.linspace(0.0, sc.t_end, 1001)
+    r = integrate(m, y0, (0.0, sc.t_end), te, 'dop853', rtol=3e-9, atol=3e-11)
+    assert r.success and r.nsteps >= 900
+    assert r.nfev < 12.5 * r.nsteps          # with a dense output per sample: 15 per step
+    ref = integrate(m, y0, (0.0, sc.t_end), te, 'dop853', rtol=1e-13, atol=1e-15).y
+    assert np.max(np.abs(r.y[:, :9] - ref[:, :9])) < 1e-7
+    # a largest step below the spacing: never stretched beyond it to reach a sample
+    h_max = 0.0095
+    r = integrate(m, y0, (0.0, 1.0), te[:101], 'dop853', rtol=1e-6, atol=1e-8, step=h_max)
+    assert r.success and r.nsteps >= 1.0 / h_max
