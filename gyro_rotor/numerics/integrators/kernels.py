@@ -366,11 +366,10 @@ def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
 
 @njit(cache=True, error_model='numpy')
 def _land_on_sample(t_eval, k, t, h, h_max):
-    """True if the step h from t should end exactly on the sample t_eval[k] (LAND_SHRINK).
+    """Return True if the step h from t should end exactly on the sample t_eval[k].
 
-    That is: the sample is the only one the step reaches, and landing on it shortens the
-    step by at most the factor LAND_SHRINK or lengthens it by at most LAND_STRETCH (and
-    not beyond h_max).
+    That is: the sample is the only one the step reaches, and the step that lands on it
+    is between LAND_SHRINK and LAND_STRETCH times h (and not longer than h_max).
     """
     nt = t_eval.shape[0]
     if k >= nt:
