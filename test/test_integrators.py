@@ -210,6 +210,14 @@ def test_auto_conservative_threshold_counts_periods_of_the_fastest_oscillation()
     assert choose_method(fast, 10.0)[0] == 'dop853'
 
 
+def test_auto_keeps_dop853_on_fast_spin():
+    # fast_spin (nutation 483 rad/s, 9 times the other rates) is not stiff and not
+    # conservative: dop853, which the benchmark (rk8 swept from 3.2 / rate) finds as fast as
+    # rk8 at error 1e-6 and within 1.2x at 1e-9; a fixed step has no error control
+    method, reason = choose_method(load_scene('fast_spin').params, 2.0)
+    assert method == 'dop853' and 'non-stiff' in reason and '483 rad/s' in reason
+
+
 def test_drift_per_period_matches_dop853():
     # the constant behind the threshold: dop853's relative E* drift on conservative per
     # period of the fastest oscillation, in units of rtol (within a factor 2)
