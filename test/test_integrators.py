@@ -195,6 +195,43 @@ def test_auto_choice():
     assert 'stiff' in choose_method(load_scene('stiff_drive').params)[1]
 
 
+def test_auto_conservative_threshold_counts_periods_of_the_fastest_oscillation():
+    # 100 s of conservative is 870 periods of its fastest oscillation (54.8 rad/s): dop853's
+    # E* drift stays below a tenth of rtol there, and split8 is about twice as costly per
+    # trajectory error (bench), so auto keeps dop853; over 1000 s it takes split8
+    p = load_scene('conservative').params
+    method, reason = choose_method(p, 100.0)
+    assert method == 'dop853' and 'periods' in reason and 'conservative' in reason
+    assert choose_method(p, 1000.0)[0] == 'split8'
+    # the threshold is a number of periods, not of seconds: ten times the spin makes the
+    # nutation (C_R Omega0 / I = 483 rad/s) the fastest oscillation, and 100 s long
+    fast = load_scene('conservative', overrides={'Omega0': 3141.6}).params
+    assert choose_method(fast, 100.0)[0] == 'split8'
+    assert choose_method(fast, 10.0)[0] == 'dop853'
+
+
+def test_auto_keeps_dop853_on_fast_spin():
+    # fast_spin (nutation 483 rad/s, 9 times the other rates) is not stiff and not
+    # conservative: dop853, which the benchmark (rk8 swept from 3.2 / rate) finds as fast as
+    # rk8 at error 1e-6 and within 1.2x at 1e-9; a fixed step has no error control
+    method, reason = choose_method(load_scene('fast_spin').params, 2.0)
+    assert method == 'dop853' and 'non-stiff' in reason and '483 rad/s' in reason
+
+
+def test_drift_per_period_matches_dop853():
+    # the constant behind the threshold: dop853's relative E* drift on conservative per
+    # period of the fastest oscillation, in units of rtol (within a factor 2)
+    from gyro_rotor.numerics.integrators.methods import DRIFT_PER_PERIOD
+    sc, m, y0 = _setup('conservative')
+    T = 100.0
+    periods = T * math.sqrt(sc.params.K_S * (1 / sc.params.C_R + 1 / sc.params.C_M)) \
+        / (2 * math.pi)
+    for rtol in (1e-10, 1e-11):
+        y = integrate(m, y0, (0.0, T), None, 'dop853', rtol=rtol, atol=rtol * 1e-2).y
+        drift = abs(m.energy(y[-1]) - m.energy(y0)) / m.energy(y0)
+        assert 0.5 < drift / (rtol * periods) / DRIFT_PER_PERIOD < 2.0, (rtol, drift)
+
+
 # -- misuse and bad input ----------------------------------------------------------------------
 @pytest.mark.parametrize('kwargs, match', [
     ({'y0': np.full(10, np.nan)}, 'finite'), ({'rtol': -1e-6}, 'rtol'),
@@ -283,3 +320,19 @@ def test_step_by_step_takes_the_steps_of_the_compiled_run(method):
     stepwise = make_integrator(method, m, y0, 0.0, T)
     assert stepwise.advance_to(T) == 'finished'
     assert stepwise.nsteps <= 2 * whole.nsteps + 5, (stepwise.nsteps, whole.nsteps)
+
+
+def test_dop853_lands_on_samples_instead_of_interpolating():
+    # steps about as long as the sample spacing: each step ends exactly on its sample (no
+    # dense output, 3 evaluations more), and the samples are as accurate as the steps
+    sc, m, y0 = _setup('upright')
+    te = np.linspace(0.0, sc.t_end, 1001)
+    r = integrate(m, y0, (0.0, sc.t_end), te, 'dop853', rtol=3e-9, atol=3e-11)
+    assert r.success and r.nsteps >= 900
+    assert r.nfev < 12.5 * r.nsteps          # with a dense output per sample: 15 per step
+    ref = integrate(m, y0, (0.0, sc.t_end), te, 'dop853', rtol=1e-13, atol=1e-15).y
+    assert np.max(np.abs(r.y[:, :9] - ref[:, :9])) < 1e-7
+    # a largest step below the spacing: never stretched beyond it to reach a sample
+    h_max = 0.0095
+    r = integrate(m, y0, (0.0, 1.0), te[:101], 'dop853', rtol=1e-6, atol=1e-8, step=h_max)
+    assert r.success and r.nsteps >= 1.0 / h_max

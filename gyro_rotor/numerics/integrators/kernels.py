@@ -50,6 +50,12 @@ KIND = {'full': 0, 'upright_axis': 1, 'locked_housing': 2}
 SAFETY = 0.9
 MIN_FACTOR = 0.2   # smallest decrease of the step in one go
 MAX_FACTOR = 10.0  # largest increase of the step in one go
+#: DOP853 lands a step exactly on the one sample time within it when that changes the step
+#: by a factor between LAND_SHRINK and LAND_STRETCH: the sample then needs no dense output,
+#: which costs about half a step (3 evaluations and the interpolant's coefficients). A
+#: stretched step is still accepted only if its error estimate is within the tolerance.
+LAND_SHRINK = 2.0 / 3.0
+LAND_STRETCH = 1.1
 
 
 class Status(enum.IntEnum):
@@ -359,6 +365,22 @@ def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
 
 
 @njit(cache=True, error_model='numpy')
+def _land_on_sample(t_eval, k, t, h, h_max):
+    """Return True if the step h from t should end exactly on the sample t_eval[k].
+
+    That is: the sample is the only one the step reaches, and the step that lands on it
+    is between LAND_SHRINK and LAND_STRETCH times h (and not longer than h_max).
+    """
+    nt = t_eval.shape[0]
+    if k >= nt:
+        return False
+    d = t_eval[k] - t
+    if not (LAND_SHRINK * h <= d <= LAND_STRETCH * h and d <= h_max and d > 0.0):
+        return False
+    return k + 1 >= nt or t_eval[k + 1] > t + h
+
+
+@njit(cache=True, error_model='numpy')
 def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
                A, B, C, D, E3, E5, Y_out, counts):
     """Adaptive DOP853 from t0 to t_eval[-1], sampling ``t_eval`` with the dense output.
@@ -401,6 +423,9 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
             h = h_max
         if t + h > t_end:
             h = t_end - t
+        landed = _land_on_sample(t_eval, k, t, h, h_max)
+        if landed:
+            h = t_eval[k] - t
         err = dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_new)
         nfev += 12
         if not math.isfinite(err):
@@ -411,12 +436,13 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
             h *= max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
             nrej += 1
             continue
-        t_new = t + h
+        t_new = t_eval[k] if landed else t + h
         if renorm:
             normalize_quaternion(kind, y_new, f_new)
         if k < t_eval.shape[0] and t_eval[k] <= t_new:
-            dop853_dense(kind, P, y, y_new, f, f_new, h, A, C, D, K, ytmp, F)
-            nfev += 3
+            if t_eval[k] < t_new:       # a sample inside the step: the dense output
+                dop853_dense(kind, P, y, y_new, f, f_new, h, A, C, D, K, ytmp, F)
+                nfev += 3
             while k < t_eval.shape[0] and t_eval[k] <= t_new:
                 if t_eval[k] == t_new:
                     for j in range(n):

@@ -35,13 +35,21 @@ from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, 
 import numpy as np
 
 __all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'Radau9', 'Split8', 'METHODS', 'integrate',
-           'choose_method', 'STIFF_RATIO', 'LONG_CONSERVATIVE']
+           'choose_method', 'STIFF_RATIO', 'CONSERVATIVE_DRIFT_LIMIT', 'DRIFT_PER_PERIOD']
 
 #: 'auto' takes the stiff method when the drive's damping rate exceeds the fastest
 #: oscillation rate by this factor (explicit steps would be bounded by stability, not error)
 STIFF_RATIO = 20.0
-#: 'auto' takes the structure-preserving method for K_D = 0 runs at least this long [s]
-LONG_CONSERVATIVE = 100.0
+#: relative E* drift of dop853 per period of the fastest oscillation, per unit of rtol: a
+#: non-symplectic method's E* error grows linearly, by about the same amount each period (its
+#: steps per period are set by the tolerance). Measured on conservative over 1000 s (8,700
+#: periods of 54.8 rad/s): 6.5e-11 at rtol 1e-10 and 7.4e-12 at 1e-11, i.e. 7.4e-5 and
+#: 8.5e-5 rtol per period (``gyro-rotor bench``, E* drift table)
+DRIFT_PER_PERIOD = 8e-5
+#: 'auto' takes the structure-preserving method for K_D = 0 runs long enough that dop853's
+#: E* drift would reach this fraction of its tolerance, i.e. after
+#: CONSERVATIVE_DRIFT_LIMIT / DRIFT_PER_PERIOD = 1,250 periods of the fastest oscillation
+CONSERVATIVE_DRIFT_LIMIT = 0.1
 
 
 class ExplicitRK(Integrator):
@@ -101,6 +109,9 @@ class RK8(ExplicitRK):
 class DOP853(Integrator):
     """Dormand-Prince 8(5,3): adaptive, error control in the RMS norm, dense output.
 
+    In :meth:`run`, a step that reaches exactly one sample time and would end within a
+    factor 2/3 to 1.1 of it ends on it instead (``kernels.LAND_SHRINK``, ``LAND_STRETCH``):
+    that sample needs no dense output, which costs about half a step.
     References: Hairer, Norsett, Wanner I, sec. II.10; scipy's DOP853 (same control).
     """
 
@@ -400,8 +411,14 @@ def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str,
     - radau9 when the drive's damping rate K_D (1/C_R + 1/C_M) (a real root of the
       linearization, docs/model.md section 7) exceeds the fastest oscillation by STIFF_RATIO:
       an explicit method would need steps near its inverse;
-    - split8 for conservative runs (K_D = 0) of the full model of LONG_CONSERVATIVE seconds
-      or more: its E* error stays bounded where other methods drift, at explicit cost;
+    - split8 for conservative runs (K_D = 0) of the full model (gauss6 for the reduced
+      ones) long enough that dop853's secular E* drift, DRIFT_PER_PERIOD rtol per period
+      of the fastest oscillation, would reach CONSERVATIVE_DRIFT_LIMIT rtol (1,250 periods:
+      143 s on the conservative scene): the symplectic method keeps the E* error bounded.
+      On shorter runs the drift stays below a tenth of the tolerance, and dop853 reaches a
+      given trajectory error at about half split8's cost (over 100 s at one step per 10-ms
+      sample: split8's error 3.4e-6, that of DOP853's formula at a fixed step 1.7e-7, and
+      split8's step costs 1.5 times as much);
     - dop853 otherwise: the cheapest per accuracy on the non-stiff scenes.
     """
     inv_c = 1.0 / params.C_R + 1.0 / params.C_M
@@ -413,12 +430,19 @@ def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str,
         return 'radau9', (f'stiff: the drive damping root K_D (1/C_R + 1/C_M) = {stiff:.3g} '
                           f'1/s is {stiff / osc:.3g} times the fastest oscillation '
                           f'({osc:.3g} rad/s); an L-stable implicit method steps by accuracy')
-    if params.K_D == 0.0 and t_end >= LONG_CONSERVATIVE:
-        if model == 'full':
-            return 'split8', (f'conservative (K_D = 0) over {t_end:g} s: a symplectic '
-                              f'splitting keeps the E* error bounded at explicit cost')
-        return 'gauss6', (f'conservative (K_D = 0) over {t_end:g} s: a symplectic method keeps '
-                          f'the E* error bounded')
+    periods = t_end * osc / (2.0 * math.pi)
+    drift = DRIFT_PER_PERIOD * periods      # dop853's E* drift over the run, in units of rtol
+    if params.K_D == 0.0 and drift >= CONSERVATIVE_DRIFT_LIMIT:
+        what = ('a symplectic splitting keeps the E* error bounded at explicit cost'
+                if model == 'full' else 'a symplectic method keeps the E* error bounded')
+        return ('split8' if model == 'full' else 'gauss6'), (
+            f'conservative (K_D = 0) over {t_end:g} s = {periods:.3g} periods of the fastest '
+            f'oscillation ({osc:.3g} rad/s), where dop853 would drift E* by about '
+            f'{drift:.2g} rtol: {what}')
+    if params.K_D == 0.0:
+        return 'dop853', (f'conservative (K_D = 0) but short: {periods:.3g} periods of the '
+                          f'fastest oscillation ({osc:.3g} rad/s), dop853 drifts E* by about '
+                          f'{drift:.2g} rtol only; adaptive explicit order 8 is the cheapest')
     return 'dop853', (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest oscillation '
                       f'{osc:.3g} rad/s): adaptive explicit order 8 is the cheapest')
 
