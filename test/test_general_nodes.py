@@ -273,3 +273,104 @@ def test_the_scene_list_names_the_general_scenes(capsys):
     for name in SHIPPED:
         line = next(ln for ln in lines if ln.startswith(name + ' '))
         assert f'system {load_general_scene(name).system.name}' in line
+
+
+# -- found in review: each of these failed before its fix ---------------------------------
+def _locked_scene(tmp_path):
+    path = tmp_path / 'locked.yaml'
+    path.write_text(yaml.safe_dump({'rotor_sim': {'ros__parameters': {
+        'scene': 'locked', 'system': 'twin_gimbal', 'locked': ['beta2'],
+        'initial': {'q': [0.006, 0.015, 0.0], 'qdot': [0.0, 0.06, 0.0]},
+        'perturbation': {'qdot': [0.0, 0.01, 0.0]}}}}))
+    return str(path)
+
+
+def test_a_ros_double_array_kick_is_taken_and_a_bad_one_refused():
+    import array
+    sim = _sim()
+    sim.check({'perturbation.qdot': array.array('d', [0.0, 0.1, 0.0])})
+    sim.apply({'perturbation.qdot': array.array('d', [0.0, 0.1, 0.0])})
+    assert sim.perturbation['qdot'] == [0.0, 0.1, 0.0]
+    for bad in (array.array('d', [0.0, 0.1]), 'abc', [0.0, math.nan, 0.0]):
+        with pytest.raises(GyroRotorError, match='must be 3 finite numbers'):
+            sim.check({'perturbation.qdot': bad})
+
+
+def test_a_scene_with_a_locked_coordinate_runs_and_kicks_the_free_ones(tmp_path):
+    cfg = {k: v[1] for k, v in NODE_KEYS.items()}
+    scene = load_general_scene(_locked_scene(tmp_path))
+    assert scene.system.coordinates == ('alpha', 'beta1')
+    sim = GeneralLiveSimulation(scene, cfg, {'qdot': [0.0, 0.01, 0.0]}, budget=None)
+    assert sim.joint_names == ('alpha', 'beta1', 'z_R1', 'z_R2')
+    y = sim.stepper.y.copy()
+    sim.perturb()
+    assert sim.stepper.y[3] == pytest.approx(y[3] + 0.01)       # beta1_dot (n = 2)
+    with pytest.raises(GyroRotorError, match='locked coordinate beta2 cannot be kicked'):
+        sim.check({'perturbation.qdot': [0.0, 0.0, 0.1]})
+
+
+def test_a_live_t_end_survives_a_later_change_of_the_drives():
+    sim = _sim()
+    sim.apply({'t_end': 50.0})
+    sim.apply({'drive.R1.K_D': 0.05})
+    assert sim.scene.t_end == 50.0 and sim.scene_doc()['flat']['t_end'] == 50.0
+
+
+def test_a_common_drive_key_sets_every_drive_after_a_per_rotor_one():
+    scene = load_general_scene('twin_gimbal').with_changes({'drive.R1.K_D': 0.05})
+    assert [d.K_D for d in scene.with_changes({'K_D': 0.5}).system.drives] == [0.5, 0.5]
+
+
+def test_a_sine_law_run_ending_on_an_unpaired_sample_is_judged():
+    from gyro_rotor.analysis.analyzer import RotorAnalyzer
+    from gyro_rotor.analysis.samples import samples_from_general_run, SamplePairer
+    from gyro_rotor.numerics.general import integrate
+    scene = load_general_scene('twin_gimbal', {'drive.R2.pole_pairs': 1})
+    model = scene.make_model()
+    run = integrate(model, scene.initial_state(model), np.linspace(0.0, 3.0, 751))
+    samples = samples_from_general_run(model, run)
+    pairer = SamplePairer()
+    pairer.add_energy(10 ** 10, {'t_sim': 10.0, 'E_star': samples[-1].E_star, 'seq': 751,
+                                 'k': 751, 'residual': 0.0})
+    (lost,) = pairer.flush()                       # its joint state never came
+    assert not lost.joints
+    a = RotorAnalyzer(scene)
+    a.add_many(samples + [lost])
+    res = a.result()
+    assert a.non_finite == 0 and res.segments[-1].well == 0
+
+
+def test_the_deviation_channels_keep_theta_and_drop_only_the_cyclic_direction():
+    pred = predict_general(load_general_scene('centrifuge_euler'))
+    P = np.array(pred.active_q)
+    assert P.shape == (2, 3)
+    assert np.linalg.norm(P @ [1.0, 0.0, 0.0]) == pytest.approx(1.0)   # theta is seen
+    assert np.linalg.norm(P @ [0.0, 1.0, -1.0]) < 1e-9               # the cyclic drift is not
+
+
+@pytest.mark.ros
+def test_rotor_sim_refuses_another_system_and_runs_a_locked_scene(tmp_path):
+    rclpy = pytest.importorskip('rclpy')
+    from gyro_rotor.ros.sim_node import RotorSimNode
+    from rclpy.parameter import Parameter
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        with pytest.raises(GyroRotorError, match="'elastic_frame' is not the system of scene"):
+            RotorSimNode(context=ctx, parameter_overrides=[
+                Parameter('scene', value='twin_gimbal'),
+                Parameter('system', value='elastic_frame')])
+        node = RotorSimNode(context=ctx, parameter_overrides=[
+            Parameter('scene', value=_locked_scene(tmp_path))])
+        try:
+            assert node.sim.joint_names == ('alpha', 'beta1', 'z_R1', 'z_R2')
+            (res,) = node.set_parameters([Parameter(
+                'perturbation.qdot', Parameter.Type.DOUBLE_ARRAY, [0.0, 0.2, 0.0])])
+            assert res.successful, res.reason
+            (res,) = node.set_parameters([Parameter(
+                'perturbation.qdot', Parameter.Type.DOUBLE_ARRAY, [0.0, 0.2])])
+            assert not res.successful and 'must be 3 finite numbers' in res.reason
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)

@@ -84,6 +84,7 @@ class _Segment:
         self.slips = 0
         self.last_slip_t = -math.inf
         self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
+        self.lags: tuple = ()     # the rotor lags of the last sample that had them
         self.last: Sample | None = None
         self.fit: dict = {}
 
@@ -248,7 +249,10 @@ class RotorAnalyzer:
         # synchronism: passages of each z over the potential maxima (2k+1) pi / p
         # with hysteresis: the well index changes only once z is within pi/(2p) of the
         # bottom of another well, so jitter on a maximum counts nothing
-        for r, (p, z) in enumerate(zip(self._poles(pred), self._lags(s))):
+        lags = self._lags(s)
+        if lags:
+            seg.lags = lags
+        for r, (p, z) in enumerate(zip(self._poles(pred), lags)):
             if p > 0 and math.isfinite(z):
                 u = p * z / _TWO_PI                    # z in wells (bottoms at integers)
                 k = round(u)
@@ -264,7 +268,8 @@ class RotorAnalyzer:
         if self.prediction.coords == GENERAL_COORDS:
             n, m = len(self.prediction.steady[0]), len(self.prediction.steady[2])
             # a sample without its joint state has no lags (counted as unpaired, not here)
-            return tuple(s.positions[n:]) if len(s.positions) == n + m else ()
+            ok = s.joints and len(s.positions) == n + m
+            return tuple(s.positions[n:]) if ok else ()
         return (s.z,)
 
     @staticmethod
@@ -370,7 +375,7 @@ class RotorAnalyzer:
         if pred.pole_pairs <= 0 or last is None:
             return SyncState.SYNCHRONOUS, 0
         r, p = next((r, p) for r, p in enumerate(self._poles(pred)) if p > 0)
-        z = self._lags(last)[r]
+        z = seg.lags[r] if len(seg.lags) > r else math.nan
         well = int(round(p * z / _TWO_PI)) if math.isfinite(z) else 0
         if last.t - seg.last_slip_t <= self.sync_hold_s:
             return SyncState.LOST, well

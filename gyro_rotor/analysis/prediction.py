@@ -158,12 +158,20 @@ def predict_general(scene) -> Prediction:
 
 
 def _position_channels(A: np.ndarray, n: int, scale: float) -> tuple:
-    """Rows spanning the position directions orthogonal to the zero roots' eigenvectors."""
-    lam, V = np.linalg.eig(A)
-    zero = np.abs(lam) <= 1e-7 * scale
-    if not zero.any() or n == 0:
+    """Rows spanning the coordinate directions orthogonal to the null space of A.
+
+    A null vector of A (A x = 0) has no rate part; its coordinate part is a direction along
+    which the steady motion can shift without a restoring force (a cyclic combination).
+    The null space, not the eigenvectors of the zero roots: a zero root of multiplicity 2
+    is a Jordan pair here (a kick drifts along its one eigenvector), and the eigensolver's
+    two nearly equal vectors (apart by 1e-7) would remove a second, wrong direction.
+    """
+    if n == 0:
+        return ()
+    _, sv, Vt = np.linalg.svd(A)
+    null = Vt[sv <= 1e-9 * max(float(sv[0]), scale)]
+    if null.size == 0:
         return tuple(tuple(float(v) for v in row) for row in np.eye(n))
-    Z = np.concatenate([V[:n, zero].real, V[:n, zero].imag], axis=1)
-    U, sv, _ = np.linalg.svd(Z)
-    rank = int(np.count_nonzero(sv > 1e-8 * max(1.0, float(sv.max()))))
+    U, s2, _ = np.linalg.svd(null[:, :n].T)
+    rank = int(np.count_nonzero(s2 > 1e-6 * max(1.0, float(s2.max()))))
     return tuple(tuple(float(v) for v in row) for row in U[:, rank:].T)

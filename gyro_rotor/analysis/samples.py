@@ -40,6 +40,8 @@ class Sample:
     D: float
     positions: tuple = (0.0, 0.0, 0.0, 0.0)
     velocities: tuple = (0.0, 0.0, 0.0, 0.0)
+    #: False for an energy message whose joint state never came (positions NaN placeholders)
+    joints: bool = True
 
 
 def energy_sample_fields(values: Sequence[float], fields: Sequence[str]) -> dict:
@@ -142,7 +144,8 @@ class SamplePairer:
                       E_star=e['E_star'], dE_dt=e.get('dE_dt', math.nan),
                       residual=e.get('residual', math.nan), z=e.get('z', math.nan),
                       zdot=e.get('zdot', math.nan),
-                      D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4)
+                      D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4,
+                      joints=joints is not None)
 
 
 def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:

@@ -214,6 +214,10 @@ class LiveSimulation:
             y[self.model.izd] -= dOmega
         return y
 
+    def _with_t_end(self, scene, t_end: float):
+        """Return the scene with another t_end."""
+        return dataclasses.replace(scene, t_end=t_end)
+
     def _set_perturbation(self, key: str, value: Any) -> None:
         self.perturbation[key] = float(value)
 
@@ -293,9 +297,9 @@ class LiveSimulation:
         new = self._changed_scene(changes)
         if 't_end' in changes:
             if new is None:
-                self.scene = dataclasses.replace(self.scene, t_end=changes['t_end'])
+                self.scene = self._with_t_end(self.scene, changes['t_end'])
             else:
-                new = dataclasses.replace(new, t_end=changes['t_end'])
+                new = self._with_t_end(new, changes['t_end'])
         if new is not None and self.diverged:
             # stopped: take the parameters for the next reset, integrate nothing
             self.scene = new

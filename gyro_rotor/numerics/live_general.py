@@ -7,7 +7,9 @@ pacer, the work budget, the divergence guard, the services' actions, the diagnos
 * **outputs** (:class:`~gyro_rotor.numerics.live.SampleBlock`): the joint columns are the
   system's coordinates q and the rotor lags z_ROTOR = phi - Omega0 t (eq. 7, the
   coordinates in which the paper states the theorem), positions and rates as integrated
-  (not wrapped: a lag or a coordinate may pass pi); no efforts and no 3-D pose. The
+  (not wrapped: a lag or a coordinate may pass pi); no efforts and no 3-D pose. (The
+  field angle advances at Omega0; after a live Omega0 change z is phi minus that angle,
+  continuous, no longer phi - Omega0 t.) The
   ``energy`` fields are :data:`GENERAL_ENERGY_FIELDS`: E* (eq. 13), dE*/dt = -sum K_D
   zdot^2 (eq. 17), the dissipation, the residual, the sample counter, D and the grid index;
   z and zdot are in ``joint_states``;
@@ -18,13 +20,15 @@ pacer, the work budget, the divergence guard, the services' actions, the diagnos
   change keeps each rotor's absolute spin: zdot jumps by -delta Omega0) and E*'s baseline
   moves by the jump of E*;
 * **kicks** (``~/perturb``): ``perturbation.q``, ``.qdot``, ``.z``, ``.zdot`` are added to
-  the state (lists of n, n, m, m numbers);
+  the state (lists of n, n, m, m numbers, n the system file's coordinates as for
+  ``initial.q``: a locked coordinate's entry must be 0);
 * **methods**: those of :mod:`gyro_rotor.numerics.general` (``auto``: rodas4 for a stiff
   drive, dop853 otherwise, from the linearization at the current state).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any, Mapping
 
@@ -64,8 +68,13 @@ class GeneralLiveSimulation(LiveSimulation):
 
     def __init__(self, scene: GeneralScene, cfg: Mapping[str, Any],
                  perturbation: Mapping[str, Any] | None = None, **kwargs: Any):
-        n, m = scene.system.n, scene.system.m
+        # kicks of q and qdot name every coordinate of the system file, as initial.q does;
+        # a locked coordinate's entry must be 0
+        n, m = scene.full_system.n, scene.system.m
         self._sizes = dict(zip(GENERAL_PERTURBATION_KEYS, (n, n, m, m)))
+        self._free = [i for i, c in enumerate(scene.full_system.coordinates)
+                      if c not in scene.locked]
+        self.scene_coordinates = scene.full_system.coordinates
         self.joint_names = general_joint_names(scene.system.coordinates, scene.system.rotors)
         kick = {k: [0.0] * self._sizes[k] for k in GENERAL_PERTURBATION_KEYS}
         self._kick_values = kick
@@ -112,10 +121,20 @@ class GeneralLiveSimulation(LiveSimulation):
         if key not in self._sizes:
             raise ParameterError(f"unknown key 'perturbation.{key}': a general scene kicks "
                                  f"perturbation.{', perturbation.'.join(self._sizes)}")
-        v = [float(x) for x in (value if isinstance(value, (list, tuple)) else [value])]
-        if len(v) != self._sizes[key] or not all(math.isfinite(x) for x in v):
-            raise ParameterError(f'perturbation.{key} must be {self._sizes[key]} finite '
-                                 f'numbers, got {value!r}')
+        try:      # a list, a tuple, or the array.array('d') of a ROS double-array parameter
+            v = [float(x) for x in np.atleast_1d(np.asarray(value, dtype=float))]
+        except (TypeError, ValueError):
+            v = []
+        size = self._sizes[key]
+        if len(v) != size or not all(math.isfinite(x) for x in v):
+            raise ParameterError(f'perturbation.{key} must be {size} finite numbers, got '
+                                 f'{list(value) if hasattr(value, "__len__") else value!r}')
+        if key in ('q', 'qdot'):
+            held = [c for i, c in enumerate(self.scene_coordinates) if i not in self._free
+                    and v[i] != 0.0]
+            if held:
+                raise ParameterError(f'perturbation.{key}: the locked coordinate '
+                                     f'{held[0]} cannot be kicked (its entry must be 0)')
         self._kick_values[key] = v
 
     def check(self, changes: Mapping[str, Any]) -> None:
@@ -133,8 +152,12 @@ class GeneralLiveSimulation(LiveSimulation):
     def _kicked(self, y: np.ndarray) -> np.ndarray:
         y = np.array(y, dtype=float)
         for k, sl in zip(GENERAL_PERTURBATION_KEYS, self.model.slices()):
-            y[sl] += np.asarray(self._kick_values[k])
+            kick = np.asarray(self._kick_values[k])
+            y[sl] += kick[self._free] if k in ('q', 'qdot') else kick
         return y
+
+    def _with_t_end(self, scene: GeneralScene, t_end: float) -> GeneralScene:
+        return dataclasses.replace(scene, t_end=t_end, flat={**scene.flat, 't_end': t_end})
 
     def _norm_error(self, y: np.ndarray) -> float:
         return 0.0

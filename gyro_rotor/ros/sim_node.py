@@ -193,6 +193,9 @@ class RotorSimNode(Node):
             self.sim.check({p.name: p.value for p in params})
         except GyroRotorError as err:
             return SetParametersResult(successful=False, reason=str(err))
+        except Exception as err:  # noqa: B902 -- a refusal, never a dead node
+            return SetParametersResult(successful=False,
+                                       reason=f'{type(err).__name__}: {err}')
         return SetParametersResult(successful=True)
 
     def _post_set(self, params) -> None:

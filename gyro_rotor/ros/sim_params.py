@@ -195,8 +195,11 @@ def _declare_general(node: Node, name: str) -> tuple:
     decl = {}
     decl['description'] = _declare(node, 'description', base.description,
                                    'what the scene shows', True, str)
-    _declare(node, 'system', flat['system'], 'the rotor system (a name or a system file)',
-             True, str)
+    system_name = _declare(node, 'system', flat['system'], 'the rotor system (a name or a '
+                           'system file; that of the scene file)', True, str)
+    if system_name != flat['system']:
+        raise ParameterError(f"parameter system: '{system_name}' is not the system of scene "
+                             f"'{base.name}' ('{flat['system']}'); give a scene of that system")
     decl['t_end'] = _declare(node, 't_end', base.t_end, 'scene duration [s]', typ=float)
     for c, v in system.constants.items():
         decl[f'constants.{c}'] = _declare(node, f'constants.{c}', float(v),

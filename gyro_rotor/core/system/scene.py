@@ -97,7 +97,12 @@ class GeneralScene:
         Validated as in a scene file (SceneError names the problem); the steady motion
         is checked again, since constants move it.
         """
-        flat = {**self.flat, **changes}
+        flat = dict(self.flat)
+        for key in changes:      # a common drive key sets every drive: per-rotor ones go
+            if key in DRIVE_KEYS:
+                flat = {k: v for k, v in flat.items()
+                        if not (k.startswith('drive.') and k.endswith(f'.{key}'))}
+        flat.update(changes)
         return general_scene_from_mapping(flat, path=self.path, system=self.base_system,
                                           where=f'scene {self.name}')
 
