@@ -79,8 +79,10 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float,
     nums.update(rate=fit.rate, rate_lo=fit.rate_lo, rate_hi=fit.rate_hi, E_inf=fit.E_inf,
                 spread=fit.spread, trend=fit.trend,
                 E_inf_sigma=fit.E_inf_sigma, rel_residual=fit.rel_residual)
-    head = (f'E*_inf = {fit.E_inf:.9g} +- {fit.E_inf_sigma:.2g} J (fitted, predicted '
-            f'{pred.E_inf:.9g} J); ')
+    # the predicted E*_inf is E* on the scene's own steady motion; a kick or a drift along a
+    # cyclic coordinate moves the motion the rotor settles on, and so the limit
+    head = (f'E*_inf = {fit.E_inf:.9g} +- {fit.E_inf_sigma:.2g} J (fitted; E* on the '
+            f"scene's steady motion {pred.E_inf:.9g} J, a kick moves the limit); ")
     if fit.spread <= resolution:
         # E* constant within the integrator's tolerance: nothing to fit
         if not math.isfinite(bound):
