@@ -192,37 +192,38 @@ def _declare_general(node: Node, name: str) -> tuple:
     from gyro_rotor.core.system.system_file import DRIVE_KEYS
     base = load_general_scene(name)
     system, flat = base.full_system, dict(base.flat)
-    decl = {}
-    decl['description'] = _declare(node, 'description', base.description,
-                                   'what the scene shows', True, str)
+    decl, overrides = {}, {}
+
+    def scene_key(key, default, doc, read_only=False, typ=float):
+        """Declare a key of the scene; a value other than the scene's is an override."""
+        value = _declare(node, key, default, doc, read_only, typ)
+        decl[key] = list(value) if typ is list else value    # (an array.array for lists)
+        if decl[key] != default:
+            overrides[key] = decl[key]
+
+    scene_key('description', base.description, 'what the scene shows', True, str)
     system_name = _declare(node, 'system', flat['system'], 'the rotor system (a name or a '
                            'system file; that of the scene file)', True, str)
     if system_name != flat['system']:
         raise ParameterError(f"parameter system: '{system_name}' is not the system of scene "
                              f"'{base.name}' ('{flat['system']}'); give a scene of that system")
-    decl['t_end'] = _declare(node, 't_end', base.t_end, 'scene duration [s]', typ=float)
+    scene_key('t_end', base.t_end, 'scene duration [s]')
     for c, v in system.constants.items():
-        decl[f'constants.{c}'] = _declare(node, f'constants.{c}', float(v),
-                                          f'constant {c} of system {system.name}; live',
-                                          typ=float)
+        scene_key(f'constants.{c}', float(v), f'constant {c} of system {system.name}; live')
     for r, d in zip(system.rotors, system.drives):
         for k in DRIVE_KEYS:
             typ = int if k == 'pole_pairs' else float
-            decl[f'drive.{r}.{k}'] = _declare(
-                node, f'drive.{r}.{k}', typ(getattr(d, k)),
-                f'drive of rotor {r}: {_DRIVE_DOC[k]}; live', typ=typ)
+            scene_key(f'drive.{r}.{k}', typ(getattr(d, k)),
+                      f'drive of rotor {r}: {_DRIVE_DOC[k]}; live', typ=typ)
     sizes = {'q': system.n, 'qdot': system.n, 'z': system.m, 'zdot': system.m}
     for part in ('initial', 'steady'):
         for k, size in sizes.items():
             key = f'{part}.{k}'
-            if part == 'steady' and k == 'zdot':
-                continue
             default = [float(x) for x in flat.get(key, [0.0] * size)]
-            if not default:
-                continue        # an empty list has no ROS type: nothing to set
-            decl[key] = _declare(node, key, default, f'{part} {k} ({size} numbers); read at '
-                                 'start' + (' and by ~/reset' if part == 'initial' else ''),
-                                 True, list)
+            if (part, k) == ('steady', 'zdot') or not default:
+                continue        # no such key; an empty list has no ROS type: nothing to set
+            scene_key(key, default, f'{part} {k} ({size} numbers); read at start'
+                      + (' and by ~/reset' if part == 'initial' else ''), True, list)
     kick = {}
     for k, size in sizes.items():
         if size:
@@ -231,9 +232,7 @@ def _declare_general(node: Node, name: str) -> tuple:
                                f'kick of ~/perturb added to {k} ({size} numbers); live',
                                typ=list)
     cfg = _node_keys(node, base.node)
-    overrides = {k: (list(v) if isinstance(v, (list, tuple)) else v)
-                 for k, v in decl.items() if v != flat.get(k)}
-    try:
+    try:        # rebuilt only for values given at start that differ from the scene file's
         scene = base.with_changes(overrides) if overrides else base
     except GyroRotorError as err:
         raise ParameterError(f"parameters of scene '{base.name}': {err}") from None
