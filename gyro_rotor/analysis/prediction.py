@@ -147,14 +147,15 @@ def predict_general(scene) -> Prediction:
     n = lin.n
     active = _position_channels(lin.A_scene(), n, scale)
     drives = scene.system.drives
+    poles = scene.pole_pairs
     return Prediction(
         scene=scene.name, coords=GENERAL_COORDS, modes=out, spectral_abscissa=abscissa,
         verdict=str(verdict), E_inf=float(model.energy(scene.steady_state(model))),
         theta0=math.nan, psidot0=math.nan,
-        pole_pairs=max(int(d.pole_pairs) for d in drives), K_D=max(d.K_D for d in drives),
+        pole_pairs=max(poles), K_D=max(d.K_D for d in drives),
         source='linear.general.modes',
         steady=(tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z)),
-        rotor_pole_pairs=tuple(int(d.pole_pairs) for d in drives), active_q=active)
+        rotor_pole_pairs=poles, active_q=active)
 
 
 def _position_channels(A: np.ndarray, n: int, scale: float) -> tuple:

@@ -173,13 +173,13 @@ def samples_from_general_run(model, run, y_ref=None, seq0: int = 0) -> list[Samp
     E = model.energy(Y)
     y0 = Y[0] if y_ref is None else y_ref
     E_ref = float(model.energy(y0)) + float(y0[model.iD])
-    K_D = np.array([d.K_D for d in model.system.drives])
+    diss = model.dissipation(Y)
     out = []
     for i, t in enumerate(run.t):
         y = Y[i]
         zd = y[szd]
         out.append(Sample(t=float(t), seq=seq0 + i, k=i, E_star=float(E[i]),
-                          dE_dt=float(-(zd * zd) @ K_D),
+                          dE_dt=float(-diss[i]),
                           residual=float(E[i] + y[model.iD] - E_ref), z=math.nan,
                           zdot=math.nan, D=float(y[model.iD]),
                           positions=tuple(np.concatenate([y[sq], y[sz]]).tolist()),

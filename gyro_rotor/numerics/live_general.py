@@ -166,8 +166,7 @@ class GeneralLiveSimulation(LiveSimulation):
         m = self.model
         sq, sqd, sz, szd = m.slices()
         zdot = Y[:, szd]
-        K_D = np.array([d.K_D for d in m.system.drives])
-        diss = (zdot * zdot) @ K_D
+        diss = m.dissipation(Y)
         n = len(t)
         energy = {'t_sim': t, 'E_star': E, 'dE_dt': -diss, 'dissipation': diss,
                   'residual': resid,

@@ -26,7 +26,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, Vector3Stamped
 # the wire layouts are written once, in gyro_rotor.bag.wire
-from gyro_rotor.bag.wire import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: F401
+from gyro_rotor.bag.wire import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState

@@ -208,7 +208,6 @@ def expected_outcome(scene, duration: float) -> dict:
     A general scene: the verdict of its linearization
     (:func:`gyro_rotor.analysis.prediction.predict_general`); no slip reference.
     """
-    from gyro_rotor.core.system.scene import GeneralScene
     if isinstance(scene, GeneralScene):
         from gyro_rotor.analysis.prediction import predict_general
         return {'verdict': predict_general(scene).verdict, 'pole_slips': None}

@@ -98,6 +98,12 @@ class GeneralModel:
             return np.float64(self.compiled.energy(Y, self.P))
         return np.array([self.compiled.energy(y, self.P) for y in Y])
 
+    def dissipation(self, Y) -> np.ndarray:
+        """Power of the drive damping zdot' K_D zdot (= -dE*/dt, eq. 17) of rows of states."""
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        zdot = Y[:, self.slices()[3]]
+        return (zdot * zdot) @ np.array([d.K_D for d in self.system.drives])
+
     def residual(self, Y, E0: float | None = None) -> np.ndarray:
         """Energy-balance residual r = E* - E*(0) + D of rows of states (eq. 17)."""
         Y = np.atleast_2d(np.asarray(Y, dtype=float))
