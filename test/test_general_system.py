@@ -290,8 +290,8 @@ def test_centrifuge_euler_eigenvalues_and_K_D_star_match_quaternion_checker():
     claims = check_claims(lin)
     star = centrifuge_claims(ref).K_D_star
     assert len(claims.meetings) == 1
-    # both checkers locate K* to 1e-8 relative: they agree to the sum of their brackets
-    assert abs(claims.meetings[0].K_star - star) <= 2e-8 * star
+    # one checker on both paths: K* from the Euler-angle system file and the quaternion model
+    assert abs(claims.meetings[0].K_D - star) <= 1e-10 * star
 
 
 # -- the claims -------------------------------------------------------------------------------
@@ -299,16 +299,16 @@ def test_centrifuge_euler_eigenvalues_and_K_D_star_match_quaternion_checker():
 def test_claims_hold_on_every_shipped_system(name):
     lin = linearize_scene(load_general_scene(name))
     claims = check_claims(lin)
-    assert (claims.a, claims.b, claims.c, claims.d) == (True, True, True, True), claims.details
-    assert len(claims.meetings) >= lin.m
-    assert all(x.bracket <= 1e-8 and x.point < 0 for x in claims.meetings)
+    assert claims.all_hold, {k: c.detail for k, c in claims.claims.items()}
+    assert claims.claims['d'].data['net_meetings'] == lin.m
+    assert all(x.verified and x.lam < 0 for x in claims.meetings)
 
 
 def test_claims_fail_on_a_statically_unstable_system(tmp_path):
     """A check that can fail: V = -k x^2/2 has a real root pair at K_D = 0."""
     path = _write_scene(tmp_path, _doc(potential='-k*x**2/2'), {})
     claims = check_claims(linearize_scene(load_general_scene(path)))
-    assert not claims.a and not claims.b
+    assert not claims.claims['a'].holds and not claims.claims['b'].holds
 
 
 def _write_scene(tmp_path, system_doc, params):
@@ -330,7 +330,8 @@ def test_unreachable_mode_is_reported_marginal_and_named(tmp_path, capsys):
     assert all(abs(x.value.real) < 1e-12 and abs(abs(x.value.imag) - math.sqrt(6.0)) < 1e-9
                for x in un)
     claims = check_claims(lin)
-    assert claims.b and len(claims.details['unreached']) == 2
+    assert claims.claims['b'].holds and claims.claims['b'].data['unreached'] == 2
+    assert np.abs(np.abs(claims.unreached.imag) - math.sqrt(6.0)).max() < 1e-9
     out = tmp_path / 'eig.json'
     assert main(['eig', path, '--json', str(out)]) == 0
     assert 'unreached mode (w)' in capsys.readouterr().out

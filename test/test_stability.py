@@ -140,44 +140,32 @@ def test_claims_hold_on_every_shipped_scene(scene):
         assert 'nutation' in exc and 'precession' in exc and 'as the theory expects' in exc
 
 
-def _toy(A0, K_max=50.0):
-    """Return a one-drive oscillator x' = (A0 - K b c^T) x, its grid and sorted path."""
+def _toy(A0):
+    """Return a one-drive oscillator x' = (A0 - K b c^T) x as a DriveSystem (K_D = 0.5)."""
     from gyro_rotor.linear.claims import DriveSystem
-    A0 = np.asarray(A0, dtype=float)
-    b = np.array([[0.0], [1.0]])
-    c = np.array([[0.0, 1.0]])
-    sys = DriveSystem(A0=A0, B=b, C=c, eigvals=lambda K: np.linalg.eigvals(A0 - K * b @ c),
-                      tol_re=1e-12, reached=np.array([True, True]))
-    K = np.concatenate([[0.0], np.geomspace(1e-3, K_max, 200)])
-    path = np.array([np.sort_complex(sys.eigvals(k)) for k in K])
-    return sys, K, path
+    return DriveSystem(A0=np.asarray(A0, dtype=float), B=np.array([[0.0], [1.0]]),
+                       C=np.array([[0.0, 1.0]]), K_scene=np.array([0.5]))
 
 
 def test_claims_on_an_oscillator_meet_at_the_analytic_K_star():
     # x'' + K x' + x = 0: critical damping at K* = 2 (double root -1); as K -> inf one
     # root -> -K, the other -> -1/K -> 0; the locked system (x' = 0) has the root 0
     from gyro_rotor.linear import claims as cl
-    sys, K, path = _toy([[0.0, 1.0], [-1.0, 0.0]], K_max=1e4)
-    meets = cl.meeting_points(sys, K)
-    assert len(meets) == 1
-    assert meets[0].K_D == pytest.approx(2.0, rel=1e-8)
-    assert meets[0].lam == pytest.approx(-1.0, rel=1e-6)
-    assert cl.locked_spectrum(sys) == pytest.approx([0.0], abs=1e-15)
-    assert cl.claim_a(sys).holds and cl.claim_b(sys, K, path).holds
-    assert cl.claim_c(sys, 1e4).holds
-    assert cl.claim_d(sys, K, path)[0].holds
+    sys = _toy([[0.0, 1.0], [-1.0, 0.0]])
+    res = cl.check(sys)
+    assert len(res.meetings) == 1 and res.meetings[0].kind is cl.MeetingKind.BREAK_IN
+    assert res.meetings[0].K_D == pytest.approx(2.0, rel=1e-12)
+    assert res.meetings[0].lam == pytest.approx(-1.0, rel=1e-10)
+    assert cl.locked_spectrum(sys.A0, sys.B, sys.C) == pytest.approx([0.0], abs=1e-15)
+    assert res.all_hold
 
 
 def test_claims_fail_where_their_meaning_fails():
     from gyro_rotor.linear import claims as cl
-    # the grid ends before critical damping: no meeting, (d) fails
-    sys, K, path = _toy([[0.0, 1.0], [-1.0, 0.0]], K_max=1.5)
-    d = cl.claim_d(sys, K, path)[0]
-    assert not d.holds and 'no complex pair' in d.detail
     # a saddle (x'' + K x' - x = 0): a root in the right half plane at every K
-    sys, K, path = _toy([[0.0, 1.0], [1.0, 0.0]])
-    assert not cl.claim_a(sys).holds
-    assert not cl.claim_b(sys, K, path).holds
+    res = cl.check(_toy([[0.0, 1.0], [1.0, 0.0]]))
+    assert not res.claims['a'].holds
+    assert not res.claims['b'].holds
 
 
 # -- drive penetration -------------------------------------------------------------------------

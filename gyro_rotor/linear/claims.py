@@ -1,63 +1,127 @@
-"""The paper's claims (a) to (d) about the root locus over K_D, checked by what they mean.
+"""The paper's claims (a) to (d) about the root locus over K_D: one checker for every system.
 
-Magnus 1980, section 4: for x' = A(K_D) x with A(K_D) = A0 - K_D B C (m drives: B the
-response to a unit drive torque, n x m; C picks the drive lag rates, m x n; the
-centrifuge has m = 1, ``B = b``, ``C = c^T``):
+Magnus 1980, sections 2-4 (MODEL.md section 8). About a steady motion the state x of any
+rotor system of the paper's form (n carrier coordinates, m rotors with self-stable
+synchronous drives) obeys
 
-(a) at K_D = 0 every root lies on the imaginary axis (the conservative system);
-(b) for every K_D > 0 no root in the right half plane, and every root the drive reaches
-    in the open left half plane (within the eigensolver's resolution), except roots the drive
-    does not reach (d lambda/d K_D = 0 at K_D = 0, e.g. the tilt modes about solution I:
-    Hagedorn's exclusion), which theory expects to stay on the axis;
-(c) as K_D -> infinity the roots tend to the spectrum of the *locked* system (C x = 0:
-    each rotor locked to its field; computed here separately as A0 projected on ker C,
-    :func:`locked_spectrum`) plus, per drive, one real root to -infinity (like -K_D times
-    an eigenvalue of C B) and one to 0 (the lag frozen by the lock);
-(d) a complex pair meets the negative real axis at K_D* and splits, one root toward 0,
-    one toward -infinity: every K_D* where a pair meets the real axis is bracketed on the
-    grid and located by polishing the double root (:func:`meeting_points`).
+    x' = A(K) x,   A(K) = A0 - B diag(K) C,
 
-No claim looks at mode names: they are labels from the mode shapes only. The functions
-take a :class:`DriveSystem`, built from the centrifuge's
-:class:`~gyro_rotor.linear.linearize.LinearSystem` by :func:`drive_system`, so they serve
-any system of this form.
+with A0 the conservative system (every drive's damping K_D = 0), B (N x m) the response to
+a unit drive torque on each rotor and C (m x N) picking the rotors' lag rates zdot. The
+root locus varies a common K over the drives in ``vary`` (all, or one), the others keep
+their own K_D.
+
+The claims, each decided by its meaning (no eigenvalue is called real, zero or reached by
+comparing its size with a threshold tuned to some spectrum):
+
+(a) at K = 0 every root on the imaginary axis;
+(b) at the scene's K_D every root the drives reach in the open left half plane, the
+    unreached ones on the axis at their K = 0 values (Hautus/PBH: a mode is unreached when
+    its eigenvector has no zdot part);
+(c) as K -> infinity m roots go to -infinity (like -K eig(C B)), m to 0 (like 1/K), the
+    rest to the spectrum of the locked system (zdot = 0 held, computed separately) at a
+    distance that shrinks like 1/K;
+(d) every K where a pair meets on the real axis (break-in: a complex pair lands and splits)
+    or leaves it (breakaway: two real roots merge and go complex), with its meeting point,
+    and the net count (break-ins minus breakaways) equal to m.
+
+How. The unreached roots do not move with K: they are the eigenvalues of A0 on the
+unobservable subspace U of (C, A0) (the largest A0-invariant subspace in ker C, found by
+an orthogonal staircase; :func:`fixed_subspace`), which is invariant under A(K) for every
+K. Structural zero roots (cyclic coordinates) lie in U and are identified by their
+eigenvectors: the generalized kernel of A0 on U. On the complement the moving roots are the
+eigenvalues of A_V(K) = A0_V - K B_V C_V, a system with no root that stays put, so a root
+near 0 is just a root: slow roots -K_S/K still count as real. The locus of A_V is
+followed by eigenvalue continuation over K (:func:`track`) whose step is bounded by the gap
+between neighbouring roots: two roots that approach force the step down, so a meeting
+cannot be stepped over however narrow its bubble. Each meeting is then solved exactly:
+for real lambda the gains putting a root at lambda are K = -1/mu for the real eigenvalues
+mu of the m x m transfer matrix C (lambda I - A0)^-1 B, and a meeting is a stationary
+point of such a branch K(lambda); its zero of dK/dlambda (analytic) is bracketed and
+solved by Brent's method to round-off, then verified by the roots just before and after.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import enum
 import math
-from typing import Callable
 
 import numpy as np
+import scipy.linalg as sla
+from scipy.optimize import brentq, linear_sum_assignment
 
-__all__ = ['DriveSystem', 'Claim', 'Meeting', 'drive_system', 'locked_spectrum',
-           'claim_a', 'claim_b', 'claim_c', 'claim_d', 'meeting_points', 'POLISH_RTOL']
+__all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
+           'fixed_subspace', 'locked_spectrum', 'track', 'check', 'resolution']
 
-#: relative accuracy of K_D* (the double root is polished to it and verified)
-POLISH_RTOL = 1e-8
+_EPS = np.finfo(float).eps
+#: rank decisions of the staircase: singular values below this times the matrix norm are 0
+RANK_RTOL = 1e-10
+#: a pair of roots closer than this (relative to their size) is solved as a double root
+MEET_RTOL = 1e-6
+#: the meeting is verified by the roots at K* (1 -/+ VERIFY_RTOL)
+VERIFY_RTOL = 1e-7
+
+
+class MeetingKind(enum.StrEnum):
+    """How a pair meets the real axis as K grows."""
+
+    BREAK_IN = 'break-in'       # a complex pair lands on the axis and splits into two reals
+    BREAKAWAY = 'breakaway'     # two real roots merge and leave the axis as a complex pair
 
 
 @dataclasses.dataclass(frozen=True)
 class DriveSystem:
-    """x' = (A0 - K_D B C) x and how to compute its spectrum at any K_D (inf included).
+    """x' = (A0 - B diag(K) C) x: the conservative system and its m drives (module doc).
 
-    ``eigvals(K)`` returns the n eigenvalues (n - m finite ones at K = inf); ``tol_re`` is
-    the eigensolver's resolution of a real part; ``reached`` marks, per eigenvalue of A0
-    (in the order of ``eigvals(0)``), whether the drive damping moves it (d Re/d K_D < 0).
+    ``K_scene`` holds each drive's own K_D; the locus varies the drives in ``vary`` with a
+    common K (the others stay at their K_D).
     """
 
     A0: np.ndarray
     B: np.ndarray
     C: np.ndarray
-    eigvals: Callable[[float], np.ndarray]
-    tol_re: float
-    reached: np.ndarray
+    K_scene: np.ndarray
+    vary: tuple = ()
+
+    def __post_init__(self):
+        """Check the shapes; ``vary`` defaults to every drive."""
+        N, m = self.B.shape
+        if self.A0.shape != (N, N) or self.C.shape != (m, N) or len(self.K_scene) != m:
+            raise ValueError('DriveSystem: A0 (N x N), B (N x m), C (m x N), K_scene (m)')
+        if not self.vary:
+            object.__setattr__(self, 'vary', tuple(range(m)))
 
     @property
     def drives(self) -> int:
-        """Return the number of drives m."""
-        return self.B.shape[1]
+        """Return the number of drives varied on the locus."""
+        return len(self.vary)
+
+    def A(self, K) -> np.ndarray:
+        """Return A with the varied drives at the common K, the others at their own K_D."""
+        k = np.array(self.K_scene, dtype=float)
+        k[list(self.vary)] = K
+        return self.A0 - (self.B * k) @ self.C
+
+    def locus_pieces(self) -> tuple:
+        """Return (A0', B_v, C_v): A(K) = A0' - K B_v C_v on the locus."""
+        v = list(self.vary)
+        return self.A(0.0), self.B[:, v], self.C[v, :]
+
+
+@dataclasses.dataclass(frozen=True)
+class Meeting:
+    """A pair of roots meeting on the real axis at K = K_D, at lambda = lam (a double root)."""
+
+    K_D: float
+    lam: float
+    kind: MeetingKind
+    verified: bool
+
+    def as_dict(self) -> dict:
+        """Return the meeting as plain data."""
+        return {'K_D_star': self.K_D, 'lambda_star': self.lam, 'kind': str(self.kind),
+                'verified': self.verified}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,247 +137,655 @@ class Claim:
 
 
 @dataclasses.dataclass(frozen=True)
-class Meeting:
-    """A complex pair meeting the real axis at K_D* in a double root lambda*."""
+class Locus:
+    """The moving roots followed over K: ``roots[i]`` at ``K[i]`` (continuation order)."""
 
-    K_D: float
-    lam: float
-    verified_rtol: float
-
-
-def drive_system(lin) -> DriveSystem:
-    """Return the :class:`DriveSystem` of a centrifuge linearization (one drive)."""
-    from gyro_rotor.linear.stability import _tol_re, sensitivities, spectrum
-    lam_s, d0, _ = sensitivities(lin)
-    lam0 = spectrum(lin, 0.0)[0]
-    # sensitivities are in the order of their own basis: align them with eigvals(0)
-    from scipy.optimize import linear_sum_assignment
-    r, c = linear_sum_assignment(np.abs(lam0[:, None] - lam_s[None, :]))
-    tol_sens = 1e-9 * max(float(np.max(np.abs(d0))), 1e-300)
-    reached = np.zeros(len(lam0), dtype=bool)
-    reached[r] = np.asarray(d0)[c].real < -tol_sens
-    return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
-                       eigvals=lambda K: spectrum(lin, K)[0], tol_re=_tol_re(lin),
-                       reached=reached)
+    K: np.ndarray
+    roots: np.ndarray
+    meetings: tuple
+    real_counts: tuple
 
 
-def locked_spectrum(sys: DriveSystem) -> np.ndarray:
+@dataclasses.dataclass(frozen=True)
+class ClaimsResult:
+    """Claims (a) to (d) and every meeting, sorted by K."""
+
+    claims: dict
+    meetings: tuple
+    locus: Locus
+    structural_zero_roots: int
+    unreached: np.ndarray
+
+    @property
+    def all_hold(self) -> bool:
+        """Return True if (a) to (d) all hold."""
+        return all(c.holds for c in self.claims.values())
+
+    @property
+    def K_D_star(self) -> list:
+        """Return every K where a pair meets on the real axis, increasing."""
+        return [mt.K_D for mt in self.meetings]
+
+
+# -- the subspace that does not move with K -------------------------------------------------
+def _null(M: np.ndarray, scale: float) -> np.ndarray:
+    """Orthonormal basis of the null space of M (singular values <= RANK_RTOL * scale)."""
+    if M.shape[0] == 0:
+        return np.eye(M.shape[1])
+    _, s, vt = np.linalg.svd(M)
+    rank = int(np.sum(s > RANK_RTOL * scale))
+    return vt[rank:].T
+
+
+def fixed_subspace(A0: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the unobservable subspace of (C, A0) (may have 0 columns).
+
+    The largest A0-invariant subspace in ker C: W_0 = ker C, W_k+1 = {x in W_k: A0 x in W_k},
+    each step a null space (orthogonal staircase). It is invariant under A0 - B K C for
+    every K, and its eigenvalues are the roots the drives do not reach.
+    """
+    scale = max(np.linalg.norm(A0, 2), np.linalg.norm(C, 2), 1e-300)
+    W = _null(C, np.linalg.norm(C, 2))
+    while W.shape[1]:
+        R = A0 @ W
+        R -= W @ (W.T @ R)
+        Y = _null(R, scale)
+        if Y.shape[1] == W.shape[1]:
+            break
+        W = W @ Y
+        W, _ = np.linalg.qr(W)
+    return W
+
+
+def _split(sys_A0: np.ndarray, C: np.ndarray) -> tuple:
+    """Return (U, V): bases of the fixed subspace and its orthogonal complement."""
+    U = fixed_subspace(sys_A0, C)
+    Q, _ = np.linalg.qr(np.hstack([U, np.eye(len(sys_A0))]))
+    V = Q[:, U.shape[1]:len(sys_A0)]
+    # Q's first columns span U; make them exactly U's span (QR keeps it)
+    return Q[:, :U.shape[1]], V
+
+
+def _structural_zeros(A_U: np.ndarray, scale: float) -> int:
+    """Dimension of the generalized kernel of A0 on U (cyclic coordinates' zero roots).
+
+    Identified by the eigenvectors' space, not by the size of eigenvalues: the kernel of
+    A_U, then of A_U on the quotient, until it stops growing; ``scale`` is the norm of
+    the whole A0 (the rank decisions are relative to it).
+    """
+    n = len(A_U)
+    if n == 0:
+        return 0
+    count, M = 0, A_U.copy()
+    for _ in range(n):
+        Z = _null(M, scale)
+        if Z.shape[1] == 0:
+            break
+        count += Z.shape[1]
+        if count >= n:
+            break
+        # restrict to the complement of the kernel found (quotient map)
+        Q, _ = np.linalg.qr(np.hstack([Z, np.eye(len(M))]))
+        Qc = Q[:, Z.shape[1]:len(M)]
+        M = Qc.T @ M @ Qc
+    return count
+
+
+# -- resolution of an eigenvalue --------------------------------------------------------------
+def resolution(A: np.ndarray) -> tuple:
+    """Return (eigenvalues, resolution of each): 100 eps ||A|| times its condition number.
+
+    The condition number 1/|y^H x| (unit left and right eigenvectors) bounds how far round-off
+    in A moves the eigenvalue: a real part within it is not distinguishable from 0.
+    """
+    if len(A) == 0:
+        return np.zeros(0, complex), np.zeros(0)
+    lam, yl, xr = sla.eig(A, left=True, right=True)
+    yl = yl / np.linalg.norm(yl, axis=0)
+    xr = xr / np.linalg.norm(xr, axis=0)
+    s = np.abs(np.sum(yl.conj() * xr, axis=0))
+    kappa = 1.0 / np.maximum(s, 1e-300)
+    return lam, 100 * _EPS * np.linalg.norm(A) * np.minimum(kappa, 1e16)
+
+
+# -- the continuation ---------------------------------------------------------------------------
+class _Roots:
+    """The roots of A(K) = A0 - K B C, each from the better conditioned of A(K) and A(K)^-1.
+
+    For a large K, ||A(K)|| grows like K and so does the absolute round-off of every root
+    computed from A(K): the slow roots (like 1/K) lose their relative accuracy like K^2.
+    A(K)^-1 = A0^-1 + A0^-1 B (I/K - C A0^-1 B)^-1 C A0^-1 (Woodbury) has the same
+    eigenvectors and the reciprocal roots, the slow ones now its largest, computed to
+    relative round-off. Each root is taken from the form whose error bound relative to it
+    is smaller (eps ||A|| / |lambda| against eps ||A^-1|| |lambda|).
+    """
+
+    def __init__(self, A0: np.ndarray, B: np.ndarray, C: np.ndarray):
+        """Keep the pieces; the inverse form only where A0 is invertible."""
+        self.A0, self.B, self.C, self.BC = A0, B, C, B @ C
+        self.inv = None
+        # below K_inv (the fast root still within the spectrum's scale) no root is slow
+        scale = float(np.max(np.abs(np.linalg.eigvals(A0)), initial=0.0))
+        gain = float(np.max(np.abs(np.linalg.eigvals(C @ B)), initial=0.0))
+        self.K_inv = scale / gain if gain > 0 else math.inf
+        if len(A0) and np.linalg.cond(A0) < 1e12:
+            self.inv = (np.linalg.inv(A0), np.linalg.solve(A0, B), C @ np.linalg.inv(A0))
+
+    def A(self, K: float) -> np.ndarray:
+        """Return A0 - K B C."""
+        return self.A0 - K * self.BC
+
+    def _inverse(self, K: float) -> np.ndarray:
+        """Return A(K)^-1 (class doc)."""
+        A0i, A0iB, CA0i = self.inv
+        m = self.B.shape[1]
+        return A0i + A0iB @ np.linalg.solve(np.eye(m) / K - self.C @ A0iB, CA0i)
+
+    def __call__(self, K: float, vectors: bool = True) -> tuple:
+        """Return (roots, left, right eigenvectors) at K (vectors None if not asked)."""
+        A = self.A(K)
+        if vectors:
+            lam, yl, xr = sla.eig(A, left=True, right=True)
+        else:
+            lam, yl, xr = np.linalg.eigvals(A), None, None
+        if self.inv is None or K <= self.K_inv:
+            return lam, yl, xr
+        Ai = self._inverse(K)
+        if vectors:
+            mu, yl_i, xr_i = sla.eig(Ai, left=True, right=True)
+        else:
+            mu, yl_i, xr_i = np.linalg.eigvals(Ai), None, None
+        with np.errstate(divide='ignore'):
+            lam_i = 1.0 / mu
+        r, c = linear_sum_assignment(np.abs(lam[:, None] - lam_i[None, :]))
+        nA, nAi = np.linalg.norm(A, 2), np.linalg.norm(Ai, 2)
+        take = nAi * np.abs(lam[r]) ** 2 < nA
+        lam = lam.astype(complex)
+        lam[r[take]] = lam_i[c[take]]
+        if vectors:
+            yl, xr = yl.astype(complex), xr.astype(complex)
+            yl[:, r[take]] = yl_i[:, c[take]]
+            xr[:, r[take]] = xr_i[:, c[take]]
+        return lam, yl, xr
+
+
+def _velocity(lam, yl, xr, BC) -> np.ndarray:
+    """Return d lambda / d K = -(y^H B C x) / (y^H x) for every simple root."""
+    num = np.sum(yl.conj() * (BC @ xr), axis=0)
+    den = np.sum(yl.conj() * xr, axis=0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        v = -num / den
+    return np.where(np.isfinite(v), v, 0.0)
+
+
+def _gaps(lam: np.ndarray) -> np.ndarray:
+    D = np.abs(lam[:, None] - lam[None, :])
+    np.fill_diagonal(D, np.inf)
+    return D.min(axis=1) if len(lam) > 1 else np.full(len(lam), np.inf)
+
+
+def _is_real(lam: np.ndarray) -> np.ndarray:
+    """Real as LAPACK returns it: a 1 x 1 block of the real Schur form has Im exactly 0."""
+    return lam.imag == 0.0
+
+
+def _branch_K(A0, B, C, lam: float, K_near: float) -> tuple:
+    """Return (K, dK/dlambda) of the branch K(lambda) = -1/mu(lambda) nearest to K_near.
+
+    mu: the real negative eigenvalues of G(lambda) = C (lambda I - A0)^-1 B; dmu/dlambda =
+    w^T G' u / (w^T u), G' = -C (lambda I - A0)^-2 B. (nan, nan) where no branch.
+    """
+    N = len(A0)
+    L = lam * np.eye(N) - A0
+    X = np.linalg.solve(L, B)
+    G = C @ X
+    Gp = -C @ np.linalg.solve(L, X)
+    mu, wl, ur = sla.eig(G, left=True, right=True)
+    best = None
+    for i, z in enumerate(mu):
+        if abs(z.imag) > 1e-9 * abs(z) or z.real >= 0:
+            continue
+        K = -1.0 / z.real
+        if best is None or abs(math.log(K / K_near)) < abs(math.log(best[0] / K_near)):
+            w, u = wl[:, i], ur[:, i]
+            dmu = (w.conj() @ Gp @ u) / (w.conj() @ u)
+            best = (K, float(dmu.real) / z.real ** 2)
+    return best if best is not None else (math.nan, math.nan)
+
+
+def _solve_meeting(A0, B, C, lo: float, hi: float, K_near: float) -> tuple | None:
+    """Return the stationary point of the branch K(lambda) in [lo, hi] (dK/dlambda = 0)."""
+    def dK(x):
+        return _branch_K(A0, B, C, x, K_near)[1]
+    f_lo, f_hi = dK(lo), dK(hi)
+    if not (np.isfinite(f_lo) and np.isfinite(f_hi)) or f_lo * f_hi > 0:
+        return None
+    if f_lo == 0.0:
+        x = lo
+    elif f_hi == 0.0:
+        x = hi
+    else:
+        x = brentq(dK, lo, hi, xtol=4 * _EPS * max(abs(lo), abs(hi)), rtol=4 * _EPS,
+                   maxiter=200)
+    return _branch_K(A0, B, C, x, K_near)[0], x
+
+
+def _pair_near(lam: np.ndarray, x: float) -> np.ndarray:
+    return lam[np.argsort(np.abs(lam - x))[:2]]
+
+
+def _classify(R: _Roots, K: float, x: float) -> tuple:
+    """Return the kind of the meeting at (K, x) from the pair just below and above K."""
+    def real_pair(k):
+        p = _pair_near(R(k, vectors=False)[0], x)
+        return bool(np.all(np.abs(p.imag) <= 1e-9 * max(abs(x), 1e-300)))
+    below, above = real_pair(K * (1 - VERIFY_RTOL)), real_pair(K * (1 + VERIFY_RTOL))
+    if above and not below:
+        return MeetingKind.BREAK_IN, True
+    if below and not above:
+        return MeetingKind.BREAKAWAY, True
+    return MeetingKind.BREAK_IN, False
+
+
+def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeting | None:
+    """Solve the meeting of roots i and j, found close together at K (module doc)."""
+    a, b = lam[i], lam[j]
+    if a.imag == 0.0 and b.imag == 0.0:
+        lo, hi = sorted((a.real, b.real))
+        width = hi - lo
+    elif abs(a - b.conjugate()) <= 1e-12 * abs(a):
+        width = 2 * abs(a.imag)
+        lo, hi = a.real - 4 * width, a.real + 4 * width
+    else:
+        return None
+    pad = max(width, 1e-12 * abs(a.real))
+    for grow in (0.0, 1.0, 10.0, 100.0):
+        res = _solve_meeting(R.A0, R.B, R.C, lo - grow * pad, hi + grow * pad, K)
+        if res is not None:
+            break
+    if res is None or not math.isfinite(res[0]) or res[1] >= 0:
+        return None
+    K_star, x = res
+    kind, ok = _classify(R, K_star, x)
+    return Meeting(K_D=float(K_star), lam=float(x), kind=kind, verified=ok)
+
+
+def _asymptotic(R: _Roots, K: float, m: int) -> bool:
+    """Return True if at K the m fast and m slow roots are in claim (c)'s regime.
+
+    Each real, distinct, and scaling like K (fast) or 1/K (slow) from K to 10 K (and so
+    do the gaps between them);
+    fast roots beyond ten times, slow roots below a tenth of, every other root. Past such
+    a K no pair meets again.
+    """
+    parts = []
+    for k in (K, 10 * K):
+        lam = R(k, vectors=False)[0]
+        order = np.argsort(lam.real)
+        fast, rest = lam[order[:m]], lam[order[m:]]
+        slow = rest[np.argsort(np.abs(rest))[:m]]
+        others = rest[np.argsort(np.abs(rest))[m:]]
+        if not (np.all(_is_real(fast)) and np.all(_is_real(slow))
+                and np.min(np.abs(fast)) > 10 * np.max(np.abs(rest), initial=0.0)
+                and np.max(np.abs(slow), initial=0.0) * 10 < np.min(np.abs(others),
+                                                                    initial=np.inf)):
+            return False
+        parts.append((np.sort(np.abs(fast)), np.sort(np.abs(slow))))
+    (f1, s1), (f2, s2) = parts
+    # the gaps between them scale alike: a near-double pair has settled (not still landing)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        gf = np.diff(f2) / np.diff(f1)
+        gs = np.diff(s2) / np.diff(s1)
+    return bool(np.all(np.abs(f2 / f1 - 10) < 0.1) and np.all(np.abs(s2 / s1 - 0.1) < 1e-3)
+                and np.all(np.abs(gf - 10) < 1) and np.all(np.abs(gs - 0.1) < 0.01))
+
+
+def _ends(R: _Roots, K_ref) -> tuple:
+    """K range of the continuation: every meeting lies inside it (module doc of :func:`track`)."""
+    lo = 1e-6 * K_ref
+    for _ in range(20):
+        if not len(R.A0) or not np.any(_is_real(R(lo, vectors=False)[0])):
+            break
+        lo *= 1e-2
+    hi = 1e4 * K_ref
+    for _ in range(30):
+        if _asymptotic(R, hi, R.B.shape[1]):
+            break
+        hi *= 10.0
+    return lo, hi
+
+
+def _step(R: _Roots, K, lam, vel, gaps, h):
+    """One accepted continuation step from K (module doc of :func:`track`).
+
+    Returns (K_new, h, roots, left and right eigenvectors) with the roots in the order of
+    ``lam`` (matched to the first-order prediction).
+    """
+    u = math.log(K)
+    while True:
+        K_new = math.exp(u + h)
+        lam_n, yl_n, xr_n = R(K_new)
+        pred = lam + (K_new - K) * vel
+        r, c = linear_sum_assignment(np.abs(pred[:, None] - lam_n[None, :]))
+        moved = np.abs(lam_n[c] - lam[r])
+        err = np.abs(lam_n[c] - pred[r])
+        g = gaps[r]
+        if (np.all(moved <= 0.25 * g) and np.all(err <= 0.05 * g)) or h < 1e-14:
+            break
+        h *= 0.5
+    order = np.empty(len(lam), int)
+    order[r] = c
+    return K_new, h, lam_n[order], yl_n[:, order], xr_n[:, order]
+
+
+def _close_pairs(lam: np.ndarray, gaps: np.ndarray) -> list:
+    """Pairs (i, j) of roots closer than MEET_RTOL of their size."""
+    N = len(lam)
+    close = np.flatnonzero(gaps <= MEET_RTOL * np.maximum(np.abs(lam), 1e-300))
+    pairs = []
+    for i in close:
+        d = np.abs(lam - lam[i])
+        d[i] = np.inf
+        j = int(np.argmin(d))
+        if (min(i, j), max(i, j)) not in pairs and j < N:
+            pairs.append((min(int(i), j), max(int(i), j)))
+    return pairs
+
+
+def _crossed_pairs(lam_a: np.ndarray, lam_b: np.ndarray) -> list:
+    """Roots that changed between real and complex in one step: (side, i, j) per pair.
+
+    ``side`` is 0 if the pair is real at the start of the step (a breakaway inside it),
+    1 if real at its end (a break-in); i, j index that side's two real roots.
+    """
+    out = []
+    for side, (real, cplx) in enumerate(((lam_a, lam_b), (lam_b, lam_a))):
+        idx = np.flatnonzero(_is_real(real) & ~_is_real(cplx))
+        # pair them by the conjugate pairs they are on the complex side
+        used = set()
+        for i in idx:
+            if i in used:
+                continue
+            d = np.abs(cplx[idx] - cplx[i].conjugate())
+            d[list(idx).index(i)] = np.inf
+            j = int(idx[int(np.argmin(d))]) if len(idx) > 1 else None
+            if j is None or j in used:
+                continue
+            used |= {int(i), j}
+            out.append((side, int(i), j))
+    return out
+
+
+def _add(meetings: list, mt: Meeting | None) -> bool:
+    """Append a meeting not found before; True if appended."""
+    if mt is None or any(abs(mt.K_D - o.K_D) <= 1e-9 * o.K_D
+                         and abs(mt.lam - o.lam) <= 1e-6 * abs(o.lam) for o in meetings):
+        return False
+    meetings.append(mt)
+    return True
+
+
+def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = None,
+          K_hi: float | None = None, max_steps: int = 200000) -> Locus:
+    """Follow the roots of A0 - K B C over K in [K_lo, K_hi] and find every meeting.
+
+    A0, B, C must have no fixed root (use the complement of :func:`fixed_subspace`). The
+    step in log K is accepted when every root moved by at most a quarter of its distance to
+    the nearest other root and the first-order prediction erred by at most a twentieth of
+    it; otherwise it is halved (:func:`_step`). Two roots closer than MEET_RTOL of their
+    size are a meeting, solved exactly (module doc), and the continuation resumes just past
+    it; a pair that changes between real and complex within a step is solved from the side
+    where it is real. The default ends: from where no root is real yet to where the m fast
+    and m slow roots are real and far from the rest (the asymptotic regime of claim (c)).
+    """
+    R = _Roots(A0, B, C)
+    scale = max(float(np.max(np.abs(np.linalg.eigvals(A0)), initial=0.0)), 1e-300)
+    gain = float(np.max(np.abs(np.linalg.eigvals(C @ B)))) if len(B.T) else 1.0
+    lo_d, hi_d = _ends(R, scale / max(gain, 1e-300))
+    K = lo_d if K_lo is None else K_lo
+    K_end = hi_d if K_hi is None else K_hi
+    h = h_max = math.log(10.0) / 8
+    lam, yl, xr = R(K)
+    Ks, roots, counts = [K], [lam], [int(np.sum(_is_real(lam)))]
+    meetings: list[Meeting] = []
+    for _ in range(max_steps):
+        if K >= K_end * (1 - 1e-12):
+            break
+        vel = _velocity(lam, yl, xr, R.BC)
+        gaps = _gaps(lam)
+        ahead = [mt for i, j in _close_pairs(lam, gaps)
+                 if _add(meetings, mt := _meeting_near(R, K, lam, i, j))
+                 and mt.K_D >= K]
+        if ahead:
+            # resume just past the meeting(s) ahead
+            K = max(mt.K_D for mt in ahead) * (1 + 10 * VERIFY_RTOL)
+            lam, yl, xr = R(K)
+            h = min(h, 1e-6)
+        else:
+            h = min(h, math.log(K_end) - math.log(K))
+            K_new, h, lam_n, yl, xr = _step(R, K, lam, vel, gaps, h)
+            for side, i, j in _crossed_pairs(lam, lam_n):
+                _add(meetings, _meeting_near(R, (K, K_new)[side], (lam, lam_n)[side], i, j))
+            K, lam = K_new, lam_n
+            h = min(1.5 * h, h_max)
+        Ks.append(K)
+        roots.append(lam)
+        counts.append(int(np.sum(_is_real(lam))))
+    meetings.sort(key=lambda mt: mt.K_D)
+    return Locus(K=np.array(Ks), roots=np.array(roots), meetings=tuple(meetings),
+                 real_counts=tuple(counts))
+
+
+# -- the locked system ----------------------------------------------------------------------
+def locked_spectrum(A0: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
     """Eigenvalues of the locked system: A0 restricted to ker C, projected along B.
 
     With C x = 0 held by an unbounded drive torque B u, x' = P A0 x with the projector
     P = I - B (C B)^-1 C (C P = 0 keeps x in ker C); in an orthonormal basis N of ker C
-    the locked matrix is N^T P A0 N ((n - m) x (n - m)).
+    the locked matrix is N^T P A0 N ((N - m) x (N - m)).
     """
-    B, C = sys.B, sys.C
-    P = np.eye(len(sys.A0)) - B @ np.linalg.solve(C @ B, C)
-    N = np.linalg.svd(C)[2][C.shape[0]:].T
-    return np.linalg.eigvals(N.T @ P @ sys.A0 @ N)
+    P = np.eye(len(A0)) - B @ np.linalg.solve(C @ B, C)
+    Nk = np.linalg.svd(C)[2][C.shape[0]:].T
+    return np.linalg.eigvals(Nk.T @ P @ A0 @ Nk)
 
 
-def _scale(sys: DriveSystem) -> float:
-    return max(float(np.max(np.abs(np.linalg.eigvals(sys.A0)))), 1.0)
+# -- the claims --------------------------------------------------------------------------------
+def _fmt(z: complex) -> str:
+    return f'{z.real:+.6g}{z.imag:+.6g}j'
 
 
-def claim_a(sys: DriveSystem) -> Claim:
-    """Check (a): at K_D = 0 every root on the imaginary axis."""
-    lam0 = sys.eigvals(0.0)
-    worst = float(np.max(np.abs(lam0.real)))
-    tol = sys.tol_re
-    zero = int(np.sum(np.abs(lam0) <= tol))
-    osc = int(np.sum((lam0.imag > tol) & (np.abs(lam0.real) <= tol)))
+def _claim_a(A0: np.ndarray, U: np.ndarray, V: np.ndarray, n_zero: int) -> Claim:
+    lam, res = resolution(V.T @ A0 @ V)
+    lam_u, res_u = resolution(U.T @ A0 @ U) if U.shape[1] else (lam[:0], res[:0])
+    # the structural zero roots (a Jordan block each pair) are on the axis by construction;
+    # the other fixed roots are simple and judged by their resolution like the moving ones
+    nz_u = np.argsort(np.abs(lam_u))[n_zero:] if lam_u.size else np.zeros(0, int)
+    excess = np.concatenate([np.abs(lam.real) - res, np.abs(lam_u[nz_u].real) - res_u[nz_u]])
+    holds = bool(np.all(excess <= 0))
+    worst = float(np.max(np.abs(np.concatenate([lam.real, lam_u[nz_u].real])), initial=0.0))
+    osc = int(np.sum(lam.imag > 0) + np.sum(lam_u[nz_u].imag > 0))
+    freqs = sorted(float(x) for x in np.concatenate([lam.imag, lam_u[nz_u].imag])
+                   / (2 * math.pi) if x > 0)
+    detail = (f'{osc} undamped oscillations and {n_zero} structural zero root(s) (cyclic '
+              f'coordinates, by their eigenvectors); max |Re| = {worst:.3e} 1/s, '
+              + ('every one within its resolution' if holds else
+                 f'{int(np.sum(excess > 0))} beyond their resolution'))
     return Claim('a', 'at K_D = 0 every root on the imaginary axis (undamped oscillations '
-                 'and zero roots)', worst <= tol,
-                 f'{osc} undamped oscillations and {zero} zero root(s); max |Re| = '
-                 f'{_res(worst, tol)} 1/s',
-                 {'oscillations': osc, 'zero_roots': zero, 'max_abs_re': worst,
-                  'freq_hz': sorted((lam0[lam0.imag > tol].imag / (2 * math.pi)).tolist())})
+                 'and zero roots)', holds, detail,
+                 {'oscillations': osc, 'zero_roots': n_zero, 'max_abs_re': worst,
+                  'freq_hz': freqs})
 
 
-def _res(x: float, tol: float) -> str:
-    """Format a real part; below the resolution 'below the resolution tol' (never 1e-102)."""
-    return f'below the resolution {tol:.1e}' if abs(x) <= tol else f'{x:+.3e}'
+def _eig_fine(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Eigenvalues of A0 - B diag(K) C in 40-digit arithmetic (mpmath), the product exact.
 
-
-def claim_b(sys: DriveSystem, K: np.ndarray, eig_path: np.ndarray,
-            labels: list | None = None) -> Claim:
-    """Check (b): for every K_D > 0 of the path, every root reached by the drive in the open LHP.
-
-    ``eig_path[i, j]`` is branch j at ``K[i]``, tracked by continuity from ``eigvals(0)``
-    (matched to the eigenvalues of A0 at its start). A root at zero for every K_D (a
-    cyclic coordinate) is structural and not judged. ``labels`` (mode names per branch)
-    only name the exceptions in the text.
+    For a large K the double-precision A(K) carries round-off eps K ||B C|| into every root;
+    formed and solved in 40 digits the roots keep only the resolution of A0 itself.
     """
-    from scipy.optimize import linear_sum_assignment
-    tol = sys.tol_re
-    pos = K > 0
-    re = eig_path[pos].real
-    structural = np.all(np.abs(eig_path) <= tol, axis=0)
-    # branch j starts at eigenvalue col[j] of A0
-    _, col = linear_sum_assignment(np.abs(eig_path[0][:, None] - sys.eigvals(0.0)[None, :]))
-    reached = sys.reached[col] & ~structural
-    unreached = ~sys.reached[col] & ~structural
-    # a reached root within the resolution of the axis is not a failure: Re ~ K_D dRe/dK_D
-    # at tiny K_D (fast_spin's nutation: -7e-7 per N m s/rad), or a branch returning to an
-    # asymptote on the axis like 1/K_D; such roots are counted in the detail
-    bad = re > tol
-    unresolved = int(np.sum((np.abs(re) <= tol) & reached[None, :]))
-    exc = ''
-    if unreached.any():
-        on_axis = bool(np.all(np.abs(re[:, unreached]) <= tol))
-        names = sorted({labels[j] for j in np.where(unreached)[0]}) if labels else []
-        exc = (f'{int(unreached.sum())} roots not reached by the drive'
-               + (f' ({", ".join(names)})' if names else '')
-               + " (d Re/d K_D = 0 at K_D = 0: Hagedorn's exclusion) stay on the imaginary "
-               'axis, as the theory expects' + ('' if on_axis else ' (BUT some left it)'))
-    worst_reached = float(re[:, reached].max()) if reached.any() else -math.inf
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        detail = (f'fails: at K_D = {K[pos][i]:.6g} root {eig_path[pos][i, j]:.6g} has Re = '
-                  f'{_res(re[i, j], tol)} 1/s')
+    import mpmath
+    with mpmath.workdps(40):
+        A = mpmath.matrix(A0.tolist()) - mpmath.matrix((B * K).tolist()) * mpmath.matrix(
+            C.tolist())
+        ev = mpmath.eig(A, left=False, right=False)
+        return np.array([complex(z) for z in ev])
+
+
+def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
+    K = np.asarray(sys.K_scene, dtype=float).copy()
+    A0v, Bv, Cv = V.T @ sys.A0 @ V, V.T @ sys.B, sys.C @ V
+    zero = K <= 0
+    note = ''
+    if zero.any():
+        # the theorem is about K_D > 0: a conservative scene is judged at a small K_D
+        gain = float(np.max(np.abs(np.linalg.eigvals(Cv @ Bv)), initial=1.0))
+        scale = float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=1.0))
+        K[zero] = 1e-3 * scale / gain
+        note = (f' (the scene has K_D = 0, conservative: judged at K_D = {K[zero][0]:.3g}, '
+                'the theorem being about K_D > 0)')
+    A = sys.A0 - (sys.B * K) @ sys.C
+    lam, res = resolution(V.T @ A @ V)
+    fine = np.abs(lam.real) <= res
+    if fine.any():
+        # below the double-precision resolution of A(K): the same roots in 40 digits, whose
+        # resolution is that of A0 alone
+        ev = _eig_fine(A0v, Bv, Cv, K)
+        r, c = linear_sum_assignment(np.abs(lam[:, None] - ev[None, :]))
+        lam = lam.copy()
+        lam[r[fine[r]]] = ev[c[fine[r]]]
+        res = res.copy()
+        res[fine] = resolution(A0v)[1].max()
+    ok_reached = lam.real < -res
+    bad = np.flatnonzero(~ok_reached)
+    lam_u, res_u = resolution(U.T @ A @ U) if U.shape[1] else (lam[:0], res[:0])
+    # the unreached roots: on the axis, at their K = 0 values (U is invariant, so A = A0 on
+    # U; checked, not assumed)
+    r, c = linear_sum_assignment(np.abs(lam_u[:, None] - lam_fixed[None, :]))
+    stays = bool(np.all(np.abs(lam_u[r] - lam_fixed[c]) <= res_u[r] + 1e3 * _EPS * max(
+        1.0, float(np.max(np.abs(lam_fixed), initial=0.0)))))
+    nonzero = np.argsort(np.abs(lam_u))[n_zero:]
+    stays &= bool(np.all(np.abs(lam_u[nonzero].real) <= res_u[nonzero]))
+    holds = bool(ok_reached.all() and stays)
+    worst = float(np.max(lam.real, initial=-math.inf))
+    K_text = ', '.join(f'{k:.6g}' for k in sys.K_scene) + note
+    if holds:
+        detail = (f'at K_D = {K_text}: every one of the {len(lam)} reached roots in the open '
+                  f'left half plane, largest Re {worst:.6g} 1/s (beyond its resolution)')
     else:
-        detail = (f'holds on {int(pos.sum())} K_D values from {K[pos][0]:.3g} to '
-                  f'{K[-1]:.3g}: largest Re of a reached root {_res(worst_reached, tol)} 1/s'
-                  + (f' ({unresolved} roots of reached modes within the resolution of the '
-                     f'axis)' if unresolved else ''))
-    return Claim('b', 'for every K_D > 0 every root the drive reaches in the open left half '
-                 'plane', not bool(bad.any()), detail,
-                 {'max_re_reached': worst_reached, 'tol_re': tol, 'unresolved': unresolved,
-                  'unreached': int(unreached.sum())}, exc)
+        detail = (f'fails at K_D = {K_text}: ' + (
+            ', '.join(f'{_fmt(lam[i])} (resolution {res[i]:.1e})' for i in bad[:4])
+            if bad.size else 'an unreached root moved'))
+    exc = ''
+    n_un = len(lam_u) - n_zero
+    if n_un:
+        exc = (f'{n_un} roots not reached by the drive (their eigenvectors have no zdot '
+               "part: Hagedorn's exclusion, PBH) stay on the imaginary axis at their K_D = 0 "
+               'values, as the theory expects')
+    return Claim('b', "at the scene's K_D every root the drives reach in the open left half "
+                 'plane, the unreached ones on the axis at their K_D = 0 values', holds,
+                 detail, {'max_re_reached': worst, 'unreached': n_un,
+                          'reached': len(lam), 'failing': [_fmt(lam[i]) for i in bad]}, exc)
 
 
-def claim_c(sys: DriveSystem, K_check: float) -> Claim:
-    """Check (c): K_D -> inf, roots -> locked spectrum, plus per drive one to -inf and one to 0.
+def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
+    """Check (c) on the moving part at K1 and 10 K1 (the asymptotic regime).
 
-    Checked at ``K_check`` (large) and 10 ``K_check``: the m fastest roots go like
-    -K_D eig(C B) (within 1 %), the other n - m approach the locked spectrum (computed
-    separately) with a distance that falls like 1/K_D; the locked spectrum holds m more
-    zero roots than A(K_D) has at finite K_D (the roots that go to 0).
+    ``fixed``: the roots that do not move (they belong to the locked spectrum as well).
     """
-    m = sys.drives
-    locked = locked_spectrum(sys)
-    gains = np.sort(np.linalg.eigvals(sys.C @ sys.B).real)
-    scale = _scale(sys)
-    from scipy.optimize import linear_sum_assignment
-    dist, fast_ok = [], True
-    for K in (K_check, 10.0 * K_check):
-        lam = sys.eigvals(K)
+    m = Bv.shape[1]
+    gains = np.sort(np.linalg.eigvals(Cv @ Bv).real)
+    locked = locked_spectrum(A0v, Bv, Cv) if m < len(A0v) else np.zeros(0, complex)
+    R = _Roots(A0v, Bv, Cv)
+    out, floor = [], []
+    for K in (K1, 10 * K1):
+        lam = R(K, vectors=False)[0]
         order = np.argsort(lam.real)
-        fast, rest = lam[order[:m]], lam[order[m:]]
-        fast_ok &= bool(np.all(np.abs(np.sort(-fast.real) / (K * gains) - 1.0) < 0.01)
-                        and np.all(np.abs(fast.imag) <= 1e-6 * np.abs(fast)))
-        D = np.abs(rest[:, None] - locked[None, :])
-        r, c = linear_sum_assignment(D)
-        dist.append(float(D[r, c].max()) / scale)
-    tol = sys.tol_re
-    zeros_locked = int(np.sum(np.abs(locked) <= tol * 10))
-    zeros_finite = int(np.sum(np.abs(sys.eigvals(K_check)) <= tol * 10))
-    to_zero = zeros_locked - zeros_finite
-    converging = dist[1] <= max(0.2 * dist[0], 1e-9)
-    holds = fast_ok and converging and dist[1] < 1e-2 and to_zero == m
-    on_axis = locked[np.abs(locked.real) <= tol * 10]
-    detail = (f'locked spectrum (A0 on ker C, {len(locked)} roots): '
-              + ', '.join(f'{z.real:+.4g}{z.imag:+.6g}j' if abs(z.real) > tol * 10
-                          else f'{z.imag:+.6g}j' for z in locked if z.imag >= -tol)
-              + f'; distance of the roots to it / max|lambda(A0)|: {dist[0]:.2e} at K_D = '
-              f'{K_check:.3g}, {dist[1]:.2e} at {10 * K_check:.3g}; fast root(s) '
-              f'-K_D {", ".join(f"{g:.6g}" for g in gains)} '
-              f'({"ok" if fast_ok else "NOT"}); roots to 0: {to_zero} (drives: {m}); '
-              f'{len(on_axis)} locked roots on the imaginary axis')
-    return Claim('c', 'K_D -> infinity: the roots tend to the spectrum of the locked system, '
-                 'plus per drive one real root to -infinity and one to 0', bool(holds), detail,
-                 {'locked_re': locked.real.tolist(), 'locked_im': locked.imag.tolist(),
-                  'distance': dist, 'fast_gain': gains.tolist(), 'to_zero': to_zero,
-                  'locked_on_axis': len(on_axis)})
+        out.append((lam[order[:m]], lam[order[m:]]))
+        # round-off of each root: of A(K), or of A(K)^-1 for the roots taken from it
+        nA = np.linalg.norm(R.A(K), 2)
+        nAi = np.linalg.norm(R._inverse(K), 2) if R.inv is not None else np.inf
+        floor.append(1e4 * _EPS * np.minimum(nA, nAi * np.abs(lam[order[m:]]) ** 2))
+    fast_ok = all(np.all(_is_real(f)) and np.all(
+        np.abs(np.sort(-f.real) / (K * gains) - 1.0) < 0.01)
+        for (f, _), K in zip(out, (K1, 10 * K1)))
+    # the m slow roots: the m smallest of the rest, real, shrinking like 1/K (ratio 0.1 per
+    # decade); the locked system's m zero roots (each locked z is free) are their limit
+    (_, r1), (_, r2) = out
+    s1, s2 = np.argsort(np.abs(r1))[:m], np.argsort(np.abs(r2))[:m]
+    ratio = np.sort(np.abs(r2[s2])) / np.sort(np.abs(r1[s1]))
+    slow_ok = (np.all(r1[s1].imag == 0) and np.all(r2[s2].imag == 0)
+               and np.all(np.abs(ratio - 0.1) < 0.01))
+    to_zero = m if slow_ok else int(np.sum(np.abs(ratio - 0.1) < 0.01))
+    zl = np.argsort(np.abs(locked))[:m]
+    nz = np.delete(locked, zl)
+    r1, r2 = np.delete(r1, s1), np.delete(r2, s2)
+    f2 = np.delete(floor[1], s2)
+    i1, j1 = linear_sum_assignment(np.abs(r1[:, None] - nz[None, :]))
+    i2, j2 = linear_sum_assignment(np.abs(r2[:, None] - nz[None, :]))
+    d1, d2, fl = np.empty(len(nz)), np.empty(len(nz)), np.empty(len(nz))
+    d1[j1] = np.abs(r1[i1] - nz[j1])
+    d2[j2] = np.abs(r2[i2] - nz[j2])
+    # the round-off floor of each root at 10 K1: ||A|| grows like K, and so does the
+    # absolute error of the small roots
+    fl[j2] = f2[i2]
+    # every other root approaches its locked value like 1/K (distance ratio ~ 0.1)
+    conv = (d2 <= 0.2 * d1) | (d2 <= 10 * fl)
+    holds = bool(fast_ok and np.all(conv) and to_zero == m)
+    full = np.concatenate([locked, fixed])
+    detail = ('locked spectrum (zdot = 0 held, ' + f'{len(full)} roots): '
+              + ', '.join(_fmt(z) for z in nz if z.imag >= 0)
+              + '; largest distance of a root to it / scale: '
+              f'{float(d1.max(initial=0)) / scale:.2e}'
+              f' at K_D = {K1:.3g}, {float(d2.max(initial=0)) / scale:.2e} at {10 * K1:.3g} '
+              f'(like 1/K_D: {"yes" if np.all(conv) else "NO"}); fast root(s) -K_D '
+              + ', '.join(f'{g:.6g}' for g in gains) + f' ({"ok" if fast_ok else "NOT"}); '
+              f'roots to 0 like 1/K_D: {to_zero} (drives: {m})')
+    return Claim('c', 'K_D -> infinity: m roots to -infinity, m to 0, the rest to the spectrum '
+                 'of the locked system', holds, detail,
+                 {'locked_re': full.real.tolist(), 'locked_im': full.imag.tolist(),
+                  'distance': [float(d1.max(initial=0)) / scale,
+                               float(d2.max(initial=0)) / scale],
+                  'fast_gain': gains.tolist(), 'to_zero': to_zero, 'K_large': [K1, 10 * K1]})
 
 
-def _n_real(lam: np.ndarray, tol_im: float) -> int:
-    return int(np.sum(np.abs(lam.imag) <= tol_im))
+def _claim_d(loc: Locus, m: int) -> Claim:
+    net = sum(1 if mt.kind is MeetingKind.BREAK_IN else -1 for mt in loc.meetings)
+    counted = (loc.real_counts[-1] - loc.real_counts[0]) // 2
+    verified = all(mt.verified for mt in loc.meetings)
+    negative = all(mt.lam < 0 for mt in loc.meetings)
+    holds = bool(net == m and counted == net and verified and negative)
+    text = '; '.join(f'{mt.kind} at K_D* = {mt.K_D:.10g}, lambda* = {mt.lam:.8g} 1/s'
+                     + ('' if mt.verified else ' (NOT verified)') for mt in loc.meetings)
+    detail = ((text or 'no pair meets on the real axis')
+              + f'; net {net} (break-ins minus breakaways), real roots {loc.real_counts[0]} at '
+              f'K_D = {loc.K[0]:.3g} and {loc.real_counts[-1]} at {loc.K[-1]:.3g} '
+              f'(net {counted}); drives: {m}')
+    return Claim('d', 'every pair meeting on the negative real axis found, with its kind; net, '
+                 'm pairs meet (one per drive)', holds, detail,
+                 {'K_D_star': [mt.K_D for mt in loc.meetings],
+                  'lambda_star': [mt.lam for mt in loc.meetings],
+                  'kinds': [str(mt.kind) for mt in loc.meetings], 'net_meetings': net,
+                  'net_from_counts': counted})
 
 
-def _K_of_lambda(sys: DriveSystem, lam: float) -> float:
-    """Gain K >= 0 putting a root at the real ``lam``: det(I + K C (lam - A0)^-1 B) = 0."""
-    n = len(sys.A0)
-    G = sys.C @ np.linalg.solve(lam * np.eye(n) - sys.A0, sys.B)
-    mu = np.linalg.eigvals(G)
-    ks = [-1.0 / z.real for z in mu if abs(z.imag) <= 1e-12 * abs(z) and z.real < 0]
-    return min(ks) if ks else math.inf
-
-
-def _polish(sys: DriveSystem, lo: float, hi: float, tol_im: float) -> Meeting | None:
-    """Locate the meeting between grid values lo < hi (real-root count up by 2)."""
-    from scipy.optimize import minimize_scalar
-    lam_hi = sys.eigvals(hi)
-    lam_lo = sys.eigvals(lo)
-    real_hi = lam_hi[np.abs(lam_hi.imag) <= tol_im].real
-    real_lo = lam_lo[np.abs(lam_lo.imag) <= tol_im].real
-    if len(real_hi) < 2:
-        return None
-    # the two real roots at hi that were complex at lo: farthest from the real roots at lo
-    far = [np.min(np.abs(real_lo - x)) if len(real_lo) else math.inf for x in real_hi]
-    cand = real_hi[np.argsort(far)[-2:]]
-    a, b = float(min(cand)), float(max(cand))
-    if b >= 0:
-        return None
-    # on the real axis K(lambda) has a local minimum K_D* at the double root lambda*
-    res = minimize_scalar(lambda x: _K_of_lambda(sys, x), bounds=(a, b), method='bounded',
-                          options={'xatol': 1e-13 * max(abs(a), 1.0)})
-    K_star, lam_star = float(res.fun), float(res.x)
-    if not (lo <= K_star <= hi * (1 + 1e-12)):
-        return None
-    # verify: complex just below K_D* (1 - r), two real roots just above (1 + r)
-    r = POLISH_RTOL / 10
-    below = _n_real(sys.eigvals(K_star * (1 - r)), tol_im * 1e-3)
-    above = _n_real(sys.eigvals(K_star * (1 + r)), tol_im * 1e-3)
-    return Meeting(K_star, lam_star, r if above == below + 2 else math.nan)
-
-
-def meeting_points(sys: DriveSystem, K: np.ndarray) -> list[Meeting]:
-    """Every K_D* of the grid's range where a complex pair meets the real axis."""
-    tol_im = 1e-7 * _scale(sys)
-    counts = [_n_real(sys.eigvals(k), tol_im) for k in K]
-    out = []
-    for i in range(1, len(K)):
-        if counts[i] >= counts[i - 1] + 2 and K[i - 1] > 0:
-            mt = _polish(sys, float(K[i - 1]), float(K[i]), tol_im)
-            if mt is not None:
-                out.append(mt)
-    return out
-
-
-def claim_d(sys: DriveSystem, K: np.ndarray, eig_path: np.ndarray) -> tuple:
-    """Check (d): a pair meets the negative real axis at K_D* and splits toward 0 and -infinity.
-
-    Returns (claim, meetings). The pair that meets last is followed along the tracked
-    path (``eig_path`` columns, continuity): at the largest K_D one of its roots must be
-    the fastest (toward -infinity), the other the one nearest to 0 among the non-structural
-    roots (toward 0).
-    """
-    meets = meeting_points(sys, K)
-    tol = sys.tol_re
-    text = '; '.join(f'K_D* = {mt.K_D:.8g} N m s/rad, double root {mt.lam:.6g} 1/s'
-                     + ('' if mt.verified_rtol == mt.verified_rtol else ' (NOT verified)')
-                     for mt in meets)
-    if not meets:
-        return Claim('d', 'a complex pair meets the negative real axis at K_D* and splits: '
-                     'one root toward 0, one toward -infinity', False,
-                     f'no complex pair meets the real axis for K_D in {K[1]:.3g} .. '
-                     f'{K[-1]:.3g}', {'K_D_star': [], 'lambda_star': []}), meets
-    last = meets[-1]
-    i = int(np.searchsorted(K, last.K_D))
-    row = eig_path[min(i, len(K) - 1)]
-    pair = np.argsort(np.abs(row - last.lam))[:2]
-    end = eig_path[-1]
-    structural = np.all(np.abs(eig_path) <= tol, axis=0)
-    judged = np.where(~structural)[0]
-    fastest = judged[np.argmin(end[judged].real)]
-    nearest0 = judged[np.argmin(np.abs(end[judged]))]
-    splits = {int(fastest), int(nearest0)} == {int(j) for j in pair}
-    verified = all(mt.verified_rtol == mt.verified_rtol for mt in meets)
-    holds = bool(verified and all(mt.lam < 0 for mt in meets) and splits)
-    text += (f'; after the last one the pair splits toward 0 and -infinity (the nearest '
-             f'root to 0 and the fastest at K_D = {K[-1]:.3g}: {end[pair[0]].real:.4g} and '
-             f'{end[pair[1]].real:.4g} 1/s): {"yes" if splits else "NO"}')
-    return Claim('d', 'a complex pair meets the negative real axis at K_D* and splits: one '
-                 'root toward 0, one toward -infinity', holds, text,
-                 {'K_D_star': [mt.K_D for mt in meets],
-                  'lambda_star': [mt.lam for mt in meets], 'splits': splits}), meets
+def check(sys: DriveSystem) -> ClaimsResult:
+    """Check claims (a) to (d) on a :class:`DriveSystem` (module doc)."""
+    A0, C = sys.A0, sys.C
+    # (a), (b): the fixed roots of all drives together
+    U, V = _split(A0, C)
+    A_U = U.T @ A0 @ U
+    n_zero = _structural_zeros(A_U, max(np.linalg.norm(A0, 2), 1e-300))
+    lam_fixed = np.linalg.eigvals(A_U) if U.shape[1] else np.zeros(0, complex)
+    a = _claim_a(A0, U, V, n_zero)
+    b = _claim_b(sys, U, V, lam_fixed, n_zero)
+    # (c), (d): the locus of the varied drives, on its moving part
+    A0l, Bl, Cl = sys.locus_pieces()
+    Ul, Vl = _split(A0l, Cl)
+    A0v, Bv, Cv = Vl.T @ A0l @ Vl, Vl.T @ Bl, Cl @ Vl
+    loc = track(A0v, Bv, Cv)
+    scale = max(float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=0.0)), 1e-300)
+    fixed_l = np.linalg.eigvals(Ul.T @ A0l @ Ul) if Ul.shape[1] else np.zeros(0, complex)
+    c = _claim_c(A0v, Bv, Cv, float(loc.K[-1]), scale, fixed_l)
+    d = _claim_d(loc, sys.drives)
+    un = lam_fixed[np.argsort(np.abs(lam_fixed))[n_zero:]] if lam_fixed.size else lam_fixed
+    return ClaimsResult(claims={'a': a, 'b': b, 'c': c, 'd': d}, meetings=loc.meetings,
+                        locus=loc, structural_zero_roots=n_zero, unreached=un)

@@ -20,8 +20,11 @@ The claims (Magnus 1980, eqs. 13-17 and the footnote; docs MODEL.md section 8):
     stay on the axis, at their K = 0 values (Hagedorn's exclusion).
 (c) K -> infinity: the roots tend to the spectrum of the locked system (z = 0 held,
     computed separately), plus m real roots to -infinity and m to 0.
-(d) every K* where a complex pair meets on the negative real axis, located by bisection
-    of the double root to 1e-8 relative, with the meeting point; net, m pairs meet.
+(d) every K* where a pair meets on the real axis or leaves it, with its kind and meeting
+    point; net, m pairs meet.
+
+The claims are decided by the one checker of every system, :mod:`gyro_rotor.linear.claims`,
+on :meth:`GeneralLinear.drive_system`.
 """
 
 from __future__ import annotations
@@ -35,13 +38,7 @@ from gyro_rotor.errors import ParameterError, SceneError
 import numpy as np
 
 __all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims',
-           'GeneralClaims', 'meetings', 'Meeting', 'campbell', 'Campbell', 'solve_steady',
-           'K_D_REL_TOL']
-
-#: relative precision of K* in claim (d)
-K_D_REL_TOL = 1e-8
-#: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis
-REL_AXIS = 1e-9
+           'campbell', 'Campbell', 'solve_steady']
 #: a mode is reached when the zdot part of its unit eigenvector exceeds this
 REACH_TOL = 1e-7
 
@@ -64,6 +61,13 @@ class GeneralLinear:
     b_all: np.ndarray
     c_all: np.ndarray
     K_all: np.ndarray
+    vary: tuple
+
+    def drive_system(self):
+        """Return the :class:`~gyro_rotor.linear.claims.DriveSystem` of every drive."""
+        from gyro_rotor.linear.claims import DriveSystem
+        return DriveSystem(A0=self.A_cons, B=self.b_all, C=self.c_all.T, K_scene=self.K_all,
+                           vary=self.vary)
 
     def A_scene(self) -> np.ndarray:
         """Return A with every drive at its own K_D (the scene's spectrum)."""
@@ -155,7 +159,7 @@ def linearize_scene(scene: GeneralScene, *, drive: str | None = None,
     return GeneralLinear(A0=A0, b=b, c=c, K_D=float(Ks.max()), A_locked=A_locked, names=names,
                          n=model.n, m=model.m, fast_rates=fast, K_each=Ks, A_cons=A_cons,
                          b_all=b_all, c_all=c_all,
-                         K_all=np.array([d.K_D for d in system.drives]))
+                         K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,126 +218,10 @@ def _unreached(lin: GeneralLinear) -> tuple[np.ndarray, np.ndarray, float]:
     return np.array(un, dtype=complex), lam0[zero], scale
 
 
-@dataclasses.dataclass(frozen=True)
-class Meeting:
-    """A complex pair meets on the negative real axis at K = K_star, at lambda = point."""
-
-    K_star: float
-    point: float
-    bracket: float
-
-
-@dataclasses.dataclass(frozen=True)
-class GeneralClaims:
-    """Claims (a) to (d) with their numbers."""
-
-    a: bool
-    b: bool
-    c: bool
-    d: bool
-    details: dict
-    meetings: list
-
-    def as_dict(self) -> dict:
-        """Return the claims and their numbers as plain data (for --json)."""
-        return {'a': self.a, 'b': self.b, 'c': self.c, 'd': self.d, 'details': self.details}
-
-
-def _n_real(lin: GeneralLinear, K: float, scale: float) -> int:
-    lam = lin.eig(K)
-    real = (np.abs(lam.imag) <= 1e-6 * np.maximum(np.abs(lam), 1e-300)) & \
-        (lam.real < -1e-7 * scale)
-    return int(np.count_nonzero(real))
-
-
-def meetings(lin: GeneralLinear, K_grid=None) -> tuple[list, int]:
-    """Return (the K* where a pair meets on the negative real axis, net count of meetings).
-
-    The number of real negative roots is scanned over ``K_grid``; each rise is bisected
-    (the pair just before is complex, just after real) to 1e-8 relative.
-    """
-    scale = _scale(np.linalg.eigvals(lin.A0))
-    K_ref = scale / float(lin.fast_rates.min())
-    grid = np.geomspace(1e-6 * K_ref, 1e6 * K_ref, 481) if K_grid is None else np.asarray(
-        K_grid, dtype=float)
-    counts = [_n_real(lin, K, scale) for K in grid]
-    found, net = [], (counts[-1] - counts[0]) // 2
-    for i in range(len(grid) - 1):
-        if counts[i + 1] <= counts[i]:
-            continue
-        lo, hi, target = grid[i], grid[i + 1], counts[i + 1]
-        while hi - lo > 0.25 * K_D_REL_TOL * hi:
-            mid = 0.5 * (lo + hi)
-            if _n_real(lin, mid, scale) >= target:
-                hi = mid
-            else:
-                lo = mid
-        lam_lo = lin.eig(lo)
-        # the pair about to meet: the complex root with the smallest imaginary part
-        cand = [x for x in lam_lo if x.imag > 0 and x.real < 0]
-        best = min(cand, key=lambda x: x.imag) if cand else complex(np.nan)
-        found.append(Meeting(K_star=float(0.5 * (lo + hi)), point=float(best.real),
-                             bracket=float((hi - lo) / hi)))
-    return found, int(net)
-
-
-def _claim_c(lin: GeneralLinear, scale: float) -> tuple[bool, dict]:
-    m = lin.b.shape[1]
-    mu = float(lin.fast_rates.min())
-    K1 = 1e4 * scale / mu
-    locked = np.linalg.eigvals(lin.A_locked) if lin.A_locked.size else np.zeros(0)
-    dists = []
-    ok = True
-    for K in (K1, 10 * K1):
-        lam = lin.eig(K)
-        order = np.argsort(lam.real)
-        fast = lam[order[:m]]
-        rest = lam[order[m:]]
-        slow_idx = np.argsort(np.abs(rest))[:m] if m else []
-        slow = rest[slow_idx]
-        others = np.delete(rest, slow_idx)
-        ok &= bool(np.all(fast.real < -0.5 * K * mu))
-        ok &= bool(np.all(np.abs(fast.imag) <= 1e-6 * np.abs(fast)))
-        ok &= bool(np.all(np.abs(slow) <= 1e-3 * scale))
-        d = max((float(np.min(np.abs(locked - x))) for x in others), default=0.0)
-        d = max(d, max((float(np.min(np.abs(others - x))) for x in locked), default=0.0))
-        dists.append(d / scale)
-    ok &= dists[0] <= 1e-3 and dists[1] <= max(0.5 * dists[0], 1e-9)
-    return bool(ok), {'K_large': [K1, 10 * K1], 'distance_to_locked_rel': dists,
-                      'locked_spectrum': [[float(x.real), float(x.imag)] for x in locked]}
-
-
-def check_claims(lin: GeneralLinear, K: float | None = None) -> GeneralClaims:
-    """Check claims (a) to (d) (module doc); K defaults to the scene's K_D (> 0 needed)."""
-    lam0 = np.linalg.eigvals(lin.A_cons)
-    scale = _scale(lam0)
-    tol = REL_AXIS * scale
-    a = bool(np.all(np.abs(lam0.real) <= tol))
-    un, zeros, _ = _unreached(lin)
-    if K is None and np.all(lin.K_all > 0):
-        A, K = lin.A_scene(), lin.K_D
-    else:
-        K = K if K is not None and K > 0 else 1e-3 * scale / float(lin.fast_rates.min())
-        A = lin.A_common(K)
-    lam = np.linalg.eigvals(A)
-    on_axis = np.abs(lam.real) <= tol
-    zero_K = np.abs(lam) <= 1e-7 * scale
-    stays = all(np.min(np.abs(lam - u)) <= 1e-7 * scale for u in un)
-    b = bool(stays and np.count_nonzero(on_axis & ~zero_K) == un.size
-             and np.count_nonzero(zero_K) == zeros.size
-             and np.all(lam[~on_axis & ~zero_K].real < -tol))
-    c, cdet = _claim_c(lin, scale)
-    found, net = meetings(lin)
-    d = bool(net == lin.b.shape[1] and all(x.bracket <= K_D_REL_TOL for x in found))
-    details = {
-        'max_abs_re_at_K0': float(np.abs(lam0.real).max()) if lam0.size else 0.0,
-        'axis_tol': tol, 'K': K, 'unreached': [[float(u.real), float(u.imag)] for u in un],
-        'structural_zero_roots': int(zeros.size),
-        'max_re_reached_at_K': (float(lam[~on_axis & ~zero_K].real.max())
-                                if np.any(~on_axis & ~zero_K) else None),
-        'net_meetings': net, **cdet,
-    }
-    return GeneralClaims(a=a, b=b, c=c, d=d, details=details, meetings=found)
+def check_claims(lin: GeneralLinear):
+    """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`."""
+    from gyro_rotor.linear.claims import check
+    return check(lin.drive_system())
 
 
 @dataclasses.dataclass(frozen=True)

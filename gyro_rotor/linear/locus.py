@@ -170,25 +170,39 @@ def root_locus(lin: LinearSystem, K_D_grid=None) -> RootLocus:
                      zero_labels=zlab, fast_label=names[fast], fast_gain=gain)
 
 
+def drive_system(lin: LinearSystem):
+    """Return the centrifuge linearization as a :class:`~gyro_rotor.linear.claims.DriveSystem`.
+
+    One drive: ``B = b``, ``C = c^T``, the scene's K_D.
+    """
+    from gyro_rotor.linear.claims import DriveSystem
+    return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
+                       K_scene=np.array([lin.params.K_D], dtype=float))
+
+
 def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
     """Check the paper's claims (a) to (d) for this linearization, by their meaning.
 
-    See :mod:`gyro_rotor.linear.claims` (one function per claim, on a
-    :class:`~gyro_rotor.linear.claims.DriveSystem`; no claim looks at mode names).
-    ``K_D_star``/``breakaway`` are the last meeting of a pair on the real axis (the one
-    that splits toward 0 and -infinity); ``meetings`` holds all of them.
+    The one checker of every system, :func:`gyro_rotor.linear.claims.check`, on
+    :func:`drive_system`; the root locus on ``K_D_grid`` (named branches) is for the plot
+    and the table. ``K_D_star``/``breakaway`` are the last break-in (the pair that splits
+    toward 0 and -infinity); ``meetings`` holds all of them, each with its kind.
     """
     from gyro_rotor.linear import claims as cl
     loc = root_locus(lin, K_D_grid)
-    sys = cl.drive_system(lin)
-    path = loc.eigenvalues if loc.K_D[0] == 0 else np.vstack(
-        [spectrum(lin, 0.0)[0][None, :], loc.eigenvalues])
-    K = loc.K_D if loc.K_D[0] == 0 else np.concatenate([[0.0], loc.K_D])
-    claim_d, meets = cl.claim_d(sys, K, path)
-    claims = {'a': cl.claim_a(sys), 'b': cl.claim_b(sys, K, path, loc.labels),
-              'c': cl.claim_c(sys, float(K[-1])), 'd': claim_d}
-    K_star = meets[-1].K_D if meets else None
-    lam_star = meets[-1].lam if meets else None
+    res = cl.check(drive_system(lin))
+    claims = dict(res.claims)
+    if res.unreached.size:
+        lam0 = loc.eigenvalues[0] if loc.K_D[0] == 0 else spectrum(lin, 0.0)[0]
+        names = sorted({loc.labels[int(np.argmin(np.abs(lam0 - u)))] for u in res.unreached})
+        b = claims['b']
+        claims['b'] = dataclasses.replace(
+            b, exception=b.exception.replace('roots not reached by the drive',
+                                             f'roots not reached by the drive '
+                                             f'({", ".join(names)})'))
+    ins = [mt for mt in res.meetings if mt.kind is cl.MeetingKind.BREAK_IN]
+    K_star = ins[-1].K_D if ins else None
+    lam_star = ins[-1].lam if ins else None
     regimes = []
     if K_star is not None:
         regimes.append({'regime': 'the pair that meets last is complex (oscillatory)',
@@ -196,4 +210,4 @@ def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:
         regimes.append({'regime': 'that pair real (overdamped)', 'K_D_from': K_star,
                         'K_D_to': math.inf})
     return ClaimsReport(claims=claims, K_D_star=K_star, breakaway=lam_star, regimes=regimes,
-                        locus=loc, meetings=meets)
+                        locus=loc, meetings=list(res.meetings))

@@ -140,7 +140,8 @@ def eig(args) -> int:
 
 
 def locus(args) -> int:
-    """Root locus over K_D (all drives, or --drive), K_D* and claims (a) to (d)."""
+    """Root locus over K_D (all drives, or --drive), every meeting and claims (a) to (d)."""
+    from gyro_rotor.cli.commands.locus import CLAIM_FAILS
     from gyro_rotor.linear.general import check_claims, linearize_scene
     for path, suf in ((args.json, ('.json',)), (args.csv, ('.csv',)), (args.out, ('.png',))):
         if path:
@@ -161,18 +162,24 @@ def locus(args) -> int:
     print(f'scene {scene.name}: root locus over K_D of '
           f'{args.drive if getattr(args, "drive", None) else "all drives"} '
           f'({grid[0]:.3g} .. {grid[-1]:.3g}, {len(grid)} points)')
+    for key, c in claims.claims.items():
+        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
+        if c.exception:
+            print(f'      expected exception: {c.exception}')
     for x in claims.meetings:
-        print(f'  K_D* = {x.K_star:.10g} (bracket {x.bracket:.1e} relative): a pair meets '
-              f'on the real axis at {x.point:.8g}')
-    for key in 'abcd':
-        print(f'  claim ({key}): {"holds" if getattr(claims, key) else "FAILS"}')
+        print(f'  K_D* = {x.K_D:.10g} N m s/rad: {x.kind}, double root at {x.lam:.8g} 1/s'
+              + ('' if x.verified else ' (NOT verified)'))
     if args.json:
+        details = {'net_meetings': claims.claims['d'].data['net_meetings'],
+                   'structural_zero_roots': claims.structural_zero_roots,
+                   **{k: c.data for k, c in claims.claims.items()}}
         doc = {'scene': scene.name, 'system': scene.system.name,
                'drive': getattr(args, 'drive', None),
-               'K_D_star': [x.K_star for x in claims.meetings],
-               'meeting_points': [x.point for x in claims.meetings],
-               'claims': {k: getattr(claims, k) for k in 'abcd'},
-               'details': claims.details,
+               'K_D_star': claims.K_D_star,
+               'meeting_points': [x.lam for x in claims.meetings],
+               'meetings': [x.as_dict() for x in claims.meetings],
+               'claims': {k: c.holds for k, c in claims.claims.items()},
+               'details': details,
                'K_D': grid.tolist(),
                'roots': [[[z.real, z.imag] for z in row] for row in roots]}
         with open(args.json, 'w', encoding='utf-8') as f:
@@ -185,7 +192,7 @@ def locus(args) -> int:
                     f.write(f'{K!r},{j},{z.real!r},{z.imag!r}\n')
     if args.out:
         _plot_locus(args.out, grid, roots, claims, scene.name)
-    return 0 if all(getattr(claims, k) for k in 'abcd') else 1
+    return 0 if claims.all_hold else CLAIM_FAILS
 
 
 def _plot_locus(path, grid, roots, claims, name) -> None:
@@ -199,7 +206,7 @@ def _plot_locus(path, grid, roots, claims, name) -> None:
     sc = ax.scatter(roots.real.ravel(), roots.imag.ravel(), s=2,
                     c=np.repeat(np.log10(grid), roots.shape[1]), cmap='viridis')
     for x in claims.meetings:
-        ax.plot([x.point], [0.0], 'rx')
+        ax.plot([x.lam], [0.0], 'rx')
     fig.colorbar(sc, label='log10 K_D')
     ax.set_xlabel('Re [1/s]')
     ax.set_ylabel('Im [1/s]')

@@ -11,6 +11,7 @@ from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims, default_grid, root_locus
+from gyro_rotor.linear.spectrum import _tol_re
 from gyro_rotor.linear.stability import scene_operating_point
 import numpy as np
 
@@ -74,11 +75,11 @@ def run(args: argparse.Namespace) -> int:
         if c.exception:
             print(f'      expected exception: {c.exception}')
     for mt in cr.meetings:
-        print(f'  K_D* = {mt.K_D:.8g} N m s/rad (double root at {mt.lam:.6g} 1/s, polished '
-              f'and verified to {mt.verified_rtol:.0e} relative)')
+        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {mt.kind}, double root at {mt.lam:.8g} 1/s'
+              + ('' if mt.verified else ' (NOT verified)'))
     for r in cr.regimes:
         print(f"  regime: {r['regime']}: K_D in [{r['K_D_from']:.4g}, {r['K_D_to']:.4g}]")
-    tol = cr.claims['b'].data['tol_re']
+    tol = _tol_re(lin)
     print('  asymptotes (K_D -> infinity): ' + ', '.join(
         f'{nm} ' + (f'{z.real:+.4g}' if abs(z.real) > tol else '0') + f'{z.imag:+.6g}j'
         for z, nm in zip(loc.zeros, loc.zero_labels) if z.imag >= 0)
@@ -95,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
         doc['claims'] = {k: {'statement': c.statement, 'holds': c.holds, 'detail': c.detail,
                              'exception': c.exception, 'data': c.data}
                          for k, c in cr.claims.items()}
-        doc['meetings'] = [{'K_D_star': mt.K_D, 'lambda_star': mt.lam} for mt in cr.meetings]
+        doc['meetings'] = [mt.as_dict() for mt in cr.meetings]
+        doc['meeting_points'] = [mt.lam for mt in cr.meetings]
         doc['K_D_star'] = cr.K_D_star
         doc['breakaway'] = cr.breakaway
         doc['regimes'] = cr.regimes

@@ -1,0 +1,207 @@
+"""The one claims checker (issue 22): claims (a) to (d) on every valid system, every meeting.
+
+The paper's theorem holds for every conservative rotor system with self-stable drives, so
+the checker is tested on random valid systems (hypothesis), built from their linear pieces:
+x = (q, z, qdot, zdot), M xdd + G xd + K x + diag(0, K_D) zd = 0 with M symmetric positive
+definite, G skew (gyroscopic), K = diag(Hessian of the potential, K_S). The meetings are
+checked against values computed here independently (the real-root count, bisected).
+"""
+
+import math
+
+from gyro_rotor.core.params import RotorParams
+from gyro_rotor.core.scene import load_scene
+from gyro_rotor.core.steady import steady_motion
+from gyro_rotor.core.system.scene import load_general_scene
+from gyro_rotor.linear import claims as cl
+from gyro_rotor.linear.general import check_claims, linearize_scene
+from gyro_rotor.linear.linearize import linearize
+from gyro_rotor.linear.locus import check_claims as centrifuge_claims, drive_system
+from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
+import pytest
+
+
+def pieces(M, G, K, K_S, K_D):
+    """A0, B, C of the paper's form from the matrices of the linearized equations."""
+    n, m = len(K), len(K_S)
+    N = n + m
+    Kf = np.zeros((N, N))
+    Kf[:n, :n] = K
+    Kf[n:, n:] = np.diag(K_S)
+    Minv = np.linalg.inv(M)
+    A0 = np.block([[np.zeros((N, N)), np.eye(N)], [-Minv @ Kf, -Minv @ G]])
+    E = np.vstack([np.zeros((n, m)), np.eye(m)])
+    B = np.vstack([np.zeros((N, m)), Minv @ E])
+    C = np.hstack([np.zeros((m, N)), E.T])
+    return cl.DriveSystem(A0=A0, B=B, C=C, K_scene=np.asarray(K_D, float))
+
+
+def random_system(seed, n, m, indefinite=False):
+    """Return a random valid system (module doc); ``indefinite``: a negative Hessian root."""
+    rng = np.random.default_rng(seed)
+    N = n + m
+
+    def spd(k, lo, hi):
+        Q, _ = np.linalg.qr(rng.normal(size=(k, k)))
+        return Q @ np.diag(np.exp(rng.uniform(math.log(lo), math.log(hi), k))) @ Q.T
+    M = spd(N, 0.2, 5.0)
+    W = rng.normal(size=(N, N)) * rng.uniform(0.0, 20.0)
+    G = W - W.T
+    K = spd(n, 0.2, 50.0)
+    if indefinite:
+        w, V = np.linalg.eigh(K)
+        w[0] = -w[0]
+        K = V @ np.diag(w) @ V.T
+    K_S = np.exp(rng.uniform(math.log(0.1), math.log(100.0), m))
+    K_D = np.exp(rng.uniform(math.log(0.01), math.log(10.0), m))
+    return pieces(M, G, K, K_S, K_D)
+
+
+def n_real(A):
+    """Real roots as LAPACK returns them (a 1 x 1 block of the real Schur form)."""
+    return int(np.sum(np.linalg.eigvals(A).imag == 0.0))
+
+
+def bisect_meeting(sys, lo, hi):
+    """K where the real-root count changes between lo and hi, by bisection (independent)."""
+    A0, B, C = sys.locus_pieces()
+    c_lo = n_real(A0 - lo * B @ C)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if n_real(A0 - mid * B @ C) == c_lo:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    return 0.5 * (lo + hi)
+
+
+# -- properties over random valid systems ------------------------------------------------------
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 4), m=st.integers(1, 3))
+def test_claims_hold_on_every_random_valid_system(seed, n, m):
+    res = cl.check(random_system(seed, n, m))
+    assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
+    assert res.claims['d'].data['net_meetings'] == m
+    assert all(mt.verified and mt.lam < 0 for mt in res.meetings)
+    assert res.K_D_star == sorted(res.K_D_star)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 4), m=st.integers(1, 3))
+def test_every_meeting_is_a_real_root_count_change(seed, n, m):
+    """Each K* found changes the real-root count there (bisected independently) to 1e-10."""
+    sys = random_system(seed, n, m)
+    A0, B, C = sys.locus_pieces()
+    for mt in cl.check(sys).meetings:
+        below = n_real(A0 - mt.K_D * (1 - 1e-7) * B @ C)
+        above = n_real(A0 - mt.K_D * (1 + 1e-7) * B @ C)
+        assert above - below == (2 if mt.kind is cl.MeetingKind.BREAK_IN else -2)
+        K_ind = bisect_meeting(sys, mt.K_D * (1 - 1e-7), mt.K_D * (1 + 1e-7))
+        assert abs(K_ind - mt.K_D) <= 1e-10 * mt.K_D
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 4), m=st.integers(1, 3))
+def test_an_indefinite_potential_fails_a_or_b(seed, n, m):
+    """The checker can fail: a Hessian with a negative eigenvalue breaks the theorem."""
+    res = cl.check(random_system(seed, n, m, indefinite=True))
+    assert not (res.claims['a'].holds and res.claims['b'].holds)
+
+
+def test_slow_roots_near_zero_still_count_as_real():
+    """Issue 22: the slow roots -K_S/K_D fell below a magnitude threshold and dropped out."""
+    sys = random_system(7, 2, 3)
+    res = cl.check(sys)
+    loc = res.locus
+    assert loc.real_counts[-1] == 2 * 3
+    lam = loc.roots[-1]
+    slow = np.sort(np.abs(lam[lam.imag == 0]))[:3]
+    assert np.all(slow < 1e-6 * np.abs(lam).max())
+
+
+# -- a bubble narrower than any grid ---------------------------------------------------------
+def bubble_system(eps):
+    """Two nearly independent drives: drive 1's fast root passes drive 2's slow root.
+
+    Each half: a carrier coordinate x_i (spring k_i) and a rotor z_i coupled through the
+    mass matrix; eps couples the two rotors' inertias. At eps = 0 the two real roots cross;
+    for small eps they meet, leave the axis and come back (a breakaway, then a break-in).
+    """
+    M = np.array([[1.0, 0.0, 0.3, 0.0],
+                  [0.0, 1.0, 0.0, 0.3],
+                  [0.3, 0.0, 0.5, eps],
+                  [0.0, 0.3, eps, 2.0]])
+    G = np.zeros((4, 4))
+    return pieces(M, G, np.diag([4.0, 9.0]), [30.0, 1.0], [0.1, 0.1])
+
+
+def test_a_bubble_narrower_than_1e_4_is_found_both_ends_with_kinds():
+    sys = bubble_system(2e-6)
+    res = cl.check(sys)
+    assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
+    kinds = [mt.kind for mt in res.meetings]
+    # two break-ins (one per drive) and the bubble: a breakaway, then a break-in
+    assert kinds.count(cl.MeetingKind.BREAK_IN) == 3
+    assert kinds.count(cl.MeetingKind.BREAKAWAY) == 1
+    i = kinds.index(cl.MeetingKind.BREAKAWAY)
+    away, back = res.meetings[i], res.meetings[i + 1]
+    assert back.kind is cl.MeetingKind.BREAK_IN
+    width = (back.K_D - away.K_D) / away.K_D
+    assert 0 < width < 1e-5
+    # a 481-point geometric grid over the same range has no point inside the bubble
+    K_lo, K_hi = res.locus.K[0], res.locus.K[-1]
+    grid = np.geomspace(K_lo, K_hi, 481)
+    assert not np.any((grid > away.K_D) & (grid < back.K_D))
+    # both ends independently: the real-root count bisected
+    for mt in (away, back):
+        K_ind = bisect_meeting(sys, mt.K_D * (1 - 0.2 * width), mt.K_D * (1 + 0.2 * width))
+        assert abs(K_ind - mt.K_D) <= 1e-10 * mt.K_D
+    assert res.claims['d'].data['net_meetings'] == 2
+
+
+# -- the centrifuge: the quaternion model and its system file agree ------------------------------
+CENTRIFUGE_SETS = [
+    {},
+    {'A_R': 0.02, 'A_M': 0.03, 'C_R': 0.03, 'C_M': 0.01, 'G': 98.1, 's': 0.05,
+     'c_theta': 50.0, 'c_psi': 20.0, 'K_S': 10.0, 'K_D': 0.05},
+    {'A_R': 0.08, 'A_M': 0.05, 'C_R': 0.015, 'C_M': 0.02, 'G': 50.0, 's': 0.1,
+     'c_theta': 30.0, 'c_psi': 40.0, 'K_S': 50.0, 'K_D': 0.3},
+    {'A_R': 0.04, 'A_M': 0.12, 'C_R': 0.025, 'C_M': 0.005, 'G': 120.0, 's': 0.02,
+     'c_theta': 80.0, 'c_psi': 10.0, 'K_S': 5.0, 'K_D': 0.02},
+]
+
+
+@pytest.mark.parametrize('values', CENTRIFUGE_SETS, ids=['shipped', 'set1', 'set2', 'set3'])
+def test_centrifuge_K_D_star_same_from_quaternion_model_and_system_file(values):
+    p = RotorParams().replace(**values)
+    sm = steady_motion(p, 0.1, 1)
+    ref = centrifuge_claims(linearize(p, sm))
+    assert ref.all_hold, {k: c.detail for k, c in ref.claims.items()}
+    consts = {f'constants.{k}': v for k, v in values.items() if k not in ('K_S', 'K_D')}
+    drive = {f'drive.R.{k}': v for k, v in values.items() if k in ('K_S', 'K_D')}
+    qdot = [0.0, sm.psidot0, sm.phi_M_dot0]
+    scene = load_general_scene('centrifuge_euler', overrides={
+        **consts, **drive, 'drive.R.Omega0': p.Omega0, 'steady.q': [0.1, 0.0, 0.0],
+        'steady.qdot': qdot})
+    res = check_claims(linearize_scene(scene))
+    assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
+    assert len(res.meetings) == len(ref.meetings) >= 1
+    for a, b in zip(res.meetings, ref.meetings):
+        assert a.kind is b.kind
+        assert abs(a.K_D - b.K_D) <= 1e-10 * b.K_D
+        assert abs(a.lam - b.lam) <= 1e-8 * abs(b.lam)
+
+
+@pytest.mark.parametrize('scene', ['precession', 'nutation', 'stiff_drive', 'fast_spin',
+                                   'pole_slip', 'upright', 'conservative', 'locked_housing'])
+def test_one_checker_on_every_centrifuge_scene(scene):
+    sc = load_scene(scene)
+    lin = linearize(sc.params, sc.steady(), sc.model)
+    cr = centrifuge_claims(lin)
+    res = cl.check(drive_system(lin))
+    held = {k: c.holds for k, c in res.claims.items()}
+    assert {k: c.holds for k, c in cr.claims.items()} == held
+    assert [mt.K_D for mt in cr.meetings] == res.K_D_star
