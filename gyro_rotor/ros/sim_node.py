@@ -320,7 +320,11 @@ class RotorSimNode(Node):
 
     def on_shutdown(self) -> None:
         """Report the published counts (the soak compares them) and flush reliable writers."""
-        print(f'published counts: {json.dumps(self.published)}', file=sys.stderr, flush=True)
+        try:        # (stderr may be a pipe whose reader is gone: a killed ros2 launch)
+            print(f'published counts: {json.dumps(self.published)}', file=sys.stderr,
+                  flush=True)
+        except OSError:
+            pass
         # a reliable writer's unacknowledged messages die with it: give them a moment
         for pub in (self.pub['joint_states'], self.pub['energy']):
             pub.wait_for_all_acked(Duration(seconds=SHUTDOWN_ACK_WAIT))
