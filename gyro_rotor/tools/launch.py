@@ -124,6 +124,54 @@ class NodeProcess:
         return self.proc.wait()
 
 
+# -- the launch files' helpers ---------------------------------------------------------------
+_TRUE = ('true', '1', 'yes', 'on')
+
+
+def scene_urdf(scene: str, share: str) -> str | None:
+    """Return the URDF of a scene's system, or None if it has none (or is not found).
+
+    The centrifuge scenes (``config/<scene>.yaml``) have ``urdf/centrifuge.urdf``; a general
+    scene (a ``system`` key; ``config/systems/scenes/<scene>.yaml`` first, as rotor_sim
+    looks it up) has none. Light: reads the YAML file only, for launch files.
+    """
+    import yaml
+    if scene.endswith(('.yaml', '.yml')) or os.sep in scene or os.path.isfile(scene):
+        candidates = [scene]
+    else:
+        candidates = [os.path.join(share, 'config', 'systems', 'scenes', f'{scene}.yaml'),
+                      os.path.join(share, 'config', f'{scene}.yaml')]
+    for path in candidates:
+        if not os.path.isfile(path):
+            continue
+        try:
+            with open(path, encoding='utf-8') as f:
+                doc = yaml.safe_load(f)
+        except (OSError, yaml.YAMLError):
+            return None
+        params = next((v['ros__parameters'] for v in (doc or {}).values()
+                       if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)),
+                      {})
+        return None if 'system' in params else os.path.join(share, 'urdf', 'centrifuge.urdf')
+    return None
+
+
+def robot_description_condition(share: str, no_urdf: bool = False):
+    """Return a launch condition predicate: robot_description on and the scene has a URDF.
+
+    ``no_urdf``: the predicate of the opposite case worth a log line: robot_description on
+    but the scene's system has no URDF. Reads the launch configurations ``scene`` and
+    ``robot_description``.
+    """
+    def predicate(context) -> bool:
+        cfg = context.launch_configurations
+        if str(cfg.get('robot_description', 'true')).lower() not in _TRUE:
+            return False
+        has = scene_urdf(str(cfg.get('scene', 'precession')), share) is not None
+        return has != no_urdf
+    return predicate
+
+
 # -- ros2 launch, stopped as a terminal's Ctrl-C stops it ---------------------------------------
 #: the problems that make a stopped launch unclean, found in its output
 UNCLEAN_MARKS = ('process has died', 'Traceback', 'KeyboardInterrupt', '[ERROR]')
