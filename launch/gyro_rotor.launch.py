@@ -2,9 +2,12 @@
 
     ros2 launch gyro_rotor gyro_rotor.launch.py scene:=nutation output:=/tmp/run1 rviz:=true
 
-Arguments: ``scene`` (for rotor_sim; rotor_analysis follows the scene that rotor_sim
-announces), ``output`` (the bag directory; empty: a fresh ``bags_out/rotor_<time>``),
-``rviz``.
+Arguments (``ros2 launch gyro_rotor gyro_rotor.launch.py --show-args``): ``scene`` (for
+rotor_sim; rotor_analysis follows the scene that rotor_sim announces), ``output`` (the bag
+directory), ``rviz``, ``robot_description`` (robot_state_publisher, for the systems that
+have a URDF), ``use_sim_time`` (of every node but rotor_sim, the clock source) and
+``namespace`` (of every node). Ctrl-C stops it cleanly: every node exits with status 0,
+the bag finalized.
 """
 
 import os
@@ -20,17 +23,35 @@ def generate_launch_description():
     """Return the description: analysis.launch.py, then sim.launch.py on ``scene``."""
     launch_dir = os.path.join(get_package_share_directory('gyro_rotor'), 'launch')
     scene = LaunchConfiguration('scene')
+    common = {'use_sim_time': LaunchConfiguration('use_sim_time'),
+              'namespace': LaunchConfiguration('namespace')}
     return LaunchDescription([
-        DeclareLaunchArgument('scene', default_value='precession'),
-        DeclareLaunchArgument('output', default_value=''),
-        DeclareLaunchArgument('rviz', default_value='false'),
+        DeclareLaunchArgument('scene', default_value='precession',
+                              description='scene of rotor_sim: a name (config/<scene>.yaml, '
+                                          'config/systems/scenes/<scene>.yaml) or a path'),
+        DeclareLaunchArgument('output', default_value='',
+                              description='rosbag2 (MCAP) directory to record to, which must '
+                                          "not exist yet ('': a fresh "
+                                          'bags_out/rotor_<time>)'),
+        DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
+        DeclareLaunchArgument('robot_description', default_value='true',
+                              description='start robot_state_publisher with the URDF of the '
+                                          "scene's system (the centrifuge scenes; a general "
+                                          'system has none: not started)'),
+        DeclareLaunchArgument('use_sim_time', default_value='true',
+                              description="the nodes but rotor_sim follow rotor_sim's /clock "
+                                          '(rotor_sim is the clock source)'),
+        DeclareLaunchArgument('namespace', default_value='',
+                              description='ROS namespace of every node and of their topics'),
         IncludeLaunchDescription(
             PythonLaunchDescriptionSource(os.path.join(launch_dir, 'analysis.launch.py')),
             launch_arguments={'output': LaunchConfiguration('output'),
-                              'scene': scene}.items()),     # subscribed from the start
+                              'scene': scene, **common}.items()),  # subscribed from the start
         IncludeLaunchDescription(
             PythonLaunchDescriptionSource(os.path.join(launch_dir, 'sim.launch.py')),
             launch_arguments={'scene': scene, 'rviz': LaunchConfiguration('rviz'),
+                              'robot_description': LaunchConfiguration('robot_description'),
+                              **common,
                               # the recorder: rotor_sim holds t = 0 until it subscribes
                               'wait_for_subscribers': '1',
                               'wait_for_node': 'rotor_analysis'}.items()),

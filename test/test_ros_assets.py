@@ -133,8 +133,9 @@ class _Entity:
 
 def _stub_modules(share: Path) -> dict:
     names = {
-        'launch': ['LaunchDescription'],
-        'launch.actions': ['DeclareLaunchArgument', 'IncludeLaunchDescription'],
+        'launch': ['LaunchDescription', 'Condition'],
+        'launch.actions': ['DeclareLaunchArgument', 'IncludeLaunchDescription', 'LogInfo',
+                           'GroupAction', 'OpaqueFunction'],
         'launch.conditions': ['IfCondition', 'UnlessCondition'],
         'launch.substitutions': ['LaunchConfiguration', 'PathJoinSubstitution', 'Command'],
         'launch.launch_description_sources': ['PythonLaunchDescriptionSource'],
@@ -245,22 +246,74 @@ def test_launch_file_starts_existing_executables_with_installed_files(name, laun
             assert parts[0] == str(launch_env) and parts[1] == 'config'
 
 
+def _is_config(value, name: str, typ=None) -> bool:
+    """Whether ``value`` is LaunchConfiguration(name) (in a ParameterValue of ``typ``)."""
+    if typ is not None:
+        if type(value).__name__ != 'ParameterValue' or value.kwargs.get('value_type') is not typ:
+            return False
+        value = value.args[0]
+    return type(value).__name__ == 'LaunchConfiguration' and value.args[0] == name
+
+
 def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
     path = launch_env / 'launch' / 'sim.launch.py'
     ld = runpy.run_path(str(path))['generate_launch_description']()
     nodes = {n.kwargs['executable']: n for n in _walk(ld) if type(n).__name__ == 'Node'}
     rsp = nodes['robot_state_publisher'].kwargs['parameters'][0]
     assert rsp['robot_description'] == URDF.read_text()
-    assert rsp['use_sim_time'] is True
+    assert _is_config(rsp['use_sim_time'], 'use_sim_time', bool)
     sim_params = nodes['rotor_sim'].kwargs['parameters'][0]
     assert sim_params['publish_clock'] is True
     # rotor_sim reads the scene file itself: a centrifuge scene or any rotor system's
     assert sim_params['scene'].args[0] == 'scene'
     assert sim_params['wait_for_subscribers'].args[0].args[0] == 'wait_for_subscribers'
-    assert all(p.get('use_sim_time') is not True for p in nodes['rotor_sim'].kwargs[
-        'parameters'] if isinstance(p, dict))          # the simulator keeps its own time
+    # the simulator is the clock source: use_sim_time is never passed to it
+    assert all('use_sim_time' not in p for p in nodes['rotor_sim'].kwargs['parameters']
+               if isinstance(p, dict))
     rviz = nodes['rviz2'].kwargs['parameters'][0]
-    assert rviz['use_sim_time'] is True
+    assert _is_config(rviz['use_sim_time'], 'use_sim_time', bool)
+    for n in nodes.values():
+        assert _is_config(n.kwargs['namespace'], 'namespace')
+
+
+class _Context:
+    """The launch context a condition's predicate reads: the launch configurations."""
+
+    def __init__(self, **cfg):
+        self.launch_configurations = cfg
+
+
+@pytest.mark.parametrize('scene, robot_description, started', [
+    ('precession', 'true', True), ('nutation', 'True', True), ('precession', 'false', False),
+    ('twin_gimbal', 'true', False), ('elastic_frame', 'true', False),
+    ('twin_gimbal', 'false', False)])
+def test_robot_state_publisher_only_for_systems_with_a_urdf(launch_env, scene,
+                                                            robot_description, started):
+    ld = runpy.run_path(str(launch_env / 'launch' / 'sim.launch.py'))[
+        'generate_launch_description']()
+    entities = list(_walk(ld))
+    rsp = next(n for n in entities if type(n).__name__ == 'Node'
+               and n.kwargs['executable'] == 'robot_state_publisher')
+    log = next(e for e in entities if type(e).__name__ == 'LogInfo')
+    ctx = _Context(scene=scene, robot_description=robot_description)
+    assert rsp.kwargs['condition'].kwargs['predicate'](ctx) is started
+    # a general system with robot_description on: one log line says why there is no TF
+    said = log.kwargs['condition'].kwargs['predicate'](ctx)
+    assert said is (robot_description.lower() == 'true' and not started)
+
+
+def test_scene_urdf_follows_rotor_sims_lookup(launch_env, tmp_path):
+    from gyro_rotor.tools.launch import scene_urdf
+    share = str(launch_env)
+    assert scene_urdf('precession', share) == str(launch_env / 'urdf' / 'centrifuge.urdf')
+    assert scene_urdf('twin_gimbal', share) is None
+    assert scene_urdf('no_such_scene', share) is None        # rotor_sim reports it
+    general = tmp_path / 'mine.yaml'
+    general.write_text('/**:\n  ros__parameters:\n    system: twin_gimbal\n')
+    assert scene_urdf(str(general), share) is None
+    (tmp_path / 'c.yaml').write_text(
+        (REPO / 'config' / 'nutation.yaml').read_text())
+    assert scene_urdf(str(tmp_path / 'c.yaml'), share) is not None
 
 
 def test_combined_launch_records_from_t0(launch_env):
@@ -275,11 +328,73 @@ def test_combined_launch_records_from_t0(launch_env):
 
 
 def test_analysis_launch_follows_simulation_time(launch_env):
-    """rotor_analysis runs with use_sim_time: ROS time is rotor_sim's /clock."""
+    """rotor_analysis runs with use_sim_time (default true): ROS time is rotor_sim's /clock."""
     path = launch_env / 'launch' / 'analysis.launch.py'
     ld = runpy.run_path(str(path))['generate_launch_description']()
     nodes = {n.kwargs['executable']: n for n in _walk(ld) if type(n).__name__ == 'Node'}
-    assert nodes['rotor_analysis'].kwargs['parameters'][0]['use_sim_time'] is True
+    params = nodes['rotor_analysis'].kwargs['parameters'][0]
+    assert _is_config(params['use_sim_time'], 'use_sim_time', bool)
+    assert _is_config(nodes['rotor_analysis'].kwargs['namespace'], 'namespace')
+    args = _declared(ld)
+    assert args['use_sim_time'].kwargs['default_value'] == 'true'
+
+
+def _declared(ld) -> dict:
+    """Return the DeclareLaunchArgument entities of a (stub) launch description by name."""
+    return {e.args[0]: e for e in _walk(ld) if type(e).__name__ == 'DeclareLaunchArgument'}
+
+
+#: the arguments every launch file of the package takes (issue 27), besides its own
+LAUNCH_ARGUMENTS = {
+    'gyro_rotor.launch.py': {'use_sim_time', 'namespace', 'scene', 'output', 'rviz',
+                             'robot_description'},
+    'sim.launch.py': {'use_sim_time', 'namespace', 'scene', 'rviz', 'robot_description',
+                      'wait_for_subscribers', 'wait_for_node'},
+    'analysis.launch.py': {'use_sim_time', 'namespace', 'scene', 'output', 'window_s'},
+}
+
+
+def _launch_api_arguments(path: Path, share: Path, monkeypatch) -> dict | None:
+    """``ros2 launch --show-args``'s list through the launch API: {name: (default, doc)}.
+
+    None where the launch API is not importable (it is not on PyPI; rostools builds it).
+    """
+    try:        # (the checkout's launch/ folder imports as an empty namespace package)
+        from launch.launch_description_sources import PythonLaunchDescriptionSource
+        import ament_index_python.packages as aip
+    except ImportError:
+        return None
+    monkeypatch.setattr(aip, 'get_package_share_directory',
+                        lambda pkg: str(share) if pkg == 'gyro_rotor' else pytest.fail(pkg))
+    ld = PythonLaunchDescriptionSource(str(path)).try_get_launch_description_without_context()
+    return {a.name: (''.join(getattr(s, 'text', str(s)) for s in a.default_value or ()),
+                     a.description) for a in ld.get_launch_arguments()}
+
+
+@pytest.mark.parametrize('name', sorted(LAUNCH_ARGUMENTS))
+def test_launch_arguments_have_descriptions(name, tmp_path, monkeypatch):
+    """Every argument of ``ros2 launch ... --show-args`` says what it does.
+
+    Through the launch API where it is importable (its own list, the included files'
+    arguments merged as ``--show-args`` shows them); otherwise read from the launch file
+    against stub modules, the included files' declarations collected the same way.
+    """
+    share = _installed_share(tmp_path)
+    path = share / 'launch' / name
+    api = _launch_api_arguments(path, share, monkeypatch)
+    if api is None:
+        with monkeypatch.context() as m:
+            for mod_name, mod in _stub_modules(share).items():
+                m.setitem(sys.modules, mod_name, mod)
+            ld = runpy.run_path(str(path))['generate_launch_description']()
+            args = {k: (e.kwargs.get('default_value'), e.kwargs.get('description', ''))
+                    for k, e in _declared(ld).items()}
+    else:
+        args = api
+    assert set(args) >= LAUNCH_ARGUMENTS[name], set(args)
+    for arg, (default, doc) in args.items():
+        assert doc and doc != 'no description given' and len(doc) > 10, (name, arg, doc)
+    assert 'true' in str(args['use_sim_time'][0])
 
 
 # -- RViz and Foxglove ------------------------------------------------------------------

@@ -303,6 +303,7 @@ def test_separate_process_publishes_and_shuts_down_cleanly(sig):
     ('integrator:=euler', "unknown integrator 'euler'"),
     ('scene:=no_such_scene', "unknown scene 'no_such_scene'"),
     ('K_D', "Couldn't parse parameter override rule: '-p K_D'"),
+    ('use_sim_time:=true', 'use_sim_time cannot be true for rotor_sim: it is the clock source'),
 ])
 def test_bad_start_up_parameter_is_one_error_line_and_exit_status_1(arg, expected):
     proc = subprocess.run([sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args', '-p',
@@ -360,4 +361,35 @@ def test_wait_for_node_holds_time_until_that_node_subscribes():
         assert not node._waiting
     finally:
         ex.shutdown()
+        rclpy.try_shutdown(context=context)
+
+
+def test_use_sim_time_is_refused_live(rig):
+    """rotor_sim publishes /clock: following it would be a loop (issue 27)."""
+    (result,) = rig.node.set_parameters([Parameter('use_sim_time', value=True)])
+    assert not result.successful and 'clock source' in result.reason
+    assert rig.node.get_parameter('use_sim_time').value is False
+    (result,) = rig.node.set_parameters([Parameter('use_sim_time', value=False)])
+    assert result.successful
+
+
+@pytest.mark.parametrize('scene', ['nutation', 'twin_gimbal'])
+def test_a_scene_file_applies_to_the_node_under_any_name(scene):
+    """The scene files are keyed ``/**``: a renamed, namespaced node reads them as well."""
+    from gyro_rotor.core.scene import config_dirs
+    path = next(p for d in config_dirs() for p in (d / f'{scene}.yaml',
+                                                   d / 'systems' / 'scenes' / f'{scene}.yaml')
+                if p.is_file())
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    try:
+        node = RotorSimNode('sim2', namespace='/lab', context=context,
+                            cli_args=['--ros-args', '--params-file', str(path)])
+        try:
+            assert node.get_fully_qualified_name() == '/lab/sim2'
+            assert node.sim.scene.name == scene
+            assert node.get_parameter('scene').value == scene
+        finally:
+            node.destroy_node()
+    finally:
         rclpy.try_shutdown(context=context)

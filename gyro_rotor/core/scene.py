@@ -1,9 +1,11 @@
 """Scenes: a YAML file that is at once a ROS 2 parameter file for ``rotor_sim``.
 
 A scene names the parameters (:mod:`gyro_rotor.core.params`), the model it needs, the
-duration and the initial condition::
+duration and the initial condition. The shipped scenes are keyed ``/**`` (any node name,
+so that a renamed or namespaced rotor_sim reads them too); ``rotor_sim`` and
+``/rotor_sim`` are read as well::
 
-    rotor_sim:
+    /**:
       ros__parameters:
         scene: precession
         model: full                 # full | locked_housing | upright_axis
@@ -289,7 +291,7 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
     except yaml.YAMLError as err:
         raise SceneError(f'scene file {path} is not valid YAML: {err}') from err
     if not isinstance(doc, dict):
-        raise SceneError(f'scene file {path}: expected a mapping with a rotor_sim: '
+        raise SceneError(f'scene file {path}: expected a mapping with a /** (or rotor_sim): '
                          f'ros__parameters: section')
     section = None
     for key in NODE_NAMES:
@@ -300,7 +302,8 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
         raise SceneError(f'scene file {path}: no rotor_sim (or /**) section; found '
                          f'{", ".join(map(str, doc)) or "nothing"}')
     if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
-        raise SceneError(f'scene file {path}: rotor_sim needs a ros__parameters mapping')
+        raise SceneError(f'scene file {path}: its /** (rotor_sim) section needs a '
+                         'ros__parameters mapping')
     flat = flatten(section['ros__parameters'])
     for key in section:
         if key != 'ros__parameters':

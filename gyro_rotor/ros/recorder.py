@@ -58,6 +58,9 @@ DRAIN_MAX = 2000
 POLL_PERIOD = 0.01
 #: seconds between polls of the MESSAGE_LOST events
 _LOST_PERIOD = 0.5
+#: at shutdown, longest wait for the other nodes' publishers of the recorded topics to go
+#: away before the last messages are taken [s] (see :meth:`BagRecorder.drain`)
+SETTLE_S = 1.0
 
 
 def default_bag_path(root: str | os.PathLike = 'bags_out') -> Path:
@@ -335,13 +338,23 @@ class BagRecorder:
         """Messages received after a failed write (not in the bag)."""
         return self.spool.not_written
 
-    def drain(self) -> None:
+    def drain(self, settle: float = SETTLE_S) -> None:
         """Stop receiving: take what DDS still holds, wait until the spool wrote it all.
 
         Afterwards ``on_message`` has seen every received message. Idempotent.
+
+        A Ctrl-C (``ros2 launch``, a terminal) stops the recorder and the simulator at the
+        same moment; the simulator publishes until its loop stops and then waits for its
+        last messages to be acknowledged. So the receiving goes on until no other node
+        publishes any of the recorded topics any more (the simulator destroyed its
+        publishers), for at most ``settle`` seconds: the bag then holds everything the
+        simulator sent.
         """
         if self._thread is None:
             return
+        end = time.monotonic() + settle
+        while self._thread.is_alive() and time.monotonic() < end and self._others_publish():
+            time.sleep(0.02)
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join()
@@ -358,6 +371,16 @@ class BagRecorder:
         if not self.writer.closed:
             self.spool.flush()
         self.node.get_logger().info(self.summary())
+
+    def _others_publish(self) -> bool:
+        """Return whether a node other than the owner publishes a recorded topic."""
+        own = (self.node.get_name(), self.node.get_namespace())
+        try:
+            return any((i.node_name, i.node_namespace) != own
+                       for name, _ in self._subs
+                       for i in self._rx.get_publishers_info_by_topic(name))
+        except Exception:       # noqa: B902 -- context already shut down
+            return False
 
     def close(self) -> None:
         """Drain (:meth:`drain`), then finalize the bag (summary, footer, metadata.yaml).

@@ -1,18 +1,42 @@
 """The one ``main()`` of the package's nodes: start, spin, stop on a signal, tear down.
 
-rclpy's own signal handlers would shut the context down under a running callback (whose
-next publish then fails); instead SIGINT and SIGTERM both raise KeyboardInterrupt in the
-main thread, between callbacks or inside one, and the node is torn down here: its
-``on_shutdown()`` if it has one (last words while the context is still up), then
-``destroy_node()``. Errors a user can cause (a bad parameter, an unreadable scene, an
-unwritable output directory, malformed ``--ros-args``) end in one ``ERROR:`` line on
-stderr and exit status 1, never in a traceback.
+**Signals.** rclpy's own signal handlers would shut the context down under a running
+callback (whose next publish then fails), and Python's default SIGINT handler raises
+KeyboardInterrupt wherever the main thread happens to be. Here SIGINT and SIGTERM only
+*ask* for a stop: the first one ends the spin loop at the next callback boundary (a
+thread woken by the signal through :func:`signal.set_wakeup_fd` triggers a guard
+condition of the node, so the main thread can wait for work without a polling timeout
+that would wake it, and take the GIL from rotor_sim's real-time loop, several times a
+second), then the node is torn down: its ``on_shutdown()`` if it has one
+(last words while the context is still up), then ``destroy_node()`` (the recorder
+finalizes its bag there). Every further SIGINT or SIGTERM until the end of the teardown is
+counted and ignored: a terminal's Ctrl-C reaches each node twice under ``ros2 launch``
+(once from the process group, once forwarded by launch), and launch sends SIGTERM if a
+node is still running after its ``sigterm_timeout``; none of them may cut the teardown
+short, or the bag is lost and launch reports "process has died". After the teardown the
+two signals stay ignored for the rest of the process (its interpreter's finalization:
+Python would reset a handler of its own to the default action there, and a late
+forwarded SIGINT would kill the process, exit status -2): everything is written by then.
+However the signals arrive, the exit status is 0 and there is no traceback. In-process
+(tests), ``run_node(..., restore_signals=True)`` puts the previous handlers back instead.
+
+**Started by launch.** The upstream ``ros2 launch`` of Jazzy dies at once on a SIGTERM of
+its own (ros2/launch#666): its nodes are orphaned and would run (and record) on. A node
+whose parent process is a launch process therefore asks the kernel for a SIGTERM when
+that parent dies (``PR_SET_PDEATHSIG``, Linux), and stops as on any SIGTERM. (Only under
+launch: a node started from a shell, e.g. with ``nohup``, is left alone.)
+
+Errors a user can cause (a bad parameter, an unreadable scene, an unwritable output
+directory, malformed ``--ros-args``) end in one ``ERROR:`` line on stderr and exit status
+1, never in a traceback.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
+import threading
 from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError
@@ -22,11 +46,87 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-__all__ = ['run_node']
+__all__ = ['run_node', 'spin_until_stopped', 'StopSignals', 'SPIN_TIMEOUT', 'exit_with_parent',
+           'parent_is_launch']
+
+#: longest wait of one spin of the executor [s] (a stop signal wakes it at once)
+SPIN_TIMEOUT = 2.0
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
+class StopSignals:
+    """SIGINT and SIGTERM as a stop request: the first is remembered, the rest counted.
+
+    Installed with :meth:`install`, removed (the previous handlers back) with
+    :meth:`restore`. The handler does nothing but set attributes, so it is safe wherever
+    the main thread is when the signal arrives (inside rclpy, in a callback, in the
+    teardown). With ``wake``, a thread calls ``wake()`` whenever a signal arrives (it
+    reads the wakeup fd of :func:`signal.set_wakeup_fd`), e.g. to wake an executor whose
+    wait would otherwise delay the Python handler until it times out.
+    """
+
+    def __init__(self):
+        #: the first stop signal (None until one arrives)
+        self.signum: int | None = None
+        #: signals after the first (ignored)
+        self.repeats = 0
+        self._previous: dict = {}
+        self._pipe: tuple[int, int] | None = None
+        self._old_fd = -1
+        self._waker: threading.Thread | None = None
+
+    @property
+    def requested(self) -> bool:
+        """Return whether a stop signal arrived."""
+        return self.signum is not None
+
+    def __call__(self, signum, frame) -> None:
+        """Handle a signal (see the class doc)."""
+        if self.signum is None:
+            self.signum = signum
+        else:
+            self.repeats += 1
+
+    def install(self, wake: Callable[[], None] | None = None) -> 'StopSignals':
+        """Handle SIGINT and SIGTERM from now on (call ``wake()`` on each); return self."""
+        for sig in _SIGNALS:
+            self._previous[sig] = signal.signal(sig, self)
+        if wake is not None:
+            r, w = os.pipe()
+            os.set_blocking(w, False)
+            self._old_fd = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+            self._pipe = (r, w)
+            self._waker = threading.Thread(target=self._wake_loop, args=(r, wake),
+                                           name='signal-wake', daemon=True)
+            self._waker.start()
+        return self
+
+    @staticmethod
+    def _wake_loop(fd: int, wake: Callable[[], None]) -> None:
+        while True:
+            try:
+                if not os.read(fd, 64):         # the write end closed: restore()
+                    return
+            except OSError:
+                return
+            try:
+                wake()
+            except Exception:  # noqa: B902 -- (an executor already shut down)
+                pass
+
+    def restore(self, ignore: bool = False) -> None:
+        """Put the previous handlers back, or with ``ignore`` ignore the signals (idempotent)."""
+        if self._pipe is not None:
+            signal.set_wakeup_fd(self._old_fd)
+            r, w = self._pipe
+            self._pipe = None
+            os.close(w)
+            self._waker.join()
+            os.close(r)
+        for sig, handler in self._previous.items():
+            signal.signal(sig, signal.SIG_IGN if ignore else
+                          signal.SIG_DFL if handler is None else handler)
+        self._previous = {}
 
 
 def _error(err: BaseException) -> int:
@@ -36,28 +136,78 @@ def _error(err: BaseException) -> int:
     return 1
 
 
-def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Run the node that ``make_node()`` builds until SIGINT/SIGTERM; return the exit status."""
+def parent_is_launch() -> bool:
+    """Return whether the parent process is a launch process (``ros2 launch ...``)."""
+    try:
+        with open(f'/proc/{os.getppid()}/cmdline', 'rb') as f:
+            argv = f.read().decode(errors='replace').split('\0')
+    except OSError:
+        return False
+    return any(a == 'launch' or os.path.basename(a).startswith(('launch', 'ros2-launch'))
+               for a in argv[:3])
+
+
+def exit_with_parent(sig: int = signal.SIGTERM) -> bool:
+    """Have the kernel send ``sig`` to this process when its parent dies (Linux); success."""
+    if not sys.platform.startswith('linux'):
+        return False
+    import ctypes
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(1, ctypes.c_ulong(int(sig)), 0, 0, 0) != 0:     # PR_SET_PDEATHSIG
+            return False
+    except (OSError, AttributeError):
+        return False
+    return True
+
+
+def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
+             restore_signals: bool = False) -> int:
+    """Run the node that ``make_node()`` builds until SIGINT/SIGTERM; return the exit status.
+
+    A process's ``main()``: SIGINT and SIGTERM stay ignored afterwards (module doc), unless
+    ``restore_signals``. Under launch, the death of the launch process is a SIGTERM.
+    """
+    guard: list = []
+    stop = StopSignals().install(wake=lambda: guard and guard[0].trigger())
+    if not restore_signals and parent_is_launch() and exit_with_parent():
+        if not parent_is_launch():          # the parent died before the request
+            stop(signal.SIGTERM, None)
+    try:
+        return _run(make_node, args, stop, guard)
+    finally:
+        stop.restore(ignore=not restore_signals)
+
+
+def spin_until_stopped(executor, stop: Callable[[], bool]) -> None:
+    """Spin ``executor`` until ``stop()`` is true (checked after each wake-up)."""
+    while not stop():
+        executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+
+
+def _run(make_node: Callable[[], Node], args: list[str] | None, stop: StopSignals,
+         holder: list) -> int:
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except RuntimeError as err:            # rcl's refusal of malformed --ros-args
         return _error(err)
-    previous = {sig: signal.signal(sig, _raise_interrupt)
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    node = None
+    node = executor = None
     status = 0
     try:
         node = make_node()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        executor.spin()
+        # a signal triggers it: its (empty) callback ends the executor's wait
+        holder.append(node.create_guard_condition(lambda: None))
+        spin_until_stopped(executor, lambda: stop.requested)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (GyroRotorError, ParameterException) as err:
         status = _error(err)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, signal.SIG_IGN if handler is None else handler)
+        holder.clear()
+        if executor is not None:
+            executor.shutdown(timeout_sec=0)
         if node is not None:
             status = max(status, _teardown(node))
         rclpy.try_shutdown()

@@ -17,6 +17,9 @@ t_k = k / publish_rate with every derived output. The node publishes them:
 
 Services ``~/reset``, ``~/perturb`` (std_srvs/Trigger) and ``~/pause`` (std_srvs/SetBool).
 Run: ``rotor_sim --ros-args -p scene:=nutation`` or ``python -m gyro_rotor.ros.sim_node``.
+
+**Time.** rotor_sim is the clock source (``/clock``): it refuses ``use_sim_time`` true, at
+start and live.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from gyro_rotor.core.system.scene import GeneralScene
-from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.numerics.live import Level, LiveSimulation
 from gyro_rotor.numerics.live_general import GeneralLiveSimulation
 import gyro_rotor.ros.messages as ros_msgs
@@ -65,6 +68,8 @@ SHUTDOWN_ACK_WAIT = 2.0
 ACK_WINDOW = STATE_QOS.depth // 2
 #: ... and how long a subscriber may stay silent before the simulator goes on without it [s]
 ACK_GIVE_UP = 5.0
+USE_SIM_TIME_REFUSED = ('use_sim_time cannot be true for rotor_sim: it is the clock source '
+                        '(it publishes /clock); set use_sim_time on the other nodes')
 _TOPICS = ('joint_states', 'energy', 'axis', 'stator_pose', 'axis_marker', 'clock',
            'diagnostics')
 
@@ -112,10 +117,9 @@ class RotorSimNode(Node):
 
     def __init__(self, node_name: str = 'rotor_sim', **kwargs):
         super().__init__(node_name, **kwargs)
-        scene, cfg, perturbation = declare_parameters(self)
         if self.get_parameter('use_sim_time').value:
-            self.get_logger().warn('use_sim_time is true: the simulator keeps its own time '
-                                   'and publishes /clock; set it on the other nodes instead')
+            raise ParameterError(USE_SIM_TIME_REFUSED)
+        scene, cfg, perturbation = declare_parameters(self)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         #: the simulation (everything but ROS)
         kind = GeneralLiveSimulation if isinstance(scene, GeneralScene) else LiveSimulation
@@ -186,6 +190,8 @@ class RotorSimNode(Node):
     def _on_set(self, params) -> SetParametersResult:
         """Validate a change before it is accepted (types, then the simulation's check)."""
         for p in params:
+            if p.name == 'use_sim_time' and p.value:
+                return SetParametersResult(successful=False, reason=USE_SIM_TIME_REFUSED)
             reason = type_error(p, self.parameter_types)
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
@@ -320,7 +326,11 @@ class RotorSimNode(Node):
 
     def on_shutdown(self) -> None:
         """Report the published counts (the soak compares them) and flush reliable writers."""
-        print(f'published counts: {json.dumps(self.published)}', file=sys.stderr, flush=True)
+        try:        # (stderr may be a pipe whose reader is gone: a killed ros2 launch)
+            print(f'published counts: {json.dumps(self.published)}', file=sys.stderr,
+                  flush=True)
+        except OSError:
+            pass
         # a reliable writer's unacknowledged messages die with it: give them a moment
         for pub in (self.pub['joint_states'], self.pub['energy']):
             pub.wait_for_all_acked(Duration(seconds=SHUTDOWN_ACK_WAIT))

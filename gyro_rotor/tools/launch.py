@@ -5,6 +5,12 @@ claim lives), so that a demo, a soak run or a test cannot hear another one;
 :class:`NodeProcess` starts ``python -m gyro_rotor.<node> --ros-args -p name:=value ...``
 with that domain and localhost-only discovery, and stops it with SIGINT (then SIGTERM,
 then SIGKILL) so that the nodes finish cleanly: the recorder finalizes its bag.
+
+Where the upstream ``ros2 launch`` is at hand (``../shared/rostools`` builds it for the
+venv; ``GYRO_ROTOR_ROSTOOLS`` names the build), :class:`LaunchRun` runs a launch file in a
+process group of its own and stops it as a terminal's Ctrl-C does, and
+:func:`check_bag` says whether the recording survived whole. ``python -m
+gyro_rotor.tools.launch --runs 20`` does that 20 times and counts the clean stops.
 """
 
 from __future__ import annotations
@@ -116,3 +122,269 @@ class NodeProcess:
         if self.proc.poll() is None:
             self.proc.kill()
         return self.proc.wait()
+
+
+# -- the launch files' helpers ---------------------------------------------------------------
+_TRUE = ('true', '1', 'yes', 'on')
+
+
+def scene_urdf(scene: str, share: str) -> str | None:
+    """Return the URDF of a scene's system, or None if it has none (or is not found).
+
+    The centrifuge scenes (``config/<scene>.yaml``) have ``urdf/centrifuge.urdf``; a general
+    scene (a ``system`` key; ``config/systems/scenes/<scene>.yaml`` first, as rotor_sim
+    looks it up) has none. Light: reads the YAML file only, for launch files.
+    """
+    import yaml
+    if scene.endswith(('.yaml', '.yml')) or os.sep in scene or os.path.isfile(scene):
+        candidates = [scene]
+    else:
+        candidates = [os.path.join(share, 'config', 'systems', 'scenes', f'{scene}.yaml'),
+                      os.path.join(share, 'config', f'{scene}.yaml')]
+    for path in candidates:
+        if not os.path.isfile(path):
+            continue
+        try:
+            with open(path, encoding='utf-8') as f:
+                doc = yaml.safe_load(f)
+        except (OSError, yaml.YAMLError):
+            return None
+        params = next((v['ros__parameters'] for v in (doc or {}).values()
+                       if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)),
+                      {})
+        return None if 'system' in params else os.path.join(share, 'urdf', 'centrifuge.urdf')
+    return None
+
+
+def robot_description_condition(share: str, no_urdf: bool = False):
+    """Return a launch condition predicate: robot_description on and the scene has a URDF.
+
+    ``no_urdf``: the predicate of the opposite case worth a log line: robot_description on
+    but the scene's system has no URDF. Reads the launch configurations ``scene`` and
+    ``robot_description``.
+    """
+    def predicate(context) -> bool:
+        cfg = context.launch_configurations
+        if str(cfg.get('robot_description', 'true')).lower() not in _TRUE:
+            return False
+        has = scene_urdf(str(cfg.get('scene', 'precession')), share) is not None
+        return has != no_urdf
+    return predicate
+
+
+# -- ros2 launch, stopped as a terminal's Ctrl-C stops it ---------------------------------------
+#: the problems that make a stopped launch unclean, found in its output
+UNCLEAN_MARKS = ('process has died', 'Traceback', 'KeyboardInterrupt', '[ERROR]')
+
+
+def find_rostools() -> str | None:
+    """Return the env.sh of a rostools build (``$GYRO_ROTOR_ROSTOOLS/env.sh``), if any.
+
+    rostools (``../shared/rostools/build.sh VENV DEST --package .``) builds the upstream
+    ``ros2`` CLI and ``ros2 launch`` for the venv; ``GYRO_ROTOR_ROSTOOLS`` names its DEST.
+    """
+    dest = os.environ.get('GYRO_ROTOR_ROSTOOLS')
+    if dest and os.path.isfile(os.path.join(dest, 'env.sh')):
+        return os.path.join(dest, 'env.sh')
+    return None
+
+
+class LaunchRun:
+    """One ``ros2 launch`` in a process group of its own, stopped by a signal to the group.
+
+    As a terminal's Ctrl-C: the signal reaches ``ros2 launch`` and every node it started,
+    and launch forwards one more SIGINT to each node (or, on SIGTERM, a SIGINT). ``log``
+    gets the whole output; :meth:`problems` lists what made the stop unclean.
+    """
+
+    def __init__(self, env_sh: str, launch_args: list[str], log: str, *,
+                 domain_id: int | None = None):
+        import shlex
+        self.log_path = log
+        cmd = f'source {shlex.quote(env_sh)} && exec ros2 launch ' + ' '.join(
+            shlex.quote(a) for a in launch_args)
+        e = dict(os.environ, PYTHONUNBUFFERED='1', ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+        if domain_id is not None:
+            e['ROS_DOMAIN_ID'] = str(domain_id)
+        self._log = open(log, 'w')
+        # a session (and process group) of its own, SIGINT not ignored: a terminal's job
+        self.proc = subprocess.Popen(['bash', '-c', cmd], env=e, stdout=self._log,
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                     start_new_session=True)
+        self.status: int | None = None
+
+    def text(self) -> str:
+        """Return the output so far."""
+        with open(self.log_path, errors='replace') as f:
+            return f.read()
+
+    def wait_for(self, text: str, timeout: float) -> bool:
+        """Wait until ``text`` is in the output (False: timeout or launch ended)."""
+        import time
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if text in self.text():
+                return True
+            if self.proc.poll() is not None:
+                return False
+            time.sleep(0.2)
+        return False
+
+    def interrupt(self, sig: int = signal.SIGINT, timeout: float = 40.0) -> int:
+        """Send ``sig`` to the process group; return the exit status of ``ros2 launch``.
+
+        SIGKILL to the group after ``timeout`` seconds (then the status is negative).
+        """
+        try:
+            os.killpg(self.proc.pid, sig)
+        except ProcessLookupError:
+            pass
+        try:
+            self.status = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.kill()
+        self._log.close()
+        return self.status
+
+    def signal_launch(self, sig: int = signal.SIGTERM, timeout: float = 40.0) -> int:
+        """Send ``sig`` to ``ros2 launch`` alone; return its exit status (see interrupt)."""
+        try:
+            self.proc.send_signal(sig)
+        except ProcessLookupError:
+            pass
+        try:
+            self.status = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.kill()
+        self._log.close()
+        return self.status
+
+    def node_pids(self) -> list[int]:
+        """Return the process ids of the nodes launch started (from its output)."""
+        import re
+        return [int(p) for p in re.findall(r'process started with pid \[(\d+)\]', self.text())]
+
+    def nodes_gone(self, timeout: float = 20.0) -> list[int]:
+        """Wait until the nodes' processes are gone; return those still there."""
+        import time
+        end = time.monotonic() + timeout
+        alive = self.node_pids()
+        while alive and time.monotonic() < end:
+            time.sleep(0.1)
+            alive = [p for p in alive if _running(p)]
+        return alive
+
+    def kill(self) -> None:
+        """SIGKILL to the whole group (a launch that does not stop)."""
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.status = self.proc.wait()
+
+    def problems(self, nodes: tuple = ('rotor_analysis', 'rotor_sim')) -> list[str]:
+        """Return what made the stop unclean (empty: clean): exit status, output, exits."""
+        text = self.text()
+        found = [] if self.status == 0 else [f'ros2 launch exit status {self.status}']
+        for mark in UNCLEAN_MARKS:
+            lines = [ln for ln in text.splitlines() if mark in ln]
+            if lines:
+                found.append(f'{len(lines)} line(s) with {mark!r}, first: {lines[0][:200]}')
+        for n in nodes:
+            if f'[{n}-' in text and not any('process has finished cleanly' in ln and
+                                            f'[{n}-' in ln for ln in text.splitlines()):
+                found.append(f'{n} did not finish cleanly')
+        return found
+
+
+def _running(pid: int) -> bool:
+    """Return whether process ``pid`` exists and is not a zombie."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
+
+
+def check_bag(path: str, sim_log_text: str = '') -> list[str]:
+    """Return what is wrong with a bag recorded under launch (empty: finalized, whole).
+
+    Finalized: a footer and summary (not truncated), metadata.yaml; complete: the energy
+    sequence numbers run from 0 without a gap, and every joint_states and energy message
+    that rotor_sim says it published (``published counts`` in ``sim_log_text``) is in it.
+    """
+    import re
+    import warnings
+    from gyro_rotor.bag.bagio import open_bag
+    from gyro_rotor.errors import GyroRotorError
+    from gyro_rotor.tools.soak import energy_seq_from_cdr
+    found = []
+    if not os.path.isfile(os.path.join(path, 'metadata.yaml')):
+        found.append(f'{path}: no metadata.yaml')
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            reader = open_bag(path)
+            seq = [energy_seq_from_cdr(d) for _, _, d in reader.messages('/energy')]
+            counts = {t: reader.topics[t].count for t in reader.topics}
+    except GyroRotorError as err:
+        return found + [f'{path}: {err}']
+    if reader.truncated:
+        found.append(f'{path}: not finalized (no summary: truncated)')
+    if not seq:
+        found.append(f'{path}: no /energy messages')
+    elif seq != list(range(len(seq))):
+        gaps = sum(1 for a, b in zip(seq, seq[1:]) if b != a + 1)
+        found.append(f'{path}: energy sequence numbers have {gaps} gap(s) (first {seq[0]})')
+    published = re.findall(r'published counts: (\{.*\})', sim_log_text)
+    if published:
+        import json
+        pub = json.loads(published[-1])
+        for topic in ('joint_states', 'energy'):
+            got = counts.get(f'/{topic}', 0)
+            if got != pub[topic]:
+                found.append(f'{path}: {got} {topic} recorded, {pub[topic]} published')
+    return found
+
+
+def _main(argv: list[str] | None = None) -> int:
+    """Ctrl-C ``ros2 launch gyro_rotor gyro_rotor.launch.py`` N times; count the clean stops."""
+    import argparse
+    import time
+    p = argparse.ArgumentParser(prog='python -m gyro_rotor.tools.launch',
+                                description=_main.__doc__)
+    p.add_argument('--env', default=find_rostools(), help='env.sh of a rostools build '
+                   '(default: $GYRO_ROTOR_ROSTOOLS/env.sh)')
+    p.add_argument('--runs', type=int, default=20)
+    p.add_argument('--out', default='ctrl_c_runs', help='folder for the logs and bags')
+    p.add_argument('--run-s', type=float, default=5.0,
+                   help='seconds of simulation time running before the signal')
+    p.add_argument('--signal', default='INT', choices=('INT', 'TERM'))
+    p.add_argument('launch_args', nargs='*', default=['robot_description:=false'],
+                   help='arguments of gyro_rotor.launch.py (output:= is added)')
+    a = p.parse_args(argv)
+    if not a.env:
+        p.error('no rostools build: give --env or set GYRO_ROTOR_ROSTOOLS')
+    os.makedirs(a.out, exist_ok=True)
+    sig = getattr(signal, f'SIG{a.signal}')
+    clean = 0
+    with claim_domain_id() as claim:
+        for i in range(1, a.runs + 1):
+            out = os.path.abspath(os.path.join(a.out, f'run{i:02d}'))
+            log = f'{out}.log'
+            run = LaunchRun(a.env, ['gyro_rotor', 'gyro_rotor.launch.py', *a.launch_args,
+                                    f'output:={out}'], log, domain_id=claim.domain_id)
+            started = run.wait_for('simulation time starts', 120.0)
+            time.sleep(a.run_s if started else 0.0)
+            run.interrupt(sig)
+            problems = ([] if started else ['simulation time never started'])
+            problems += run.problems() + check_bag(out, run.text())
+            clean += not problems
+            print(f'run {i:2d}: ' + ('clean' if not problems else '; '.join(problems)),
+                  flush=True)
+    print(f'{clean} of {a.runs} clean (SIG{a.signal} to the process group of ros2 launch)')
+    return 0 if clean == a.runs else 1
+
+
+if __name__ == '__main__':
+    sys.exit(_main())

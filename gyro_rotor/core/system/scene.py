@@ -2,7 +2,7 @@
 
 ::
 
-    rotor_sim:
+    /**:                             # any node name (rotor_sim, renamed, namespaced)
       ros__parameters:
         scene: twin_gimbal
         system: twin_gimbal          # a shipped system name or a path (relative to the scene)
@@ -249,7 +249,8 @@ def _read(path: Path) -> dict:
     if isinstance(doc, dict):
         section = next((doc[k] for k in NODE_NAMES if k in doc), None)
     if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
-        raise SceneError(f'scene file {path}: needs a rotor_sim: ros__parameters: mapping')
+        raise SceneError(f'scene file {path}: needs a /** (or rotor_sim): ros__parameters: '
+                         'mapping')
     return flatten(section['ros__parameters'])
 
 
