@@ -13,7 +13,11 @@ balance, decay, modes, data, synchronism), it is the verdict the linear theory e
 (:func:`gyro_rotor.linear.stability.analyze_scene`: asymptotically stable for the
 default scene, marginal tilt modes for ``upright``), for a sine drive law the pole-slip
 count equals that of an offline reference simulation, and both nodes exited cleanly;
-else 1 (NOT CONFIRMED, naming why), 130 after Ctrl-C (the bag is finalized).
+else 1 (NOT CONFIRMED, naming why), 130 after Ctrl-C (the bag is finalized and
+analysed), 128 + N after SIGTERM or SIGHUP (the nodes stopped and the bag finalized, no
+analysis). However the demo ends -- done, Ctrl-C, SIGTERM (``timeout``), SIGHUP, an error --
+both nodes are stopped first; if the demo itself is killed (SIGKILL), Linux sends them
+SIGTERM (``PR_SET_PDEATHSIG``).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+import signal
 import sys
 import time
 
@@ -240,7 +245,7 @@ def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) ->
     from gyro_rotor.tools.launch import NodeProcess
     procs = [NodeProcess('gyro_rotor.ros.analysis_node', {
         'output': str(out / 'bag'), 'scene': str(scene_arg), 'use_sim_time': True},
-        domain_id=domain_id,
+        domain_id=domain_id, die_with_parent=True,
         stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis'])]
     return procs
 
@@ -261,7 +266,7 @@ def _start_sim(args, scene_arg: str, domain_id: int, logs: dict, t_stop: float):
         'scene': str(scene_arg), 'real_time_factor': float(args.rtf),
         'publish_rate': float(args.rate), 't_end': float(t_stop),
         'stop_at_t_end': True, 'wait_for_subscribers': SUBSCRIBERS,
-        'wait_for_node': 'rotor_analysis'}, domain_id=domain_id,
+        'wait_for_node': 'rotor_analysis'}, domain_id=domain_id, die_with_parent=True,
         stdout=logs['rotor_sim'], stderr=logs['rotor_sim'])
 
 
@@ -299,15 +304,39 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
         print(_line(view))
 
 
-def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, bool]:
-    """Run both nodes with the live table; return (node exit codes, interrupted)."""
+class _Stop(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP while the nodes run."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
+    """Run both nodes with the live table; return (node exit codes, signal or 0).
+
+    The nodes are stopped (SIGINT, then SIGTERM, then SIGKILL) however this ends; a second
+    signal while they stop is ignored, so the stopping is not cut short.
+    """
     from gyro_rotor.tools.launch import claim_domain_id
     scene_arg = scene.path or args.scene
+    stopping = [False]
+
+    def on_signal(signum, _frame) -> None:
+        if not stopping[0]:
+            raise _Stop(signum)
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, on_signal)
+        except ValueError:          # not the main thread: the caller handles signals
+            break
     claim = claim_domain_id()
     logs = {n: open(out / f'{n}.log', 'w') for n in ('rotor_sim', 'rotor_analysis')}
     procs: list = []
     view = None
-    interrupted = False
+    stopped_by = 0
     codes: dict = {}
     try:
         print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {out / "bag"}\n'
@@ -319,17 +348,23 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, bool]:
         procs.append(_start_sim(args, scene_arg, claim.domain_id, logs,
                                 _first_stop(args, kick_at)))
         _watch(args, view, procs, out, kick_at)
-    except KeyboardInterrupt:
-        interrupted = True
-        print('\ninterrupted: stopping the nodes, finalizing the bag', file=sys.stderr)
+    except KeyboardInterrupt as err:
+        stopped_by = getattr(err, 'signum', signal.SIGINT)
+        print(f'\n{"interrupted" if stopped_by == signal.SIGINT else "terminated"}: '
+              'stopping the nodes, finalizing the bag', file=sys.stderr, flush=True)
     finally:
-        codes = {p.module: p.stop() for p in reversed(procs)}
-        if view is not None:
-            view.close()
-        claim.release()
-        for f in logs.values():
-            f.close()
-    return codes, interrupted
+        stopping[0] = True
+        try:
+            codes = {p.module: p.stop() for p in reversed(procs)}
+            if view is not None:
+                view.close()
+            claim.release()
+            for f in logs.values():
+                f.close()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+    return codes, int(stopped_by)
 
 
 def _conclude(out: Path, exp: dict, codes: dict) -> bool:
@@ -392,8 +427,12 @@ def run(args: argparse.Namespace) -> int:
     print(f'expected (linear stability): {exp["verdict"]}'
           + (f'; pole slips {exp["pole_slips"]} (reference simulation)'
              if exp['pole_slips'] is not None else ''))
-    codes, interrupted = _run_live(args, scene, out, kick_at)
+    codes, stopped_by = _run_live(args, scene, out, kick_at)
+    if stopped_by and stopped_by != signal.SIGINT:
+        print(f'stopped by {signal.Signals(stopped_by).name}: nodes ended {codes}; bag '
+              f'{out / "bag"}', file=sys.stderr)
+        return 128 + stopped_by
     ok = _conclude(out, exp, codes)
-    if interrupted:
+    if stopped_by:
         return 130
     return 0 if ok else 1
