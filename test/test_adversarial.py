@@ -314,3 +314,173 @@ def test_demo_ends_its_nodes_however_it_ends(tmp_path, sig):
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')
             assert not open_bag(tmp_path / 'run' / 'bag').truncated   # finalized
+
+
+# -- findings 7-12: the loaders ----------------------------------------------------------------
+def _scene_text(extra: str = '', **changes: str) -> str:
+    text = (REPO / 'config' / 'precession.yaml').read_text()
+    for old, new in changes.items():
+        text = text.replace(old, new)
+    return text + extra
+
+
+def _system(tmp_path: Path, name: str = 'sys', **changes: str) -> Path:
+    text = (REPO / 'config' / 'systems' / 'twin_gimbal.yaml').read_text()
+    for old, new in changes.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / f'{name}.yaml'
+    path.write_text(text)
+    return path
+
+
+def _general_scene(tmp_path: Path, system: Path) -> Path:
+    path = tmp_path / 'gscene.yaml'
+    path.write_text('rotor_sim:\n  ros__parameters:\n    scene: g\n'
+                    f'    system: {system}\n    t_end: 1.0\n')
+    return path
+
+
+def test_duplicate_keys_are_refused(tmp_path):
+    """Finding 7: the last of two equal keys won silently (K_D: 50.0 appended to a scene)."""
+    from gyro_rotor.core.scene import load_scene
+    from gyro_rotor.core.system.system_file import load_system
+    from gyro_rotor.errors import SceneError, SystemFileError
+    scene = tmp_path / 'dup.yaml'
+    scene.write_text(_scene_text('    K_D: 50.0\n'))
+    with pytest.raises(SceneError, match="key 'K_D' a second time"):
+        load_scene(scene)
+    with pytest.raises(SystemFileError, match="key 'potential' a second time"):
+        load_system(_system(tmp_path, **{'\ndrives:': '\npotential: "0"\ndrives:'}))
+    with pytest.raises(SystemFileError, match="key 'c_a' a second time"):
+        load_system(_system(tmp_path, **{'c_a: 40.0': 'c_a: 40.0, c_a: 4.0'}))
+
+
+def test_names_are_whole_ascii_names(tmp_path):
+    """Finding 8: 'R1' and a newline was a rotor name (the CSV header broke); x**２ was x**2."""
+    from gyro_rotor.core.system.system_file import load_system
+    from gyro_rotor.errors import SystemFileError
+    with pytest.raises(SystemFileError, match=r"rotors\[0\]: 'R1\\n' is not a name"):
+        load_system(_system(tmp_path, **{'rotors: [R1, R2]': 'rotors: ["R1\\n", R2]'}))
+    with pytest.raises(SystemFileError, match="unexpected character '２'"):
+        load_system(_system(tmp_path, **{'c_a*alpha**2/2': 'c_a*alpha**２/2'}))
+    with pytest.raises(SystemFileError, match='name must be a name'):
+        load_system(_system(tmp_path, **{'name: twin_gimbal': 'name: "tw\u0131n"'}))
+
+
+def test_infinite_potential_is_refused_before_anything_runs(tmp_path):
+    """Finding 9: a potential infinite everywhere: E*(0) = inf, residual nan, exit 0."""
+    system = _system(tmp_path, **{'c_a*alpha**2/2 +': 'c_a*alpha**2/2 + 1/(sin(alpha)**2 + '
+                                  'cos(alpha)**2 - 1) +'})
+    scene = _general_scene(tmp_path, system)
+    for cmd in (['simulate', str(scene), '--t-end', '0.1', '--out',
+                 str(tmp_path / 'o.csv')], ['eig', str(scene)]):
+        assert cli.main(cmd) == 1
+    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.errors import SceneError
+    with pytest.raises(SceneError, match='E\\* of system twin_gimbal is inf at the steady'):
+        load_general_scene(scene)
+
+
+#: a flow sequence of 10 anchored lists, each holding the one before 9 times: 9**9 leaves
+ALIAS_BOMB = ('[&a0 [x, x, x, x, x, x, x, x, x], ' + ', '.join(
+    f'&a{i} [' + ', '.join([f'*a{i - 1}'] * 9) + ']' for i in range(1, 10)) + ']')
+
+
+@pytest.mark.parametrize('where', ['mass_matrix', 'description', 'initial', 'set'])
+def test_alias_bomb_is_refused_at_once(tmp_path, where, capsys):
+    """Finding 10: 9 levels of aliases took 2 min 18 s, 15.6 GB and a 2.1 GB error line."""
+    import time as _time
+    from gyro_rotor.core.scene import load_scene
+    from gyro_rotor.core.system.system_file import load_system
+    from gyro_rotor.errors import GyroRotorError
+    t0 = _time.monotonic()
+    if where == 'set':
+        assert cli.main(['simulate', 'precession', '--set', f'A_R={ALIAS_BOMB}', '--out',
+                         str(tmp_path / 'x.csv')]) == 1
+        text = capsys.readouterr().err
+        assert 'alias' in text and len(text) < 400, text[:400]
+        return
+    if where == 'mass_matrix':
+        text = (REPO / 'config' / 'systems' / 'twin_gimbal.yaml').read_text()
+        a = text.index('mass_matrix:')
+        b = text.index('rotor_inertia:')
+        path = tmp_path / 'bomb.yaml'
+        path.write_text(text[:a] + f'mass_matrix: {ALIAS_BOMB}\n' + text[b:])
+        load = load_system
+    else:
+        old = ('    description: "' if where == 'description' else '      theta0: 0.1\n')
+        new = (f'    description: {ALIAS_BOMB}\n    old: "' if where == 'description'
+               else f'      theta0: {ALIAS_BOMB}\n')
+        path = tmp_path / 'bomb.yaml'
+        path.write_text(_scene_text(**{old: new}))
+        load = load_scene
+    with pytest.raises(GyroRotorError, match='alias') as err:
+        load(path)
+    assert _time.monotonic() - t0 < 5.0
+    assert len(str(err.value)) < 400
+
+
+@pytest.mark.parametrize('where', ['potential', 'description', 'set'])
+def test_deep_nesting_is_one_line(tmp_path, where, capsys):
+    """Finding 11: 10^4-deep nesting ended in a 2999-line RecursionError traceback."""
+    from gyro_rotor.core.scene import load_scene
+    from gyro_rotor.core.system.system_file import load_system
+    from gyro_rotor.errors import GyroRotorError
+    deep = '[' * 10000 + ']' * 10000
+    if where == 'potential':
+        with pytest.raises(GyroRotorError, match='nested more than') as err:
+            load_system(_system(tmp_path, **{'potential: "': f'potential: {deep}\nold: "'}))
+        err2 = None
+        with pytest.raises(GyroRotorError, match='nested more than 60') as err2:
+            load_system(_system(tmp_path, **{'potential: "': 'potential: "' + '(' * 1000
+                                             + 'alpha' + ')' * 1000 + ' + '}))
+        assert len(str(err2.value)) < 400
+    elif where == 'description':
+        path = tmp_path / 'deep.yaml'
+        path.write_text(_scene_text(**{'    description: "': f'    description: {deep}\n'
+                                                             '    old: "'}))
+        with pytest.raises(GyroRotorError, match='nested more than') as err:
+            load_scene(path)
+    else:
+        assert cli.main(['simulate', 'precession', '--set', f'A_R={deep}', '--out',
+                         str(tmp_path / 'x.csv')]) == 1
+        text = capsys.readouterr().err
+        assert 'nested more than' in text and 'Traceback' not in text
+        return
+    assert len(str(err.value)) < 400
+
+
+def test_symmetry_check_does_not_expand_big_powers(tmp_path):
+    """Finding 12: (a+...+h)**16*(1+x) against its expanded twin hung past 120 s."""
+    import time as _time
+    from gyro_rotor.core.system.system_file import load_system
+    from gyro_rotor.errors import SystemFileError
+    s = '(J_p+c_a+J_g+J_t+J_h+c_b1+c_b2+gam1)**16'
+    row = (f'  - ["J_p", "{s}*(1 + beta1)", "0"]\n  - ["{s} + beta1*{s}", "J_g", "0"]\n'
+           '  - ["0", "0", "J_g"]\n')
+    text = (REPO / 'config' / 'systems' / 'twin_gimbal.yaml').read_text()
+    a = text.index('mass_matrix:\n') + len('mass_matrix:\n')
+    b = text.index('rotor_inertia:')
+    path = tmp_path / 'big.yaml'
+    path.write_text(text[:a] + row + text[b:])
+    t0 = _time.monotonic()
+    load_system(path)
+    path.write_text(text[:a] + row.replace('+ beta1*', '+ beta2*') + text[b:])
+    with pytest.raises(SystemFileError, match='not symmetric: row 0, column 1'):
+        load_system(path)
+    assert _time.monotonic() - t0 < 10.0
+
+
+def test_yaml_1_2_numbers_the_same_everywhere(tmp_path):
+    """Finding 15: K_D: 1.0e5 was refused by the scene loader, taken by --params-file."""
+    from gyro_rotor.cli.util import parse_sets
+    from gyro_rotor.core.scene import load_scene
+    path = tmp_path / 's.yaml'
+    path.write_text(_scene_text(**{'K_D: 0.05 ': 'K_D: 1.0e5 '}))
+    assert load_scene(path).params.K_D == 1.0e5
+    path.write_text(_scene_text(**{'K_D: 0.05 ': 'K_D: 1e5 '}))
+    assert load_scene(path).params.K_D == 1.0e5
+    assert parse_sets(['K_D=1.0e5', 'x=1e-3', 'y=012', 'z=nan'])['y'] == 12
+    assert parse_sets(['K_D=1.0e5'])['K_D'] == 1.0e5
+    assert isinstance(parse_sets(['y=yes'])['y'], str)      # YAML 1.1's bool is text

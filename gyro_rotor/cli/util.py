@@ -7,27 +7,25 @@ from typing import Any
 from gyro_rotor.errors import ParameterError, SceneError
 
 
+_NON_FINITE = {'nan': float('nan'), 'inf': float('inf'), '+inf': float('inf'),
+               '-inf': float('-inf'), 'infinity': float('inf'), '-infinity': float('-inf')}
+
+
 def parse_sets(items: list[str]) -> dict[str, Any]:
     """``['K_D=0.1', 'initial.branch=2']`` -> ``{'K_D': 0.1, 'initial.branch': 2}``.
 
     Values are read as YAML scalars or lists (``0.1``, ``2``, ``true``, ``[1, 0, 0, 0]``).
     """
-    import yaml
+    from gyro_rotor.core.yamlio import load_yaml, short
     out: dict[str, Any] = {}
     for item in items or []:
         name, sep, text = item.partition('=')
         if not sep or not name.strip():
-            raise SceneError(f"--set needs NAME=VALUE, got '{item}'")
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise SceneError(f"--set {name}: cannot read value '{text}': {err}") from err
-        if isinstance(value, str):
-            # YAML 1.1 reads 1e-3, 1e300, nan and inf as strings: numbers are meant here
-            try:
-                value = float(value)
-            except ValueError:
-                pass
+            raise SceneError(f'--set needs NAME=VALUE, got {short(item)}')
+        # the one YAML loader (YAML 1.2 numbers, limits): the same values as a scene file
+        value = load_yaml(text, f'--set {short(name.strip(), 60)}', SceneError)
+        if isinstance(value, str) and value.strip().lower() in _NON_FINITE:
+            value = _NON_FINITE[value.strip().lower()]      # nan, inf written plainly
         out[name.strip()] = value
     return out
 

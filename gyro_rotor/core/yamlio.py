@@ -26,7 +26,8 @@ from typing import Any
 from gyro_rotor.errors import GyroRotorError, ParameterError
 import yaml
 
-__all__ = ['load_yaml', 'MAX_CHARS', 'MAX_DEPTH', 'MAX_NODES', 'yaml12_scalar']
+__all__ = ['load_yaml', 'MAX_CHARS', 'MAX_DEPTH', 'MAX_NODES', 'yaml12_scalar', 'IDENTIFIER',
+           'SCENE_NAME', 'short']
 
 #: longest YAML text accepted [characters]
 MAX_CHARS = 4 * 1024 * 1024
@@ -35,12 +36,31 @@ MAX_DEPTH = 64
 #: most nodes of a document with every alias expanded
 MAX_NODES = 200_000
 
+#: a name of the system file (coordinate, rotor, constant, system): ASCII, whole string
+IDENTIFIER = re.compile(r'\A[A-Za-z_][A-Za-z0-9_]{0,99}\Z', re.ASCII)
+#: a scene's name (it names output directories): ASCII letters, digits, _ . -
+SCENE_NAME = re.compile(r'\A[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}\Z', re.ASCII)
+
 _INT = re.compile(r'[-+]?[0-9]+\Z|0o[0-7]+\Z|0x[0-9a-fA-F]+\Z', re.ASCII)
 _FLOAT = re.compile(r'[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?\Z'
                     r'|[-+]?\.(?:inf|Inf|INF)\Z|\.(?:nan|NaN|NAN)\Z', re.ASCII)
 _BOOL = {'true': True, 'True': True, 'TRUE': True,
          'false': False, 'False': False, 'FALSE': False}
 _NULL = frozenset({'', '~', 'null', 'Null', 'NULL'})
+
+
+def short(value: Any, limit: int = 120) -> str:
+    """Return ``repr(value)`` cut to about ``limit`` characters (for error messages).
+
+    Nested containers are shown only a few levels deep and a few items long, so an error
+    message never grows with the data it names.
+    """
+    import reprlib
+    r = reprlib.Repr()
+    r.maxlevel, r.maxlist, r.maxdict, r.maxtuple = 3, 6, 6, 6
+    r.maxstring, r.maxother = limit, limit
+    text = r.repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + '...'
 
 
 def yaml12_scalar(text: str) -> Any:
@@ -191,9 +211,9 @@ def load_yaml(text: str | bytes, what: str, error: type[GyroRotorError] = Parame
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark
         where = f' (line {mark.line + 1}, column {mark.column + 1})' if mark else ''
-        raise error(f'{what}: invalid YAML{where}: {err.problem}') from None
+        raise error(f'{what} is not valid YAML{where}: {err.problem}') from None
     except yaml.YAMLError as err:
-        raise error(f'{what}: invalid YAML: {str(err)[:200]}') from None
+        raise error(f'{what} is not valid YAML: {str(err)[:200]}') from None
     except RecursionError:
         raise error(f'{what}: nested too deeply') from None
     finally:
