@@ -484,3 +484,138 @@ def test_yaml_1_2_numbers_the_same_everywhere(tmp_path):
     assert parse_sets(['K_D=1.0e5', 'x=1e-3', 'y=012', 'z=nan'])['y'] == 12
     assert parse_sets(['K_D=1.0e5'])['K_D'] == 1.0e5
     assert isinstance(parse_sets(['y=yes'])['y'], str)      # YAML 1.1's bool is text
+
+
+# -- finding 6: --resume trusted any Parquet file; sweep.json unchecked -------------------------
+def _sweep_args(out: Path, t_end: str = '0.2') -> list[str]:
+    return ['sweep', 'pole_slip', '--grid', 'initial.dzdot=-100:100:8', '--t-end', t_end,
+            '--out', str(out), '--serial', '--metrics', 'well,peak', '--quiet', '--no-maps',
+            '--block', '2']
+
+
+def test_sweep_resume_verifies_every_block(tmp_path, capsys):
+    """Finding 6: block 1 copied as block 3 and a foreign block-000999 were taken as done."""
+    import pyarrow.parquet as pq
+    from gyro_rotor.analysis.sweep.store import SweepStore
+    out = tmp_path / 'sw'
+    assert cli.main(_sweep_args(out)) == 0
+    capsys.readouterr()
+    blocks = out / 'blocks'
+    good = pq.read_table(blocks / 'block-000003.parquet')
+    shutil.copy(blocks / 'block-000001.parquet', blocks / 'block-000003.parquet')
+    shutil.copy(blocks / 'block-000000.parquet', blocks / 'block-000999.parquet')
+    assert cli.main(_sweep_args(out) + ['--resume']) == 0
+    text = capsys.readouterr().out
+    assert '1 blocks run, 3 already there' in text, text
+    assert 'block-000003.parquet: it is block 1' in text
+    assert 'block-000999.parquet: this sweep has blocks 0..3' in text
+    assert '8/8 points' in text
+    table = SweepStore(out).read()
+    assert table.column('point').to_pylist() == list(range(8))
+    again = pq.read_table(blocks / 'block-000003.parquet')
+    assert again.column('point').to_pylist() == good.column('point').to_pylist()
+    assert again.column('peak_deviation').to_pylist() == \
+        good.column('peak_deviation').to_pylist()
+
+
+def test_sweep_without_or_with_a_bad_manifest_is_refused(tmp_path, capsys):
+    """Finding 6: a missing or corrupt sweep.json is refused with one line.
+
+    Without sweep.json, --resume --t-end 5 took blocks of t_end 10; a corrupt sweep.json
+    gave a JSONDecodeError traceback.
+    """
+    out = tmp_path / 'sw'
+    assert cli.main(_sweep_args(out)) == 0
+    manifest = out / 'sweep.json'
+    text = manifest.read_text()
+    manifest.write_text(text[:len(text) // 2])
+    capsys.readouterr()
+    assert cli.main(_sweep_args(out) + ['--resume']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('ERROR: ') and 'is not a sweep specification' in err
+    assert len(err.strip().splitlines()) == 1
+    manifest.unlink()
+    assert cli.main(_sweep_args(out, t_end='0.3') + ['--resume']) == 1
+    err = capsys.readouterr().err
+    assert 'holds blocks/ but no sweep.json' in err and len(err.strip().splitlines()) == 1
+
+
+def test_huge_sweep_asks_first(tmp_path, capsys):
+    """Finding 14: a 10^7-point sweep started at once ('eta 13683.5 s')."""
+    args = ['sweep', 'pole_slip', '--grid', 'initial.dzdot=-100:100:10000', '--grid',
+            'initial.dz=-3:3:1000', '--out', str(tmp_path / 'huge'), '--serial']
+    assert cli.main(args) == 1
+    err = capsys.readouterr().err
+    assert 'pass --yes to run it' in err and '10,000,000 points' in err
+    assert not (tmp_path / 'huge').exists()
+
+
+# -- findings 13 and 15: the demo's grid, the command-line checks -------------------------------
+@pytest.mark.ros
+def test_demo_with_a_duration_whose_kick_is_off_the_grid(tmp_path, capsys):
+    """Finding 13: the kick time is put on the sample grid.
+
+    demo --duration 5 kicked at 1.25 s, off the 250 Hz grid, and failed after 2 minutes
+    ('did not reach t = 5.0 s in time (last t = 1.248 s)').
+    """
+    assert cli.main(['demo', '--duration', '3', '--rtf', '0', '--quiet', '--out',
+                     str(tmp_path / 'run')]) == 0
+    out = capsys.readouterr().out
+    assert 'kick at t = 0.75 s' in out and 'RESULT: CONFIRMED' in out
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['monitor', '--duration', 'nan'], '--duration must be finite'),
+    (['monitor', '--duration', '-1'], '--duration must be finite and >= 0'),
+    (['rt-bench', '--duration', '0'], '--duration must be finite and > 0'),
+    (['rt-bench', '--rtf', 'nan'], '--rtf must be finite'),
+    (['demo', '--kick-at', 'nan'], '--kick-at must be finite'),
+    (['demo', '--kick-at', '30', '--duration', '20'], 'before --duration'),
+    (['simulate', 'precession', '--set', 'publish_rate=0.0'], 'publish_rate must be in'),
+    (['simulate', 'precession', '--set', 'step_size=-0.001'], 'step_size must be in'),
+])
+def test_command_line_values_are_checked_before_any_work(argv, message, capsys):
+    """Finding 15: these ran forever, exited 0 with nothing, printed nan or skipped a kick."""
+    assert cli.main(argv) == 1
+    err = capsys.readouterr().err
+    assert message in err and err.startswith('ERROR: ') and 'Traceback' not in err, err
+
+
+def test_simulate_out_never_overwrites_nor_leaves_a_partial_file(tmp_path, capsys):
+    """Finding 15: simulate --out refuses an existing file and writes all or nothing.
+
+    --out existing.csv was overwritten silently; a full disk left a partial CSV and an
+    error that did not name the file.
+    """
+    out = tmp_path / 'x.csv'
+    out.write_text('precious\n')
+    args = ['simulate', 'precession', '--t-end', '0.05', '--out', str(out)]
+    assert cli.main(args) == 1
+    assert 'exists already; pass --force' in capsys.readouterr().err
+    assert out.read_text() == 'precious\n'
+    assert cli.main(args + ['--force']) == 0 and out.read_text().startswith('t [s]')
+    if Path('/dev/full').exists():
+        from gyro_rotor.cli.util import write_output
+
+        def to_full(tmp):
+            with open('/dev/full', 'w') as f:
+                f.write('x' * 100000)
+        with pytest.raises(Exception, match=f'cannot write {out}: No space left'):
+            write_output(str(out), to_full)
+        assert out.read_text().startswith('t [s]')
+        assert not [p for p in tmp_path.iterdir() if '.tmp' in p.name]
+
+
+def test_code_generation_says_what_it_does(tmp_path, monkeypatch):
+    """Finding 14: a 50-rotor system took 219 s to generate on first use, with no output."""
+    from gyro_rotor.core.system import codegen
+    from gyro_rotor.core.system.system_file import load_system
+    monkeypatch.setattr(codegen, 'cache_dir', lambda: tmp_path)
+    lines: list[str] = []
+    codegen.compile_system(load_system('twin_gimbal'), warm=False, progress=lines.append)
+    assert lines[0].startswith('generating the equations of system twin_gimbal (n = 3, m = 2)')
+    assert any('derived in' in x for x in lines) and lines[-1].startswith('  ready in')
+    lines.clear()
+    codegen._LOADED.clear()
+    codegen.compile_system(load_system('twin_gimbal'), warm=False, progress=lines.append)
+    assert lines == []                          # from the cache: nothing to say

@@ -118,17 +118,24 @@ def _feed(reader, session: AnalysisSession, energy: str, joints: str,
     A message that cannot be decoded or used is counted in ``session.rejected`` with its
     reason, and the rest of the bag is analysed.
     """
+    from gyro_rotor.analysis.session import OtherSystemError
     wanted = [energy, joints] + ([scene_topic] if scene_topic else [])
+    joints_used, other_system = 0, None
     for topic, _, msg in reader.decoded(wanted, on_error=session.reject):
         try:
             if topic == energy:
                 session.on_energy(msg)
             elif topic == joints:
                 session.on_joints(msg)
+                joints_used += 1
             else:
                 session.on_scene_doc(msg.data)
         except Exception as err:    # noqa: B902 -- outside data: anything may go wrong
+            if isinstance(err, OtherSystemError) and other_system is None:
+                other_system = err
             session.reject(topic, err)
+    if other_system is not None and not joints_used:
+        raise other_system          # not one joint state of this scene: another system's
     session.finish()
 
 

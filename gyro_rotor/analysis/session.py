@@ -17,7 +17,14 @@ from gyro_rotor.core.system.scene import (general_scene_from_flat, general_scene
                                           GeneralScene, is_general_flat)
 from gyro_rotor.errors import AnalysisError
 
-__all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc']
+__all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc', 'OtherSystemError']
+
+
+class OtherSystemError(AnalysisError):
+    """A joint_states message of another system than the scene's.
+
+    A whole recording of another system, or one foreign message among the right ones.
+    """
 
 
 def scene_to_flat(scene) -> dict[str, Any]:
@@ -211,7 +218,7 @@ class AnalysisSession:
         if names != self._joint_names and self.scene is not None:
             want = joint_names(self.scene)
             if names != want:
-                raise AnalysisError(
+                raise OtherSystemError(
                     f"joint_states names {', '.join(names) or 'no joints'} but scene "
                     f"'{self.scene.name}' has the joints {', '.join(want)}: a recording "
                     f'of another system')

@@ -53,6 +53,14 @@ __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'fin
 DEFAULT_SCENE = 'precession'
 NODE_NAMES = ('rotor_sim', '/rotor_sim', '/**')
 
+#: ranges of the simulation node's numeric keys, the same in a scene file, --set, a
+#: --params-file and a live parameter (rotor_sim declares them with these ranges)
+NODE_RANGES = {
+    'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
+    'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
+    'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, 1e9), 't_end': (1e-6, 1e9),
+}
+
 PERTURBATION_KEYS = ('dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot')
 
 #: keys of the simulation node that a scene file may carry as well (type, default, doc)
@@ -371,6 +379,14 @@ def _typed(key: str, value: Any, where: str, *, strict_float: bool) -> Any:
     raise AssertionError(want)  # pragma: no cover
 
 
+def check_node_ranges(vals: Mapping[str, Any], where: str) -> None:
+    """Refuse a node key outside :data:`NODE_RANGES` (as rotor_sim would, but before a run)."""
+    for key, (low, high) in NODE_RANGES.items():
+        v = vals.get(key)
+        if v is not None and not (isinstance(v, (int, float)) and low <= v <= high):
+            raise SceneError(f'{where}: {key} must be in [{low:g}, {high:g}], got {v!r}')
+
+
 def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
                        strict_float: bool | None = None) -> Scene:
     """Build a Scene from flat dotted keys (as in a parameter file or ROS parameters)."""
@@ -422,6 +438,7 @@ def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
         if not math.isfinite(v):
             raise SceneError(f'{where}: perturbation.{k} must be finite, got {v!r}')
     node = {k: v for k, v in vals.items() if k in NODE_KEYS}
+    check_node_ranges(vals, where)
     scene = Scene(name=name, params=params, model=model, t_end=t_end, initial=initial,
                   perturbation=pert, node=node, description=vals.get('description', ''),
                   path=path)

@@ -60,6 +60,22 @@ def _check(args: argparse.Namespace) -> None:
         raise ParameterError(f'--rtf must be >= 0, got {args.rtf}')
     if not (math.isfinite(args.rate) and 10 <= args.rate <= 10000):
         raise ParameterError(f'--rate must be in 10..10000 Hz, got {args.rate}')
+    if args.kick_at is not None and not (math.isfinite(args.kick_at) and (
+            args.kick_at < 0 or 1.0 / args.rate <= args.kick_at < args.duration)):
+        raise ParameterError(f'--kick-at must be finite, at least one sample (1/{args.rate:g} '
+                             f's) and before --duration ({args.duration:g} s), or < 0 for no '
+                             f'kick; got {args.kick_at}')
+    # rotor_sim publishes on the grid k / rate and stops at t_end: a time off the grid is
+    # never reached (--duration 5 kicked at 1.25 s waited at 1.248 s until the deadline)
+    if round(args.duration * args.rate) < 1:
+        raise ParameterError(f'--duration {args.duration:g} s is shorter than one sample '
+                             f'(1/{args.rate:g} s)')
+    args.duration = _on_grid(args.duration, args.rate)
+
+
+def _on_grid(t: float, rate: float) -> float:
+    """Return the sample time k / rate nearest to ``t`` (rotor_sim's publication grid)."""
+    return round(t * rate) / rate
 
 
 #: subscribers rotor_sim waits for on joint_states and on energy before its time starts:
@@ -281,7 +297,7 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
     while True:
         view.spin(0.1)
         t = view.energy.get('t_sim', -1.0)
-        if not kicked and t >= kick_at:
+        if not kicked and t >= kick_at - 0.25 / args.rate:
             print(f'  kick at t = {t:.2f} s: {view.kick()}')
             kicked = True
             if _first_stop(args, kick_at) < args.duration:
@@ -421,6 +437,8 @@ def run(args: argparse.Namespace) -> int:
     kick_at = args.kick_at
     if kick_at is None:
         kick_at = -1.0 if _no_default_kick(scene) else min(2.0, args.duration / 4)
+    if kick_at >= 0:
+        kick_at = _on_grid(kick_at, args.rate)
     out = _out_dir(args, scene)
     print(f'gyro_rotor demo: scene {scene.name} ({scene.description})')
     exp = expected_outcome(scene, args.duration)

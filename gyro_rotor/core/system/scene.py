@@ -31,7 +31,7 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
-from gyro_rotor.core.scene import flatten, NODE_KEYS, NODE_NAMES, scene_path
+from gyro_rotor.core.scene import check_node_ranges, flatten, NODE_KEYS, NODE_NAMES, scene_path
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import (
     DRIVE_KEYS, load_system, RotorSystem, system_from_mapping)
@@ -289,6 +289,7 @@ def general_scene_from_mapping(flat: Mapping[str, Any], *, path: str | None = No
         vals[key] = _typed(key, value, where)
     if 'system' not in vals:
         raise SceneError(f'{where}: the key system is missing')
+    check_node_ranges(vals, where)
     try:
         if system is None:
             system = load_system(vals['system'], relative_to=path)
