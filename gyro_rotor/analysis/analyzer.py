@@ -166,6 +166,9 @@ class RotorAnalyzer:
         self.non_finite = 0
         #: samples left unpaired by the caller's SamplePairer (data loss; set by the session)
         self.unpaired = 0
+        #: recorded messages a damaged bag lost, and the reader's line on it (set offline)
+        self.bag_lost = 0
+        self.bag_loss = ''
         self.segments: list[_Segment] = []
         self._done: list[SegmentResult] = []
         self._last: Sample | None = None
@@ -333,7 +336,8 @@ class RotorAnalyzer:
             out += [crit.decay(judged, judged_pred(self, judged), self.min_fit_s,
                                self._resolution(judged)),
                     crit.modes(judged, self.min_fit_s)]
-        out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite))
+        out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite,
+                             self.bag_lost, self.bag_loss))
         if judged is not None:
             sync = crit.synchronism(segs[-1], self.segments[-1].pred)
             if sync is not None:

@@ -140,15 +140,23 @@ def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
     return Criterion(name, Status.PASS, '; '.join(parts), nums)
 
 
-def data(samples: int, dropped: int, unpaired: int, non_finite: int) -> Criterion:
-    """No message lost (sequence gaps), no sample unpaired, every value finite."""
+def data(samples: int, dropped: int, unpaired: int, non_finite: int, bag_lost: int = 0,
+         bag_loss: str = '') -> Criterion:
+    """No message lost (sequence gaps, or in a damaged bag), no sample unpaired, all finite.
+
+    ``bag_lost`` and ``bag_loss`` are the recorded messages a damaged or truncated bag lost
+    (counted by its reader) and the line that says which; any of it fails the criterion, so a
+    damaged bag never gives a plain CONFIRMED.
+    """
     nums = {'samples': samples, 'dropped': dropped, 'unpaired': unpaired,
-            'non_finite': non_finite}
+            'non_finite': non_finite, 'bag_lost': bag_lost}
     if samples == 0:
         return Criterion(CriterionName.DATA, Status.NOT_YET, 'no samples yet', nums)
     text = (f'{samples} samples, {dropped} messages lost (sequence gaps), {unpaired} '
             f'unpaired between energy and joint_states, {non_finite} with non-finite values')
-    ok = not (dropped or unpaired or non_finite)
+    if bag_loss:
+        text += f'; damaged bag: {bag_loss}'
+    ok = not (dropped or unpaired or non_finite or bag_lost or bag_loss)
     return Criterion(CriterionName.DATA, Status.PASS if ok else Status.FAIL, text, nums)
 
 

@@ -26,6 +26,10 @@ class BagAnalysis:
     truncated: bool
     scene_source: str
     options: dict
+    #: the bag was damaged (something in it unreadable, or lost before a recovery)
+    damaged: bool = False
+    #: the reader's line on what the bag lost ('nothing lost' if nothing)
+    loss: str = 'nothing lost'
 
 
 def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str | None:
@@ -80,16 +84,11 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
                               keep_series=True, **opts)
     if fixed is None and base is not None:
         session.fixed = False
-    wanted = [energy, joints] + ([scene_topic] if scene_topic and fixed is None else [])
-    for topic, _, msg in reader.decoded(wanted):
-        if topic == energy:
-            session.on_energy(msg)
-        elif topic == joints:
-            session.on_joints(msg)
-        else:
-            session.on_scene_doc(msg.data)
-    session.finish()
+    _feed(reader, session, energy, joints, scene_topic if fixed is None else None)
     if session.analyzer is None:
+        if session.rejected:
+            raise AnalysisError(f'{path}: no usable scene document in the bag and no scene '
+                                f'given; {session.rejected_text()}')
         raise AnalysisError(f'{path}: no scene document in the bag and no scene given')
     if session.analyzer.samples == 0:
         raise AnalysisError(f'{path}: the energy and joint_states topics hold no messages')
@@ -98,12 +97,46 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
         rec = reader.metadata['gyro_rotor.live_result']
         live = _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
             'verdict': rec.get('verdict'), 'error': rec.get('error')}
+    if reader.lost or reader.unknown_loss:
+        session.analyzer.bag_lost = sum(reader.lost.values())
+        session.analyzer.bag_loss = reader.loss_text()
     result = session.result()
     if problems:
         result.evidence.extend(problems)
+    if session.rejected:
+        result.evidence.append(session.rejected_text())
     return BagAnalysis(path=str(path), result=result, live=live, samples=session.series,
                        topics={t: i.count for t, i in reader.topics.items()},
-                       truncated=reader.truncated, scene_source=source, options=opts)
+                       truncated=reader.truncated, scene_source=source, options=opts,
+                       damaged=reader.damaged, loss=reader.loss_text())
+
+
+def _feed(reader, session: AnalysisSession, energy: str, joints: str,
+          scene_topic: str | None) -> None:
+    """Feed the bag's messages to the session, each on its own (issue 24).
+
+    A message that cannot be decoded or used is counted in ``session.rejected`` with its
+    reason, and the rest of the bag is analysed.
+    """
+    from gyro_rotor.analysis.session import OtherSystemError
+    wanted = [energy, joints] + ([scene_topic] if scene_topic else [])
+    joints_used, other_system = 0, None
+    for topic, _, msg in reader.decoded(wanted, on_error=session.reject):
+        try:
+            if topic == energy:
+                session.on_energy(msg)
+            elif topic == joints:
+                session.on_joints(msg)
+                joints_used += 1
+            else:
+                session.on_scene_doc(msg.data)
+        except Exception as err:    # noqa: B902 -- outside data: anything may go wrong
+            if isinstance(err, OtherSystemError) and other_system is None:
+                other_system = err
+            session.reject(topic, err)
+    if other_system is not None and not joints_used:
+        raise other_system          # not one joint state of this scene: another system's
+    session.finish()
 
 
 def _json_record(reader, name: str, key: str, default):
@@ -123,25 +156,29 @@ def _scene_source(path, reader, scene, scene_topic) -> tuple:
     from gyro_rotor.core.scene import scene_from_mapping
     from gyro_rotor.core.system.scene import (general_scene_from_flat, GeneralScene,
                                               is_general_flat, load_any_scene)
-    import yaml
+    from gyro_rotor.core.yamlio import load_yaml
+    from gyro_rotor.errors import GyroRotorError
     if isinstance(scene, (Scene, GeneralScene)):
         return scene, None, 'given'
     if scene:
         return load_any_scene(scene), None, f'given ({scene})'
+    problem = ''
     if 'gyro_rotor.scene' in reader.metadata:
         rec = reader.metadata['gyro_rotor.scene']
         try:
-            flat = yaml.safe_load(rec.get('flat', ''))
-        except yaml.YAMLError as err:
-            raise AnalysisError(f'{path}: the scene record is not YAML: {err}') from err
-        if not isinstance(flat, dict):
-            raise AnalysisError(f'{path}: the gyro_rotor.scene record holds no parameters')
-        if is_general_flat(flat):
-            base = general_scene_from_flat(flat, check=False)
-        else:
-            base = scene_from_mapping(flat, strict_float=False)
-        return None, base, f"bag metadata (scene '{base.name}')"
+            flat = load_yaml(rec.get('flat', ''), 'the gyro_rotor.scene record', AnalysisError)
+            if not isinstance(flat, dict):
+                raise AnalysisError('the gyro_rotor.scene record holds no parameters')
+            if is_general_flat(flat):
+                base = general_scene_from_flat(flat, check=False)
+            else:
+                base = scene_from_mapping(flat, strict_float=False)
+            return None, base, f"bag metadata (scene '{base.name}')"
+        except GyroRotorError as err:
+            if scene_topic is None or not reader.topics[scene_topic].count:
+                raise AnalysisError(f'{path}: {err}') from err
+            problem = f' (the gyro_rotor.scene record is unusable: {err})'
     if scene_topic is not None:
-        return None, None, f'scene documents on {scene_topic}'
+        return None, None, f'scene documents on {scene_topic}{problem}'
     raise AnalysisError(f'{path}: the bag names no scene (no gyro_rotor.scene metadata, '
                         f'no ~/scene topic); pass one with --scene')

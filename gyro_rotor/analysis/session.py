@@ -6,6 +6,7 @@ node's ``~/scene`` document. Pure Python: messages are duck-typed.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Mapping
 
 from gyro_rotor.analysis.analyzer import RotorAnalyzer
@@ -16,7 +17,14 @@ from gyro_rotor.core.system.scene import (general_scene_from_flat, general_scene
                                           GeneralScene, is_general_flat)
 from gyro_rotor.errors import AnalysisError
 
-__all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc']
+__all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc', 'OtherSystemError']
+
+
+class OtherSystemError(AnalysisError):
+    """A joint_states message of another system than the scene's.
+
+    A whole recording of another system, or one foreign message among the right ones.
+    """
 
 
 def scene_to_flat(scene) -> dict[str, Any]:
@@ -93,6 +101,29 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
     return scene_from_mapping(flat, strict_float=False)
 
 
+#: largest simulation time an energy message may carry [s] (about 30 years)
+MAX_T_SIM = 1e9
+
+
+def _check_energy(fields: Mapping[str, float]) -> None:
+    """Refuse an energy message the analysis cannot place (before it is paired).
+
+    t_sim, seq (and k, if present) must be finite, t_sim within [0, :data:`MAX_T_SIM`],
+    seq and k whole numbers >= 0 (k >= -1); E_star must be there (it may be non-finite: a
+    diverged simulation's, counted by the data criterion).
+    """
+    for key in ('t_sim', 'seq', 'E_star'):
+        if key not in fields:
+            raise AnalysisError(f'energy message without the field {key}')
+    t, seq, k = fields['t_sim'], fields['seq'], fields.get('k', -1.0)
+    if not (math.isfinite(t) and 0.0 <= t <= MAX_T_SIM):
+        raise AnalysisError(f'energy message with t_sim = {t!r} (not in [0, {MAX_T_SIM:g}] s)')
+    for key, v, low in (('seq', seq, 0), ('k', k, -1)):
+        if not (math.isfinite(v) and v == int(v) and low <= v < 2.0**53):
+            raise AnalysisError(f'energy message with {key} = {v!r} (not a whole number '
+                                f'>= {low})')
+
+
 def joint_names(scene) -> tuple:
     """Return the ``joint_states`` names rotor_sim publishes for a scene."""
     if isinstance(scene, GeneralScene):
@@ -136,6 +167,8 @@ class AnalysisSession:
         #: simulation time of the newest paired sample [s]: the time base of the stamps the
         #: analysis node writes (0 before the first sample)
         self.t_sim = 0.0
+        #: messages refused (malformed, foreign, not analysable): topic -> reason -> count
+        self.rejected: dict[str, dict[str, int]] = {}
 
     @property
     def scene(self) -> Scene | None:
@@ -144,11 +177,8 @@ class AnalysisSession:
 
     def on_scene_doc(self, text: str) -> Scene:
         """Feed a ``~/scene`` document (YAML text) of the simulation node."""
-        import yaml
-        try:
-            doc = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise AnalysisError(f'scene document is not YAML: {err}') from err
+        from gyro_rotor.core.yamlio import load_yaml
+        doc = load_yaml(text, 'scene document', AnalysisError)
         self.scene_docs += 1
         scene = scene_from_sim_doc(doc, self.base)
         if self.base is None:
@@ -172,6 +202,7 @@ class AnalysisSession:
         if not self.energy_fields:
             raise AnalysisError('energy message without a labelled layout')
         fields = energy_sample_fields(msg.data, self.energy_fields)
+        _check_energy(fields)
         stamp = int(round(fields['t_sim'] * 1e9))
         self._take(self.pairer.add_energy(stamp, fields))
 
@@ -187,13 +218,38 @@ class AnalysisSession:
         if names != self._joint_names and self.scene is not None:
             want = joint_names(self.scene)
             if names != want:
-                raise AnalysisError(
+                raise OtherSystemError(
                     f"joint_states names {', '.join(names) or 'no joints'} but scene "
                     f"'{self.scene.name}' has the joints {', '.join(want)}: a recording "
                     f'of another system')
             self._joint_names = names
         stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
         self._take(self.pairer.add_joints(stamp, msg.position, msg.velocity))
+
+    def reject(self, topic: str, err: BaseException) -> str:
+        """Count a message that could not be used; return the reason (one line)."""
+        reason = f'{type(err).__name__}: {str(err)[:160]}'.splitlines()[0] if str(err) \
+            else type(err).__name__
+        per = self.rejected.setdefault(topic, {})
+        per[reason] = per.get(reason, 0) + 1
+        return reason
+
+    @property
+    def rejected_count(self) -> int:
+        """Messages refused so far, all topics."""
+        return sum(n for per in self.rejected.values() for n in per.values())
+
+    def rejected_text(self) -> str:
+        """One line: the messages refused per topic with their first reason ('' if none)."""
+        if not self.rejected:
+            return ''
+        parts = []
+        for topic, per in sorted(self.rejected.items()):
+            first = next(iter(per))
+            more = f' and {len(per) - 1} other reasons' if len(per) > 1 else ''
+            parts.append(f'{topic} {sum(per.values())} ({first}{more})')
+        return (f'{self.rejected_count} messages ignored (malformed or not from the '
+                'simulation): ' + '; '.join(parts))
 
     def _take(self, samples: list[Sample]) -> None:
         if not samples:

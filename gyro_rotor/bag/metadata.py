@@ -91,11 +91,12 @@ def _write_metadata_yaml(directory: Path, info: dict[str, Any]) -> None:
 
 def load_metadata_yaml(path: Path) -> tuple[dict[str, Any] | None, str]:
     """Return the inner node of ``metadata.yaml`` (or None) and a problem description."""
+    from gyro_rotor.core.yamlio import load_yaml
     try:
-        doc = yaml.safe_load(path.read_text(encoding='utf-8'))
+        doc = load_yaml(path.read_text(encoding='utf-8'), str(path), BagError)
         info = doc['rosbag2_bagfile_information']
         if not isinstance(info, dict):
             raise TypeError('not a mapping')
         return info, ''
-    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError) as err:
-        return None, f'{path} is unreadable ({type(err).__name__}: {err})'
+    except (OSError, UnicodeDecodeError, BagError, KeyError, TypeError) as err:
+        return None, f'{path} is unreadable ({type(err).__name__}: {str(err)[:200]})'

@@ -1,33 +1,33 @@
 """The bag reader: rosbag2 MCAP bags (directory or bare ``.mcap``), damaged ones too.
 
-A file without a valid footer and summary (a killed writer, a cut copy) is read record by
-record from the start; every complete record is used, the first incomplete or malformed one
-ends the scan. The reader then sets ``truncated`` and warns with :class:`BagWarning`.
+Each file is read by :func:`gyro_rotor.bag.mcapfile.read_mcap`: the messages of every intact
+chunk are kept, also after a damaged one (the chunk index when the summary holds,
+resynchronisation on record boundaries otherwise), and what was lost is counted per topic
+against the counts the bag recorded (the MCAP statistics, else the ``rosbag2`` metadata
+record, else ``metadata.yaml``). A bag recovered by :func:`gyro_rotor.bag.recovery.recover_bag`
+carries its losses in the metadata record ``gyro_rotor.recovery``, so they stay known. Any
+damage sets :attr:`BagReader.damaged` and warns with :class:`BagWarning`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
-import dataclasses
+from collections.abc import Callable, Iterable, Iterator
 import heapq
-import io
+import json
 import os
 from pathlib import Path
-import struct
 from typing import Any, NamedTuple
 import warnings
 
-from gyro_rotor.bag.metadata import BagWarning, load_metadata_yaml, MAGIC, METADATA_YAML
+from gyro_rotor.bag.mcapfile import iter_messages, McapContents, read_mcap
+from gyro_rotor.bag.metadata import BagWarning, load_metadata_yaml, METADATA_YAML
 from gyro_rotor.errors import BagError
-from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
-from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk
+from mcap.records import Channel, Message, Schema
 
-__all__ = ['BagReader', 'TopicInfo', 'open_bag']
+__all__ = ['BagReader', 'TopicInfo', 'open_bag', 'RECOVERY_RECORD']
 
-_MAGIC = MAGIC
+#: the metadata record in which recover_bag keeps what the damaged original lost
+RECOVERY_RECORD = 'gyro_rotor.recovery'
 
 
 class TopicInfo(NamedTuple):
@@ -35,138 +35,6 @@ class TopicInfo(NamedTuple):
 
     type: str  # noqa: A003 (public field name, as in rosbag2's metadata)
     count: int
-
-
-@dataclasses.dataclass
-class _FileData:
-    """What could be read from one MCAP file."""
-
-    path: Path
-    profile: str = ''
-    library: str = ''
-    schemas: dict[int, Schema] = dataclasses.field(default_factory=dict)
-    channels: dict[int, Channel] = dataclasses.field(default_factory=dict)
-    metadata: dict[str, dict[str, str]] = dataclasses.field(default_factory=dict)
-    counts: dict[int, int] = dataclasses.field(default_factory=dict)
-    start: int | None = None
-    end: int | None = None
-    indexed: bool = False
-    truncated: bool = False
-    problem: str = ''
-    messages: list[Message] | None = None   # set when the file was scanned, not indexed
-
-
-_RECORDS = {0x01: Header, 0x03: Schema, 0x04: Channel, 0x06: Chunk, 0x0C: Metadata,
-            0x02: Footer}
-
-
-def _read_file(path: Path) -> _FileData:
-    """Read the summary of an MCAP file, or scan it from the start if it has none."""
-    data = _FileData(path)
-    try:
-        size = path.stat().st_size
-        with open(path, 'rb') as stream:
-            head = stream.read(len(_MAGIC))
-            if not head:
-                raise BagError(f'{path}: empty file, not an MCAP file')
-            if head != _MAGIC[:len(head)]:
-                raise BagError(f'{path}: not an MCAP file (magic {head[:8]!r})')
-            if len(head) < len(_MAGIC):
-                raise BagError(f'{path}: truncated inside the MCAP magic, nothing to read')
-            if _read_indexed(stream, size, data):
-                return data
-            _scan(stream, size, data)
-    except OSError as err:
-        raise BagError(f'cannot read {path}: {err.strerror or err}') from err
-    return data
-
-
-def _read_indexed(stream: io.BufferedReader, size: int, data: _FileData) -> bool:
-    """Fill ``data`` from the summary section; return False if the file has none."""
-    if size < 2 * len(_MAGIC) + 29:
-        return False
-    stream.seek(-len(_MAGIC), io.SEEK_END)
-    if stream.read(len(_MAGIC)) != _MAGIC:
-        return False
-    try:
-        reader = SeekingReader(stream, record_size_limit=size)
-        summary = reader.get_summary()
-        if summary is None or summary.statistics is None:
-            return False
-        header = reader.get_header()
-        metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-    except Exception:  # any damage: fall back to the sequential scan
-        return False
-    data.profile, data.library = header.profile, header.library
-    data.schemas = dict(summary.schemas)
-    data.channels = dict(summary.channels)
-    data.metadata = metadata
-    data.counts = dict(summary.statistics.channel_message_counts)
-    if summary.statistics.message_count:
-        data.start = summary.statistics.message_start_time
-        data.end = summary.statistics.message_end_time
-    data.indexed = True
-    return True
-
-
-def _scan(stream: io.BufferedReader, size: int, data: _FileData) -> None:
-    """Read records one by one from the start; stop at the first incomplete or bad one."""
-    data.messages = []
-    offset = len(_MAGIC)
-    stream.seek(offset)
-    complete = False
-    while True:
-        head = stream.read(9)
-        if len(head) < 9:
-            data.problem = (f'no footer: the file ends at byte {size}'
-                            + (' inside a record header' if head else ''))
-            break
-        opcode, length = struct.unpack('<BQ', head)
-        if length > size - offset - 9:
-            data.problem = (f'no footer: record at byte {offset} (opcode 0x{opcode:02x}, '
-                            f'{length} bytes) is cut off at byte {size}')
-            break
-        body = stream.read(length)
-        try:
-            if opcode == 0x05:
-                records: list[Any] = [Message.read(ReadDataStream(io.BytesIO(body)), length)]
-            elif opcode in _RECORDS:
-                record = _RECORDS[opcode].read(ReadDataStream(io.BytesIO(body)))
-                records = (breakup_chunk(record, validate_crc=True)
-                           if isinstance(record, Chunk) else [record])
-            else:
-                records = []
-        except Exception as err:  # malformed record: keep what was read
-            data.problem = (f'malformed record at byte {offset} (opcode 0x{opcode:02x}): '
-                            f'{type(err).__name__}: {err}')
-            break
-        offset += 9 + length
-        if any(isinstance(r, Footer) for r in records):
-            complete = stream.read(len(_MAGIC)) == _MAGIC
-            if not complete:
-                data.problem = 'footer is not followed by the MCAP magic'
-            break
-        _take(records, data)
-    data.truncated = not complete
-
-
-def _take(records: list[Any], data: _FileData) -> None:
-    for record in records:
-        if isinstance(record, Message):
-            if record.channel_id in data.channels:
-                data.messages.append(record)
-                data.counts[record.channel_id] = data.counts.get(record.channel_id, 0) + 1
-                t = record.log_time
-                data.start = t if data.start is None else min(data.start, t)
-                data.end = t if data.end is None else max(data.end, t)
-        elif isinstance(record, Channel):
-            data.channels.setdefault(record.id, record)
-        elif isinstance(record, Schema):
-            data.schemas.setdefault(record.id, record)
-        elif isinstance(record, Metadata):
-            data.metadata[record.name] = dict(record.metadata)
-        elif isinstance(record, Header):
-            data.profile, data.library = record.profile, record.library
 
 
 def _bag_files(path: Path) -> tuple[list[Path], dict[str, Any] | None, list[str]]:
@@ -211,7 +79,7 @@ class BagReader:
     files : list of Path
         The MCAP files read.
     topics : dict of str to TopicInfo
-        ``topic -> (type, count)`` from the MCAP data (not from ``metadata.yaml``).
+        ``topic -> (type, count)`` of the readable messages (not from ``metadata.yaml``).
     metadata : dict of str to dict
         The MCAP metadata records, ``name -> {key: value}``.
     channel_metadata : dict of str to dict
@@ -219,7 +87,14 @@ class BagReader:
     bag_metadata : dict or None
         The ``rosbag2_bagfile_information`` node of ``metadata.yaml``, if readable.
     truncated : bool
-        True if some file had no valid footer and only its readable prefix is used.
+        True if some file has no valid footer (cut short, or its end damaged).
+    damaged : bool
+        True if anything recorded could not be read (or was lost before a recovery).
+    lost : dict of str to int
+        Messages known lost per topic: recorded minus readable, where the bag recorded its
+        counts; the damaged chunks' message indexes otherwise.
+    unknown_loss : list of str
+        Losses whose size nothing in the bag tells (a cut file without recorded counts).
     problems : list of str
         What was wrong (also emitted as :class:`BagWarning`).
     """
@@ -227,16 +102,18 @@ class BagReader:
     def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         self.files, self.bag_metadata, self.problems = _bag_files(self.path)
-        self._data = [_read_file(f) for f in self.files]
+        self._data: list[McapContents] = [read_mcap(f) for f in self.files]
+        self.lost: dict[str, int] = {}
+        self.unknown_loss: list[str] = []
+        recorded_yaml = _yaml_counts(self.bag_metadata) if len(self._data) == 1 else None
         for data in self._data:
-            if data.truncated:
-                n = len(data.messages or [])
-                self.problems.append(f'{data.path} is truncated ({data.problem}); '
-                                     f'{n} messages are readable')
-            elif data.profile != 'ros2':
+            for problem in data.problems:
+                self.problems.append(f'{data.path}: {problem}')
+            if data.profile != 'ros2' and data.profile:
                 self.problems.append(f'{data.path}: MCAP profile is {data.profile!r}, '
                                      "not 'ros2'")
-        self.truncated = any(d.truncated for d in self._data)
+            self._file_losses(data, recorded_yaml)
+        self.truncated = any(not d.complete for d in self._data)
         topics: dict[str, TopicInfo] = {}
         self.channel_metadata: dict[str, dict[str, str]] = {}
         self.metadata: dict[str, dict[str, str]] = {}
@@ -250,8 +127,75 @@ class BagReader:
                                                   old.count + data.counts.get(cid, 0))
                 self.channel_metadata.setdefault(channel.topic, dict(channel.metadata))
         self.topics = topics
+        self._recovered_losses()
+        self.lost = {t: n for t, n in sorted(self.lost.items()) if n}
+        self.damaged = bool(self.truncated or self.lost or self.unknown_loss or any(
+            d.damaged for d in self._data))
+        if self.lost or self.unknown_loss:
+            self.problems.append(f'{self.path}: {self.loss_text()}')
         for problem in self.problems:
             warnings.warn(problem, BagWarning, stacklevel=3)
+
+    def _file_losses(self, data: McapContents, recorded_yaml: dict[str, int] | None) -> None:
+        """Add one file's losses by topic; use the bag's recorded counts where it has none."""
+        def topic(cid: int) -> str:
+            ch = data.channels.get(cid)
+            return ch.topic if ch is not None else f'<channel {cid}>'
+
+        if data.recorded is None and (data.unknown_loss or data.lost):
+            readable: dict[str, int] = {}
+            for cid, n in data.counts.items():
+                readable[topic(cid)] = readable.get(topic(cid), 0) + n
+            rosbag2 = _yaml_counts(_rosbag2_record(data.metadata.get('rosbag2')))
+            for source, counts in (('the rosbag2 metadata record', rosbag2),
+                                   ('metadata.yaml', recorded_yaml)):
+                if counts and sum(counts.values()) and all(
+                        counts.get(t, 0) >= n for t, n in readable.items()):
+                    for t, n in counts.items():
+                        if n > readable.get(t, 0):
+                            self.lost[t] = self.lost.get(t, 0) + n - readable.get(t, 0)
+                    self.problems.append(f'{data.path}: losses counted against {source}')
+                    return
+        for cid, n in data.lost.items():
+            self.lost[topic(cid)] = self.lost.get(topic(cid), 0) + n
+        for cid, n in data.orphans.items():
+            self.lost[topic(cid)] = self.lost.get(topic(cid), 0) + n
+        self.unknown_loss.extend(f'{data.path.name}: {u}' for u in data.unknown_loss)
+
+    def _recovered_losses(self) -> None:
+        """Add the losses a recovery recorded in the bag (``gyro_rotor.recovery``)."""
+        record = self.metadata.get(RECOVERY_RECORD)
+        if not record:
+            return
+        try:
+            info = json.loads(record.get('json', '{}'))
+            lost = {str(t): int(n) for t, n in dict(info.get('lost', {})).items()}
+            unknown = [str(u) for u in info.get('unknown_loss', [])]
+        except (ValueError, TypeError, AttributeError) as err:
+            self.problems.append(f'{self.path}: the {RECOVERY_RECORD} record is unreadable '
+                                 f'({err}): the bag was recovered, its losses are unknown')
+            self.unknown_loss.append('before the recovery (record unreadable)')
+            return
+        for t, n in lost.items():
+            self.lost[t] = self.lost.get(t, 0) + n
+        self.unknown_loss.extend(f'before the recovery: {u}' for u in unknown)
+        self.problems.append(f'{self.path}: recovered from a damaged bag '
+                             f'({record.get("summary", "")})')
+        self.recovered = True
+
+    recovered = False
+
+    def loss_text(self) -> str:
+        """One line: the messages lost per topic and the losses of unknown size."""
+        parts = []
+        if self.lost:
+            parts.append(f'{sum(self.lost.values())} recorded messages lost ('
+                         + ', '.join(f'{t} {n}' for t, n in self.lost.items()) + ')')
+        if self.unknown_loss:
+            parts.append('loss of unknown size: ' + '; '.join(self.unknown_loss[:3])
+                         + (f' and {len(self.unknown_loss) - 3} more'
+                            if len(self.unknown_loss) > 3 else ''))
+        return '; '.join(parts) if parts else 'nothing lost'
 
     def __enter__(self) -> BagReader:
         return self
@@ -260,13 +204,12 @@ class BagReader:
         self.close()
 
     def close(self) -> None:
-        """Release the messages read from damaged files (files are opened per iteration)."""
+        """Release the messages held in memory (files are opened per iteration)."""
         for data in self._data:
-            if data.messages is not None:
-                data.messages = []
+            data.loose = []
 
     def __repr__(self) -> str:
-        flag = ', truncated' if self.truncated else ''
+        flag = ', truncated' if self.truncated else (', damaged' if self.damaged else '')
         return f'<BagReader {str(self.path)!r}: {self.message_count} messages{flag}>'
 
     @property
@@ -279,28 +222,11 @@ class BagReader:
         data = self._data[index]
         wanted = {cid for cid, ch in data.channels.items()
                   if topics is None or ch.topic in topics}
-        if not data.indexed:
-            order = sorted(range(len(data.messages or [])),
-                           key=lambda i: data.messages[i].log_time)
-            for i in order:
-                msg = data.messages[i]
-                if msg.channel_id in wanted:
-                    channel = data.channels[msg.channel_id]
-                    yield (msg.log_time, index, i, channel,
-                           data.schemas.get(channel.schema_id), msg)
-            return
         if not wanted:
             return
-        try:
-            with open(data.path, 'rb') as stream:
-                reader = SeekingReader(stream, record_size_limit=stream.seek(0, io.SEEK_END))
-                names = sorted({data.channels[c].topic for c in wanted})
-                for i, (schema, channel, msg) in enumerate(
-                        reader.iter_messages(topics=names, log_time_order=True)):
-                    yield msg.log_time, index, i, channel, schema, msg
-        except (OSError, McapError, ValueError, KeyError, struct.error, EOFError) as err:
-            raise BagError(f'cannot read messages from {data.path}: '
-                           f'{type(err).__name__}: {err}') from err
+        for i, msg in enumerate(iter_messages(data, wanted)):
+            channel = data.channels[msg.channel_id]
+            yield msg.log_time, index, i, channel, data.schemas.get(channel.schema_id), msg
 
     def _iter(self, topics: str | Iterable[str] | None
               ) -> Iterator[tuple[int, int, int, Channel, Schema | None, Message]]:
@@ -323,35 +249,53 @@ class BagReader:
         for log_time, _, _, channel, _, msg in self._iter(topics):
             yield channel.topic, log_time, msg.data
 
-    def decoded(self, topics: str | Iterable[str] | None = None
+    def decoded(self, topics: str | Iterable[str] | None = None,
+                on_error: Callable[[str, BaseException], Any] | None = None
                 ) -> Iterator[tuple[str, int, Any]]:
         """Yield ``(topic, log_time_ns, message)`` decoded with the ``mcap_ros2`` decoder.
 
         The message objects are the decoder's dynamic classes with the fields of the
         definition stored in the bag; no rclpy is needed.
 
+        Parameters
+        ----------
+        topics : str or iterable of str, optional
+            Only these topics; all if None.
+        on_error : callable, optional
+            ``on_error(topic, error)`` for a message that cannot be decoded, which is then
+            skipped (the rest is read on); without it the error is raised.
+
         Raises
         ------
         BagError
-            If a topic has no ``ros2msg`` schema or a message cannot be decoded.
+            If a topic has no ``ros2msg`` schema or a message cannot be decoded (and no
+            ``on_error`` was given).
         """
         from mcap_ros2.decoder import DecoderFactory
 
         factories = [DecoderFactory() for _ in self._data]
         for log_time, index, _, channel, schema, msg in self._iter(topics):
             try:
-                decoder = factories[index].decoder_for(channel.message_encoding, schema)
-            except Exception as err:  # the decoder raises various types
-                raise BagError(f'{self.files[index]}: cannot build a decoder for '
-                               f'{channel.topic!r}: {err}') from err
-            if decoder is None:
-                raise BagError(f'{self.files[index]}: topic {channel.topic!r} has no ros2msg '
-                               'schema with cdr encoding, cannot decode')
-            try:
-                yield channel.topic, log_time, decoder(msg.data)
-            except Exception as err:  # the decoder raises various types
-                raise BagError(f'{self.files[index]}: cannot decode message on '
-                               f'{channel.topic!r} at {log_time}: {err}') from err
+                try:
+                    decoder = factories[index].decoder_for(channel.message_encoding, schema)
+                except Exception as err:  # the decoder raises various types
+                    raise BagError(f'{self.files[index]}: cannot build a decoder for '
+                                   f'{channel.topic!r}: {err}') from err
+                if decoder is None:
+                    raise BagError(f'{self.files[index]}: topic {channel.topic!r} has no '
+                                   'ros2msg schema with cdr encoding, cannot decode')
+                try:
+                    value = decoder(msg.data)
+                except Exception as err:  # the decoder raises various types
+                    raise BagError(f'{self.files[index]}: cannot decode message on '
+                                   f'{channel.topic!r} at {log_time}: '
+                                   f'{type(err).__name__}: {str(err)[:200]}') from err
+            except BagError as err:
+                if on_error is None:
+                    raise
+                on_error(channel.topic, err)
+                continue
+            yield channel.topic, log_time, value
 
 
 def open_bag(path: str | os.PathLike[str]) -> BagReader:
@@ -361,7 +305,34 @@ def open_bag(path: str | os.PathLike[str]) -> BagReader:
     ------
     BagError
         For a missing path, an empty directory, a non-MCAP file, a file cut inside its magic,
-        or unsupported storage. Truncated files are read up to the damage and flagged with
-        ``truncated`` and a :class:`BagWarning` instead.
+        or unsupported storage. Damaged and truncated files are read as far as they are
+        intact and flagged with ``damaged`` / ``truncated``, ``lost`` and a
+        :class:`BagWarning` instead.
     """
     return BagReader(path)
+
+
+def _rosbag2_record(record: dict[str, str] | None) -> dict[str, Any] | None:
+    """Return the bag information of a ``rosbag2`` metadata record, or None."""
+    if not record or 'serialized_metadata' not in record:
+        return None
+    from gyro_rotor.core.yamlio import load_yaml
+    try:
+        doc = load_yaml(record['serialized_metadata'], 'the rosbag2 metadata record')
+    except Exception:   # noqa: B902 -- damaged: the counts are unknown
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _yaml_counts(info: dict[str, Any] | None) -> dict[str, int] | None:
+    """Return ``topic -> message_count`` of a rosbag2 bag information node, or None."""
+    if not isinstance(info, dict):
+        return None
+    counts: dict[str, int] = {}
+    try:
+        for entry in info.get('topics_with_message_count') or []:
+            name = str(entry['topic_metadata']['name'])
+            counts[name] = counts.get(name, 0) + int(entry['message_count'])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return counts

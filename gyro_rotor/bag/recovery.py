@@ -1,16 +1,25 @@
-"""Recovery of a bag whose writer was killed: complete MCAP files and metadata again."""
+"""Recovery of a damaged bag (a killed writer, a cut copy, damaged chunks or records).
+
+Every file with damage is rewritten from what :func:`gyro_rotor.bag.mcapfile.read_mcap` could
+read (the messages of every intact chunk, every intact metadata record) into a complete MCAP
+file, which also carries the metadata record :data:`~gyro_rotor.bag.reader.RECOVERY_RECORD`:
+what the original lost, per topic, and the losses of unknown size. A reader of the recovered
+bag therefore still says that it is not the whole recording.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from pathlib import Path
 from typing import Any
 
+from gyro_rotor.bag.mcapfile import iter_messages, McapContents, read_mcap
 from gyro_rotor.bag.metadata import (_bag_metadata, _Topic, _write_metadata_yaml, LIBRARY,
                                      METADATA_YAML)
 from gyro_rotor.bag.qos import normalize_qos
-from gyro_rotor.bag.reader import _bag_files, _FileData, _read_file
+from gyro_rotor.bag.reader import _bag_files, BagReader, RECOVERY_RECORD
 from gyro_rotor.errors import BagError
 from mcap.writer import CompressionType, Writer
 import yaml
@@ -28,6 +37,10 @@ class RecoveryReport:
     originals: tuple[Path, ...]
     metadata_rewritten: bool
     problems: tuple[str, ...]
+    #: messages the damaged original lost, per topic (recorded minus readable)
+    lost: dict[str, int] = dataclasses.field(default_factory=dict)
+    #: losses whose size nothing in the bag tells
+    unknown_loss: tuple[str, ...] = ()
 
     @property
     def message_count(self) -> int:
@@ -40,8 +53,8 @@ class RecoveryReport:
         return bool(self.rewritten)
 
 
-def _rewrite(data: _FileData, target: Path) -> None:
-    """Write the readable content of a scanned file into a complete MCAP file."""
+def _rewrite(data: McapContents, target: Path, loss: dict[str, Any]) -> None:
+    """Write the readable content of a damaged file into a complete MCAP file."""
     with open(target, 'xb') as stream:
         writer = Writer(stream, compression=CompressionType.NONE)
         library = f'{data.library}; recovered by {LIBRARY}' if data.library else LIBRARY
@@ -53,9 +66,11 @@ def _rewrite(data: _FileData, target: Path) -> None:
                                                     metadata=dict(c.metadata))
                        for cid, c in sorted(data.channels.items())}
         for name, meta in data.metadata.items():
-            if name != 'rosbag2':
+            if name not in ('rosbag2', RECOVERY_RECORD):
                 writer.add_metadata(name, meta)
-        for msg in data.messages or []:
+        writer.add_metadata(RECOVERY_RECORD, {'json': json.dumps(loss),
+                                              'summary': loss['summary']})
+        for msg in iter_messages(data):
             writer.add_message(channel_ids[msg.channel_id], msg.log_time, msg.data,
                                msg.publish_time, sequence=msg.sequence)
         info = _bag_metadata(_topics_of(data), target.name, data.start, data.end)
@@ -66,7 +81,24 @@ def _rewrite(data: _FileData, target: Path) -> None:
         os.fsync(stream.fileno())
 
 
-def _topics_of(data: _FileData) -> list[_Topic]:
+def _replace_file(data: McapContents, file: Path, loss: dict[str, Any]) -> Path:
+    """Rewrite a damaged file in place, keeping the original as ``.orig``; return that."""
+    orig = file.with_name(file.name + '.orig')
+    tmp = file.with_name(file.name + '.recovering')
+    for existing in (orig, tmp):
+        if existing.exists():
+            raise BagError(f'cannot recover {file}: {existing} exists already, '
+                           'not overwriting')
+    try:
+        _rewrite(data, tmp, loss)
+        os.replace(file, orig)
+        os.replace(tmp, file)
+    except OSError as err:
+        raise BagError(f'cannot recover {file}: {err.strerror or err}') from err
+    return orig
+
+
+def _topics_of(data: McapContents) -> list[_Topic]:
     """Return the topics of a file with QoS, hash and message counts from its channels."""
     topics: dict[str, _Topic] = {}
     for cid, channel in sorted(data.channels.items()):
@@ -84,11 +116,13 @@ def _topics_of(data: _FileData) -> list[_Topic]:
 
 
 def recover_bag(path: str | os.PathLike[str]) -> RecoveryReport:
-    """Make a bag whose writer was killed readable by every reader again.
+    """Make a damaged bag readable by every reader again, its losses kept on record.
 
-    Each MCAP file without a valid summary and footer is scanned, every readable message is
-    copied into a new, complete file of the same name (with summary, statistics and a
-    ``rosbag2`` metadata record), and the damaged original is kept as ``<name>.mcap.orig``.
+    Each damaged MCAP file (no valid footer or summary, a damaged chunk or record) is read
+    as far as it is intact, every readable message and metadata record is copied into a new,
+    complete file of the same name (with summary, statistics, a ``rosbag2`` metadata record
+    and the losses in :data:`~gyro_rotor.bag.reader.RECOVERY_RECORD`), and the damaged
+    original is kept as ``<name>.mcap.orig``.
     For a bag directory, ``metadata.yaml`` is then rewritten with the real counts (the old one
     is kept as ``metadata.yaml.orig``). Complete files are left alone, so recovering twice is
     harmless. Nothing is ever deleted.
@@ -104,25 +138,21 @@ def recover_bag(path: str | os.PathLike[str]) -> RecoveryReport:
     originals: list[Path] = []
     all_topics: dict[str, _Topic] = {}
     entries: list[dict[str, Any]] = []
-    for file in files:
-        data = _read_file(file)
-        if data.truncated:
-            problems.append(f'{file}: {data.problem}')
-            orig = file.with_name(file.name + '.orig')
-            tmp = file.with_name(file.name + '.recovering')
-            for existing in (orig, tmp):
-                if existing.exists():
-                    raise BagError(f'cannot recover {file}: {existing} exists already, '
-                                   'not overwriting')
-            try:
-                _rewrite(data, tmp)
-                os.replace(file, orig)
-                os.replace(tmp, file)
-            except OSError as err:
-                raise BagError(f'cannot recover {file}: {err.strerror or err}') from err
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        before = BagReader(path)
+    lost, unknown = dict(before.lost), list(before.unknown_loss)
+    for index, file in enumerate(files):
+        data = before._data[index]
+        if data.damaged:
+            problems.extend(f'{file}: {p}' for p in data.problems)
+            loss = {'lost': lost, 'unknown_loss': unknown,
+                    'problems': [p[:300] for p in data.problems][:50],
+                    'summary': before.loss_text()}
+            originals.append(_replace_file(data, file, loss))
             rewritten.append(file)
-            originals.append(orig)
-            data = _read_file(file)
+            data = read_mcap(file)
         topics = _topics_of(data)
         for topic in topics:
             known = all_topics.setdefault(topic.name, dataclasses.replace(topic, count=0))
@@ -153,4 +183,4 @@ def recover_bag(path: str | os.PathLike[str]) -> RecoveryReport:
             _write_metadata_yaml(path, new_info)
             metadata_rewritten = True
     return RecoveryReport(path, counts, tuple(rewritten), tuple(originals),
-                          metadata_rewritten, tuple(problems))
+                          metadata_rewritten, tuple(problems), lost, tuple(unknown))

@@ -113,10 +113,12 @@ def scene_ref(path) -> str:
 
 def scene_doc_for_bag(text: str) -> str:
     """Return a ``~/scene`` document with its ``path`` as :func:`scene_ref` names it."""
+    from gyro_rotor.core.yamlio import load_yaml
+    from gyro_rotor.errors import GyroRotorError
     import yaml
     try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError:
+        doc = load_yaml(text, 'scene document')
+    except GyroRotorError:
         return text
     if not isinstance(doc, dict) or not doc.get('path'):
         return text

@@ -7,27 +7,25 @@ from typing import Any
 from gyro_rotor.errors import ParameterError, SceneError
 
 
+_NON_FINITE = {'nan': float('nan'), 'inf': float('inf'), '+inf': float('inf'),
+               '-inf': float('-inf'), 'infinity': float('inf'), '-infinity': float('-inf')}
+
+
 def parse_sets(items: list[str]) -> dict[str, Any]:
     """``['K_D=0.1', 'initial.branch=2']`` -> ``{'K_D': 0.1, 'initial.branch': 2}``.
 
     Values are read as YAML scalars or lists (``0.1``, ``2``, ``true``, ``[1, 0, 0, 0]``).
     """
-    import yaml
+    from gyro_rotor.core.yamlio import load_yaml, short
     out: dict[str, Any] = {}
     for item in items or []:
         name, sep, text = item.partition('=')
         if not sep or not name.strip():
-            raise SceneError(f"--set needs NAME=VALUE, got '{item}'")
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise SceneError(f"--set {name}: cannot read value '{text}': {err}") from err
-        if isinstance(value, str):
-            # YAML 1.1 reads 1e-3, 1e300, nan and inf as strings: numbers are meant here
-            try:
-                value = float(value)
-            except ValueError:
-                pass
+            raise SceneError(f'--set needs NAME=VALUE, got {short(item)}')
+        # the one YAML loader (YAML 1.2 numbers, limits): the same values as a scene file
+        value = load_yaml(text, f'--set {short(name.strip(), 60)}', SceneError)
+        if isinstance(value, str) and value.strip().lower() in _NON_FINITE:
+            value = _NON_FINITE[value.strip().lower()]      # nan, inf written plainly
         out[name.strip()] = value
     return out
 
@@ -54,13 +52,20 @@ def load_scene_with_sets(scene: str, sets: list[str]):
         raise type(err)(f'{given} (scene {base.name}): {text}') from err
 
 
-def check_output_file(path: str, suffixes: tuple[str, ...] = ()) -> None:
-    """Refuse, before any work is done, an output file that could not be written."""
+def check_output_file(path: str, suffixes: tuple[str, ...] = (), *,
+                      overwrite: bool | None = None) -> None:
+    """Refuse, before any work is done, an output file that could not be written.
+
+    ``overwrite=False`` also refuses an existing file (``--force`` lets it be replaced);
+    None leaves that to the command.
+    """
     import os
     from pathlib import Path
     p = Path(path)
     if suffixes and not str(path).endswith(suffixes):
         raise ParameterError(f'{path}: the output file must end in {" or ".join(suffixes)}')
+    if overwrite is False and p.is_file():
+        raise ParameterError(f'{path} exists already; pass --force to overwrite it')
     if p.is_dir():
         raise ParameterError(f'{path} is a directory, not a file')
     parent = p.parent if str(p.parent) else Path('.')
@@ -68,3 +73,41 @@ def check_output_file(path: str, suffixes: tuple[str, ...] = ()) -> None:
         raise ParameterError(f'cannot write {path}: directory {parent} does not exist')
     if not os.access(parent, os.W_OK):
         raise ParameterError(f'cannot write {path}: directory {parent} is not writable')
+
+
+def write_output(path: str, write) -> None:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
+
+    A failed write (a full disk) leaves no partial file, and the error names ``path``.
+    """
+    import os
+    from pathlib import Path
+    p = Path(path)
+    tmp = p.with_name(f'.{p.stem}.tmp{os.getpid()}{p.suffix}')
+    try:
+        write(str(tmp))
+        os.replace(tmp, p)
+    except OSError as err:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise ParameterError(f'cannot write {path}: {err.strerror or err} (nothing written)'
+                             ) from None
+
+
+def check_number(name: str, value: float, *, low: float | None = None,
+                 high: float | None = None, low_open: bool = False, what: str = '') -> float:
+    """Return ``value`` if it is finite and in range, else raise one ParameterError line."""
+    import math
+    ok = math.isfinite(value) and (low is None or (value > low if low_open else value >= low)) \
+        and (high is None or value <= high)
+    if not ok:
+        rng = []
+        if low is not None:
+            rng.append(f'{">" if low_open else ">="} {low:g}')
+        if high is not None:
+            rng.append(f'<= {high:g}')
+        raise ParameterError(f'{name} must be finite{" and " + " and ".join(rng) if rng else ""}'
+                             f'{" " + what if what else ""}, got {value!r}')
+    return value

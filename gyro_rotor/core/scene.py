@@ -38,6 +38,7 @@ import difflib
 import math
 import os
 from pathlib import Path
+import re
 import sys
 from typing import Any, Mapping
 
@@ -53,6 +54,14 @@ __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'fin
 
 DEFAULT_SCENE = 'precession'
 NODE_NAMES = ('rotor_sim', '/rotor_sim', '/**')
+
+#: ranges of the simulation node's numeric keys, the same in a scene file, --set, a
+#: --params-file and a live parameter (rotor_sim declares them with these ranges)
+NODE_RANGES = {
+    'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
+    'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
+    'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, 1e9), 't_end': (1e-6, 1e9),
+}
 
 PERTURBATION_KEYS = ('dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot')
 
@@ -280,16 +289,13 @@ find_scene = scene_path
 def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
                overrides: Mapping[str, Any] | None = None) -> Scene:
     """Load and validate a scene by name or path; ``overrides`` use the flat dotted keys."""
-    import yaml
+    from gyro_rotor.core.yamlio import load_yaml
     path = scene_path(name_or_path)
     try:
         text = path.read_text(encoding='utf-8')
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f'cannot read scene file {path}: {err}') from err
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise SceneError(f'scene file {path} is not valid YAML: {err}') from err
+    doc = load_yaml(text, f'scene file {path}', SceneError)
     if not isinstance(doc, dict):
         raise SceneError(f'scene file {path}: expected a mapping with a /** (or rotor_sim): '
                          f'ros__parameters: section')
@@ -317,7 +323,7 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
                     and not isinstance(value, bool)):
                 value = float(value)   # overrides are not typed ROS files
             flat[key] = value
-    flat.setdefault('scene', path.stem)
+    flat.setdefault('scene', re.sub(r'[^A-Za-z0-9_.-]', '_', path.stem, flags=re.ASCII))
     return scene_from_mapping(flat, path=str(path))
 
 
@@ -338,36 +344,50 @@ def _unknown(key: str, valid) -> str:
 
 
 def _typed(key: str, value: Any, where: str, *, strict_float: bool) -> Any:
+    from gyro_rotor.core.yamlio import SCENE_NAME, short
     want = SCENE_KEYS[key]
+    if key == 'scene' and not (isinstance(value, str) and SCENE_NAME.match(value)):
+        raise SceneError(f'{where}: scene must be a name of ASCII letters, digits, _ . - '
+                         f'(at most 100), got {short(value)}')
+    if want is str and isinstance(value, str) and len(value) > 10000:
+        raise SceneError(f'{where}: {key} is longer than 10000 characters')
     if want is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise SceneError(f'{where}: {key} must be a number, got {value!r}')
+            raise SceneError(f'{where}: {key} must be a number, got {short(value)}')
         if strict_float and isinstance(value, int):
             raise SceneError(f'{where}: {key} must be written as a float ({value}.0): ROS 2 '
                              f'parameter files are typed')
         return float(value)
     if want is int:
         if strict_float and isinstance(value, float):
-            raise SceneError(f'{where}: {key} must be written as an integer, got {value!r}: '
-                             f'ROS 2 parameter files are typed')
+            raise SceneError(f'{where}: {key} must be written as an integer, got '
+                             f'{short(value)}: ROS 2 parameter files are typed')
         if isinstance(value, bool) or not isinstance(value, (int, float)) or (
                 isinstance(value, float) and not value.is_integer()):
-            raise SceneError(f'{where}: {key} must be an integer, got {value!r}')
+            raise SceneError(f'{where}: {key} must be an integer, got {short(value)}')
         return int(value)
     if want is bool:
         if not isinstance(value, bool):
-            raise SceneError(f'{where}: {key} must be true or false, got {value!r}')
+            raise SceneError(f'{where}: {key} must be true or false, got {short(value)}')
         return value
     if want is str:
         if not isinstance(value, str):
-            raise SceneError(f'{where}: {key} must be a string, got {value!r}')
+            raise SceneError(f'{where}: {key} must be a string, got {short(value)}')
         return value
     if want is list:
         if not isinstance(value, (list, tuple)) or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-            raise SceneError(f'{where}: {key} must be a list of numbers, got {value!r}')
+            raise SceneError(f'{where}: {key} must be a list of numbers, got {short(value)}')
         return tuple(float(v) for v in value)
     raise AssertionError(want)  # pragma: no cover
+
+
+def check_node_ranges(vals: Mapping[str, Any], where: str) -> None:
+    """Refuse a node key outside :data:`NODE_RANGES` (as rotor_sim would, but before a run)."""
+    for key, (low, high) in NODE_RANGES.items():
+        v = vals.get(key)
+        if v is not None and not (isinstance(v, (int, float)) and low <= v <= high):
+            raise SceneError(f'{where}: {key} must be in [{low:g}, {high:g}], got {v!r}')
 
 
 def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
@@ -421,6 +441,7 @@ def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
         if not math.isfinite(v):
             raise SceneError(f'{where}: perturbation.{k} must be finite, got {v!r}')
     node = {k: v for k, v in vals.items() if k in NODE_KEYS}
+    check_node_ranges(vals, where)
     scene = Scene(name=name, params=params, model=model, t_end=t_end, initial=initial,
                   perturbation=pert, node=node, description=vals.get('description', ''),
                   path=path)

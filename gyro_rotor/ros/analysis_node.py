@@ -32,7 +32,7 @@ import threading
 from diagnostic_msgs.msg import DiagnosticArray
 from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FIELDS, MODE_LABEL
 from gyro_rotor.analysis.session import AnalysisSession, scene_to_flat
-from gyro_rotor.bag.wire import (CdrError, energy_from_cdr, joints_from_cdr,
+from gyro_rotor.bag.wire import (energy_from_cdr, joints_from_cdr,
                                  scene_doc_for_bag, scene_ref)
 from gyro_rotor.core.system.scene import load_any_scene
 from gyro_rotor.errors import GyroRotorError
@@ -113,6 +113,11 @@ class RotorAnalysisNode(Node):
         # the recorder feeds the session from its spool thread; results are read here
         self._lock = threading.Lock()
         self._pending: list = []
+        #: energy and joint_states messages received, and the count at the last result
+        self.data_received = 0
+        self._data_at_result = 0
+        self._samples_at_result = 0
+        self._reject_logged: set = set()
 
         topics = sim_topics(self.sim_node)
         self.scene_topic = self.resolve_topic_name(f'{self.sim_node}/scene')
@@ -140,11 +145,12 @@ class RotorAnalysisNode(Node):
             self.get_logger().info(f'recording to {self.recorder.path}')
         else:
             deep = profile('state')
-            self.create_subscription(Float64MultiArray, 'energy',
-                                     self.session.on_energy, deep)
-            self.create_subscription(JointState, 'joint_states', self.session.on_joints, deep)
-            self.create_subscription(String, f'{self.sim_node}/scene',
-                                     lambda m: self._on_scene(m.data), _LATCHED)
+            self.create_subscription(Float64MultiArray, 'energy', self._guarded(
+                self.energy_topic, self.session.on_energy), deep)
+            self.create_subscription(JointState, 'joint_states', self._guarded(
+                self.joints_topic, self.session.on_joints), deep)
+            self.create_subscription(String, f'{self.sim_node}/scene', self._guarded(
+                self.scene_topic, lambda m: self._on_scene(m.data)), _LATCHED)
         self._scene_recorded = scene is not None
         # results every ``period`` of steady time: with use_sim_time (the launch files) a
         # ROS-time timer would stop while the simulation pauses and fire in bursts at
@@ -164,11 +170,16 @@ class RotorAnalysisNode(Node):
                 self._lock.release()
 
     def _feed_pending(self) -> None:
-        for topic, data in self._pending:
+        # the batch is taken off the list before it is fed: whatever one message does, it
+        # is never fed again and never holds back the ones after it (issue 24)
+        batch, self._pending = self._pending, []
+        for topic, data in batch:
             self._feed(topic, data)
-        self._pending.clear()
 
     def _feed(self, topic: str, data: bytes) -> None:
+        """Feed one received message; count and report it if it cannot be used."""
+        if topic in (self.energy_topic, self.joints_topic):
+            self.data_received += 1
         try:
             if topic == self.energy_topic:      # decoded by layout, not by rclpy: 3x faster
                 self.session.on_energy(energy_from_cdr(data))
@@ -176,15 +187,30 @@ class RotorAnalysisNode(Node):
                 self.session.on_joints(joints_from_cdr(data))
             elif topic == self.scene_topic:
                 self._on_scene(deserialize_message(data, String).data)
-        except (GyroRotorError, CdrError) as err:
-            self._error(str(err))
+        except Exception as err:    # noqa: B902 -- outside data: every failure is one message's
+            self._reject(topic, err)
+
+    def _guarded(self, topic: str, callback):
+        """Return a subscription callback that counts a message it cannot use (record=False)."""
+        def call(msg) -> None:
+            if topic in (self.energy_topic, self.joints_topic):
+                self.data_received += 1
+            try:
+                callback(msg)
+            except Exception as err:    # noqa: B902 -- as in _feed
+                self._reject(topic, err)
+        return call
+
+    def _reject(self, topic: str, err: BaseException) -> None:
+        reason = self.session.reject(topic, err)
+        key = (topic, type(err).__name__)
+        if key not in self._reject_logged:      # the first of each kind is logged
+            self._reject_logged.add(key)
+            self.get_logger().warning(f'message on {topic} ignored ({reason}); further ones '
+                                      'of this kind are counted in /diagnostics')
 
     def _on_scene(self, text: str) -> None:
-        try:
-            scene = self.session.on_scene_doc(text)
-        except GyroRotorError as err:
-            self._error(f'scene document of {self.sim_node}: {err}')
-            return
+        scene = self.session.on_scene_doc(text)
         if self.recorder is not None and not self._scene_recorded:
             self.recorder.add_metadata('gyro_rotor.scene', {
                 'name': scene.name, 'flat': _flat_text(scene),
@@ -216,8 +242,25 @@ class RotorAnalysisNode(Node):
         try:
             with self._lock:
                 res = self.session.result()
+                samples = self.session.analyzer.samples
+                received = self.data_received
         except GyroRotorError as err:
-            self._publish_diag('STALE', str(err), {})
+            self._publish_diag('STALE', str(err), self._input_values())
+            return
+        except Exception as err:    # noqa: B902 -- never a frozen verdict: say it failed
+            text = f'error: the analysis failed ({type(err).__name__}: {str(err)[:200]})'
+            self.pub_verdict.publish(String(data=text))
+            self._publish_diag('ERROR', text, self._input_values())
+            return
+        new_data = received - self._data_at_result
+        stale = new_data >= 10 and samples == self._samples_at_result
+        self._data_at_result, self._samples_at_result = received, samples
+        if stale:
+            # data arrives but none of it is used: the last verdict is no longer current
+            text = (f'stale: {new_data} energy/joint_states messages since the last result, '
+                    f'no sample usable; last verdict {res.verdict}')
+            self.pub_verdict.publish(String(data=text))
+            self._publish_diag('STALE', text, self._input_values())
             return
         self.last_result = res
         vec = res.analysis_vector()
@@ -241,10 +284,20 @@ class RotorAnalysisNode(Node):
             values[f'evidence_{i}'] = line
         for i, err in enumerate(self.errors[-3:]):
             values[f'error_{i}'] = err
+        values.update(self._input_values())
+        level = 'ERROR' if self.errors and res.level == 'OK' else res.level
+        if self.session.rejected and level == 'OK':
+            level = 'WARN'
+        self._publish_diag(level, str(res.verdict), values)
+
+    def _input_values(self) -> dict:
+        """Diagnostics of the input: messages ignored (with why), the recorder's counters."""
+        values: dict = {'rejected_messages': self.session.rejected_count}
+        if self.session.rejected:
+            values['rejected'] = self.session.rejected_text()
         if self.recorder is not None:
             values.update(self.recorder.stats())
-        level = 'ERROR' if self.errors and res.level == 'OK' else res.level
-        self._publish_diag(level, str(res.verdict), values)
+        return values
 
     def _publish_diag(self, level: str, message: str, values: dict) -> None:
         # one time base for every stamp the package writes: simulation time (here that of
@@ -268,9 +321,12 @@ class RotorAnalysisNode(Node):
             res = self.session.result()
             self.recorder.add_metadata('gyro_rotor.live_result', {
                 'verdict': str(res.verdict), 'samples': str(res.samples),
-                'dropped': str(res.dropped), 'json': json.dumps(res.as_dict())})
-        except GyroRotorError as err:
-            self.recorder.add_metadata('gyro_rotor.live_result', {'error': str(err)})
+                'dropped': str(res.dropped), 'json': json.dumps(res.as_dict()),
+                'rejected': json.dumps(self.session.rejected)})
+        except Exception as err:    # noqa: B902 -- the bag is closed whatever happened
+            self.recorder.add_metadata('gyro_rotor.live_result', {
+                'error': f'{type(err).__name__}: {str(err)[:500]}',
+                'rejected': json.dumps(self.session.rejected)})
         finally:
             self.recorder.close()
 

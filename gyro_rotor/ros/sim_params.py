@@ -18,6 +18,7 @@ import warnings
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
 from gyro_rotor.core.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, PERTURBATION_KEYS,
                                    scene_from_mapping, SCENE_KEYS)
+from gyro_rotor.core.scene import NODE_RANGES as _SCENE_NODE_RANGES
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
@@ -33,12 +34,8 @@ PARAM_RANGES = {
     'G': (0.0, 1e7), 's': (-100.0, 100.0), 'c_theta': (0.0, _BIG), 'c_psi': (0.0, _BIG),
     'K_S': (0.0, _BIG), 'K_D': (0.0, _BIG), 'Omega0': (-1e5, 1e5), 'pole_pairs': (0, 64),
 }
-#: ranges of the node keys
-NODE_RANGES = {
-    'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
-    'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
-    'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, _BIG), 't_end': (1e-6, _BIG),
-}
+#: ranges of the node keys: the scene loader's (one definition, issue 24)
+NODE_RANGES = _SCENE_NODE_RANGES
 #: node keys that only take effect at start
 READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers',
              'wait_for_node'}

@@ -73,12 +73,26 @@ def ros_param(name: str, value: Any) -> str:
     return f'{name}:={text}'
 
 
+def _die_with_parent() -> None:
+    """In the child: ask Linux for SIGTERM when the parent dies (even by SIGKILL).
+
+    ``prctl(PR_SET_PDEATHSIG, SIGTERM)``; a no-op where there is no prctl.
+    """
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)      # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 class NodeProcess:
     """One node as a child process (stdout/stderr to files or pipes)."""
 
     def __init__(self, module: str, params: Mapping[str, Any] | None = None, *,
                  domain_id: int | None = None, stdout=None, stderr=None,
-                 extra_args: list[str] | None = None, env: Mapping[str, str] | None = None):
+                 extra_args: list[str] | None = None, env: Mapping[str, str] | None = None,
+                 die_with_parent: bool = False):
         self.module = module
         cmd = [sys.executable, '-m', module, '--ros-args']
         for k, v in (params or {}).items():
@@ -90,7 +104,8 @@ class NodeProcess:
             e['ROS_DOMAIN_ID'] = str(domain_id)
         self.cmd = cmd
         self.proc = subprocess.Popen(cmd, env=e, stdout=stdout, stderr=stderr,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
+                                     stdin=subprocess.DEVNULL, start_new_session=True,
+                                     preexec_fn=_die_with_parent if die_with_parent else None)
 
     @property
     def pid(self) -> int:

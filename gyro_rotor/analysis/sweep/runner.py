@@ -51,6 +51,8 @@ class SweepRun:
     trajectory_steps: int
     work_s: float
     wall_s: float
+    #: block files found on --resume that are not blocks of this sweep: file -> why
+    refused: dict = dataclasses.field(default_factory=dict)
 
     @property
     def steps_per_s(self) -> float:
@@ -132,6 +134,7 @@ def run_sweep(spec: SweepSpec, out, *, executor: Executor = Executor.LOCAL,
     store = SweepStore(out)
     spec = store.prepare(spec, resume=resume)
     done = store.done_blocks(spec) if resume else set()
+    refused = dict(store.refused)
     todo = [b for b in range(spec.n_blocks) if b not in done]
     if progress is True:
         progress = TextProgress(sum(spec.block_points(b).size for b in todo))
@@ -139,7 +142,7 @@ def run_sweep(spec: SweepSpec, out, *, executor: Executor = Executor.LOCAL,
     acc = {'points': 0, 'steps': 0, 'work': 0.0}
 
     def on_result(res: BlockResult) -> None:
-        store.write(res)
+        store.write(res, spec)
         ran.append(res.block)
         acc['points'] += res.columns['point'].size
         acc['steps'] += res.steps
@@ -171,4 +174,4 @@ def run_sweep(spec: SweepSpec, out, *, executor: Executor = Executor.LOCAL,
     return SweepRun(spec=spec, executor=executor, workers=n_workers, blocks_total=spec.n_blocks,
                     blocks_skipped=len(done), blocks_run=ran, points_run=acc['points'],
                     trajectory_steps=acc['steps'], work_s=acc['work'],
-                    wall_s=time.perf_counter() - t0)
+                    wall_s=time.perf_counter() - t0, refused=refused)

@@ -13,7 +13,11 @@ balance, decay, modes, data, synchronism), it is the verdict the linear theory e
 (:func:`gyro_rotor.linear.stability.analyze_scene`: asymptotically stable for the
 default scene, marginal tilt modes for ``upright``), for a sine drive law the pole-slip
 count equals that of an offline reference simulation, and both nodes exited cleanly;
-else 1 (NOT CONFIRMED, naming why), 130 after Ctrl-C (the bag is finalized).
+else 1 (NOT CONFIRMED, naming why), 130 after Ctrl-C (the bag is finalized and
+analysed), 128 + N after SIGTERM or SIGHUP (the nodes stopped and the bag finalized, no
+analysis). However the demo ends -- done, Ctrl-C, SIGTERM (``timeout``), SIGHUP, an error --
+both nodes are stopped first; if the demo itself is killed (SIGKILL), Linux sends them
+SIGTERM (``PR_SET_PDEATHSIG``).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+import signal
 import sys
 import time
 
@@ -55,6 +60,22 @@ def _check(args: argparse.Namespace) -> None:
         raise ParameterError(f'--rtf must be >= 0, got {args.rtf}')
     if not (math.isfinite(args.rate) and 10 <= args.rate <= 10000):
         raise ParameterError(f'--rate must be in 10..10000 Hz, got {args.rate}')
+    if args.kick_at is not None and not (math.isfinite(args.kick_at) and (
+            args.kick_at < 0 or 1.0 / args.rate <= args.kick_at < args.duration)):
+        raise ParameterError(f'--kick-at must be finite, at least one sample (1/{args.rate:g} '
+                             f's) and before --duration ({args.duration:g} s), or < 0 for no '
+                             f'kick; got {args.kick_at}')
+    # rotor_sim publishes on the grid k / rate and stops at t_end: a time off the grid is
+    # never reached (--duration 5 kicked at 1.25 s waited at 1.248 s until the deadline)
+    if round(args.duration * args.rate) < 1:
+        raise ParameterError(f'--duration {args.duration:g} s is shorter than one sample '
+                             f'(1/{args.rate:g} s)')
+    args.duration = _on_grid(args.duration, args.rate)
+
+
+def _on_grid(t: float, rate: float) -> float:
+    """Return the sample time k / rate nearest to ``t`` (rotor_sim's publication grid)."""
+    return round(t * rate) / rate
 
 
 #: subscribers rotor_sim waits for on joint_states and on energy before its time starts:
@@ -240,7 +261,7 @@ def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) ->
     from gyro_rotor.tools.launch import NodeProcess
     procs = [NodeProcess('gyro_rotor.ros.analysis_node', {
         'output': str(out / 'bag'), 'scene': str(scene_arg), 'use_sim_time': True},
-        domain_id=domain_id,
+        domain_id=domain_id, die_with_parent=True,
         stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis'])]
     return procs
 
@@ -261,7 +282,7 @@ def _start_sim(args, scene_arg: str, domain_id: int, logs: dict, t_stop: float):
         'scene': str(scene_arg), 'real_time_factor': float(args.rtf),
         'publish_rate': float(args.rate), 't_end': float(t_stop),
         'stop_at_t_end': True, 'wait_for_subscribers': SUBSCRIBERS,
-        'wait_for_node': 'rotor_analysis'}, domain_id=domain_id,
+        'wait_for_node': 'rotor_analysis'}, domain_id=domain_id, die_with_parent=True,
         stdout=logs['rotor_sim'], stderr=logs['rotor_sim'])
 
 
@@ -276,7 +297,7 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
     while True:
         view.spin(0.1)
         t = view.energy.get('t_sim', -1.0)
-        if not kicked and t >= kick_at:
+        if not kicked and t >= kick_at - 0.25 / args.rate:
             print(f'  kick at t = {t:.2f} s: {view.kick()}')
             kicked = True
             if _first_stop(args, kick_at) < args.duration:
@@ -299,15 +320,39 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
         print(_line(view))
 
 
-def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, bool]:
-    """Run both nodes with the live table; return (node exit codes, interrupted)."""
+class _Stop(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP while the nodes run."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
+    """Run both nodes with the live table; return (node exit codes, signal or 0).
+
+    The nodes are stopped (SIGINT, then SIGTERM, then SIGKILL) however this ends; a second
+    signal while they stop is ignored, so the stopping is not cut short.
+    """
     from gyro_rotor.tools.launch import claim_domain_id
     scene_arg = scene.path or args.scene
+    stopping = [False]
+
+    def on_signal(signum, _frame) -> None:
+        if not stopping[0]:
+            raise _Stop(signum)
+
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, on_signal)
+        except ValueError:          # not the main thread: the caller handles signals
+            break
     claim = claim_domain_id()
     logs = {n: open(out / f'{n}.log', 'w') for n in ('rotor_sim', 'rotor_analysis')}
     procs: list = []
     view = None
-    interrupted = False
+    stopped_by = 0
     codes: dict = {}
     try:
         print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {out / "bag"}\n'
@@ -319,17 +364,23 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, bool]:
         procs.append(_start_sim(args, scene_arg, claim.domain_id, logs,
                                 _first_stop(args, kick_at)))
         _watch(args, view, procs, out, kick_at)
-    except KeyboardInterrupt:
-        interrupted = True
-        print('\ninterrupted: stopping the nodes, finalizing the bag', file=sys.stderr)
+    except KeyboardInterrupt as err:
+        stopped_by = getattr(err, 'signum', signal.SIGINT)
+        print(f'\n{"interrupted" if stopped_by == signal.SIGINT else "terminated"}: '
+              'stopping the nodes, finalizing the bag', file=sys.stderr, flush=True)
     finally:
-        codes = {p.module: p.stop() for p in reversed(procs)}
-        if view is not None:
-            view.close()
-        claim.release()
-        for f in logs.values():
-            f.close()
-    return codes, interrupted
+        stopping[0] = True
+        try:
+            codes = {p.module: p.stop() for p in reversed(procs)}
+            if view is not None:
+                view.close()
+            claim.release()
+            for f in logs.values():
+                f.close()
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+    return codes, int(stopped_by)
 
 
 def _conclude(out: Path, exp: dict, codes: dict) -> bool:
@@ -386,14 +437,20 @@ def run(args: argparse.Namespace) -> int:
     kick_at = args.kick_at
     if kick_at is None:
         kick_at = -1.0 if _no_default_kick(scene) else min(2.0, args.duration / 4)
+    if kick_at >= 0:
+        kick_at = _on_grid(kick_at, args.rate)
     out = _out_dir(args, scene)
     print(f'gyro_rotor demo: scene {scene.name} ({scene.description})')
     exp = expected_outcome(scene, args.duration)
     print(f'expected (linear stability): {exp["verdict"]}'
           + (f'; pole slips {exp["pole_slips"]} (reference simulation)'
              if exp['pole_slips'] is not None else ''))
-    codes, interrupted = _run_live(args, scene, out, kick_at)
+    codes, stopped_by = _run_live(args, scene, out, kick_at)
+    if stopped_by and stopped_by != signal.SIGINT:
+        print(f'stopped by {signal.Signals(stopped_by).name}: nodes ended {codes}; bag '
+              f'{out / "bag"}', file=sys.stderr)
+        return 128 + stopped_by
     ok = _conclude(out, exp, codes)
-    if interrupted:
+    if stopped_by:
         return 130
     return 0 if ok else 1

@@ -11,7 +11,7 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, parse_sets
+from gyro_rotor.cli.util import check_output_file, parse_sets, write_output
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
@@ -52,7 +52,7 @@ def csv_columns(system) -> list[str]:
 def simulate(args) -> int:
     """Simulate a general scene; print a summary, write the CSV."""
     if args.out:
-        check_output_file(args.out, ('.csv',))
+        check_output_file(args.out, ('.csv',), overwrite=getattr(args, 'force', False))
     from gyro_rotor.numerics.general import integrate, METHODS
     if args.method not in ('auto',) + METHODS:
         raise ParameterError(f"general scenes integrate with auto, {', '.join(METHODS)} (the "
@@ -87,8 +87,9 @@ def simulate(args) -> int:
         for k in range(m):
             cols += [run.y[:, 2 * n + k], run.y[:, 2 * n + m + k]]
         data = np.column_stack(cols + [E, r])
-        np.savetxt(args.out, data, delimiter=',', header=','.join(csv_columns(scene.system)),
-                   comments='', fmt='%.17g')
+        write_output(args.out, lambda tmp: np.savetxt(
+            tmp, data, delimiter=',', header=','.join(csv_columns(scene.system)),
+            comments='', fmt='%.17g'))
         print(f'  wrote {args.out} ({len(te)} rows)')
     return 0
 

@@ -135,8 +135,9 @@ def run(args: argparse.Namespace) -> int:
     """Spin a monitoring node and print the table every period."""
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-    if args.period <= 0:
-        raise ParameterError(f'--period must be positive, got {args.period}')
+    from gyro_rotor.cli.util import check_number
+    check_number('--period', args.period, low=0.0, low_open=True, what='[s]')
+    check_number('--duration', args.duration, low=0.0, what='[s] (0 = until Ctrl-C)')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError(f'--domain-id must be in 0..232, got {args.domain_id}')
     context = rclpy.context.Context()

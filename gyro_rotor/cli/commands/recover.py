@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-HELP = ('repair a bag left by a killed recorder (every complete chunk is kept; originals '
-        'saved as .orig)')
+HELP = ('repair a damaged bag or one left by a killed recorder (every intact chunk is kept, '
+        'the loss counted and kept on record; originals saved as .orig)')
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,4 +28,10 @@ def run(args: argparse.Namespace) -> int:
         print(f'rewrote {rep.path}/metadata.yaml with the real counts')
     print(f'{rep.message_count} messages readable: '
           + ', '.join(f'{t} {n}' for t, n in sorted(rep.messages_per_topic.items())))
+    if rep.lost:
+        print(f'{sum(rep.lost.values())} recorded messages lost: '
+              + ', '.join(f'{t} {n}' for t, n in sorted(rep.lost.items()))
+              + ' (kept on record in the bag)')
+    if rep.unknown_loss:
+        print('loss of unknown size: ' + '; '.join(rep.unknown_loss))
     return 0

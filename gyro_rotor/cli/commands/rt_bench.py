@@ -68,6 +68,14 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
 
 def run(args: argparse.Namespace) -> int:
     """Run every (scene, rtf) pair and print a table."""
+    from gyro_rotor.cli.util import check_number
+    from gyro_rotor.core.scene import NODE_RANGES
+    check_number('--duration', args.duration, low=0.0, low_open=True, what='[s]')
+    check_number('--publish-rate', args.publish_rate, low=NODE_RANGES['publish_rate'][0],
+                 high=NODE_RANGES['publish_rate'][1], what='[Hz]')
+    for rtf in args.rtf:
+        check_number('--rtf', rtf, low=NODE_RANGES['real_time_factor'][0],
+                     high=NODE_RANGES['real_time_factor'][1])
     rows = [bench_one(s, r, args.duration, args.publish_rate, args.integrator)
             for s in args.scenes for r in args.rtf]
     print(f'rotor_sim pacing, publish_rate {args.publish_rate:g} Hz, {args.duration:g} s '

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_output
 from gyro_rotor.numerics.simulate import DEFAULT_RATE, simulate
 
 HELP = 'simulate a scene (name or YAML path) and print a summary'
@@ -22,6 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--method', default='auto', help='integration method (default: auto)')
     p.add_argument('--rtol', type=float, default=None, help='relative tolerance')
     p.add_argument('--atol', type=float, default=None, help='absolute tolerance')
+    p.add_argument('--force', action='store_true', help='overwrite an existing --out file')
 
 
 #: units of the CSV columns (numerics.simulate.CSV_COLUMNS), written into the header
@@ -56,14 +57,14 @@ def _pole_slips(tr) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the simulation and print the summary."""
     if args.out:
-        check_output_file(args.out, ('.csv', '.npz'))
+        check_output_file(args.out, ('.csv', '.npz'), overwrite=args.force)
     scene = load_scene_with_sets(args.scene, args.set)
     tr = simulate(scene, t_end=args.t_end, rate=args.rate, method=args.method,
                   rtol=args.rtol, atol=args.atol)
     if args.out and args.out.endswith('.csv'):
-        write_csv(tr, args.out)
+        write_output(args.out, lambda tmp: write_csv(tr, tmp))
     elif args.out:
-        tr.save(args.out)
+        write_output(args.out, tr.save)
     s = tr.summary()
     print(f"scene {s['scene']} (model {s['model']}), {s['t_end']:g} s with {s['method']} "
           f"({s['setting']})")

@@ -52,6 +52,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='directory for the heatmap PNGs (default: OUT/maps)')
     p.add_argument('--no-maps', action='store_true', help='do not draw the heatmaps')
     p.add_argument('--quiet', action='store_true', help='no progress bar')
+    p.add_argument('--yes', action='store_true',
+                   help=f'run a sweep of more than {ASK_POINTS:,} points or an estimated '
+                        f'{ASK_WORK_S / 3600:g} h of work without asking')
+
+
+#: a sweep this large (points, or estimated single-core work in seconds) is run only after
+#: a yes on a terminal or with --yes (issue 24: 10^7 points started with 'eta 13683.5 s')
+ASK_POINTS = 1_000_000
+ASK_WORK_S = 3600.0
+
+
+def _confirm(spec, yes: bool) -> None:
+    """Ask before a huge sweep (refuse without a terminal unless --yes)."""
+    import sys
+
+    from gyro_rotor.analysis.sweep.task import US_PER_TRAJECTORY_STEP
+    work = spec.n_points * spec.steps_per_trajectory * US_PER_TRAJECTORY_STEP * 1e-6
+    if yes or (spec.n_points <= ASK_POINTS and work <= ASK_WORK_S):
+        return
+    what = (f'{spec.n_points:,} points, about {work / 3600:.3g} h of single-core work '
+            f'({spec.steps_per_trajectory} RK4 steps each)')
+    if not sys.stdin.isatty():
+        raise ParameterError(f'the sweep has {what}: pass --yes to run it')
+    answer = input(f'the sweep has {what}; run it? [y/N] ')
+    if answer.strip().lower() not in ('y', 'yes'):
+        raise ParameterError('sweep not started (answered no)')
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
                [m.strip() for m in args.metrics.split(',') if m.strip()])
     spec = make_spec(args.scene, args.grid, t_end=args.t_end, rate=args.rate, metrics=metrics,
                      tol=args.tol, block_size=args.block, step=args.step)
+    _confirm(spec, args.yes)
     executor = (Executor.SERIAL if args.serial else
                 Executor.ADDRESS if args.scheduler else Executor.LOCAL)
     print(f'sweep {spec.scene}: {spec.n_points} points ({" x ".join(spec.grid)}), '
@@ -69,7 +96,9 @@ def run(args: argparse.Namespace) -> int:
           f'{spec.n_blocks} blocks of {spec.block_size}, {executor.value}')
     r = run_sweep(spec, args.out, executor=executor, workers=args.workers,
                   scheduler=args.scheduler, resume=args.resume, progress=not args.quiet)
-    table = SweepStore(args.out).read()
+    for path, why in r.refused.items():
+        print(f'  ignored {path}: {why} (computed again)')
+    table = SweepStore(args.out).read(r.spec)
     status = table.column('status').to_numpy()
     counts = {s.name.lower(): int((status == s).sum()) for s in PointStatus}
     done = (f'{r.points_run} points in {r.wall_s:.1f} s on {r.workers} worker(s): '

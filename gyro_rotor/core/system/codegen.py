@@ -287,11 +287,19 @@ def _import(path: Path, key: str):
     return module
 
 
-def compile_system(system: RotorSystem, *, warm: bool = True) -> CompiledSystem:
+def _stderr_progress(text: str) -> None:
+    import sys
+    print(f'gyro_rotor: {text}', file=sys.stderr, flush=True)
+
+
+def compile_system(system: RotorSystem, *, warm: bool = True,
+                   progress=_stderr_progress) -> CompiledSystem:
     """Return the compiled equations of ``system``, generating them only if not cached.
 
     ``warm`` runs each compiled function once, so that numba compiles (or loads from its
-    cache) now and not at the first use.
+    cache) now and not at the first use. When the code is generated (first use of a
+    structure: minutes for tens of rotors), ``progress(text)`` gets one line per stage with
+    its time (default: to stderr; None: silent).
     """
     key = f'{system.structure_key()}_v{GENERATOR_VERSION}'
     if key in _LOADED:
@@ -300,8 +308,14 @@ def compile_system(system: RotorSystem, *, warm: bool = True) -> CompiledSystem:
     folder = cache_dir() / key
     path = folder / f'gen_{key}.py'
     from_cache = path.is_file()
+    say = progress if (progress is not None and not from_cache) else (lambda _text: None)
     if not from_cache:
-        source = _source(system, derive(system))
+        say(f'generating the equations of system {system.name} (n = {system.n}, m = '
+            f'{system.m}) on first use; later runs take them from {folder}')
+        eq = derive(system)
+        say(f'  derived in {time.perf_counter() - start:.1f} s; writing the code')
+        source = _source(system, eq)
+        say(f'  code written at {time.perf_counter() - start:.1f} s; compiling (numba)')
         folder.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=folder, suffix='.tmp')
         with os.fdopen(fd, 'w', encoding='utf-8') as f:
@@ -316,5 +330,6 @@ def compile_system(system: RotorSystem, *, warm: bool = True) -> CompiledSystem:
         module.energy(y, P)
     compiled = CompiledSystem(key=key, module=module, path=path, from_cache=from_cache,
                               seconds=time.perf_counter() - start)
+    say(f'  ready in {compiled.seconds:.1f} s')
     _LOADED[key] = compiled
     return compiled

@@ -40,8 +40,12 @@ MAX_DEPTH = 60
 #: integer exponents up to this size stay exact (x**2 stays x*x in the generated code)
 _MAX_INT_EXPONENT = 64
 
-_TOKEN = re.compile(r'\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)'
-                    r'|(?P<name>[A-Za-z_][A-Za-z0-9_]*)|(?P<op>\*\*|[-+*/()]))')
+#: ASCII only: ``\d`` would take any Unicode digit (``x**\uff12`` read as x**2)
+_TOKEN = re.compile(r'[ \t\r\n]*(?:(?P<num>(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?)'
+                    r'|(?P<name>[A-Za-z_][A-Za-z0-9_]*)|(?P<op>\*\*|[-+*/()]))', re.ASCII)
+
+
+_SPACE = ' \t\r\n'
 
 
 class TokenKind(enum.Enum):
@@ -66,11 +70,12 @@ def _tokenize(text: str) -> list[tuple[TokenKind, str, int]]:
     tokens = []
     pos = 0
     while pos < len(text):
-        if text[pos:].strip() == '':
+        rest = text[pos:].lstrip(_SPACE)
+        if rest == '':
             break
         m = _TOKEN.match(text, pos)
         if m is None or m.end() == pos:
-            col = pos + len(text[pos:]) - len(text[pos:].lstrip())
+            col = len(text) - len(rest)
             ch = text[col]
             hint = " (powers are written '**')" if ch == '^' else ''
             raise _Refusal(col, f'unexpected character {ch!r}{hint}')
@@ -281,8 +286,9 @@ def parse_expression(text, names: Mapping[str, sympy.Symbol], *, where: str):
             raise _Refusal(col, f'unexpected {value!r} after a complete expression')
     except _Refusal as err:
         snippet = text[max(0, err.column - 20):err.column + 20]
+        from gyro_rotor.core.yamlio import short
         raise SystemFileError(f'{where}: {err.message} at column {err.column + 1} of '
-                              f'{text!r} (near {snippet!r})') from None
+                              f'{short(text, 100)} (near {snippet!r})') from None
     except RecursionError:  # pragma: no cover - bounded by MAX_DEPTH
-        raise SystemFileError(f'{where}: expression nested too deeply: {text!r}') from None
+        raise SystemFileError(f'{where}: expression nested too deeply') from None
     return result

@@ -31,7 +31,7 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
-from gyro_rotor.core.scene import flatten, NODE_KEYS, NODE_NAMES, scene_path
+from gyro_rotor.core.scene import check_node_ranges, flatten, NODE_KEYS, NODE_NAMES, scene_path
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import (
     DRIVE_KEYS, load_system, RotorSystem, system_from_mapping)
@@ -181,39 +181,43 @@ def lock(system: RotorSystem, names, values) -> RotorSystem:
 
 
 def _typed(key: str, value: Any, where: str) -> Any:
+    from gyro_rotor.core.yamlio import SCENE_NAME, short
+    if key == 'scene' and not (isinstance(value, str) and SCENE_NAME.match(value)):
+        raise SceneError(f'{where}: scene must be a name of ASCII letters, digits, _ . - '
+                         f'(at most 100), got {short(value)}')
     want = float if key.startswith(('constants.', 'drive.')) and not key.endswith(
         'pole_pairs') else int if key.startswith('drive.') else GENERAL_KEYS[key]
     if want is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise SceneError(f'{where}: {key} must be a number, got {value!r}')
+            raise SceneError(f'{where}: {key} must be a number, got {short(value)}')
         if isinstance(value, int):
             raise SceneError(f'{where}: {key} must be written as a float ({value}.0): ROS 2 '
                              f'parameter files are typed')
         if not math.isfinite(value):
-            raise SceneError(f'{where}: {key} must be finite, got {value!r}')
+            raise SceneError(f'{where}: {key} must be finite, got {short(value)}')
         return float(value)
     if want is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise SceneError(f'{where}: {key} must be an integer, got {value!r}')
+            raise SceneError(f'{where}: {key} must be an integer, got {short(value)}')
         return value
     if want is bool:
         if not isinstance(value, bool):
-            raise SceneError(f'{where}: {key} must be true or false, got {value!r}')
+            raise SceneError(f'{where}: {key} must be true or false, got {short(value)}')
         return value
     if want is str:
         if not isinstance(value, str):
-            raise SceneError(f'{where}: {key} must be a string, got {value!r}')
+            raise SceneError(f'{where}: {key} must be a string, got {short(value)}')
         return value
     if key == 'locked':
         if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
             raise SceneError(f'{where}: locked must be a list of coordinate names, got '
-                             f'{value!r}')
+                             f'{short(value)}')
         return tuple(value)
     if not isinstance(value, (list, tuple)) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        raise SceneError(f'{where}: {key} must be a list of numbers, got {value!r}')
+        raise SceneError(f'{where}: {key} must be a list of numbers, got {short(value)}')
     if not all(math.isfinite(v) for v in value):
-        raise SceneError(f'{where}: {key} must be finite, got {value!r}')
+        raise SceneError(f'{where}: {key} must be finite, got {short(value)}')
     return tuple(float(v) for v in value)
 
 
@@ -240,11 +244,12 @@ def _drives(system: RotorSystem, vals: dict, where: str) -> RotorSystem:
 
 
 def _read(path: Path) -> dict:
-    import yaml
+    from gyro_rotor.core.yamlio import load_yaml
     try:
-        doc = yaml.safe_load(path.read_text(encoding='utf-8'))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        text = path.read_text(encoding='utf-8')
+    except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f'cannot read scene file {path}: {err}') from err
+    doc = load_yaml(text, f'scene file {path}', SceneError)
     section = None
     if isinstance(doc, dict):
         section = next((doc[k] for k in NODE_NAMES if k in doc), None)
@@ -285,6 +290,7 @@ def general_scene_from_mapping(flat: Mapping[str, Any], *, path: str | None = No
         vals[key] = _typed(key, value, where)
     if 'system' not in vals:
         raise SceneError(f'{where}: the key system is missing')
+    check_node_ranges(vals, where)
     try:
         if system is None:
             system = load_system(vals['system'], relative_to=path)
@@ -300,6 +306,7 @@ def general_scene_from_mapping(flat: Mapping[str, Any], *, path: str | None = No
         k: list(v) if isinstance(v, tuple) else v for k, v in vals.items()})
     model = scene.make_model()
     _check_mass(scene, model, scene.initial_state(model), 'initial', where)
+    _check_energy(scene, model, where)
     if any(k.startswith('steady.') for k in vals):
         _check_mass(scene, model, scene.steady_state(model), 'steady', where)
         if check:
@@ -397,6 +404,28 @@ def _check_mass(scene: GeneralScene, model: GeneralModel, y: np.ndarray, what: s
                          f'rotors) is not positive definite at the {what} state q = '
                          f'{y[:model.n].tolist()} (eigenvalues {w.tolist()}): a singular point '
                          f'of the coordinates or a bad constant')
+
+
+def _check_energy(scene: GeneralScene, model: GeneralModel, where: str) -> None:
+    """Refuse a scene whose E* (eq. 13) or accelerations are not finite where it starts.
+
+    Checked on the steady motion and the initial state before anything runs (issue 24: a
+    potential infinite everywhere, ``1/(sin(x)**2 + cos(x)**2 - 1)``, gave E*(0) = inf and
+    a residual of nan, exit 0).
+    """
+    for what, y in (('steady', scene.steady_state(model)),
+                    ('initial', scene.initial_state(model))):
+        with np.errstate(all='ignore'):
+            E = float(model.energy(y))
+            f = model.rhs(0.0, y)
+        if not math.isfinite(E):
+            raise SceneError(f'{where}: E* of system {scene.system.name} is {E} at the {what} '
+                             f'state q = {y[:model.n].tolist()}: the potential or a constant '
+                             'is not finite there')
+        if not np.all(np.isfinite(f)):
+            raise SceneError(f'{where}: the equations of motion of system '
+                             f'{scene.system.name} are not finite at the {what} state q = '
+                             f'{y[:model.n].tolist()}')
 
 
 def steady_residual(scene: GeneralScene, model: GeneralModel | None = None) -> np.ndarray:
