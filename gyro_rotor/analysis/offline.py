@@ -26,6 +26,8 @@ class BagAnalysis:
     truncated: bool
     scene_source: str
     options: dict
+    #: where the recording ends when it was cut ('' if it was not)
+    cut_note: str = ''
 
 
 def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str | None:
@@ -35,13 +37,16 @@ def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str |
 
 
 def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | None = None,
-                **options: Any) -> BagAnalysis:
+                cut_note: str = '', **options: Any) -> BagAnalysis:
     """Run the analysis of the live node over a recorded bag (nothing but the bag needed).
 
     The scene comes from ``scene`` if given, else from the bag's ``gyro_rotor.scene``
     metadata record, else from the simulation node's ``~/scene`` documents in the bag. The
     window is the one the live node used (metadata ``gyro_rotor.analysis``) unless
-    ``window_s`` is given (0 = whole segments).
+    ``window_s`` is given (0 = whole segments). A truncated bag is analysed up to the cut
+    and says so in its verdict; so does a run stopped early (``cut_note``: how, e.g.
+    'interrupted (Ctrl-C)'). An explicit ``scene`` that is not the one the bag records is
+    refused (:func:`gyro_rotor.analysis.fit.scene_differences`).
 
     Raises
     ------
@@ -76,6 +81,8 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     if window_s is not None:
         opts['window_s'] = window_s
     fixed, base, source = _scene_source(path, reader, scene, scene_topic)
+    if fixed is not None and scene is not None:
+        _refuse_other_scene(path, reader, fixed, scene_topic)
     session = AnalysisSession(fixed if fixed is not None else base, base=base,
                               keep_series=True, **opts)
     if fixed is None and base is not None:
@@ -98,12 +105,54 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
         rec = reader.metadata['gyro_rotor.live_result']
         live = _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
             'verdict': rec.get('verdict'), 'error': rec.get('error')}
+    how = 'the recording is truncated' if reader.truncated else cut_note
+    if how:
+        cut_note = f'{how}: analysed up to the cut at t = {session.t_sim:.3f} s'
+        session.analyzer.truncated = cut_note
     result = session.result()
     if problems:
         result.evidence.extend(problems)
     return BagAnalysis(path=str(path), result=result, live=live, samples=session.series,
                        topics={t: i.count for t, i in reader.topics.items()},
-                       truncated=reader.truncated, scene_source=source, options=opts)
+                       truncated=reader.truncated, scene_source=source, options=opts,
+                       cut_note=cut_note)
+
+
+def _recorded_scene(reader, scene_topic):
+    """Return the scene the bag records (metadata, else its first ~/scene document), or None."""
+    from gyro_rotor.analysis.session import scene_from_sim_doc
+    import yaml
+    try:
+        _, base, _ = _scene_source('', reader, None, None)
+        return base
+    except AnalysisError:
+        pass
+    if scene_topic is None:
+        return None
+    for _, _, msg in reader.decoded([scene_topic]):
+        try:
+            return scene_from_sim_doc(yaml.safe_load(msg.data))
+        except Exception:  # noqa: B902 -- an unreadable document: nothing to compare with
+            return None
+    return None
+
+
+def _refuse_other_scene(path, reader, given, scene_topic) -> None:
+    """Refuse a ``--scene`` that is not the recording's (one error line naming what differs).
+
+    Without a scene in the bag the analysis' own ``scene`` criterion compares the data
+    with the scene instead (:mod:`gyro_rotor.analysis.fit`).
+    """
+    from gyro_rotor.analysis.fit import joint_names, scene_differences
+    recorded = _recorded_scene(reader, scene_topic)
+    if recorded is None or joint_names(given) != joint_names(recorded):
+        return      # another system: the joint names say so (AnalysisSession.on_joints)
+    diffs = scene_differences(given, recorded)
+    if diffs:
+        raise AnalysisError(
+            f"{path}: scene '{given.name}' does not fit the recording of scene "
+            f"'{recorded.name}': {'; '.join(diffs[:6])}"
+            + (f'; and {len(diffs) - 6} more' if len(diffs) > 6 else ''))
 
 
 def _json_record(reader, name: str, key: str, default):

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from gyro_rotor.analysis.analyzer import RotorAnalyzer
+from gyro_rotor.analysis.fit import joint_names
 from gyro_rotor.analysis.results import AnalysisResult
 from gyro_rotor.analysis.samples import energy_sample_fields, Sample, SamplePairer
 from gyro_rotor.core.scene import Scene
@@ -91,15 +92,6 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
     for k, v in (doc.get('perturbation') or {}).items():
         flat[f'perturbation.{k}'] = v
     return scene_from_mapping(flat, strict_float=False)
-
-
-def joint_names(scene) -> tuple:
-    """Return the ``joint_states`` names rotor_sim publishes for a scene."""
-    if isinstance(scene, GeneralScene):
-        from gyro_rotor.numerics.live_general import general_joint_names
-        return general_joint_names(scene.system.coordinates, scene.system.rotors)
-    from gyro_rotor.bag.wire import JOINT_NAMES
-    return JOINT_NAMES
 
 
 class AnalysisSession:
@@ -223,4 +215,5 @@ class AnalysisSession:
             raise AnalysisError(f'the scene is unknown ({len(self.pending)} samples waiting): '
                                 'no scene document from rotor_sim and no scene given')
         self.analyzer.unpaired = self.pairer.unpaired
+        self.analyzer.cut = self.pairer.cut
         return self.analyzer.result()

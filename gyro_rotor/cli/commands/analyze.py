@@ -55,6 +55,9 @@ def run(args: argparse.Namespace) -> int:
     for f in files:
         print(f'wrote {f}')
     res = bag.result
+    why = [] if res.confirmed else [res.reason]
+    if bag.cut_note:
+        why.append(bag.cut_note)
     print(f'RESULT: {"CONFIRMED" if res.confirmed else "NOT CONFIRMED"}: {res.verdict}'
-          + ('' if res.confirmed else f' ({res.reason})'))
+          + (f' ({"; ".join(why)})' if why else ''))
     return 0 if res.confirmed else NOT_CONFIRMED
