@@ -26,9 +26,10 @@ from gyro_rotor.analysis.modes import check_modes, ModeCheck, ModesFound
 from gyro_rotor.analysis.prediction import GENERAL_COORDS, predict, Prediction
 from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
 from gyro_rotor.analysis.ring import RowRing
+from gyro_rotor.analysis.run import RunRecord
 from gyro_rotor.analysis.samples import Sample
-from gyro_rotor.analysis.verdict import (combine, CriterionName, ModeStatus, over_run, Status,
-                                         SyncState, Verdict)
+from gyro_rotor.analysis.verdict import (combine, CriterionName, ModeStatus, Status, SyncState,
+                                         Verdict)
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import AnalysisError, ParameterError
@@ -91,8 +92,8 @@ class _Segment:
         self.lags: tuple = ()     # the rotor lags of the last sample that had them
         self.last: Sample | None = None
         self.fit: dict = {}
-        #: the windows judged at the checkpoints: SegmentResult of each, in time order
-        self.history: list = []
+        #: what the windows judged at the checkpoints saw
+        self.record = RunRecord()
         self.checkpoint = -1          # index k of the last checkpoint t = k * period
         self.last_nonlinear_t = -math.inf   # last sample with a drive beyond LINEAR_DRIVE
 
@@ -188,6 +189,10 @@ class RotorAnalyzer:
         self.non_finite = 0
         #: samples left unpaired by the caller's SamplePairer (data loss; set by the session)
         self.unpaired = 0
+        #: messages at the cut of a recording without their partner (not counted as
+        #: unpaired), and where the recording was cut ('' if it was not); set by the caller
+        self.cut = 0
+        self.truncated = ''
         self.segments: list[_Segment] = []
         self._done: list[SegmentResult] = []
         self._last: Sample | None = None
@@ -259,7 +264,7 @@ class RotorAnalyzer:
                 self._check_fit(s, start=False)
                 res = self._evaluate(seg, judge=False)
                 if res.energy_fit is not None:
-                    seg.history.append(res)
+                    seg.record.add(res)
 
     def _check_fit(self, s: Sample, start: bool) -> None:
         """Hold a sample against the scene (:mod:`~gyro_rotor.analysis.fit`)."""
@@ -373,11 +378,6 @@ class RotorAnalyzer:
             unpaired=self.unpaired, judged=judged, cut=self.cut, truncated=self.truncated,
             t_sim=self._last.t if self._last is not None else math.nan)
 
-    #: set by the caller: messages at the cut of a recording without their partner (not
-    #: counted as unpaired), and where the recording was cut ('' if it was not)
-    cut = 0
-    truncated = ''
-
     def _criteria(self, segs: list, judged: SegmentResult | None) -> list:
         out = [crit.lyapunov(segs, self.lyapunov_tol, self.lyapunov_rtol),
                crit.energy_balance(segs, self.residual_warn)]
@@ -459,9 +459,10 @@ class RotorAnalyzer:
         """
         pred = seg.pred
         last = seg.last
-        if judge and seg.history and seg.history[-1].samples == seg.samples:
+        judged = seg.record.last
+        if judge and judged is not None and judged.samples == seg.samples:
             # the newest checkpoint judged this very window: its result, judged over the run
-            res = dataclasses.replace(seg.history[-1])
+            res = dataclasses.replace(judged)
             res.criteria = list(res.criteria)
             return self._judge_over_run(seg, res)
         R = self._window(seg)
@@ -527,20 +528,17 @@ class RotorAnalyzer:
 
     def _over_run(self, seg: _Segment, res: SegmentResult) -> None:
         """Turn the newest window's criteria and modes into what the whole segment saw."""
-        hist = list(seg.history)
-        newest = res.energy_fit is not None and not (
-            hist and hist[-1].t_end == res.t_end and hist[-1].samples == res.samples)
-        windows = hist + ([res] if newest else [])
-        res.windows = [w.t_end for w in windows]
-        if not windows:
+        rec = seg.record
+        if res.energy_fit is not None and not (rec.last is not None
+                                               and rec.last.samples == res.samples):
+            rec = rec.copy()          # the newest window between two checkpoints
+            rec.add(res)
+        if not rec.n:
             return
-        out = []
-        for name in (CriterionName.DECAY, CriterionName.MODES):
-            items = [(w.t_end, next(c for c in w.criteria if c.name == name))
-                     for w in windows]
-            out.append(over_run(items))
-        res.growing = [r for w in windows for r in w.growing]
-        res.modes = _modes_over_run(windows, res)
+        res.windows = (rec.n, rec.first_t, rec.last_t)
+        out = [rec.criterion(CriterionName.DECAY), rec.criterion(CriterionName.MODES)]
+        res.growing = list(rec.growing)
+        res.modes = rec.modes(res.modes)
         if out[1].status is not Status.FAIL:
             # the modes as the whole run saw them (the newest window's combination tones)
             lines = [crit.mode_line(m) for m in res.modes if not m.structural]
@@ -549,10 +547,8 @@ class RotorAnalyzer:
             out[1] = dataclasses.replace(out[1], detail='; '.join(lines))
         res.criteria = out
         # the numbers of the decay: the newest window that measured a rate
-        fits = [w.energy_fit for w in windows if w.energy_fit is not None
-                and math.isfinite(w.energy_fit.rate)]
-        if fits and res.energy_fit is not None and not math.isfinite(res.energy_fit.rate):
-            res.rate_fit = fits[-1]
+        if res.energy_fit is not None and not math.isfinite(res.energy_fit.rate):
+            res.rate_fit = rec.rate_fit
 
 
 def _gone_after(pred: Prediction, dt: float | None) -> float:
@@ -566,55 +562,14 @@ def _gone_after(pred: Prediction, dt: float | None) -> float:
 
 
 def windows_text(seg: SegmentResult) -> str:
-    """Which windows a segment was judged on."""
+    """Return which windows a segment was judged on."""
     if not seg.windows:
         return f'window {seg.window_s:.3g} s'
-    if len(seg.windows) == 1:
-        return f'window {seg.window_s:.3g} s ending t = {seg.windows[0]:.2f} s'
-    return (f'{len(seg.windows)} windows of up to {seg.window_s:.3g} s ending t = '
-            f'{seg.windows[0]:.2f} .. {seg.windows[-1]:.2f} s')
-
-
-_AGREE = (ModeStatus.DECAYING_AS_PREDICTED, ModeStatus.EXPECTED_MARGINAL,
-          ModeStatus.WEAKLY_DAMPED, ModeStatus.STRUCTURAL_ZERO_ROOT)
-
-
-def _modes_over_run(windows: list, res: SegmentResult) -> list:
-    """Each mode as the windows of a segment saw it: its newest identification and history.
-
-    A mode that disagreed in a window keeps that window's check (and says when); one that
-    agreed keeps the newest agreeing check, with the windows it was seen in and, if the
-    newest window no longer shows it, that it decayed below the noise floor.
-    """
-    out = []
-    newest = {m.name: m for m in res.modes}
-    for m in res.modes:
-        seen = [(w.t_end, c) for w in windows for c in w.modes if c.name == m.name]
-        bad = next(((t, c) for t, c in seen if c.status is ModeStatus.DISAGREES), None)
-        good = [(t, c) for t, c in seen if c.status in _AGREE]
-        if bad is not None:
-            t, c = bad
-            out.append(dataclasses.replace(c, run_status=f'disagrees (window ending '
-                                                         f't = {t:.2f} s)'))
-            continue
-        if not good:
-            out.append(newest[m.name])
-            continue
-        (t0, _), (t1, c) = good[0], good[-1]
-        when = (f'windows ending t = {t0:.2f} .. {t1:.2f} s' if t1 > t0 else
-                f'the window ending t = {t1:.2f} s')
-        cur = newest[m.name]
-        text = f'{c.status} in the {when}'
-        if cur.status in (ModeStatus.NOT_EXCITED, ModeStatus.NOT_IDENTIFIED) and \
-                t1 < windows[-1].t_end:
-            gone = next(t for t, _ in seen if t > t1)
-            text += f'; decayed below the noise floor by t = {gone:.2f} s'
-        elif cur.status not in _AGREE and cur.status is not c.status:
-            text += f'; newest window: {cur.status}' + (f' ({cur.note})' if cur.note else '')
-        if c.note and cur.status in _AGREE:
-            text += f' ({c.note})'
-        out.append(dataclasses.replace(c, seen=(t0, t1), run_status=text))
-    return out
+    n, first, last = seg.windows
+    if n == 1:
+        return f'window {seg.window_s:.3g} s ending t = {last:.2f} s'
+    return (f'{n} windows of up to {seg.window_s:.3g} s ending t = {first:.2f} .. '
+            f'{last:.2f} s')
 
 
 def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, Mapping
 
 from gyro_rotor.analysis.analyzer import check_window
@@ -37,7 +38,8 @@ def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str |
 
 
 def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | None = None,
-                cut_note: str = '', **options: Any) -> BagAnalysis:
+                cut_note: str = '', until: float | None = None,
+                **options: Any) -> BagAnalysis:
     """Run the analysis of the live node over a recorded bag (nothing but the bag needed).
 
     The scene comes from ``scene`` if given, else from the bag's ``gyro_rotor.scene``
@@ -46,7 +48,8 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     ``window_s`` is given (0 = whole segments). A truncated bag is analysed up to the cut
     and says so in its verdict; so does a run stopped early (``cut_note``: how, e.g.
     'interrupted (Ctrl-C)'). An explicit ``scene`` that is not the one the bag records is
-    refused (:func:`gyro_rotor.analysis.fit.scene_differences`).
+    refused (:func:`gyro_rotor.analysis.fit.scene_differences`). ``until`` [s]: analyse the
+    samples up to this simulation time only (the first part of a recording).
 
     Raises
     ------
@@ -88,14 +91,7 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     if fixed is None and base is not None:
         session.fixed = False
     wanted = [energy, joints] + ([scene_topic] if scene_topic and fixed is None else [])
-    for topic, _, msg in reader.decoded(wanted):
-        if topic == energy:
-            session.on_energy(msg)
-        elif topic == joints:
-            session.on_joints(msg)
-        else:
-            session.on_scene_doc(msg.data)
-    session.finish()
+    _feed(session, reader, wanted, until)
     if session.analyzer is None:
         raise AnalysisError(f'{path}: no scene document in the bag and no scene given')
     if session.analyzer.samples == 0:
@@ -153,6 +149,29 @@ def _refuse_other_scene(path, reader, given, scene_topic) -> None:
             f"{path}: scene '{given.name}' does not fit the recording of scene "
             f"'{recorded.name}': {'; '.join(diffs[:6])}"
             + (f'; and {len(diffs) - 6} more' if len(diffs) > 6 else ''))
+
+
+def _feed(session: AnalysisSession, reader, wanted: list, until: float | None) -> None:
+    """Feed the bag's messages of ``wanted`` (energy, joint_states, scene) to the session."""
+    energy, joints = wanted[:2]
+    for topic, _, msg in reader.decoded(wanted):
+        if until is not None and topic in (energy, joints) and _stamp(msg) > until + 1e-9:
+            continue
+        if topic == energy:
+            session.on_energy(msg)
+        elif topic == joints:
+            session.on_joints(msg)
+        else:
+            session.on_scene_doc(msg.data)
+    session.finish()
+
+
+def _stamp(msg) -> float:
+    """Return the simulation time [s] of an energy (t_sim) or joint_states message."""
+    if hasattr(msg, 'header'):
+        return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+    labels = msg.layout.dim[0].label.split(',') if msg.layout.dim else []
+    return float(msg.data[labels.index('t_sim')]) if 't_sim' in labels else -math.inf
 
 
 def _json_record(reader, name: str, key: str, default):

@@ -88,8 +88,8 @@ class SegmentResult:
     combinations: list = dataclasses.field(default_factory=list)
     #: identified roots whose growth is resolved (the newest window, or any before)
     growing: list = dataclasses.field(default_factory=list)
-    #: windows judged in this segment: their end times [s]
-    windows: list = dataclasses.field(default_factory=list)
+    #: the windows judged in this segment: (how many, end of the first, end of the last)
+    windows: tuple = ()
     #: where the fits start: after the last pole slip, once the drive is back in its linear
     #: range (NaN: the window's own start)
     fit_from: float = math.nan

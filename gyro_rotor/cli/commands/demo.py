@@ -227,7 +227,7 @@ def expected_outcome(scene, duration: float) -> dict:
         from gyro_rotor.analysis.samples import samples_from_trajectory
         from gyro_rotor.numerics.simulate import simulate
         tr = simulate(scene, t_end=duration, rate=250.0)
-        ref = RotorAnalyzer(scene, window_s=0)
+        ref = RotorAnalyzer(scene, window_s=0, checkpoint_s=0)     # the slip count alone
         ref.add_many(samples_from_trajectory(tr))
         exp['pole_slips'] = ref.result().pole_slips
     return exp
@@ -381,25 +381,14 @@ def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False) -> b
     return ok
 
 
-def _no_default_kick(scene) -> bool:
-    """Return whether the demo kicks only when asked.
-
-    So for a sine law (pole_slip: its start far off synchronism is the kick) and for a
-    general scene without a ``perturbation`` (its initial condition is the kick).
-    """
-    if isinstance(scene, GeneralScene):
-        return not any(v for k, vals in scene.flat.items() if k.startswith('perturbation.')
-                       for v in vals)
-    return bool(scene.params.pole_pairs)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the demo; 0 if confirmed, 1 if not, 130 if interrupted (module doc)."""
     _check(args)
     scene = load_any_scene(args.scene)
     kick_at = args.kick_at
     if kick_at is None:
-        kick_at = -1.0 if _no_default_kick(scene) else min(2.0, args.duration / 4)
+        from gyro_rotor.analysis.replay import default_kick_at
+        kick_at = default_kick_at(scene, args.duration)
     out = _out_dir(args, scene)
     print(f'gyro_rotor demo: scene {scene.name} ({scene.description})')
     exp = expected_outcome(scene, args.duration)
