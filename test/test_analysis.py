@@ -75,22 +75,32 @@ def test_precession_is_asymptotically_stable_mode_by_mode(precession):
     for name in ('housing twist', 'rotor-field coupling'):
         assert m[name].status == 'decaying as predicted'
         assert m[name].meas_tau == pytest.approx(m[name].pred_tau, rel=0.10)
-    # the nutation decays over minutes: reported with both decay times, not a failure
+    # the nutation decays over minutes: its decay is below the window's resolution, so no
+    # decay time is printed from 10 s of data (the rate's interval holds zero), but the
+    # rate agrees with the prediction within that resolution: weakly damped, no failure
     nut = m['nutation']
     assert nut.status == 'weakly damped'
     assert nut.pred_tau > 100 * cur.window_s / 10
-    assert 0.5 * nut.pred_tau < nut.meas_tau < 2.0 * nut.pred_tau
+    assert nut.tau is None and math.isnan(nut.meas_tau)
+    assert nut.rate.lo < 0 < nut.rate.hi and str(nut.rate_status) == 'PASS'
     assert any('nutation' in e and 'weakly damped' in e for e in res.evidence)
 
 
 def test_sliding_window_drops_the_fast_mode(precession):
     tr, samples = precession
-    _, res = analyze(tr.scene, samples, window_s=6.0)
+    # the newest window alone (no checkpoints): tau 0.28 s, after 4 s it is e^-14 of its
+    # start, not in the window any more
+    _, res = analyze(tr.scene, samples, window_s=6.0, checkpoint_s=0)
     m = modes_by_name(res)
-    # tau 0.28 s: after 4 s it is e^-14 of its start, not in the window any more
     assert m['rotor-field coupling'].status == 'not excited'
     assert m['housing twist'].status == 'decaying as predicted'
     assert res.current.window_s == pytest.approx(6.0, abs=0.01)
+    # judged over the run's windows, the mode's status says what the run saw
+    _, res = analyze(tr.scene, samples, window_s=6.0)
+    rf = modes_by_name(res)['rotor-field coupling']
+    assert rf.status == 'decaying as predicted' and rf.seen[0] == pytest.approx(2.0)
+    assert 'decayed below the noise floor by t = ' in rf.run_status
+    assert rf.freq is not None and rf.tau.lo < rf.pred_tau < rf.tau.hi
 
 
 def test_upright_tilt_modes_are_expected_marginal(upright):
@@ -305,7 +315,7 @@ def test_default_scene_confirmed_with_every_criterion_passing(kicked):
     assert res.verdict == 'asymptotically stable' and res.confirmed, res.evidence
     assert {str(c.name): str(c.status) for c in res.criteria} == {
         'Lyapunov': 'PASS', 'energy balance': 'PASS', 'decay': 'PASS', 'modes': 'PASS',
-        'data': 'PASS'}
+        'data': 'PASS', 'scene': 'PASS'}
     fit = res.judged.energy_fit
     # E*_inf fitted from the data (the kicked motion settles on a neighbouring steady
     # motion of the family: the prediction's E*_inf is not the limit), its uncertainty
@@ -313,7 +323,8 @@ def test_default_scene_confirmed_with_every_criterion_passing(kicked):
     assert fit.E_inf_sigma < 1e-6 and fit.rel_residual < 0.05
     assert fit.rate_lo >= -2 * res.prediction.decaying_abscissa
     vec = dict(zip(ANALYSIS_FIELDS, res.analysis_vector()))
-    assert vec['decay_rate_bound'] == pytest.approx(-2 * res.prediction.decaying_abscissa)
+    # the topic carries the bound the rate is held against: (1 - 0.1) 2 |alpha|
+    assert vec['decay_rate_bound'] == pytest.approx(-2 * 0.9 * res.prediction.decaying_abscissa)
     assert all(math.isfinite(vec[f]) for f in ('energy_decay_rate', 'E_inf', 'decay_status',
                                                'modes_status', 'data_status'))
 
@@ -403,7 +414,7 @@ def test_pairer_counts_a_lost_joint_state(kicked):
 
 @pytest.mark.parametrize('scene,verdict', [
     ('precession', 'asymptotically stable'), ('nutation', 'asymptotically stable'),
-    ('stiff_drive', 'asymptotically stable'), ('fast_spin', 'asymptotically stable'),
+    ('fast_spin', 'asymptotically stable'),
     ('upright', 'marginal'), ('pole_slip', 'marginal'), ('conservative', 'marginal')])
 def test_every_shipped_scene_confirmed_where_the_linear_theory_says(scene, verdict):
     from gyro_rotor.linear.stability import analyze_scene
@@ -420,3 +431,16 @@ def test_every_shipped_scene_confirmed_where_the_linear_theory_says(scene, verdi
         assert res.pole_slips == 3 and str(res.criterion('synchronism').status) == 'PASS'
     # never asymptotically stable without drive damping
     assert scene != 'conservative' or res.verdict != 'asymptotically stable'
+
+
+def test_stiff_drive_decay_is_not_measurable_in_8_s_windows():
+    # K_D = 1e4: the modes the drive reaches decay at 0.004 1/s and slower (E* changes by
+    # < 5 % over 8 s): no window can measure the decay, so the verdict stays 'insufficient
+    # data' with the reason, never a PASS from a window that cannot support it
+    tr = simulate('stiff_drive', t_end=14.0, rate=250.0)
+    _, res = analyze(tr.scene, samples_from_trajectory(tr), window_s=8.0)
+    assert res.verdict == 'insufficient data', res.evidence
+    decay = res.criterion('decay')
+    assert str(decay.status) == 'NOT YET' and 'not measurable in this window' in decay.detail
+    assert 'needs about' in decay.detail
+    assert all(str(c.status) == 'PASS' for c in res.criteria if c is not decay)

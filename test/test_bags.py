@@ -60,7 +60,8 @@ def test_identified_frequencies_match_prediction(analyses, name):
 def test_bag_specifics(analyses):
     pre = {m.name: m for m in analyses['precession'].result.current.modes}
     assert pre['nutation'].status == 'weakly damped'
-    assert 0.5 < pre['nutation'].meas_tau / pre['nutation'].pred_tau < 2.0
+    # tau 572 s predicted: its decay is below an 8 s window's resolution, no tau measured
+    assert pre['nutation'].tau is None and str(pre['nutation'].rate_status) == 'PASS'
     up = {m.name: m.status for m in analyses['upright'].result.current.modes}
     assert up['nutation'] == up['precession'] == 'expected marginal'
     slip = analyses['pole_slip'].result
@@ -76,10 +77,10 @@ def test_structural_zero_root_has_no_predicted_decay_time(analyses):
     assert len(zero) == 1 and math.isinf(zero[0].pred_tau)
     line = [ln for ln in text_report(bag.result, bag).splitlines()
             if ln.strip().startswith(zero[0].name) and ':' not in ln]
-    # columns: f_pred, f_meas, tau_pred ('-': none), tau_meas (Re ~ -6e-6 1/s over an 8 s
-    # window: 'not measurable', never 1.6e+05)
+    # columns: f_pred, f_meas +- u, tau_pred ('-': none), tau_meas ('-': a structural root
+    # has no decay time, never 1.6e+05)
     assert len(line) == 1
-    assert line[0].strip()[len(zero[0].name):].split()[2:5] == ['-', 'not', 'measurable'], line
+    assert line[0].strip()[len(zero[0].name):].split()[4:6] == ['-', '-'], line
 
 
 def test_empty_bag_path_is_refused(capsys):

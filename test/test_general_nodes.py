@@ -178,7 +178,7 @@ def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_pat
     assert offline.result.samples == 2501 and offline.result.unpaired == 0
     assert {c.name: str(c.status) for c in offline.result.criteria} == {
         'Lyapunov': 'PASS', 'energy balance': 'PASS', 'decay': 'PASS', 'modes': 'PASS',
-        'data': 'PASS'}
+        'data': 'PASS', 'scene': 'PASS'}
     assert math.isfinite(offline.result.judged.E_last)
     # the analysis of a recording of another system is refused with one line
     r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'analyze', str(bag), '--scene',

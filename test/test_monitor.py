@@ -69,9 +69,9 @@ def test_monitor_labels_analysis_modes_by_row_and_column():
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
     names = ['nutation', 'housing twist', 'zero root (cyclic psi)']
-    rows = [[-0.0018 - i, 61.19 + i, -0.002, 61.2, 3.0, 4.0, 0.5, float(i)]
-            for i in range(len(names))]
     ncol = len(MODE_FIELDS)
+    rows = [([-0.0018 - i, 61.19 + i, -0.002, 61.2, 3.0, 4.0, 0.5, float(i)]
+             + [0.25 + i] * (ncol - 8)) for i in range(len(names))]
     msg = Float64MultiArray()
     msg.layout.dim = [MultiArrayDimension(label=','.join(names), size=len(rows),
                                           stride=len(rows) * ncol),

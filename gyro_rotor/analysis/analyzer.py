@@ -14,17 +14,22 @@ the conjunction of the named criteria of :mod:`~.verdict` (:mod:`~.criteria`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Iterable
 
 from gyro_rotor.analysis import criteria as crit
-from gyro_rotor.analysis.decay import envelope_decay_rate, fit_energy
-from gyro_rotor.analysis.modes import check_modes, ModeCheck
+from gyro_rotor.analysis.decay import (envelope_decay_rate, fit_energy, MAX_EXPONENT,
+                                       REMAINDER_SHARE)
+from gyro_rotor.analysis.fit import joint_names, SceneFit
+from gyro_rotor.analysis.modes import check_modes, ModeCheck, ModesFound
 from gyro_rotor.analysis.prediction import GENERAL_COORDS, predict, Prediction
 from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
 from gyro_rotor.analysis.ring import RowRing
+from gyro_rotor.analysis.run import RunRecord
 from gyro_rotor.analysis.samples import Sample
-from gyro_rotor.analysis.verdict import (combine, ModeStatus, SyncState, Verdict)
+from gyro_rotor.analysis.verdict import (combine, CriterionName, ModeStatus, Status, SyncState,
+                                         Verdict)
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import AnalysisError, ParameterError
@@ -34,10 +39,10 @@ __all__ = ['RotorAnalyzer', 'limit_blas_threads']
 
 _TWO_PI = 2.0 * math.pi
 _BLAS_LIMITED = False
-
-
-_TWO_PI = 2.0 * math.pi
-_BLAS_LIMITED = False
+#: a sine-law drive is in its linear range while |p (z - well bottom)| stays below this
+#: [rad]: the potential's nonlinearity then shifts the drive's frequency by less than
+#: (0.5)^2 / 16 = 1.6 %, within the modes' frequency tolerance (2 %)
+LINEAR_DRIVE = 0.5
 
 
 def limit_blas_threads(n: int = 1) -> bool:
@@ -87,6 +92,10 @@ class _Segment:
         self.lags: tuple = ()     # the rotor lags of the last sample that had them
         self.last: Sample | None = None
         self.fit: dict = {}
+        #: what the windows judged at the checkpoints saw
+        self.record = RunRecord()
+        self.checkpoint = -1          # index k of the last checkpoint t = k * period
+        self.last_nonlinear_t = -math.inf   # last sample with a drive beyond LINEAR_DRIVE
 
     def add(self, s: Sample, row: tuple) -> None:
         if self.samples == 0:
@@ -135,13 +144,21 @@ class RotorAnalyzer:
     blas_threads : int
         Limit numpy's OpenBLAS to this many threads (0 = leave it), see
         :func:`limit_blas_threads`.
+    checkpoint_s : float
+        The window is judged whenever simulation time passes a multiple of this [s] (the
+        same times live and offline, however often results are asked for); the decay
+        and modes criteria say what these windows saw over the run (0 = only the newest).
+    combination_tones : bool
+        Name identified roots at the sum or difference of two modes' frequencies as
+        combination tones (False: they count as unexplained; for the tests' mutations).
     """
 
     def __init__(self, scene: Scene, *, window_s: float = 8.0, lyapunov_tol: float = 1e-8,
                  lyapunov_rtol: float = 1e-9, residual_warn: float = 1e-6,
                  diverge_residual: float = 1e-2, sync_hold_s: float = 1.0,
                  min_fit_s: float = 2.0, max_window_samples: int = 20000,
-                 blas_threads: int = 1):
+                 blas_threads: int = 1, checkpoint_s: float = 1.0,
+                 combination_tones: bool = True):
         if not isinstance(scene, (Scene, GeneralScene)):
             raise AnalysisError('RotorAnalyzer needs a Scene or a GeneralScene')
         self.window_s = check_window(window_s)
@@ -152,11 +169,17 @@ class RotorAnalyzer:
         self.sync_hold_s = float(sync_hold_s)
         self.min_fit_s = float(min_fit_s)
         self.max_window_samples = int(max_window_samples)
+        self.checkpoint_s = float(checkpoint_s)
+        self.combination_tones = bool(combination_tones)
         global _BLAS_LIMITED
         if blas_threads and not _BLAS_LIMITED:
             _BLAS_LIMITED = limit_blas_threads(blas_threads)
         self.scene = scene
         self.prediction = predict(scene)
+        self._fit = SceneFit(scene, joint_names(scene))
+        #: what differed between the data and the scene (the ``scene`` criterion)
+        self.fit_problems: list[str] = []
+        self.fit_checks = 0
         self.samples = 0
         self.dropped = 0
         self.resets = 0
@@ -169,6 +192,10 @@ class RotorAnalyzer:
         #: recorded messages a damaged bag lost, and the reader's line on it (set offline)
         self.bag_lost = 0
         self.bag_loss = ''
+        #: messages at the cut of a recording without their partner (not counted as
+        #: unpaired), and where the recording was cut ('' if it was not); set by the caller
+        self.cut = 0
+        self.truncated = ''
         self.segments: list[_Segment] = []
         self._done: list[SegmentResult] = []
         self._last: Sample | None = None
@@ -181,6 +208,7 @@ class RotorAnalyzer:
             return False
         self.scene = scene
         self.prediction = predict(scene)
+        self._fit = SceneFit(scene, joint_names(scene))
         self.param_changes += 1
         if self.segments:
             self._new_segment('parameters changed')
@@ -226,8 +254,32 @@ class RotorAnalyzer:
             self.non_finite += 1
         if reason is not None:
             self._new_segment(reason)
-        self._add_to_segment(self.segments[-1], s, last if reason is None else None)
+        seg = self.segments[-1]
+        self._add_to_segment(seg, s, last if reason is None else None)
         self._last = s
+        if reason is not None:
+            self._check_fit(s, start=s.k == 0 and not reason.startswith(('kick', 'time',
+                                                                         'param')))
+        if self.checkpoint_s > 0 and math.isfinite(s.t):
+            k = math.floor(s.t / self.checkpoint_s + 1e-6)
+            if k > seg.checkpoint:
+                seg.checkpoint = k
+                self._check_fit(s, start=False)
+                res = self._evaluate(seg, judge=False)
+                if res.energy_fit is not None:
+                    seg.record.add(res)
+
+    def _check_fit(self, s: Sample, start: bool) -> None:
+        """Hold a sample against the scene (:mod:`~gyro_rotor.analysis.fit`)."""
+        fit = self._fit
+        before = fit.starts + fit.energies
+        if start:
+            fit.on_start(s)
+        fit.on_sample(s)
+        self.fit_checks += fit.starts + fit.energies - before
+        for p in fit.problems:
+            if p not in self.fit_problems:
+                self.fit_problems.append(p)
 
     def add_many(self, samples: Iterable[Sample]) -> None:
         """Feed several samples."""
@@ -259,6 +311,8 @@ class RotorAnalyzer:
             if p > 0 and math.isfinite(z):
                 u = p * z / _TWO_PI                    # z in wells (bottoms at integers)
                 k = round(u)
+                if abs(u - k) * _TWO_PI > LINEAR_DRIVE:
+                    seg.last_nonlinear_t = s.t
                 if abs(u - k) <= 0.25:
                     if r in seg.wells and k != seg.wells[r]:
                         seg.slips += abs(k - seg.wells[r])
@@ -299,22 +353,20 @@ class RotorAnalyzer:
         return (s.t, s.E_star, s.residual, s.z, s.zdot) + tuple(dev)
 
     # -- evaluation ---------------------------------------------------------------------------
-
-    # -- evaluation ---------------------------------------------------------------------------
     def result(self) -> AnalysisResult:
         """Evaluate the segments and return the whole analysis so far (module doc)."""
         segs = list(self._done)
         if self.segments:
             segs.append(self._evaluate(self.segments[-1]))
-        judged = next((s for s in reversed(segs) if s.energy_fit is not None),
+        judged = next((s for s in reversed(segs) if s.windows or s.energy_fit is not None),
                       segs[-1] if segs else None)
         criteria = self._criteria(segs, judged)
         verdict, reason = self._combine(judged, criteria)
         evidence = [f'{verdict}: {reason}'] + [c.line() for c in criteria]
         if judged is not None:
             evidence.insert(1, f'judged on segment {judged.index} ({judged.reason}, t = '
-                               f'{judged.t_start:.3f} .. {judged.t_end:.3f} s, window '
-                               f'{judged.window_s:.3g} s)')
+                               f'{judged.t_start:.3f} .. {judged.t_end:.3f} s, '
+                               f'{windows_text(judged)})')
         level = {Verdict.ASYMPTOTICALLY_STABLE: 'OK', Verdict.MARGINAL: 'OK',
                  Verdict.INSUFFICIENT_DATA: 'OK', Verdict.NOT_CONFIRMED: 'WARN',
                  Verdict.UNSTABLE: 'ERROR', Verdict.DIVERGED: 'ERROR'}[verdict]
@@ -326,22 +378,24 @@ class RotorAnalyzer:
             time_jumps=self.time_jumps, param_changes=self.param_changes,
             pole_slips=sum(s.pole_slips for s in segs), segments=segs, verdict=verdict,
             evidence=evidence, level=level, criteria=criteria, reason=reason,
-            unpaired=self.unpaired, judged=judged,
+            unpaired=self.unpaired, judged=judged, cut=self.cut, truncated=self.truncated,
             t_sim=self._last.t if self._last is not None else math.nan)
 
     def _criteria(self, segs: list, judged: SegmentResult | None) -> list:
         out = [crit.lyapunov(segs, self.lyapunov_tol, self.lyapunov_rtol),
                crit.energy_balance(segs, self.residual_warn)]
         if judged is not None:
-            out += [crit.decay(judged, judged_pred(self, judged), self.min_fit_s,
-                               self._resolution(judged)),
-                    crit.modes(judged, self.min_fit_s)]
+            out += [c for c in judged.criteria
+                    if c.name in (CriterionName.DECAY, CriterionName.MODES)]
         out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite,
-                             self.bag_lost, self.bag_loss))
+                             self.cut, self.truncated, self.bag_lost, self.bag_loss))
         if judged is not None:
             sync = crit.synchronism(segs[-1], self.segments[-1].pred)
             if sync is not None:
                 out.append(sync)
+        fit = crit.scene(self.scene.name, self.fit_problems, self.fit_checks)
+        if fit is not None:
+            out.append(fit)
         return out
 
     def _combine(self, judged: SegmentResult | None, criteria: list) -> tuple:
@@ -350,21 +404,9 @@ class RotorAnalyzer:
         pred = judged_pred(self, judged)
         segs = self._done + [judged]
         diverged = any(s.non_finite or s.residual_max > self.diverge_residual for s in segs)
-        growing = [m for m in judged.modes if m.measured is not None
-                   and m.status is ModeStatus.DISAGREES and m.measured.real > 0]
-        unstable = bool(growing) or judged.deviation_decay_rate < -0.05 or (
-            self.segments and self._evaluated_sync_lost())
-        return combine(criteria, pred.verdict, diverged=diverged, unstable=bool(unstable),
+        return combine(criteria, pred.verdict, diverged=diverged,
+                       unstable=bool(judged.growing),
                        marginal_modes=tuple(m.name for m in pred.marginal_modes))
-
-    def _evaluated_sync_lost(self) -> bool:
-        seg = self.segments[-1]
-        return (seg.pred.pole_pairs > 0 and seg.last is not None
-                and seg.last.t - seg.last_slip_t <= self.sync_hold_s)
-
-    def _resolution(self, seg: SegmentResult) -> float:
-        """Spread of E* [J] below which E* counts as constant (the Lyapunov tolerance)."""
-        return self.lyapunov_tol + self.lyapunov_rtol * abs(seg.E_last)
 
     def _window(self, seg: _Segment) -> np.ndarray:
         R = seg.rows.array()
@@ -385,23 +427,69 @@ class RotorAnalyzer:
             return SyncState.LOST, well
         return (SyncState.RESYNCHRONIZED if seg.slips else SyncState.SYNCHRONOUS), well
 
-    def _evaluate(self, seg: _Segment) -> SegmentResult:
+    def _missing(self, R: np.ndarray) -> int:
+        """Return how many samples a window misses (lost messages) on the sample grid.
+
+        The fits need equally spaced samples; a window with a gap is not fitted (the data
+        criterion counts the loss; interpolating across it would put invented samples into
+        the fits).
+        """
+        dt = self._dt
+        if not dt or len(R) < 3:
+            return 0
+        steps = np.round(np.diff(R[:, 0]) / dt).astype(int)
+        return int(np.sum(np.maximum(steps - 1, 0)))
+
+    def _noise(self, R: np.ndarray) -> float:
+        """Noise level of E* in a window [J]: the jitter of the energy-balance residual.
+
+        The residual r = E* + D - E_ref carries the integration error and the rounding of
+        E*; its deviation from a straight line over the window is their noise.
+        """
+        r = R[:, 2]
+        if len(r) < 3 or not np.all(np.isfinite(r)):
+            return 0.0
+        tt = R[:, 0] - R[0, 0]
+        p = np.polyfit(tt, r, 1)
+        return float(np.std(r - np.polyval(p, tt)))
+
+    def _evaluate(self, seg: _Segment, judge: bool = True) -> SegmentResult:
+        """Judge the newest window of a segment; with ``judge``, over its checkpoints too.
+
+        ``judge=False`` (a checkpoint): the window alone. Otherwise the decay and modes
+        criteria say what the windows of the segment's checkpoints and the newest one saw
+        (:func:`~gyro_rotor.analysis.verdict.over_run`), and so do the modes' statuses.
+        """
         pred = seg.pred
-        R = self._window(seg)
         last = seg.last
+        judged = seg.record.last
+        if judge and judged is not None and judged.samples == seg.samples:
+            # the newest checkpoint judged this very window: its result, judged over the run
+            res = dataclasses.replace(judged)
+            res.criteria = list(res.criteria)
+            return self._judge_over_run(seg, res)
+        R = self._window(seg)
         sync_state, well = self._sync(seg)
-        # fit only data after the last slip (locked in one well)
-        if R.size and math.isfinite(seg.last_slip_t):
-            R = R[R[:, 0] > seg.last_slip_t + 0.5]
+        # fit only data after the last slip, once the drive is back in its linear range,
+        # and after the modes that die within a sample (a stiff drive's real root) are gone
+        fit_from = max(seg.last_slip_t + 0.5, seg.last_nonlinear_t,
+                       seg.t_start + _gone_after(pred, self._dt))
+        if R.size and math.isfinite(fit_from):
+            R = R[R[:, 0] > fit_from]
         R = R[np.all(np.isfinite(R), axis=1)] if R.size else R
+        missing = self._missing(R)
         span = float(R[-1, 0] - R[0, 0]) if len(R) > 1 else 0.0
-        e_fit, dev_rate, unexplained = None, math.nan, []
-        if span >= self.min_fit_s and len(R) > 20:
+        e_fit, dev_rate = None, math.nan
+        found = ModesFound([], [])
+        if span >= self.min_fit_s and len(R) > 20 and not missing:
             eigs = [m.eigenvalue for m in pred.modes if not m.structural]
-            e_fit = fit_energy(R[:, 0], R[:, 1], eigs)
+            change = abs(seg.E_first - last.E_star) if last is not None else 0.0
+            e_fit = fit_energy(R[:, 0], R[:, 1], eigs, noise=self._noise(R),
+                               remainder=REMAINDER_SHARE * change)
             dev_rate = envelope_decay_rate(R[:, 0], R[:, 5:], [m.freq_hz for m in pred.modes])
-            found = check_modes(R[:, 0], R[:, 5:], pred, span)
-            modes, unexplained = found.checks, found.unexplained
+            found = check_modes(R[:, 0], R[:, 5:], pred, span,
+                                combination_tones=self.combination_tones)
+            modes = found.checks
         else:
             modes = [ModeCheck(m.name, m.eigenvalue, None, math.nan,
                                ModeStatus.NOT_IDENTIFIED, m.reached_by_drive, m.structural)
@@ -417,19 +505,74 @@ class RotorAnalyzer:
             deviation_decay_rate=dev_rate, window_s=span, modes=modes,
             pole_slips=seg.slips, sync_state=sync_state, well=well,
             verdict=Verdict.INSUFFICIENT_DATA, evidence=[], energy_fit=e_fit,
-            unexplained=unexplained, non_finite=not (last and math.isfinite(last.E_star)))
-        res.criteria = [crit.decay(res, pred, self.min_fit_s, self._resolution(res)),
-                        crit.modes(res, self.min_fit_s)]
+            unexplained=found.unexplained, combinations=found.combinations,
+            growing=found.growing, fit_from=fit_from if math.isfinite(fit_from) else math.nan,
+            missing=missing,
+            non_finite=not (last and math.isfinite(last.E_star)))
+        res.criteria = [crit.decay(res, pred, self.min_fit_s), crit.modes(res, self.min_fit_s)]
+        if not judge:
+            return res
+        return self._judge_over_run(seg, res)
+
+    def _judge_over_run(self, seg: _Segment, res: SegmentResult) -> SegmentResult:
+        """Judge the newest window's result over the segment's checkpoints (verdict too)."""
+        pred = seg.pred
+        self._over_run(seg, res)
         sync = crit.synchronism(res, pred)
         if sync is not None:
             res.criteria.append(sync)
         res.verdict, reason = combine(res.criteria, pred.verdict,
                                       diverged=res.non_finite
                                       or res.residual_max > self.diverge_residual,
-                                      unstable=sync_state is SyncState.LOST,
+                                      unstable=bool(res.growing),
                                       marginal_modes=tuple(m.name for m in pred.marginal_modes))
         res.evidence = [reason] + [c.line() for c in res.criteria]
         return res
+
+    def _over_run(self, seg: _Segment, res: SegmentResult) -> None:
+        """Turn the newest window's criteria and modes into what the whole segment saw."""
+        rec = seg.record
+        if res.energy_fit is not None and not (rec.last is not None
+                                               and rec.last.samples == res.samples):
+            rec = rec.copy()          # the newest window between two checkpoints
+            rec.add(res)
+        if not rec.n:
+            return
+        res.windows = (rec.n, rec.first_t, rec.last_t)
+        out = [rec.criterion(CriterionName.DECAY), rec.criterion(CriterionName.MODES)]
+        res.growing = list(rec.growing)
+        res.modes = rec.modes(res.modes)
+        if out[1].status is not Status.FAIL:
+            # the modes as the whole run saw them (the newest window's combination tones)
+            lines = [crit.mode_line(m) for m in res.modes if not m.structural]
+            lines += [f'{abs(r.value.imag) / _TWO_PI:.4g} Hz is a {text}'
+                      for r, text in res.combinations]
+            out[1] = dataclasses.replace(out[1], detail='; '.join(lines))
+        res.criteria = out
+        # the numbers of the decay: the newest window that measured a rate
+        if res.energy_fit is not None and not math.isfinite(res.energy_fit.rate):
+            res.rate_fit = rec.rate_fit
+
+
+def _gone_after(pred: Prediction, dt: float | None) -> float:
+    """Time [s] after which the modes too fast for the sample grid have died (e^-30).
+
+    -inf if there are none: no sample of a segment's start is left out.
+    """
+    fast = [-m.eigenvalue.real for m in pred.modes
+            if dt and m.eigenvalue.real * dt < -MAX_EXPONENT]
+    return 0.5 * MAX_EXPONENT / min(fast) if fast else -math.inf
+
+
+def windows_text(seg: SegmentResult) -> str:
+    """Return which windows a segment was judged on."""
+    if not seg.windows:
+        return f'window {seg.window_s:.3g} s'
+    n, first, last = seg.windows
+    if n == 1:
+        return f'window {seg.window_s:.3g} s ending t = {last:.2f} s'
+    return (f'{n} windows of up to {seg.window_s:.3g} s ending t = {first:.2f} .. '
+            f'{last:.2f} s')
 
 
 def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:

@@ -1,163 +1,239 @@
 """The criteria of the verdict (:mod:`gyro_rotor.analysis.verdict`), one function each.
 
-Each takes what was measured and returns a :class:`~gyro_rotor.analysis.verdict.Criterion`
-with PASS, FAIL or NOT YET, why, and its numbers. Pure Python.
+Each takes what was measured, every number with its uncertainty interval
+(:class:`~gyro_rotor.analysis.verdict.Measured`), and returns a
+:class:`~gyro_rotor.analysis.verdict.Criterion` with PASS, FAIL or NOT YET by the one rule
+of :func:`~gyro_rotor.analysis.verdict.decide` (PASS only when the whole interval is on the
+passing side of the bound, FAIL only when it is wholly on the failing side), why, and its
+numbers. :func:`decay` and :func:`modes` judge one window; the analyzer combines the
+windows of a run with :func:`~gyro_rotor.analysis.verdict.over_run`. Pure Python.
 """
 
 from __future__ import annotations
 
 import math
 
-from gyro_rotor.analysis.decay import RESOLVABLE
+from gyro_rotor.analysis.decay import NOISE_K, RESOLVABLE
+from gyro_rotor.analysis.modes import FREQ_RTOL, RATE_RTOL as MODE_RATE_RTOL
 from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.results import SegmentResult
-from gyro_rotor.analysis.verdict import (Criterion, CriterionName, decay_rate_bound, fmt_rate,
-                                         ModeStatus, Status, SyncState)
+from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decay_rate_bound,
+                                         DECAY_RTOL, decide, fmt_interval, fmt_pm, Measured,
+                                         ModeStatus, needs_window, Status, SyncState)
 
-__all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism',
-           'FIT_RTOL', 'RATE_RTOL']
+__all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism', 'scene',
+           'FIT_RTOL', 'RATE_RTOL', 'rate_bound', 'mode_line']
 
 #: the fit of E*(t) with the predicted rates must leave at most this rms residual, relative
-#: to the spread of E* over the window. Measured on a demo bag of the default scene: 4e-6 to
-#: 2.3e-5 over 8 s windows with the right prediction (1.3e-2 over the whole 18 s segment,
-#: where the kick's nonlinearity shows; 0.022 on pole_slip after three slips), 0.033 with
-#: the prediction for K_D = 0.02 (its twist rate then disagrees: the modes criterion fails)
-#: and 0.23 for K_D = 0.3 instead of 0.05
+#: to the spread of E* over the window (or the noise floor, if that is larger). Measured on
+#: a demo bag of the default scene: 4e-6 to 2.3e-5 over 8 s windows with the right
+#: prediction (0.022 on pole_slip after its slips), 0.23 for K_D = 0.3 instead of 0.05
 FIT_RTOL = 0.05
-#: the measured decay rate may fall short of the bound by this fraction (the bound holds
-#: for the linearization; the kicked motion is slightly nonlinear)
-RATE_RTOL = 0.1
+#: the decay bound's allowance for the nonlinearity (:data:`~.verdict.DECAY_RTOL`)
+RATE_RTOL = DECAY_RTOL
 
-_NOT_EXCITED = (ModeStatus.NOT_EXCITED, ModeStatus.NOT_IDENTIFIED,
-                ModeStatus.STRUCTURAL_ZERO_ROOT)
+_EPS = 2.220446049250313e-16
+_AGREE = (ModeStatus.DECAYING_AS_PREDICTED, ModeStatus.EXPECTED_MARGINAL,
+          ModeStatus.WEAKLY_DAMPED)
+
+
+def _unfitted(seg: SegmentResult, min_fit_s: float, what: str) -> str:
+    """Why the newest window was not fitted."""
+    if seg.missing:
+        return (f'{seg.missing} samples of the window are missing (lost messages): no '
+                f'{what} across the gap')
+    return f'window {seg.window_s:.3g} s too short to {what} (need {min_fit_s:g} s)'
+
+
+def rate_bound(pred: Prediction) -> float:
+    """Return the bound the rate of E* - E*_inf is held against: (1 - RATE_RTOL) 2|alpha|."""
+    return (1.0 - RATE_RTOL) * decay_rate_bound(pred.decaying_abscissa)
 
 
 def lyapunov(segs: list[SegmentResult], tol: float, rtol: float) -> Criterion:
-    """E* never rises beyond the integrator's tolerance (eq. 13 non-increasing, eq. 17)."""
+    """E* never rises beyond the integrator's tolerance (eq. 13 non-increasing, eq. 17).
+
+    The measured number is the largest rise of E* between two samples (its interval: the
+    rounding of E*, 4 ulp); the bound tol + rtol |E*|.
+    """
     n = sum(s.lyapunov_violations for s in segs)
     steps = [s.lyapunov_max_increase for s in segs if math.isfinite(s.lyapunov_max_increase)]
     worst = max(steps, default=math.nan)
+    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
+    bound = tol + rtol * E
     nums = {'violations': n, 'max_increase_J': worst, 'tol_J': tol, 'rtol': rtol}
+    name = CriterionName.LYAPUNOV
     if not steps:
-        return Criterion(CriterionName.LYAPUNOV, Status.NOT_YET, 'fewer than two samples',
-                         nums)
-    if n:
-        return Criterion(CriterionName.LYAPUNOV, Status.FAIL,
-                         f'E* rose {n} times beyond {tol:.1g} J + {rtol:.1g} |E*| '
-                         f'(max rise {worst:.3g} J)', nums)
-    return Criterion(CriterionName.LYAPUNOV, Status.PASS,
-                     f'E* never rose beyond {tol:.1g} J + {rtol:.1g} |E*| '
-                     f'(largest step {worst:+.3g} J)', nums)
+        return Criterion(name, Status.NOT_YET, 'fewer than two samples', nums)
+    rise = Measured.pm(worst, 4 * _EPS * max(E, 1.0))
+    status = decide(rise, bound, 'below')
+    if n and status is not Status.FAIL:
+        status = Status.FAIL        # a rise beyond a sample's own bound (rtol |E*| there)
+    if status is Status.FAIL:
+        return Criterion(name, status, f'E* rose {max(n, 1)} times beyond {tol:.1g} J + '
+                         f'{rtol:.1g} |E*| (max rise {worst:.3g} J)', nums)
+    text = (f'E* never rose beyond {tol:.1g} J + {rtol:.1g} |E*| (largest step '
+            f'{worst:+.3g} J)')
+    return Criterion(name, status, text + ('' if status is Status.PASS else
+                                           ': the largest rise is at the bound'), nums)
 
 
 def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
-    """Check that the residual |E* + D - E_ref| stays below ``warn``."""
+    """Check that |E* + D - E_ref| stays below ``warn`` (interval: its rounding, 4 ulp)."""
     worst = max((s.residual_max for s in segs), default=math.nan)
+    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
     nums = {'residual_max_J': worst, 'tol_J': warn}
+    name = CriterionName.ENERGY_BALANCE
     if not segs or not math.isfinite(worst):
-        return Criterion(CriterionName.ENERGY_BALANCE, Status.NOT_YET, 'no residual yet',
-                         nums)
-    ok = worst <= warn
-    return Criterion(CriterionName.ENERGY_BALANCE, Status.PASS if ok else Status.FAIL,
-                     f'max |E* + D - E_ref| = {worst:.3g} J ({"<=" if ok else ">"} '
+        return Criterion(name, Status.NOT_YET, 'no residual yet', nums)
+    status = decide(Measured.pm(worst, 4 * _EPS * max(E, 1.0)), warn, 'below')
+    rel = {Status.PASS: '<=', Status.FAIL: '>', Status.NOT_YET: 'at'}[status]
+    return Criterion(name, status, f'max |E* + D - E_ref| = {worst:.3g} J ({rel} '
                      f'{warn:.1g} J)', nums)
 
 
-def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float,
-          resolution: float = 1e-8) -> Criterion:
+def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
     """E* approaches its fitted limit at least as fast as the slowest predicted mode allows.
 
-    ``resolution`` [J]: a spread of E* over the window below it is integration noise.
+    Two tests, each by the rule: the fit of E*(t) with the predicted rates holds (its rms
+    residual, with its interval from the number of independent residuals, below
+    :data:`FIT_RTOL` of E*'s spread or the noise floor), and the rate of E* - E*_inf (its
+    interval from :func:`~gyro_rotor.analysis.decay.fit_energy`) is above
+    :func:`rate_bound`. E* settled within its noise floor decides nothing (NOT YET), unless
+    no mode is predicted to decay (then it is as predicted).
     """
-    bound = decay_rate_bound(pred.decaying_abscissa)
+    full = decay_rate_bound(pred.decaying_abscissa)
+    bound = rate_bound(pred)
     fit = seg.energy_fit
-    nums = {'bound': bound, 'window_s': seg.window_s}
+    nums = {'bound': full, 'rate_bound': bound, 'window_s': seg.window_s}
     name = CriterionName.DECAY
     if fit is None:
-        return Criterion(name, Status.NOT_YET, f'window {seg.window_s:.3g} s too short to fit '
-                         f'(need {min_fit_s:g} s)', nums)
+        return Criterion(name, Status.NOT_YET, _unfitted(seg, min_fit_s, 'fit'), nums)
     nums.update(rate=fit.rate, rate_lo=fit.rate_lo, rate_hi=fit.rate_hi, E_inf=fit.E_inf,
-                spread=fit.spread, trend=fit.trend,
-                E_inf_sigma=fit.E_inf_sigma, rel_residual=fit.rel_residual)
+                spread=fit.spread, trend=fit.trend, E_inf_sigma=fit.E_inf_sigma,
+                rel_residual=fit.rel_residual, noise=fit.noise)
+    if fit.settled:
+        var = (f'E* varies by less than its noise floor ({NOISE_K:g} x '
+               f'{max(fit.noise, fit.remainder):.2g} J)')
+        if not math.isfinite(full):
+            return Criterion(name, Status.PASS, f'{var} over the window: constant, as '
+                             'predicted (no mode decays)', nums)
+        return Criterion(name, Status.NOT_YET, f'{var} over the window: E* has settled, '
+                         'nothing left to measure here', nums)
     # the predicted E*_inf is E* on the scene's own steady motion; a kick or a drift along a
     # cyclic coordinate moves the motion the rotor settles on, and so the limit
-    head = (f'E*_inf = {fit.E_inf:.9g} +- {fit.E_inf_sigma:.2g} J (fitted; E* on the '
-            f"scene's steady motion {pred.E_inf:.9g} J, a kick moves the limit); ")
-    if fit.spread <= resolution:
-        # E* constant within the integrator's tolerance: nothing to fit
-        if not math.isfinite(bound):
-            return Criterion(name, Status.PASS, f'E* constant (spread {fit.spread:.2g} J <= '
-                             f'{resolution:.2g} J) as predicted: no mode decays', nums)
-        return Criterion(name, Status.NOT_YET, f'E* - E*_inf below the resolution (spread '
-                         f'{fit.spread:.2g} J <= {resolution:.2g} J): decay not measurable in '
-                         f'this window', nums)
-    if fit.rel_residual > FIT_RTOL:
-        return Criterion(name, Status.FAIL, head + f'E*(t) does not follow the predicted '
-                         f'rates: rms residual {fit.rel_residual:.3g} of its spread '
-                         f'(> {FIT_RTOL:g})', nums)
-    if not math.isfinite(bound):
-        return Criterion(name, Status.NOT_YET, head + 'no decaying mode predicted', nums)
-    rate = (f'E* - E*_inf decays at {fmt_rate(fit.rate)} (interval '
-            f'{fit.rate_lo:.4g} .. {fit.rate_hi:.4g}), bound 2|alpha| = {bound:.4g} 1/s')
-    if bound * seg.window_s < RESOLVABLE:
-        # the slowest predicted decay changes E* by < 5 % over the window: not measurable
-        # here; E*(t) following the predicted rates (above) is what the window can show
-        return Criterion(name, Status.PASS, head + f'E*(t) follows the predicted rates (rms '
-                         f'residual {fit.rel_residual:.2g} of its spread); the bound 2|alpha| '
-                         f'= {bound:.4g} 1/s is below the resolution of this window; ' + rate,
-                         nums)
-    need = bound * (1.0 - RATE_RTOL)
-    if not math.isfinite(fit.rate):
-        return Criterion(name, Status.NOT_YET, head + 'E* - E*_inf not resolved above the '
-                         'fit uncertainty: rate not measurable in this window', nums)
-    if fit.rate_hi < need:
-        return Criterion(name, Status.FAIL, head + rate + ': slower than predicted', nums)
-    if math.isfinite(fit.rate_lo) and fit.rate_lo >= need:
-        return Criterion(name, Status.PASS, head + rate, nums)
-    return Criterion(name, Status.NOT_YET, head + rate + ': the interval straddles the bound',
-                     nums)
+    parts = [f'E*_inf = {fmt_pm(fit.E_inf, fit.E_inf_sigma, "J")} (fitted; E* on the '
+             f"scene's steady motion {pred.E_inf:.9g} J, a kick moves the limit)"]
+    rms = Measured(fit.residual_rms, fit.residual_rms * (1 - 1 / math.sqrt(fit.n_eff)),
+                   fit.residual_rms * (1 + 1 / math.sqrt(fit.n_eff)))
+    fit_bound = max(FIT_RTOL * fit.spread, NOISE_K * fit.noise, fit.remainder)
+    st_fit = decide(rms, fit_bound, 'below')
+    how = {Status.PASS: 'follows', Status.FAIL: 'does not follow',
+           Status.NOT_YET: 'may not follow'}[st_fit]
+    parts.append(f'E*(t) {how} the predicted rates (rms residual '
+                 f'{fit.rel_residual:.2g} of its spread, bound {fit_bound / fit.spread:.2g})')
+    tests = [st_fit]
+    if math.isfinite(bound):
+        rate = Measured(fit.rate, fit.rate_lo, fit.rate_hi)
+        head = (f'bound (1 - {RATE_RTOL:g}) x 2|alpha| = {bound:.4g} 1/s (2|alpha| = '
+                f'{full:.4g} 1/s)')
+        if not rate.measured:
+            need = RESOLVABLE / full
+            tests.append(Status.NOT_YET)
+            why = fit.rate_note or 'E* - E*_inf not resolved'
+            parts.append(f'rate of E* - E*_inf not measurable in this window ({why}; the '
+                         f'slowest predicted decay needs about {need:.3g} s); {head}')
+        else:
+            st = decide(rate, bound, 'above')
+            tests.append(st)
+            text = f'E* - E*_inf decays at {fmt_interval(rate, "1/s")}, {head}'
+            if st is Status.FAIL:
+                text += ': slower than predicted'
+            elif st is Status.NOT_YET:
+                text += (': the interval straddles the bound (needs about '
+                         f'{needs_window(seg.window_s, rate.value - bound, rate.u):.3g} s)')
+            parts.append(text)
+    else:
+        parts.append('no decaying mode predicted')
+    return Criterion(name, conjoin(tests), '; '.join(parts), nums)
+
+
+def mode_line(c) -> str:
+    """Return a mode with its numbers: frequency, decay time (intervals), status."""
+    out = c.name
+    if c.freq is not None and c.freq.bounded:
+        out += f' {fmt_pm(abs(c.freq.value) / (2 * math.pi), c.freq.u / (2 * math.pi), "Hz")}'
+    tau = c.tau
+    if tau is not None and c.rate_status is not None:
+        out += f', tau {fmt_interval(tau, "s")}'
+    return f'{out}: {c.describe()}'
 
 
 def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
-    """Each excited mode identified and as predicted; unreached modes stay undamped."""
+    """Each excited mode identified and as predicted; unreached modes stay undamped.
+
+    Per mode the frequency (within :data:`~gyro_rotor.analysis.modes.FREQ_RTOL`) and,
+    where this window resolves it, the decay rate (within
+    :data:`~gyro_rotor.analysis.modes.RATE_RTOL` or the window's resolution), each by the
+    rule. FAIL if a mode disagrees or a resolved oscillation that lasts through the window
+    matches no mode and is no combination tone; PASS if a mode agrees and no judged number
+    straddles its tolerance; NOT YET otherwise.
+    """
     name = CriterionName.MODES
     judged = [m for m in seg.modes if not m.structural]
     nums = {'identified': sum(m.measured is not None for m in judged),
             'disagree': [m.name for m in judged if m.status is ModeStatus.DISAGREES],
-            'unexplained_hz': [abs(z.imag) / (2 * math.pi) for z, _ in seg.unexplained]}
+            'unexplained_hz': [abs(r.value.imag) / (2 * math.pi) for r, _ in seg.unexplained],
+            'combination_hz': [abs(r.value.imag) / (2 * math.pi) for r, _ in
+                               seg.combinations],
+            'freq_rtol': FREQ_RTOL, 'rate_rtol': MODE_RATE_RTOL}
     if seg.energy_fit is None:
-        return Criterion(name, Status.NOT_YET, f'window {seg.window_s:.3g} s too short to '
-                         f'identify (need {min_fit_s:g} s)', nums)
-    bad = [m for m in judged if m.status is ModeStatus.DISAGREES]
-    parts = [f'{m.name} {m.status}' for m in judged]
+        return Criterion(name, Status.NOT_YET, _unfitted(seg, min_fit_s, 'identify'), nums)
+    parts = [mode_line(m) for m in judged]
+    if seg.combinations:
+        parts.append('; '.join(f'{abs(r.value.imag) / (2 * math.pi):.4g} Hz is a {text}'
+                               for r, text in seg.combinations))
     if seg.unexplained:
-        parts.append('unexplained oscillations at ' + ', '.join(
-            f'{abs(z.imag) / (2 * math.pi):.4g} Hz' for z, _ in seg.unexplained))
+        parts.append('unexplained oscillations at ' + ', '.join(t for _, t in seg.unexplained))
+    bad = [m for m in judged if m.status is ModeStatus.DISAGREES]
+    straddle = [m for m in judged if Status.NOT_YET in (m.freq_status, m.rate_status)]
+    agree = [m for m in judged if m.status in _AGREE]
     if bad or seg.unexplained:
         return Criterion(name, Status.FAIL, '; '.join(parts), nums)
-    if all(m.status in _NOT_EXCITED for m in judged):
-        return Criterion(name, Status.NOT_YET, 'no mode excited in the window', nums)
+    if straddle:
+        return Criterion(name, Status.NOT_YET, '; '.join(parts) + '; not decided: '
+                         + ', '.join(m.name for m in straddle), nums)
+    if not agree:
+        return Criterion(name, Status.NOT_YET, 'no mode resolved in the window: '
+                         + '; '.join(parts), nums)
     return Criterion(name, Status.PASS, '; '.join(parts), nums)
 
 
-def data(samples: int, dropped: int, unpaired: int, non_finite: int, bag_lost: int = 0,
-         bag_loss: str = '') -> Criterion:
+def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 0,
+         truncated: str = '', bag_lost: int = 0, bag_loss: str = '') -> Criterion:
     """No message lost (sequence gaps, or in a damaged bag), no sample unpaired, all finite.
 
-    ``bag_lost`` and ``bag_loss`` are the recorded messages a damaged or truncated bag lost
-    (counted by its reader) and the line that says which; any of it fails the criterion, so a
-    damaged bag never gives a plain CONFIRMED.
+    ``cut``: messages past the end of the other topic at a cut recording (the one sample
+    whose partner the cut took: not a loss the data show); ``truncated`` says where the
+    recording was cut, if it was. ``bag_lost`` and ``bag_loss`` are the recorded messages a
+    damaged bag lost (counted by its reader) and the line that says which; any of it fails
+    the criterion, so a damaged bag never gives a plain CONFIRMED.
     """
     nums = {'samples': samples, 'dropped': dropped, 'unpaired': unpaired,
-            'non_finite': non_finite, 'bag_lost': bag_lost}
+            'non_finite': non_finite, 'cut': cut, 'bag_lost': bag_lost}
     if samples == 0:
         return Criterion(CriterionName.DATA, Status.NOT_YET, 'no samples yet', nums)
     text = (f'{samples} samples, {dropped} messages lost (sequence gaps), {unpaired} '
             f'unpaired between energy and joint_states, {non_finite} with non-finite values')
+    if cut:
+        text += f' ({cut} at the cut of the recording without its partner: not counted)'
+    if truncated:
+        text += f'; {truncated}'
     if bag_loss:
         text += f'; damaged bag: {bag_loss}'
-    ok = not (dropped or unpaired or non_finite or bag_lost or bag_loss)
-    return Criterion(CriterionName.DATA, Status.PASS if ok else Status.FAIL, text, nums)
+    lost = dropped + unpaired + non_finite + bag_lost + (1 if bag_loss else 0)
+    return Criterion(CriterionName.DATA, decide(Measured(lost, lost, lost), 0, 'below'),
+                     text, nums)
 
 
 def synchronism(seg: SegmentResult, pred: Prediction) -> Criterion | None:
@@ -166,8 +242,28 @@ def synchronism(seg: SegmentResult, pred: Prediction) -> Criterion | None:
         return None
     nums = {'pole_slips': seg.pole_slips, 'well': seg.well, 'state': str(seg.sync_state)}
     if seg.sync_state is SyncState.LOST:
-        return Criterion(CriterionName.SYNCHRONISM, Status.FAIL,
-                         f'lost synchronism: {seg.pole_slips} pole slips, still slipping', nums)
+        # a rotor started far off synchronism slips poles before it locks (pole_slip): not
+        # a failure while it lasts; a run that ends slipping never decides
+        return Criterion(CriterionName.SYNCHRONISM, Status.NOT_YET,
+                         f'slipping: {seg.pole_slips} pole slips so far, not locked in a '
+                         f'well yet', nums)
     text = (f'{seg.sync_state}: {seg.pole_slips} pole slips, locked in well {seg.well} '
             f'(z = {seg.well} * 2 pi / {pred.pole_pairs})')
     return Criterion(CriterionName.SYNCHRONISM, Status.PASS, text, nums)
+
+
+def scene(name: str, problems: list, checks: int) -> Criterion | None:
+    """Check that the data are the scene's (:mod:`~gyro_rotor.analysis.fit`); None: unchecked.
+
+    ``checks``: how many samples were compared (E* and run starts); ``problems``: what
+    differed. Each comparison is exact to rounding: the interval of a difference is its
+    rounding (:data:`~gyro_rotor.analysis.fit.TOL`), so one difference beyond it fails.
+    """
+    nums = {'checks': checks, 'problems': list(problems)}
+    if problems:
+        return Criterion(CriterionName.SCENE, Status.FAIL, '; '.join(problems)
+                         + ': a recording of another scene, or with other constants', nums)
+    if not checks:
+        return None
+    return Criterion(CriterionName.SCENE, Status.PASS, f"the data fit scene '{name}' ({checks} "
+                     "samples checked: E* from the recorded joints, the run's start)", nums)

@@ -1,9 +1,19 @@
-"""Modes from data: eigenvalues identified in a window, matched to the predicted ones.
+"""Modes from data: eigenvalues identified in a window, with uncertainties, vs the prediction.
 
-:func:`identify_modes` fits the deviation channels with a matrix pencil
-(:func:`gyro_rotor.linear.sysid.matrix_pencil`); :func:`check_modes` matches each
-predicted mode to an identified eigenvalue by frequency and damping and gives it a
-:class:`~gyro_rotor.analysis.verdict.ModeStatus`. Pure Python.
+:func:`identify_roots` fits the deviation channels with a matrix pencil (Hua & Sarkar
+1990, as :func:`gyro_rotor.linear.sysid.matrix_pencil`) of more exponentials than the
+prediction has (the spare ones take combination tones, offsets and the nonlinear
+remainder), once over the whole window and once over each half. The uncertainty of each
+root is the largest difference between the whole window's value and the halves' (a
+jackknife: it holds the nonlinear remainder, the leakage of neighbouring roots and the
+window's length; a root that is not found again in either half has no bounded
+uncertainty and is not resolved). :func:`check_modes` assigns the identified roots to the
+predicted ones (:func:`scipy.optimize.linear_sum_assignment`, each root to at most one
+mode, by a cost that uses the prediction's tolerance and the root's uncertainty), judges
+each matched mode's frequency and decay rate with the one rule of
+:func:`~gyro_rotor.analysis.verdict.decide`, names identified roots at the sum or
+difference of two modes' frequencies as combination tones (a nonlinear system's products
+of modes), and lists the oscillations nothing explains. Pure Python.
 """
 
 from __future__ import annotations
@@ -11,45 +21,167 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from gyro_rotor.analysis.decay import RESOLVABLE
 from gyro_rotor.analysis.prediction import PredictedMode, Prediction
-from gyro_rotor.analysis.verdict import ModeStatus
+from gyro_rotor.analysis.verdict import (decide, fmt_interval, Measured, ModeStatus,
+                                         needs_window, Status)
 from gyro_rotor.errors import AnalysisError
 import numpy as np
 
-__all__ = ['identify_modes', 'check_modes', 'ModeCheck', 'ModesFound', 'FREQ_RTOL']
+__all__ = ['identify_modes', 'identify_roots', 'check_modes', 'ModeCheck', 'ModesFound',
+           'Root', 'FREQ_RTOL', 'RATE_RTOL', 'RESOLVABLE', 'mode_tolerances']
 
 _TWO_PI = 2.0 * math.pi
 
+#: relative frequency tolerance of the prediction (the kicked motion is nonlinear: its
+#: frequencies shift with the squared amplitude; see test/test_analysis.py)
+FREQ_RTOL = 0.02
+#: relative tolerance of a predicted decay rate
+RATE_RTOL = 0.25
+#: spare exponentials of the pencil beyond the predicted ones and an offset
+SPARE = 12
+#: an identified root whose rms contribution over the window is below this share of the
+#: largest one is below the noise floor (not excited, or decayed)
+NOISE_SHARE = 1e-4
+#: an identified oscillation, resolved (found again in a half of the window, its frequency
+#: within FREQ_RTOL), with at least this share of the largest contribution, that matches no
+#: predicted mode and is no combination tone is unexplained: the modes criterion fails
+#: (however fast it decays: a mode at a wrong frequency that dies within the window, such
+#: as a rotor-field coupling predicted with the wrong C_M, is still a wrong mode)
+UNEXPLAINED_SHARE = 0.05
+#: a root farther than this many tolerances from a predicted mode is not matched to it
+GATE = 3.0
+#: most rows of the stacked Hankel matrix (rows are subsampled beyond: the shift invariance
+#: the pencil uses is along the columns)
+MAX_ROWS = 1000
+
+
+@dataclasses.dataclass(frozen=True)
+class Root:
+    """An identified continuous-time eigenvalue with its uncertainty (module doc)."""
+
+    value: complex
+    re: Measured
+    im: Measured
+    #: rms contribution over the window, relative to the largest root's
+    share: float
+
+    @property
+    def resolved(self) -> bool:
+        """Found again in a half of the window: its frequency has a bounded uncertainty."""
+        return self.im.bounded
+
+    @property
+    def freq_hz(self) -> float:
+        """|Im| / 2 pi [Hz]."""
+        return abs(self.value.imag) / _TWO_PI
+
+
+def _pencil(Y: np.ndarray, dt: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Roots (Im >= 0) and their rms contributions of samples Y (N, k) (module doc)."""
+    N, k = Y.shape
+    L = max(min(N // 3, 120), order + 1)
+    rows = N - L
+    if rows < order + 1:
+        raise AnalysisError(f'{N} samples are too few for order {order}')
+    step = max(1, math.ceil(k * rows / MAX_ROWS))
+    idx = np.arange(0, rows, step)[:, None] + np.arange(L + 1)[None, :]
+    H = np.concatenate([Y[:, c][idx] for c in range(k)], axis=0)
+    _, sv, Vh = np.linalg.svd(H, full_matrices=False)
+    order = min(order, int(np.count_nonzero(sv > 1e-13 * sv[0])))
+    if order < 1:
+        return np.zeros(0, complex), np.zeros(0)
+    Vr = Vh[:order].conj().T
+    z = np.linalg.eigvals(np.linalg.lstsq(Vr[:-1], Vr[1:], rcond=None)[0])
+    z = z[np.abs(z) > 0]
+    n = np.arange(N)
+    with np.errstate(over='ignore', under='ignore', invalid='ignore'):
+        Phi = np.exp(np.outer(n, np.log(z.astype(complex))))
+        amp = np.linalg.lstsq(Phi, Y.astype(complex), rcond=None)[0]      # (order, k)
+        gain = np.sqrt(np.mean(np.abs(Phi) ** 2, axis=0))                # rms of z^n
+    contrib = np.sqrt(np.mean(np.abs(amp) ** 2, axis=1)) * gain
+    lam = np.log(z.astype(complex)) / dt
+    keep = (lam.imag >= -1e-9) & np.isfinite(lam) & np.isfinite(contrib)
+    return lam[keep], contrib[keep]
+
+
+def _match(a: np.ndarray, b: np.ndarray) -> dict:
+    """Map indices of ``a`` to indices of ``b`` one to one, nearest pairs first.
+
+    Within 5 % of |a| (or 0.05 1/s): the same root seen again, not a neighbour.
+    """
+    if not len(a) or not len(b):
+        return {}
+    C = np.abs(a[:, None] - b[None, :]) / np.maximum(np.abs(a), 1.0)[:, None]
+    out: dict = {}
+    taken: set = set()
+    for flat in np.argsort(C, axis=None):
+        i, j = divmod(int(flat), C.shape[1])
+        if C[i, j] > 0.05:
+            break
+        if i not in out and j not in taken:
+            out[i] = j
+            taken.add(j)
+    return out
+
+
+def identify_roots(Y: np.ndarray, dt: float, order: int) -> list[Root]:
+    """Identify ``order`` exponentials in Y (N, k), each with its jackknife uncertainty.
+
+    Channels are normalized to unit rms. Raises :class:`AnalysisError` for too few samples.
+    """
+    Y = np.asarray(Y, dtype=float)
+    scale = np.sqrt(np.mean(Y * Y, axis=0))
+    Y = Y[:, scale > 0] / scale[scale > 0]
+    if Y.shape[1] == 0:
+        return []
+    lam, contrib = _pencil(Y, dt, order)
+    halves = []
+    N = Y.shape[0]
+    for part in (Y[:N // 2], Y[N // 2:]):
+        try:
+            halves.append(_pencil(part, dt, order)[0])
+        except (AnalysisError, np.linalg.LinAlgError):
+            halves.append(np.zeros(0, complex))
+    top = float(contrib.max()) if contrib.size else 0.0
+    dev_re = [[] for _ in lam]
+    dev_im = [[] for _ in lam]
+    for h in halves:
+        for i, j in _match(lam, h).items():
+            dev_re[i].append(abs(h[j].real - lam[i].real))
+            dev_im[i].append(abs(h[j].imag - lam[i].imag))
+    out = []
+    # the window's own resolution: a rate r changes an amplitude by r T over it, which
+    # the nonlinear remainder reaches at RESOLVABLE (the halves share that remainder, so
+    # their spread does not show it); the same for the frequency (the pole moves as a
+    # point of the complex plane)
+    window = 0.5 * RESOLVABLE / (N * dt)
+    for i, z in enumerate(lam):
+        floor = max(1e-9 * abs(z), window)
+        ure = max(dev_re[i], default=math.inf)
+        uim = max(dev_im[i], default=math.inf)
+        ure, uim = max(ure, floor), max(uim, floor)
+        out.append(Root(complex(z), Measured.pm(z.real, ure), Measured.pm(z.imag, uim),
+                        float(contrib[i] / top) if top > 0 else 0.0))
+    return out
+
 
 def identify_modes(Y: np.ndarray, dt: float, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous-time eigenvalues and amplitudes of multichannel samples.
-
-    A thin wrapper of :func:`gyro_rotor.linear.sysid.matrix_pencil` (channels normalized to unit
-    rms); the amplitude of an eigenvalue is the rms over channels of its residues, in
-    units of each channel's rms.
-
-    Parameters
-    ----------
-    Y : ndarray, shape (channels, N)
-    dt : float
-        Sample interval [s].
-    order : int
-        Number of exponentials (a conjugate pair counts two).
-    """
-    from gyro_rotor.linear.sysid import matrix_pencil
-    Y = np.atleast_2d(np.asarray(Y, dtype=float))
-    scale = np.sqrt(np.mean(Y * Y, axis=1))
-    scale[scale == 0] = 1.0
-    m = Y.shape[1]
-    pencil = max(min(m // 3, 120), order + 1)      # cost: SVD of (k (m - L), L + 1)
-    fit = matrix_pencil((Y / scale[:, None]).T, dt, order, pencil=pencil, normalize=False)
-    amp = np.sqrt(np.mean(np.abs(fit.amplitudes) ** 2, axis=1))
-    return fit.eigenvalues, amp
+    """Continuous-time eigenvalues and relative contributions of samples Y (channels, N)."""
+    roots = identify_roots(np.atleast_2d(np.asarray(Y, dtype=float)).T, dt, order)
+    return (np.array([r.value for r in roots], dtype=complex),
+            np.array([r.share for r in roots], dtype=float))
 
 
 @dataclasses.dataclass
 class ModeCheck:
-    """A predicted mode against the data."""
+    """A predicted mode against the data of one window (and, in a result, the whole run).
+
+    ``measured`` is the matched root (None if none); ``freq``/``rate`` its frequency
+    [rad/s] and real part [1/s] with their intervals; ``freq_status``/``rate_status`` the
+    rule's decision on each (None: not judged); ``note`` says why a number is not
+    measurable. ``seen`` is what the whole run saw (set by the analyzer).
+    """
 
     name: str
     predicted: complex
@@ -58,6 +190,23 @@ class ModeCheck:
     status: ModeStatus
     reached_by_drive: bool = True
     structural: bool = False
+    freq: Measured | None = None
+    rate: Measured | None = None
+    freq_status: Status | None = None
+    rate_status: Status | None = None
+    note: str = ''
+    window_s: float = math.nan
+    #: over the run: (first, last) window end [s] where the mode was identified as predicted
+    seen: tuple = ()
+    #: over the run: the text of the status (e.g. 'decaying as predicted in the windows
+    #: ending t = 3 .. 11 s; decayed below the noise floor since')
+    run_status: str = ''
+
+    @property
+    def marginal_like(self) -> bool:
+        """Judged as undamped: a mode the drive does not reach."""
+        return self.status is ModeStatus.EXPECTED_MARGINAL or (
+            not self.reached_by_drive and not self.structural)
 
     @property
     def pred_tau(self) -> float:
@@ -67,22 +216,46 @@ class ModeCheck:
         return -1.0 / self.predicted.real
 
     @property
+    def tau(self) -> Measured | None:
+        """Measured decay time [s] with its interval, where the rate is resolved as a decay.
+
+        Resolved: the rate's interval lies below zero and is at most its own size (2 sigma
+        from zero); otherwise the window cannot measure the decay time.
+        """
+        r = self.rate
+        if r is None or self.structural or not r.bounded:
+            return None
+        if not (r.hi < 0 and 2 * r.u <= -r.value):
+            return None
+        return Measured(-1.0 / r.value, -1.0 / r.lo, -1.0 / r.hi)
+
+    @property
     def meas_tau(self) -> float:
-        """Measured decay time [s] (inf if not decaying or not identified)."""
-        if self.measured is None or self.measured.real >= 0:
-            return math.inf
-        return -1.0 / self.measured.real
+        """Measured decay time [s] (NaN where not resolved)."""
+        tau = self.tau
+        return tau.value if tau is not None else math.nan
+
+    def describe(self) -> str:
+        """One phrase: the status, with the run's history where it adds to it."""
+        text = self.run_status or str(self.status)
+        return text + (f' ({self.note})' if self.note and not self.run_status else '')
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""
         def c(z):
             return None if z is None else [z.real, z.imag]
+        tau = self.tau
         return {'name': self.name, 'predicted': c(self.predicted),
                 'measured': c(self.measured), 'pred_freq_hz': abs(self.predicted.imag) / _TWO_PI,
-                'meas_freq_hz': (None if self.measured is None
-                                 else abs(self.measured.imag) / _TWO_PI),
-                'pred_tau_s': _num(self.pred_tau), 'meas_tau_s': _num(self.meas_tau),
+                'meas_freq_hz': (None if self.freq is None else
+                                 [x / _TWO_PI if x is not None else None
+                                  for x in self.freq.as_list()]),
+                'meas_rate': None if self.rate is None else self.rate.as_list(),
+                'pred_tau_s': _num(self.pred_tau),
+                'meas_tau_s': None if tau is None else tau.as_list(),
                 'amplitude': self.amplitude, 'status': str(self.status),
+                'freq_status': _st(self.freq_status), 'rate_status': _st(self.rate_status),
+                'note': self.note, 'seen': list(self.seen), 'run_status': self.run_status,
                 'reached_by_drive': self.reached_by_drive}
 
 
@@ -90,91 +263,273 @@ def _num(x: float):
     return x if math.isfinite(x) else None
 
 
-#: an identified oscillation with at least this share of the largest amplitude that matches
-#: no predicted mode and lasts through the window (decays by less than
-#: exp(-UNEXPLAINED_DECAY)) is unexplained: the modes criterion fails. (The pencil's spare
-#: exponentials fit transients: measured on pole_slip after the slips, -1.0 1/s over 8 s.)
-UNEXPLAINED_SHARE = 0.05
-UNEXPLAINED_DECAY = 3.0
+def _st(s):
+    return None if s is None else str(s)
 
 
 @dataclasses.dataclass(frozen=True)
 class ModesFound:
-    """The predicted modes judged (:class:`ModeCheck`) and identified ones left unexplained."""
+    """The predicted modes judged, and the identified roots no mode explains."""
 
     checks: list
-    unexplained: list      # (eigenvalue, amplitude) of oscillations no prediction explains
+    #: (root, text) of resolved lasting oscillations nothing explains: the criterion fails
+    unexplained: list
+    #: (root, text) of combination tones (sum or difference of two modes' frequencies)
+    combinations: list = dataclasses.field(default_factory=list)
+    #: roots whose growth is resolved (Re above the window's resolution)
+    growing: list = dataclasses.field(default_factory=list)
+    #: every identified root above the noise floor
+    roots: list = dataclasses.field(default_factory=list)
 
 
-def _identify(t: np.ndarray, D: np.ndarray, pred: Prediction):
-    dt_raw = float(np.median(np.diff(t)))
-    fmax = max((m.freq_hz for m in pred.modes), default=1.0)
-    dec = max(1, int((1.0 / dt_raw) // max(40.0, 5.0 * fmax)))
-    n_pred = sum(1 if abs(m.eigenvalue.imag) < 1e-9 else 2 for m in pred.modes)
-    # + a constant offset unless the structural zero root (cyclic psi) stands for it
-    order = n_pred + (0 if any(m.structural for m in pred.modes) else 1)
-    lam, amp = identify_modes(D[::dec].T, dt_raw * dec, order)
-    keep = lam.imag >= -1e-9
-    return lam[keep], amp[keep]
+def mode_tolerances(m: PredictedMode, span: float) -> tuple[float, float]:
+    """(frequency, rate) tolerance of a predicted mode over a window of ``span`` s.
 
-
-def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float) -> ModesFound:
-    """Identify eigenvalues from the deviation channels and judge each predicted mode."""
-    try:
-        lam, amp = _identify(t, D, pred)
-    except (AnalysisError, np.linalg.LinAlgError):
-        return ModesFound([ModeCheck(m.name, m.eigenvalue, None, math.nan,
-                                     ModeStatus.NOT_IDENTIFIED, m.reached_by_drive,
-                                     m.structural) for m in pred.modes], [])
-    amax = float(amp.max()) if amp.size else 0.0
-    used: set = set()
-    out = []
-    for m in sorted(pred.modes, key=lambda m: -abs(m.eigenvalue)):
-        ev = m.eigenvalue
-        best, bd = None, math.inf
-        for i, z in enumerate(lam):
-            if i in used:
-                continue
-            d = abs(z.imag - ev.imag) + 0.3 * abs(z.real - ev.real)
-            if d < bd:
-                best, bd = i, d
-        if best is None or bd > max(0.05 * abs(ev), 1.0):
-            # nothing near the prediction among the dominant exponentials
-            out.append(ModeCheck(m.name, ev, None, 0.0, ModeStatus.NOT_EXCITED,
-                                 m.reached_by_drive, m.structural))
-            continue
-        used.add(best)
-        z, a = complex(lam[best]), float(amp[best])
-        out.append(ModeCheck(m.name, ev, z, a, _status(m, z, a, amax, span),
-                             m.reached_by_drive, m.structural))
-    order_names = [m.name for m in pred.modes]
-    out.sort(key=lambda c: order_names.index(c.name))
-    fmin = 1.0 / max(span, 1e-9)          # slower than a cycle per window: an offset
-    extra = [(complex(lam[i]), float(amp[i])) for i in range(len(lam)) if i not in used
-             and abs(lam[i].imag) > _TWO_PI * fmin and amp[i] >= UNEXPLAINED_SHARE * amax
-             and -lam[i].real * span < UNEXPLAINED_DECAY]
-    return ModesFound(out, extra)
-
-
-#: relative frequency tolerance of a matched mode (see test/test_analysis.py for why)
-FREQ_RTOL = 0.02
-
-
-def _status(m: PredictedMode, z: complex, a: float, amax: float, span: float) -> ModeStatus:
+    Frequency: :data:`FREQ_RTOL` of |lambda|; rate: :data:`RATE_RTOL` of |Re lambda|; both
+    not below the window's resolution :data:`RESOLVABLE` / span (a real or zero root has
+    no frequency to scale with).
+    """
     ev = m.eigenvalue
-    if m.structural:
-        return ModeStatus.STRUCTURAL_ZERO_ROOT
-    if a < 1e-4 * amax:
-        return ModeStatus.NOT_EXCITED
-    if abs(z.imag - ev.imag) > FREQ_RTOL * max(abs(ev.imag), 1.0):
-        return ModeStatus.DISAGREES
-    # damping resolution of a window of length span: amplitude change of ~1% is visible
-    sigma_res = 0.02 / span
-    if m.marginal:
-        undamped = abs(z.real) <= max(sigma_res, 1e-4 * abs(ev))
-        return ModeStatus.EXPECTED_MARGINAL if undamped else ModeStatus.DISAGREES
-    if m.tau > 10.0 * span:
-        return ModeStatus.WEAKLY_DAMPED
-    if abs(z.real - ev.real) <= max(0.25 * abs(ev.real), sigma_res):
-        return ModeStatus.DECAYING_AS_PREDICTED
-    return ModeStatus.DISAGREES
+    res = RESOLVABLE / max(span, 1e-9)
+    tol_im = max(FREQ_RTOL * abs(ev), res)
+    tol_re = max(RATE_RTOL * abs(ev.real), res)
+    return tol_im, tol_re
+
+
+def _observable(m: PredictedMode, dt: float) -> bool:
+    """Return whether the sample grid can show a mode (it lasts, it is below Nyquist)."""
+    ev = m.eigenvalue
+    return ev.real * dt > -5.0 and abs(ev.imag) * dt < math.pi * 0.999
+
+
+def _identify(t: np.ndarray, D: np.ndarray, pred: Prediction) -> tuple:
+    dt_raw = float(np.median(np.diff(t)))
+    seen = [m for m in pred.modes if _observable(m, dt_raw)]
+    fmax = max((m.freq_hz for m in seen), default=1.0)
+    dec = max(1, int((1.0 / dt_raw) // max(40.0, 5.0 * fmax)))
+    n_pred = sum(1 if abs(m.eigenvalue.imag) < 1e-9 else 2 for m in seen)
+    order = n_pred + 1 + SPARE
+    return identify_roots(D[::dec], dt_raw * dec, order), dt_raw * dec
+
+
+def _not_identified(pred: Prediction, status=ModeStatus.NOT_IDENTIFIED) -> list:
+    return [ModeCheck(m.name, m.eigenvalue, None, math.nan, status, m.reached_by_drive,
+                      m.structural) for m in pred.modes]
+
+
+def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
+                combination_tones: bool = True) -> ModesFound:
+    """Identify roots in the deviation channels D (N, channels) and judge each mode.
+
+    The assignment runs twice: the modes matched within their tolerance (normalized
+    distance <= 1) in the first pass are the parents of combination tones; a root that
+    is a combination tone of parents and lies beyond the tolerance of every mode is then
+    taken out before the second pass, so that a product of two modes is not judged as a
+    mode that disagrees. ``combination_tones``: False counts those roots as unexplained
+    (a mutation of the tests).
+    """
+    try:
+        roots, dt = _identify(t, D, pred)
+    except (AnalysisError, np.linalg.LinAlgError, ValueError):
+        return ModesFound(_not_identified(pred), [])
+    roots = [r for r in roots if r.share >= NOISE_SHARE]
+    cand = [r for r in roots if r.resolved]
+    modes = list(pred.modes)
+    obs = [i for i, m in enumerate(modes) if _observable(m, dt)]
+    pairs, C = _assign(modes, obs, cand, span)
+    combos: dict = {}
+    if combination_tones:
+        parents = [(modes[i], cand[b]) for i, b in pairs.items() if C[i] <= 1.0
+                   and not modes[i].structural and abs(cand[b].value.imag) > 1e-9]
+        strong = {id(cand[b]) for i, b in pairs.items() if C[i] <= 1.0}
+        for r in cand:
+            if id(r) not in strong:
+                text = _doublet(r, parents, span) or _combination(r, parents, span)
+                if text is not None:
+                    combos[id(r)] = text
+        if combos:
+            keep = [r for r in cand if id(r) not in combos]
+            pairs, C = _assign(modes, obs, keep, span)
+            cand = keep
+    checks = []
+    for i, m in enumerate(modes):
+        if i not in obs:
+            checks.append(ModeCheck(m.name, m.eigenvalue, None, 0.0, ModeStatus.UNOBSERVABLE,
+                                    m.reached_by_drive, m.structural, window_s=span,
+                                    note=_unobservable_note(m, dt)))
+        elif i not in pairs:
+            checks.append(ModeCheck(m.name, m.eigenvalue, None, 0.0, ModeStatus.NOT_EXCITED,
+                                    m.reached_by_drive, m.structural, window_s=span))
+        else:
+            checks.append(_judge(m, cand[pairs[i]], span))
+    used = {id(cand[b]) for b in pairs.values()}
+    unexplained, growing = [], []
+    fmin = _TWO_PI / max(span, 1e-9)        # slower than a cycle per window: an offset
+    res_re = RESOLVABLE / max(span, 1e-9)
+    for r in roots:
+        if r.resolved and r.re.lo > res_re and r.share >= UNEXPLAINED_SHARE:
+            growing.append(r)
+    for r in roots:
+        if id(r) in used or id(r) in combos or not r.resolved or abs(r.value.imag) <= fmin:
+            continue
+        if r.share >= UNEXPLAINED_SHARE and r.im.u <= FREQ_RTOL * abs(r.value.imag):
+            unexplained.append((r, f'{fmt_interval(_hz(r.im), "Hz")}, share '
+                                   f'{r.share:.2g} of the largest'))
+    combinations = [(r, combos[id(r)]) for r in roots if id(r) in combos]
+    return ModesFound(checks, unexplained, combinations, growing, roots)
+
+
+def _assign(modes: list, obs: list, cand: list, span: float) -> tuple[dict, dict]:
+    """Each observable mode to at most one root: {mode index: root index}, {index: d^2}.
+
+    The cost of a pair is the squared distance in units of the combined uncertainty:
+    (dIm)^2 / (tol_Im^2 + u_Im^2) + (dRe)^2 / (tol_Re^2 + u_Re^2), the prediction's
+    tolerance (:func:`mode_tolerances`) and the root's uncertainty; pairs beyond
+    :data:`GATE` tolerances are not matched. Solved as an assignment
+    (:func:`scipy.optimize.linear_sum_assignment`), so that of two near modes each gets
+    its own root.
+    """
+    from scipy.optimize import linear_sum_assignment
+    big = 1e12
+    C = np.full((len(obs), len(cand)), big)
+    for a, i in enumerate(obs):
+        m = modes[i]
+        tol_im, tol_re = mode_tolerances(m, span)
+        for b, r in enumerate(cand):
+            dim = (r.value.imag - m.eigenvalue.imag) ** 2 / (tol_im ** 2 + r.im.u ** 2)
+            if math.isfinite(r.re.u):
+                dre = (r.value.real - m.eigenvalue.real) ** 2 / (tol_re ** 2 + r.re.u ** 2)
+            else:
+                dre = 0.0           # the rate is not measured: match by the frequency
+            if dim + dre <= GATE ** 2:
+                C[a, b] = dim + dre
+    if not C.size:
+        return {}, {}
+    rr, cc = linear_sum_assignment(C)
+    pairs = {obs[a]: int(b) for a, b in zip(rr, cc) if C[a, b] < big}
+    cost = {obs[a]: float(C[a, b]) for a, b in zip(rr, cc) if C[a, b] < big}
+    return pairs, cost
+
+
+def _hz(m: Measured) -> Measured:
+    return Measured(m.value / _TWO_PI, m.lo / _TWO_PI, m.hi / _TWO_PI)
+
+
+def _unobservable_note(m: PredictedMode, dt: float) -> str:
+    ev = m.eigenvalue
+    if abs(ev.imag) * dt >= math.pi * 0.999:
+        return (f'{m.freq_hz:.4g} Hz is above the Nyquist frequency {0.5 / dt:.4g} Hz of '
+                'the samples')
+    return f'it decays within a sample ({-1.0 / ev.real:.3g} s < {dt:.3g} s)'
+
+
+def _doublet(r: Root, parents: list, span: float) -> str | None:
+    """Name ``r`` as the second root of an identified mode whose frequency drifts.
+
+    A nonlinear mode's frequency changes with its amplitude; over a window in which the
+    amplitude decays a lot (a drive that has just locked after pole slips), the pencil
+    fits the drifting oscillation with two roots of nearly the same frequency. A root
+    within the frequency tolerance of a mode identified within its tolerance is that.
+    """
+    for m, root in parents:
+        tol_im, _ = mode_tolerances(m, span)
+        if abs(r.value.imag - root.value.imag) <= tol_im + 2.0 * math.hypot(r.im.u, root.im.u):
+            return (f'second root of {m.name} (its frequency drifts with the amplitude: '
+                    f'{root.freq_hz:.4g} Hz)')
+    return None
+
+
+#: combination tones up to this order (products of two modes: sums and differences of two
+#: frequencies, harmonics; of three: a cubic nonlinearity, such as a sine-law drive's)
+COMBINATION_ORDER = 3
+
+
+def _combination(r: Root, parents: list, span: float) -> str | None:
+    """Name ``r`` as a sum or difference of identified modes' frequencies, if it is one.
+
+    ``parents``: (mode, root) of the modes identified within their tolerance in this
+    window (a product of modes needs the modes in the motion). A combination
+    sum_k s_k omega_k (s_k = +-1, two or up to :data:`COMBINATION_ORDER` terms, repeats
+    allowed: 2 omega_i is a harmonic) matches when it is within twice the combined
+    uncertainty of the measured frequencies, and its rate sum_k Re lambda_k (a product
+    of modes decays at the sum of their rates) within twice theirs plus the window's
+    resolution.
+    """
+    import itertools
+    res_re = RESOLVABLE / max(span, 1e-9)
+    items = [(m.name, root.value.imag, root.im.u, root.value.real,
+              root.re.u if root.re.bounded else res_re) for m, root in parents]
+    best = None
+    for order in range(2, COMBINATION_ORDER + 1):
+        for combo in itertools.combinations_with_replacement(range(len(items)), order):
+            for signs in itertools.product((1, -1), repeat=order - 1):
+                signs = (1,) + signs
+                w = sum(sg * items[k][1] for sg, k in zip(signs, combo))
+                if w <= 0:
+                    continue
+                uw = 2.0 * math.sqrt(r.im.u ** 2 + sum(items[k][2] ** 2 for k in combo))
+                d = abs(r.value.imag - w)
+                if d > uw:
+                    continue
+                rate = sum(items[k][3] for k in combo)
+                ur = 2.0 * math.sqrt((r.re.u if r.re.bounded else 0.0) ** 2
+                                     + sum(items[k][4] ** 2 for k in combo)) + res_re
+                if abs(r.value.real - rate) > ur:
+                    continue
+                if best is None or d / uw < best[0]:
+                    label = _combo_label([items[k][0] for k in combo], signs)
+                    best = (d / uw, f'combination tone {label}: {w / _TWO_PI:.4g} Hz')
+        if best is not None:
+            break           # the lowest order that explains it
+    return None if best is None else best[1]
+
+
+def _combo_label(names: list, signs: tuple) -> str:
+    """Return 'a + b', '2 x a', '2 x a - b' ... for a combination of mode names."""
+    terms: dict = {}
+    for n, sg in zip(names, signs):
+        terms[n] = terms.get(n, 0) + sg
+    out = ''
+    for n, k in terms.items():
+        if k == 0:
+            continue
+        mag = f'{abs(k)} x {n}' if abs(k) > 1 else n
+        out += (mag if not out and k > 0 else f' {"+" if k > 0 else "-"} {mag}' if out
+                else f'-{mag}')
+    return out
+
+
+def _judge(m: PredictedMode, r: Root, span: float) -> ModeCheck:
+    """Judge a predicted mode against its matched root with the one rule."""
+    ev = m.eigenvalue
+    tol_im, tol_re = mode_tolerances(m, span)
+    notes = []
+    freq_status = decide(r.im.abs_deviation(ev.imag), tol_im, 'below')
+    if r.im.u >= tol_im:
+        freq_status = None
+        notes.append(f'frequency not resolved in this window (needs about '
+                     f'{needs_window(span, tol_im, r.im.u):.3g} s)')
+    target = 0.0 if (m.marginal or m.structural) else ev.real
+    rate_status = decide(r.re.abs_deviation(target), tol_re, 'below')
+    if not r.re.bounded or r.re.u >= tol_re:
+        rate_status = None
+        notes.append(f'decay not measurable in this window (needs about '
+                     f'{needs_window(span, tol_re, r.re.u):.3g} s)')
+    judged = [s for s in (freq_status, rate_status) if s is not None]
+    if Status.FAIL in judged:
+        status = ModeStatus.DISAGREES
+    elif freq_status is None or Status.NOT_YET in judged:
+        status = ModeStatus.NOT_RESOLVED
+    elif m.structural:
+        status = ModeStatus.STRUCTURAL_ZERO_ROOT
+    elif m.marginal:
+        status = ModeStatus.EXPECTED_MARGINAL
+    elif -ev.real * span < RESOLVABLE:
+        status = ModeStatus.WEAKLY_DAMPED       # its decay is below this window's resolution
+    elif rate_status is None:
+        status = ModeStatus.NOT_RESOLVED
+    else:
+        status = ModeStatus.DECAYING_AS_PREDICTED
+    return ModeCheck(m.name, ev, r.value, r.share, status, m.reached_by_drive, m.structural,
+                     freq=r.im, rate=r.re, freq_status=freq_status, rate_status=rate_status,
+                     note='; '.join(notes), window_s=span)

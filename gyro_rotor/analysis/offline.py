@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, Mapping
 
 from gyro_rotor.analysis.analyzer import check_window
@@ -30,6 +31,8 @@ class BagAnalysis:
     damaged: bool = False
     #: the reader's line on what the bag lost ('nothing lost' if nothing)
     loss: str = 'nothing lost'
+    #: where the recording ends when it was cut ('' if it was not)
+    cut_note: str = ''
 
 
 def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str | None:
@@ -39,13 +42,18 @@ def _find_topic(topics: Mapping[str, Any], suffix: str, type_name: str) -> str |
 
 
 def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | None = None,
+                cut_note: str = '', until: float | None = None,
                 **options: Any) -> BagAnalysis:
     """Run the analysis of the live node over a recorded bag (nothing but the bag needed).
 
     The scene comes from ``scene`` if given, else from the bag's ``gyro_rotor.scene``
     metadata record, else from the simulation node's ``~/scene`` documents in the bag. The
     window is the one the live node used (metadata ``gyro_rotor.analysis``) unless
-    ``window_s`` is given (0 = whole segments).
+    ``window_s`` is given (0 = whole segments). A truncated bag is analysed up to the cut
+    and says so in its verdict; so does a run stopped early (``cut_note``: how, e.g.
+    'interrupted (Ctrl-C)'). An explicit ``scene`` that is not the one the bag records is
+    refused (:func:`gyro_rotor.analysis.fit.scene_differences`). ``until`` [s]: analyse the
+    samples up to this simulation time only (the first part of a recording).
 
     Raises
     ------
@@ -67,24 +75,21 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
         warnings.simplefilter('always', BagWarning)
         reader = open_bag(path)
     problems = [str(w.message) for w in caught]
-    energy = _find_topic(reader.topics, 'energy', 'std_msgs/msg/Float64MultiArray')
-    joints = _find_topic(reader.topics, 'joint_states', 'sensor_msgs/msg/JointState')
-    if energy is None or joints is None:
-        found = ', '.join(f'{t} ({i.type})' for t, i in sorted(reader.topics.items()))
-        raise AnalysisError(f'{path}: not a gyro_rotor recording: needs the topics energy '
-                            f'(std_msgs/msg/Float64MultiArray) and joint_states '
-                            f'(sensor_msgs/msg/JointState); found {found or "no topics"}')
+    energy, joints = _data_topics(path, reader)
     scene_topic = _find_topic(reader.topics, 'scene', 'std_msgs/msg/String')
     meta_opts = _json_record(reader, 'gyro_rotor.analysis', 'options', {})
     opts = {**(meta_opts if isinstance(meta_opts, dict) else {}), **options}
     if window_s is not None:
         opts['window_s'] = window_s
     fixed, base, source = _scene_source(path, reader, scene, scene_topic)
+    if fixed is not None and scene is not None:
+        _refuse_other_scene(path, reader, fixed, scene_topic)
     session = AnalysisSession(fixed if fixed is not None else base, base=base,
                               keep_series=True, **opts)
     if fixed is None and base is not None:
         session.fixed = False
-    _feed(reader, session, energy, joints, scene_topic if fixed is None else None)
+    wanted = [energy, joints] + ([scene_topic] if scene_topic and fixed is None else [])
+    _feed(session, reader, wanted, until)
     if session.analyzer is None:
         if session.rejected:
             raise AnalysisError(f'{path}: no usable scene document in the bag and no scene '
@@ -92,14 +97,14 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
         raise AnalysisError(f'{path}: no scene document in the bag and no scene given')
     if session.analyzer.samples == 0:
         raise AnalysisError(f'{path}: the energy and joint_states topics hold no messages')
-    live = None
-    if 'gyro_rotor.live_result' in reader.metadata:
-        rec = reader.metadata['gyro_rotor.live_result']
-        live = _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
-            'verdict': rec.get('verdict'), 'error': rec.get('error')}
+    live = _live_record(reader)
     if reader.lost or reader.unknown_loss:
         session.analyzer.bag_lost = sum(reader.lost.values())
         session.analyzer.bag_loss = reader.loss_text()
+    how = 'the recording is truncated' if reader.truncated else cut_note
+    if how:
+        cut_note = f'{how}: analysed up to the cut at t = {session.t_sim:.3f} s'
+        session.analyzer.truncated = cut_note
     result = session.result()
     if problems:
         result.evidence.extend(problems)
@@ -108,21 +113,81 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     return BagAnalysis(path=str(path), result=result, live=live, samples=session.series,
                        topics={t: i.count for t, i in reader.topics.items()},
                        truncated=reader.truncated, scene_source=source, options=opts,
-                       damaged=reader.damaged, loss=reader.loss_text())
+                       damaged=reader.damaged, loss=reader.loss_text(), cut_note=cut_note)
 
 
-def _feed(reader, session: AnalysisSession, energy: str, joints: str,
-          scene_topic: str | None) -> None:
-    """Feed the bag's messages to the session, each on its own (issue 24).
+def _data_topics(path, reader) -> tuple:
+    """Return the bag's energy and joint_states topics (refused if one is missing)."""
+    energy = _find_topic(reader.topics, 'energy', 'std_msgs/msg/Float64MultiArray')
+    joints = _find_topic(reader.topics, 'joint_states', 'sensor_msgs/msg/JointState')
+    if energy is None or joints is None:
+        found = ', '.join(f'{t} ({i.type})' for t, i in sorted(reader.topics.items()))
+        raise AnalysisError(f'{path}: not a gyro_rotor recording: needs the topics energy '
+                            f'(std_msgs/msg/Float64MultiArray) and joint_states '
+                            f'(sensor_msgs/msg/JointState); found {found or "no topics"}')
+    return energy, joints
+
+
+def _live_record(reader) -> dict | None:
+    """Return the live node's verdict recorded in the bag, or None."""
+    if 'gyro_rotor.live_result' not in reader.metadata:
+        return None
+    rec = reader.metadata['gyro_rotor.live_result']
+    return _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
+        'verdict': rec.get('verdict'), 'error': rec.get('error')}
+
+
+def _recorded_scene(reader, scene_topic):
+    """Return the scene the bag records (metadata, else its first ~/scene document), or None."""
+    from gyro_rotor.analysis.session import scene_from_sim_doc
+    from gyro_rotor.core.yamlio import load_yaml
+    try:
+        _, base, _ = _scene_source('', reader, None, None)
+        return base
+    except AnalysisError:
+        pass
+    if scene_topic is None:
+        return None
+    for _, _, msg in reader.decoded([scene_topic]):
+        try:
+            return scene_from_sim_doc(load_yaml(msg.data, 'a ~/scene document'))
+        except Exception:  # noqa: B902 -- an unreadable document: nothing to compare with
+            return None
+    return None
+
+
+def _refuse_other_scene(path, reader, given, scene_topic) -> None:
+    """Refuse a ``--scene`` that is not the recording's (one error line naming what differs).
+
+    Without a scene in the bag the analysis' own ``scene`` criterion compares the data
+    with the scene instead (:mod:`gyro_rotor.analysis.fit`).
+    """
+    from gyro_rotor.analysis.fit import joint_names, scene_differences
+    recorded = _recorded_scene(reader, scene_topic)
+    if recorded is None or joint_names(given) != joint_names(recorded):
+        return      # another system: the joint names say so (AnalysisSession.on_joints)
+    diffs = scene_differences(given, recorded)
+    if diffs:
+        raise AnalysisError(
+            f"{path}: scene '{given.name}' does not fit the recording of scene "
+            f"'{recorded.name}': {'; '.join(diffs[:6])}"
+            + (f'; and {len(diffs) - 6} more' if len(diffs) > 6 else ''))
+
+
+def _feed(session: AnalysisSession, reader, wanted: list, until: float | None) -> None:
+    """Feed the bag's messages of ``wanted`` (energy, joint_states, scene), each on its own.
 
     A message that cannot be decoded or used is counted in ``session.rejected`` with its
-    reason, and the rest of the bag is analysed.
+    reason, and the rest of the bag is analysed (issue 24); messages after ``until`` are
+    left out.
     """
     from gyro_rotor.analysis.session import OtherSystemError
-    wanted = [energy, joints] + ([scene_topic] if scene_topic else [])
+    energy, joints = wanted[:2]
     joints_used, other_system = 0, None
     for topic, _, msg in reader.decoded(wanted, on_error=session.reject):
         try:
+            if until is not None and topic in (energy, joints) and _stamp(msg) > until + 1e-9:
+                continue
             if topic == energy:
                 session.on_energy(msg)
             elif topic == joints:
@@ -137,6 +202,14 @@ def _feed(reader, session: AnalysisSession, energy: str, joints: str,
     if other_system is not None and not joints_used:
         raise other_system          # not one joint state of this scene: another system's
     session.finish()
+
+
+def _stamp(msg) -> float:
+    """Return the simulation time [s] of an energy (t_sim) or joint_states message."""
+    if hasattr(msg, 'header'):
+        return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+    labels = msg.layout.dim[0].label.split(',') if msg.layout.dim else []
+    return float(msg.data[labels.index('t_sim')]) if 't_sim' in labels else -math.inf
 
 
 def _json_record(reader, name: str, key: str, default):

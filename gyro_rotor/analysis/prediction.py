@@ -132,10 +132,10 @@ def predict_general(scene) -> Prediction:
     lin = linearize_scene(scene, model=model)
     roots = modes(lin)
     scale = max([1.0] + [abs(r.value) for r in roots])
-    out = tuple(PredictedMode(r.name, r.value, r.reached,
-                              marginal=not (r.reached or r.structural_zero),
-                              structural=r.structural_zero)
-                for r in roots if r.value.imag >= -1e-12 * scale)
+    out = _unique_names(tuple(PredictedMode(r.name, r.value, r.reached,
+                                            marginal=not (r.reached or r.structural_zero),
+                                            structural=r.structural_zero)
+                              for r in roots if r.value.imag >= -1e-12 * scale))
     live = [m.eigenvalue.real for m in out if not m.structural]
     abscissa = max(live) if live else -math.inf
     if abscissa > REL_AXIS * scale:
@@ -156,6 +156,24 @@ def predict_general(scene) -> Prediction:
         source='linear.general.modes',
         steady=(tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z)),
         rotor_pole_pairs=poles, active_q=active)
+
+
+def _unique_names(modes: tuple) -> tuple:
+    """Give modes that share a name (the dominant coordinate of two modes) their frequency.
+
+    The name labels a mode in the report, the ``analysis_modes`` topic and the live
+    table; two modes called 'mode (beta1)' could not be told apart there.
+    """
+    count: dict = {}
+    for m in modes:
+        count[m.name] = count.get(m.name, 0) + 1
+    out = []
+    for m in modes:
+        if count[m.name] > 1:
+            label = f'{m.freq_hz:.3g} Hz' if m.freq_hz > 0 else f'{m.eigenvalue.real:.3g} 1/s'
+            m = dataclasses.replace(m, name=f'{m.name} {label}')
+        out.append(m)
+    return tuple(out)
 
 
 def _position_channels(A: np.ndarray, n: int, scale: float) -> tuple:

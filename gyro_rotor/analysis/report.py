@@ -13,12 +13,14 @@ import math
 from pathlib import Path
 from typing import Any
 
+from gyro_rotor.analysis.analyzer import windows_text
 from gyro_rotor.analysis.offline import BagAnalysis
 from gyro_rotor.analysis.results import AnalysisResult
-from gyro_rotor.analysis.verdict import decay_rate_bound, fmt_tau
+from gyro_rotor.analysis.verdict import (decay_rate_bound, fmt_interval, fmt_pm, fmt_re,
+                                         needs_window, RE_RESOLUTION, Status)
 import numpy as np
 
-__all__ = ['text_report', 'json_report', 'write_report', 'plot_report']
+__all__ = ['text_report', 'verdict_line', 'json_report', 'write_report', 'plot_report']
 
 
 def _f(x: Any, spec: str = '.4g') -> str:
@@ -27,9 +29,33 @@ def _f(x: Any, spec: str = '.4g') -> str:
     return format(x, spec)
 
 
-def _tau(tau: float, window: float) -> str:
-    """Format a decay time; '-' if none, 'not measurable' beyond 100 windows (1 % change)."""
-    return '-' if not math.isfinite(tau) else fmt_tau(tau, 100.0 * window).replace(' s', '')
+def _meas_freq(m) -> str:
+    """Return the measured frequency +- its uncertainty [Hz], '-' if not identified."""
+    if m.freq is None or not m.freq.bounded:
+        return '-'
+    return fmt_pm(abs(m.freq.value) / (2 * math.pi), m.freq.u / (2 * math.pi))
+
+
+def _meas_tau(m) -> str:
+    """Return the measured decay time with its interval, or why the window cannot measure it."""
+    if m.structural or m.rate is None:
+        return '-'
+    tau = m.tau
+    if tau is not None:
+        return fmt_interval(tau).replace(' (interval ', ' (').replace(' .. ', '..')
+    if m.marginal_like:
+        return 'undamped' if m.rate_status is Status.PASS else '-'
+    need = needs_window(m.window_s, m.rate.value if m.rate.value else m.predicted.real,
+                        m.rate.u)
+    return f'not measurable (needs ~{need:.2g} s)' if math.isfinite(need) else 'not measurable'
+
+
+def _pred_tau(m) -> str:
+    """Return the predicted decay time [s]; '-' for a mode that does not decay (or structural)."""
+    re = m.predicted.real
+    if m.structural or m.marginal_like or not re < -RE_RESOLUTION * abs(m.predicted):
+        return '-'
+    return f'{m.pred_tau:.4g}'
 
 
 def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
@@ -37,16 +63,16 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
     p = res.prediction
     lines = []
     if bag is not None:
-        lines.append(f'bag: {bag.path}' + (' (TRUNCATED: read up to the damage; '
+        lines.append(f'bag: {bag.path}' + (f' (TRUNCATED: {bag.cut_note}; '
                                            '`gyro-rotor recover BAG` repairs it)'
                                            if bag.truncated else ''))
         lines.append(f'scene: {res.scene} (from {bag.scene_source}); options {bag.options}')
-    lines.append(f'verdict: {str(res.verdict).upper()}  [{res.level}]: {res.reason}')
+    lines.append(verdict_line(res, bag))
     if bag is not None and bag.live is not None:
         lines.append(f"live verdict recorded in the bag: {bag.live.get('verdict')}")
     bound = decay_rate_bound(p.decaying_abscissa)
     lines.append(f'prediction ({p.source}, coordinates {p.coords}): {p.verdict}, spectral '
-                 f'abscissa {p.spectral_abscissa:.4g} 1/s, decay bound 2|alpha| = '
+                 f'abscissa {fmt_re(p.spectral_abscissa)} 1/s, decay bound 2|alpha| = '
                  f'{_f(bound)} 1/s, E*_inf = {p.E_inf:.9g} J (before any kick)')
     lines.append(f'samples {res.samples}, dropped {res.dropped}, unpaired {res.unpaired}, '
                  f'resets {res.resets}, kicks {res.kicks}, time jumps {res.time_jumps}, '
@@ -59,16 +85,7 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
     lines += [f'  {e}' for e in res.evidence[1:] if not e.startswith('[')]
     cur = res.judged
     if cur is not None:
-        lines.append('')
-        lines.append(f'modes (segment {cur.index}, window {cur.window_s:.3g} s):')
-        lines.append(f"  {'mode':26s} {'f_pred Hz':>10s} {'f_meas Hz':>10s} "
-                     f"{'tau_pred s':>11s} {'tau_meas s':>11s}  status")
-        for m in cur.modes:
-            fm = None if m.measured is None else abs(m.measured.imag) / (2 * math.pi)
-            lines.append(f'  {m.name:26s} {_f(abs(m.predicted.imag) / (2 * math.pi)):>10s} '
-                         f'{_f(fm):>10s} {_tau(m.pred_tau, cur.window_s):>11s} '
-                         f'{_tau(m.meas_tau, cur.window_s):>11s}  '
-                         f'{m.status}')
+        lines += [''] + _mode_table(cur)
         if len(res.segments) > 1:
             lines.append('')
             lines.append('segments:')
@@ -76,6 +93,31 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
                 lines.append(f'  {s.index}: {s.reason}; t {s.t_start:.3f}..{s.t_end:.3f} s, '
                              f'{s.samples} samples: {s.verdict}')
     return '\n'.join(lines) + '\n'
+
+
+def verdict_line(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
+    """Return the verdict line, with the cut of a truncated recording (analysed up to the cut)."""
+    line = f'verdict: {str(res.verdict).upper()}  [{res.level}]: {res.reason}'
+    if res.truncated:
+        line += f' -- {res.truncated}'
+    return line
+
+
+def _mode_table(cur) -> list:
+    """Return the modes as the segment's windows saw them (numbers with their intervals)."""
+    rows = [(m.name, _f(abs(m.predicted.imag) / (2 * math.pi)), _meas_freq(m), _pred_tau(m),
+             _meas_tau(m), m.describe()) for m in cur.modes]
+    head = ('mode', 'f_pred Hz', 'f_meas Hz', 'tau_pred s', 'tau_meas s', 'status')
+    w = [max(len(r[i]) for r in rows + [head]) for i in range(5)]
+    out = [f'modes (segment {cur.index}, {windows_text(cur)}):']
+    for r in [head] + rows:
+        out.append('  ' + f'{r[0]:{w[0]}s}  {r[1]:>{w[1]}s}  {r[2]:>{w[2]}s}  '
+                          f'{r[3]:>{w[3]}s}  {r[4]:>{w[4]}s}  {r[5]}')
+    for r, text in cur.combinations:
+        out.append(f'  also identified: {abs(r.value.imag) / (2 * math.pi):.4g} Hz, {text}')
+    for r, text in cur.unexplained:
+        out.append(f'  UNEXPLAINED: {text}')
+    return out
 
 
 def json_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> dict:

@@ -12,8 +12,8 @@ import math
 
 from gyro_rotor.analysis.decay import EnergyFit
 from gyro_rotor.analysis.prediction import Prediction
-from gyro_rotor.analysis.verdict import (Criterion, CriterionName, decay_rate_bound, ModeStatus,
-                                         Status, SyncState, Verdict)
+from gyro_rotor.analysis.verdict import (Criterion, CriterionName, decay_rate_bound, DECAY_RTOL,
+                                         ModeStatus, Status, SyncState, Verdict)
 
 __all__ = ['SegmentResult', 'AnalysisResult', 'ANALYSIS_FIELDS', 'ANALYSIS_LABEL',
            'MODE_FIELDS', 'MODE_LABEL', 'VERDICTS', 'MODE_STATUS', 'SYNC_STATES']
@@ -29,7 +29,8 @@ SYNC_STATES = tuple(str(s) for s in SyncState)
 _STATUS_FIELDS = {CriterionName.LYAPUNOV: 'lyapunov_status',
                   CriterionName.ENERGY_BALANCE: 'energy_balance_status',
                   CriterionName.DECAY: 'decay_status', CriterionName.MODES: 'modes_status',
-                  CriterionName.DATA: 'data_status', CriterionName.SYNCHRONISM: 'sync_status'}
+                  CriterionName.DATA: 'data_status', CriterionName.SYNCHRONISM: 'sync_status',
+                  CriterionName.SCENE: 'scene_status'}
 
 #: scalar fields of the ``analysis`` topic (std_msgs/Float64MultiArray, one dimension)
 ANALYSIS_FIELDS = (
@@ -42,7 +43,7 @@ ANALYSIS_FIELDS = (
 ANALYSIS_LABEL = ','.join(ANALYSIS_FIELDS)
 #: columns of one row of the ``analysis_modes`` topic (2-D Float64MultiArray, a row per mode)
 MODE_FIELDS = ('pred_re', 'pred_im', 'meas_re', 'meas_im', 'pred_tau', 'meas_tau',
-               'amplitude', 'status')
+               'amplitude', 'status', 'meas_re_u', 'meas_im_u', 't_seen')
 MODE_LABEL = ','.join(MODE_FIELDS)
 
 
@@ -79,25 +80,49 @@ class SegmentResult:
     verdict: Verdict
     evidence: list
     energy_fit: EnergyFit | None = None
+    #: (root, text) of resolved lasting oscillations no mode explains (the newest window)
     unexplained: list = dataclasses.field(default_factory=list)
     criteria: list = dataclasses.field(default_factory=list)
     non_finite: bool = False
+    #: (root, text) of combination tones in the newest window
+    combinations: list = dataclasses.field(default_factory=list)
+    #: identified roots whose growth is resolved (the newest window, or any before)
+    growing: list = dataclasses.field(default_factory=list)
+    #: the windows judged in this segment: (how many, end of the first, end of the last)
+    windows: tuple = ()
+    #: where the fits start: after the last pole slip, once the drive is back in its linear
+    #: range (NaN: the window's own start)
+    fit_from: float = math.nan
+    #: the newest window's fit that measured a rate (if the newest window did not)
+    rate_fit: EnergyFit | None = None
+    #: samples missing from the newest window (lost messages): it is not fitted
+    missing: int = 0
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""
+        skip = ('modes', 'energy_fit', 'unexplained', 'criteria', 'combinations', 'growing',
+                'rate_fit')
         d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-             if f.name not in ('modes', 'energy_fit', 'unexplained', 'criteria')}
+             if f.name not in skip}
         d['sync_state'], d['verdict'] = str(self.sync_state), str(self.verdict)
         d['modes'] = [m.as_dict() for m in self.modes]
         d['criteria'] = [c.as_dict() for c in self.criteria]
-        d['unexplained'] = [{'eigenvalue': [z.real, z.imag], 'amplitude': a}
-                            for z, a in self.unexplained]
+        d['unexplained'] = [_root(r, text) for r, text in self.unexplained]
+        d['combinations'] = [_root(r, text) for r, text in self.combinations]
+        d['growing'] = [_root(r, '') for r in self.growing]
         f = self.energy_fit
         if f is not None:
             d['energy_fit'] = _finite_or_none({
                 't0': f.t0, 'E_inf': f.E_inf, 'E_inf_sigma': f.E_inf_sigma, 'rate': f.rate,
-                'rate_lo': f.rate_lo, 'rate_hi': f.rate_hi, 'rel_residual': f.rel_residual})
+                'rate_lo': f.rate_lo, 'rate_hi': f.rate_hi, 'rel_residual': f.rel_residual,
+                'noise': f.noise, 'settled': f.settled, 'n_eff': f.n_eff})
         return _finite_or_none(d)
+
+
+def _root(r, text: str) -> dict:
+    """Return a root of :mod:`~gyro_rotor.analysis.modes` as JSON."""
+    return {'eigenvalue': [r.value.real, r.value.imag], 're': r.re.as_list(),
+            'im': r.im.as_list(), 'share': r.share, 'text': text}
 
 
 @dataclasses.dataclass
@@ -126,6 +151,10 @@ class AnalysisResult:
     reason: str = ''
     unpaired: int = 0
     judged: SegmentResult | None = None
+    #: messages at the cut of a recording without their partner (not counted as unpaired)
+    cut: int = 0
+    #: where the recording was cut ('' if it was not)
+    truncated: str = ''
 
     @property
     def current(self) -> SegmentResult | None:
@@ -170,6 +199,7 @@ class AnalysisResult:
         s = self.judged if self.judged is not None else self.current
         nan = math.nan
         fit = s.energy_fit if s is not None else None
+        rate_fit = (s.rate_fit or fit) if s is not None else None
         vals = {
             't_sim': self.t_sim, 'segment': s.index if s else nan, 'samples': self.samples,
             'dropped': self.dropped, 'resets': self.resets, 'kicks': self.kicks,
@@ -182,13 +212,14 @@ class AnalysisResult:
                                          default=nan),
             'lyapunov_violations': sum(x.lyapunov_violations for x in self.segments),
             'residual_max': max((x.residual_max for x in self.segments), default=nan),
-            'energy_decay_rate': s.energy_decay_rate if s else nan,
-            'decay_rate_lo': fit.rate_lo if fit else nan,
-            'decay_rate_hi': fit.rate_hi if fit else nan,
+            'energy_decay_rate': rate_fit.rate if rate_fit else nan,
+            'decay_rate_lo': rate_fit.rate_lo if rate_fit else nan,
+            'decay_rate_hi': rate_fit.rate_hi if rate_fit else nan,
             'fit_rel_residual': fit.rel_residual if fit else nan,
             'deviation_decay_rate': s.deviation_decay_rate if s else nan,
             'spectral_abscissa': self.prediction.spectral_abscissa,
-            'decay_rate_bound': decay_rate_bound(self.prediction.decaying_abscissa),
+            'decay_rate_bound': (1.0 - DECAY_RTOL) * decay_rate_bound(
+                self.prediction.decaying_abscissa),
             'pole_slips': self.pole_slips,
             'sync_state': s.sync_state.code if s else nan,
             'well': s.well if s else nan, 'verdict': self.verdict.code,
@@ -204,11 +235,15 @@ class AnalysisResult:
         """Mode names and rows of :data:`MODE_FIELDS` for the judged segment."""
         s = self.judged if self.judged is not None else self.current
         names, rows = [], []
+        nan = math.nan
         for m in (s.modes if s else []):
-            meas = m.measured if m.measured is not None else complex(math.nan, math.nan)
+            meas = m.measured if m.measured is not None else complex(nan, nan)
             names.append(m.name)
             rows.append([m.predicted.real, m.predicted.imag, meas.real, meas.imag,
-                         m.pred_tau, m.meas_tau, m.amplitude, float(m.status.code)])
+                         m.pred_tau, m.meas_tau, m.amplitude, float(m.status.code),
+                         m.rate.u if m.rate is not None else nan,
+                         m.freq.u if m.freq is not None else nan,
+                         m.seen[1] if m.seen else nan])
         return names, rows
 
 

@@ -77,6 +77,11 @@ class SamplePairer:
         self._joints: dict[int, tuple] = {}                        # in arrival order
         self.unpaired_energy = 0
         self.unpaired_joints = 0
+        #: messages left at the end of the recording past the other topic's last message:
+        #: the cut took their partner (a Ctrl-C or a truncated bag), not a loss the data show
+        self.cut = 0
+        self._last_energy: int | None = None       # stamp of the newest arrival of each topic
+        self._last_joints: int | None = None
 
     @property
     def unpaired(self) -> int:
@@ -91,11 +96,13 @@ class SamplePairer:
     def add_energy(self, stamp_ns: int, fields: Mapping[str, float]) -> list[Sample]:
         """Add an energy message; return the samples completed (in order)."""
         self._energy.append((int(stamp_ns), dict(fields)))
+        self._last_energy = int(stamp_ns)
         return self._release()
 
     def add_joints(self, stamp_ns: int, positions, velocities) -> list[Sample]:
         """Add a joint state; return the samples completed."""
         stamp = int(stamp_ns)
+        self._last_joints = stamp
         if stamp in self._joints:            # a stamp again (a restarted run): the old is lost
             del self._joints[stamp]
             self.unpaired_joints += 1
@@ -126,14 +133,28 @@ class SamplePairer:
         return out
 
     def flush(self) -> list[Sample]:
-        """Return every waiting energy sample (NaN joints where missing: counted lost)."""
+        """Return every waiting energy sample (NaN joints where missing).
+
+        A message whose partner is missing counts as unpaired, unless it is past the end
+        of the other topic (its stamp after the other topic's newest one): the recording
+        was cut there (Ctrl-C, a truncated file), which took the partner; those count in
+        :attr:`cut`.
+        """
         out = []
         while self._energy:
             stamp, fields = self._energy.popleft()
             joints = self._joints.pop(stamp, None)
-            self.unpaired_energy += joints is None
+            if joints is None:
+                if self._last_joints is None or stamp > self._last_joints:
+                    self.cut += 1
+                else:
+                    self.unpaired_energy += 1
             out.append(self._make(fields, joints))
-        self.unpaired_joints += len(self._joints)
+        for stamp in self._joints:
+            if self._last_energy is None or stamp > self._last_energy:
+                self.cut += 1
+            else:
+                self.unpaired_joints += 1
         self._joints.clear()
         return out
 

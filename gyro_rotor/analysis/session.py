@@ -10,6 +10,7 @@ import math
 from typing import Any, Mapping
 
 from gyro_rotor.analysis.analyzer import RotorAnalyzer
+from gyro_rotor.analysis.fit import joint_names
 from gyro_rotor.analysis.results import AnalysisResult
 from gyro_rotor.analysis.samples import energy_sample_fields, Sample, SamplePairer
 from gyro_rotor.core.scene import Scene
@@ -122,15 +123,6 @@ def _check_energy(fields: Mapping[str, float]) -> None:
         if not (math.isfinite(v) and v == int(v) and low <= v < 2.0**53):
             raise AnalysisError(f'energy message with {key} = {v!r} (not a whole number '
                                 f'>= {low})')
-
-
-def joint_names(scene) -> tuple:
-    """Return the ``joint_states`` names rotor_sim publishes for a scene."""
-    if isinstance(scene, GeneralScene):
-        from gyro_rotor.numerics.live_general import general_joint_names
-        return general_joint_names(scene.system.coordinates, scene.system.rotors)
-    from gyro_rotor.bag.wire import JOINT_NAMES
-    return JOINT_NAMES
 
 
 class AnalysisSession:
@@ -279,4 +271,5 @@ class AnalysisSession:
             raise AnalysisError(f'the scene is unknown ({len(self.pending)} samples waiting): '
                                 'no scene document from rotor_sim and no scene given')
         self.analyzer.unpaired = self.pairer.unpaired
+        self.analyzer.cut = self.pairer.cut
         return self.analyzer.result()

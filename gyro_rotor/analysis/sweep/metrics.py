@@ -17,9 +17,11 @@ column                 definition                                               
                        the bottom of the final well, omega_d = sqrt(K_S (1/C_R + 1/C_M)),
                        the drive's frequency); NaN if a(T) > tol
 ``peak_deviation``     max |z(t) - z_0| with z_0 the bottom of the initial well             rad
-``decay_rate``         -slope of a least-squares line through ln a(t) over the locked       1/s
-                       part (after the last change of the nearest well, a > 1e-12);
-                       NaN with fewer than 10 samples or 0.1 s there
+``decay_rate``         -slope of a least-squares line through the log of the envelope of    1/s
+                       a(t) (maxima of 40 chunks) over the locked part (after the last
+                       change of the nearest well), where resolved: its interval (2
+                       standard errors, at least 0.025 / the part's length) on one side
+                       of 0; NaN ("not resolved within t_end") otherwise
 ``final_E_star``       E* (eq. 13) at t = T                                                 J
 ``spectral_abscissa``  max Re of the linearization's roots at the point (judged modes,      1/s
                        :func:`gyro_rotor.linear.stability.analyze`)
@@ -35,7 +37,8 @@ from gyro_rotor.core.model import Model
 import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
-           'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay']
+           'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay',
+           'decay_interval']
 
 #: default settling tolerance of the drive amplitude a [rad]
 DEFAULT_TOL = 1e-3
@@ -89,16 +92,60 @@ def well_passages(u: np.ndarray) -> int:
     return int(np.sum(np.abs(np.diff(k)))) if k.size > 1 else 0
 
 
+#: chunks of the run over which the amplitude's envelope is taken (their maxima)
+ENVELOPE_CHUNKS = 40
+#: below this share of its largest value the amplitude is rounding noise (not fitted)
+AMPLITUDE_FLOOR = 1e-12
+
+
+def decay_interval(t: np.ndarray, a: np.ndarray):
+    """Return the decay rate of an amplitude a(t) >= 0 with its interval (a ``Measured``).
+
+    The envelope of a: the maxima of :data:`ENVELOPE_CHUNKS` equal chunks of the run (an
+    oscillating deviation is zero twice a period; a drive's phase-plane amplitude ripples),
+    those above :data:`AMPLITUDE_FLOOR` of the largest. The rate is -slope of a
+    least-squares line through their logarithm; its uncertainty twice the slope's standard
+    error, with the residuals counted as independent pieces (their sign changes + 1: a
+    beat of two modes is one slow wave, not many samples), and at least half the run's
+    resolution (RESOLVABLE = 0.05 over t_end: a slower rate changes a by less than 5 %).
+    Not measured (NaN) with fewer than 5 chunks above the floor.
+    """
+    from gyro_rotor.analysis.decay import _n_eff, RESOLVABLE
+    from gyro_rotor.analysis.verdict import Measured
+    nan = Measured(math.nan, math.nan, math.nan)
+    t, a = np.asarray(t, dtype=float), np.asarray(a, dtype=float)
+    if t.size < 10 or not np.all(np.isfinite(a)) or t[-1] - t[0] < 0.1:
+        return nan
+    edges = np.linspace(0, t.size, min(ENVELOPE_CHUNKS, t.size // 2) + 1).astype(int)
+    tc, mc = [], []
+    for i0, i1 in zip(edges[:-1], edges[1:]):
+        k = i0 + int(np.argmax(a[i0:i1]))
+        tc.append(t[k])
+        mc.append(a[k])
+    tc, mc = np.asarray(tc), np.asarray(mc)
+    ok = mc > AMPLITUDE_FLOOR * max(float(np.max(a)), 1e-300)
+    if ok.sum() < 5:
+        return nan
+    tc, y = tc[ok], np.log(mc[ok])
+    p = np.polyfit(tc, y, 1)
+    r = y - np.polyval(p, tc)
+    sd = float(np.sqrt(np.sum(r * r) / max(r.size - 2, 1)))
+    se = sd / (math.sqrt(_n_eff(r)) * float(np.std(tc)))
+    u = max(2.0 * se, 0.5 * RESOLVABLE / float(t[-1] - t[0]))
+    return Measured.pm(float(-p[0]), u)
+
+
 def fit_decay(t: np.ndarray, a: np.ndarray) -> float:
-    """Return -slope of a least-squares line through ln a(t) (a > 1e-12); NaN if too short."""
-    ok = a > 1e-12
-    if np.count_nonzero(ok) < 10:
+    """Return the decay rate of an amplitude a(t) where the run resolves it, else NaN.
+
+    :func:`decay_interval`, by the rule of the verdict: the rate is given when its whole
+    interval is on one side of zero (positive: a decay; negative: a resolved growth), NaN
+    ("not resolved within t_end") when the interval holds zero or nothing was measured.
+    """
+    m = decay_interval(t, a)
+    if not m.bounded or m.lo <= 0.0 <= m.hi:
         return math.nan
-    tt, la = t[ok], np.log(a[ok])
-    if tt[-1] - tt[0] < 0.1:
-        return math.nan
-    slope = np.polyfit(tt - tt[0], la, 1)[0]
-    return float(-slope)
+    return m.value
 
 
 def settle_time(t: np.ndarray, a: np.ndarray, tol: float) -> float:

@@ -55,8 +55,11 @@ def run(args: argparse.Namespace) -> int:
     for f in files:
         print(f'wrote {f}')
     res = bag.result
+    why = [] if res.confirmed else [res.reason]
+    if bag.cut_note:
+        why.append(bag.cut_note)
     # a damaged bag says so in the result line, whatever the verdict (issue 24)
     damage = f' [damaged bag: {bag.loss}]' if bag.damaged else ''
     print(f'RESULT: {"CONFIRMED" if res.confirmed else "NOT CONFIRMED"}: {res.verdict}'
-          + ('' if res.confirmed else f' ({res.reason})') + damage)
+          + (f' ({"; ".join(why)})' if why else '') + damage)
     return 0 if res.confirmed else NOT_CONFIRMED

@@ -183,6 +183,14 @@ class _LiveView:
         rclpy.try_shutdown(context=self.ctx)
 
 
+def _short(name: str) -> str:
+    """Return a mode's name for the live table: 'nutation', 'z_R2', 'beta1 6.11' (at most 10)."""
+    if name.startswith(('mode (', 'unreached mode (')):
+        inner, _, rest = name.split('(', 1)[1].partition(')')
+        return (inner + (' ' + rest.split()[0] if rest.strip() else ''))[:10]
+    return name.split(' ')[0][:10]
+
+
 def _mode_cell(row: dict) -> str:
     pred = row.get('pred_im', math.nan) / (2 * math.pi)
     meas = row.get('meas_im', math.nan) / (2 * math.pi)
@@ -192,7 +200,8 @@ def _mode_cell(row: dict) -> str:
 
 #: the criteria columns of the live table: field of the ``analysis`` topic, header letter
 _CRITERIA = (('lyapunov_status', 'L'), ('energy_balance_status', 'E'), ('decay_status', 'D'),
-             ('modes_status', 'M'), ('data_status', 'd'), ('sync_status', 'S'))
+             ('modes_status', 'M'), ('data_status', 'd'), ('sync_status', 'S'),
+             ('scene_status', 'F'))
 _STATUS_MARK = {0: '+', 1: 'X', 2: '.'}
 
 
@@ -210,17 +219,17 @@ def _line(view: _LiveView) -> str:
              _num(e.get('residual', nan), '9.1e'),
              _num(a.get('energy_decay_rate', nan), '9.4f'),
              _num(a.get('decay_rate_bound', nan), '9.4f'),
-             f'{int(a["pole_slips"]) if "pole_slips" in a else "-":>5}', f'{marks:6s}']
-    modes = '  '.join(f'{name.split(" ")[0][:9]} {_mode_cell(row)}'
+             f'{int(a["pole_slips"]) if "pole_slips" in a else "-":>5}', f'{marks:7s}']
+    modes = '  '.join(f'{_short(name)} {_mode_cell(row)}'
                       for name, row in view.modes
                       if 'zero' not in name and math.isfinite(row.get('pred_im', math.nan)))
     return '  '.join(cells) + '  ' + modes + f'  {view.verdict.split(":")[0]}'
 
 
-HEADER = ('  t [s]       E* [J]  residual  E* decay   >= bound  slips  LEDMdS  modes: '
+HEADER = ('  t [s]       E* [J]  residual  E* decay   >= bound  slips  LEDMdSF  modes: '
           'predicted/identified frequency [Hz]  live verdict\n'
-          '  (criteria L Lyapunov, E energy balance, D decay, M modes, d data, S synchronism:'
-          ' + PASS, X FAIL, . NOT YET)')
+          '  (criteria L Lyapunov, E energy balance, D decay, M modes, d data, S synchronism,'
+          ' F the data fit the scene: + PASS, X FAIL, . NOT YET)')
 
 
 def expected_outcome(scene, duration: float) -> dict:
@@ -239,7 +248,7 @@ def expected_outcome(scene, duration: float) -> dict:
         from gyro_rotor.analysis.samples import samples_from_trajectory
         from gyro_rotor.numerics.simulate import simulate
         tr = simulate(scene, t_end=duration, rate=250.0)
-        ref = RotorAnalyzer(scene, window_s=0)
+        ref = RotorAnalyzer(scene, window_s=0, checkpoint_s=0)     # the slip count alone
         ref.add_many(samples_from_trajectory(tr))
         exp['pole_slips'] = ref.result().pole_slips
     return exp
@@ -383,14 +392,18 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
     return codes, int(stopped_by)
 
 
-def _conclude(out: Path, exp: dict, codes: dict) -> bool:
-    """Analyse the bag offline, print the report and the checks; return CONFIRMED."""
+def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False) -> bool:
+    """Analyse the bag offline, print the report and the checks; return CONFIRMED.
+
+    ``interrupted``: the run was stopped (Ctrl-C) before its duration; the verdict is
+    that of the data up to the cut, and says so.
+    """
     from gyro_rotor.analysis.offline import analyze_bag
     from gyro_rotor.analysis.report import text_report, write_report
     bag = out / 'bag'
     if not bag.exists():
         raise GyroRotorError(f'no bag was recorded; see {out}/rotor_analysis.log')
-    ana = analyze_bag(str(bag))
+    ana = analyze_bag(str(bag), cut_note='interrupted (Ctrl-C)' if interrupted else '')
     files = write_report(ana, out / 'report', None, plots=True)
     res = ana.result
     print()
@@ -413,21 +426,10 @@ def _conclude(out: Path, exp: dict, codes: dict) -> bool:
         if str(f).endswith('.png'):
             print(f'plot:   {f}')
     ok = all(c for c, _ in checks)
-    why = '' if ok else ' (' + '; '.join(t for c, t in checks if not c) + ')'
-    print(f'RESULT: {"CONFIRMED" if ok else "NOT CONFIRMED"}: {res.verdict}{why}')
+    why = [t for c, t in checks if not c] + ([ana.cut_note] if ana.cut_note else [])
+    print(f'RESULT: {"CONFIRMED" if ok else "NOT CONFIRMED"}: {res.verdict}'
+          + (f' ({"; ".join(why)})' if why else ''))
     return ok
-
-
-def _no_default_kick(scene) -> bool:
-    """Return whether the demo kicks only when asked.
-
-    So for a sine law (pole_slip: its start far off synchronism is the kick) and for a
-    general scene without a ``perturbation`` (its initial condition is the kick).
-    """
-    if isinstance(scene, GeneralScene):
-        return not any(v for k, vals in scene.flat.items() if k.startswith('perturbation.')
-                       for v in vals)
-    return bool(scene.params.pole_pairs)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -436,7 +438,8 @@ def run(args: argparse.Namespace) -> int:
     scene = load_any_scene(args.scene)
     kick_at = args.kick_at
     if kick_at is None:
-        kick_at = -1.0 if _no_default_kick(scene) else min(2.0, args.duration / 4)
+        from gyro_rotor.analysis.replay import default_kick_at
+        kick_at = default_kick_at(scene, args.duration)
     if kick_at >= 0:
         kick_at = _on_grid(kick_at, args.rate)
     out = _out_dir(args, scene)
@@ -450,7 +453,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'stopped by {signal.Signals(stopped_by).name}: nodes ended {codes}; bag '
               f'{out / "bag"}', file=sys.stderr)
         return 128 + stopped_by
-    ok = _conclude(out, exp, codes)
+    ok = _conclude(out, exp, codes, bool(stopped_by))
     if stopped_by:
         return 130
     return 0 if ok else 1
