@@ -38,7 +38,11 @@ from gyro_rotor.errors import ParameterError, SceneError
 import numpy as np
 
 __all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims',
-           'campbell', 'Campbell', 'solve_steady']
+           'campbell', 'Campbell', 'solve_steady', 'REL_AXIS']
+
+#: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
+#: labels and the predicted verdict; the claims use each root's own resolution)
+REL_AXIS = 1e-9
 #: a mode is reached when the zdot part of its unit eigenvector exceeds this
 REACH_TOL = 1e-7
 
