@@ -23,9 +23,10 @@ scipy's own per-step overhead dominates its cost). The compiled peers (family ``
 :mod:`gyro_rotor.numerics.bench_peers`, where installed): CyRK's ``nbsolve2_ivp`` (RK45,
 DOP853, Vern7, Vern8, Radau, LSODA) and numbalsoda's ``dop853`` and ``lsoda``, on a numba
 cfunc of the same equations with the scene's constants folded in, over the same tolerance
-sweep; their rows are named ``CyRK:DOP853``, ``numbalsoda:LSODA``, ... Also: the E* drift of each method on the
-conservative scene over 1000 s, and the slipped-pole count on pole_slip at each method's default
-tolerance. Results are data; :mod:`gyro_rotor.commands.bench` prints and plots.
+sweep; their rows are named ``CyRK:DOP853``, ``numbalsoda:LSODA``, ... Also: the E* drift of
+each method on the conservative scene over 1000 s, and the slipped-pole count on pole_slip at
+each method's default tolerance. Results are data; :mod:`gyro_rotor.commands.bench` prints
+and plots.
 """
 
 from __future__ import annotations

@@ -55,12 +55,12 @@ def _fmt(v) -> str:
 
 
 def _families(rows) -> dict:
-    """{method: family} in the order of the rows."""
+    """Map each method to its family, in the order of the rows."""
     return {r.method: r.family for r in rows}
 
 
 def _best(table, scene, methods, i):
-    """(method, wall/sim) of the fastest of ``methods`` at error level i, or (None, None)."""
+    """Return (method, wall/sim) of the fastest of ``methods`` at error level i, or Nones."""
     cands = [(table[(scene, m)][i], m) for m in methods
              if (scene, m) in table and table[(scene, m)][i] is not None]
     if not cands:
@@ -123,7 +123,8 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
                   'folded):', ''] + peer_table(rows) + ['']
     else:
         from gyro_rotor.numerics import bench_peers
-        why = bench_peers.missing_reason() if not getattr(args, 'no_peers', False) else 'skipped (--no-peers)'
+        why = ('skipped (--no-peers)' if getattr(args, 'no_peers', False)
+               else bench_peers.missing_reason())
         lines += [f'Compiled peers: {why}.', '']
     lines += ['Best cost [ms per simulated second] at error <= 1e-3 / 1e-6 / 1e-9 per method '
               '(`-` = not reached within the sweep or budget). Lower case: gyro_rotor; upper '
