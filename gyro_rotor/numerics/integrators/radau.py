@@ -43,7 +43,7 @@ ITER_TOL = 0.01
 #: ... in units of a relative tolerance of at most this (loose tolerances do not leave the
 #: stages unsolved: the step's error is then the method's, not the iteration's); the
 #: kernels take it as the argument ``itol_max``
-ITER_RTOL_MAX = 1e-6
+ITER_RTOL_MAX = 1e-4
 
 
 @njit(cache=True, error_model='numpy')
