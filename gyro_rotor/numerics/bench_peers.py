@@ -31,7 +31,8 @@ import math
 import numpy as np
 
 __all__ = ['available', 'PEER_METHODS', 'PeerRHS', 'make_peer_rhs', 'peer_run',
-           'peer_rhs_python', 'missing_reason']
+           'peer_rhs_python', 'missing_reason', 'make_general_peer', 'general_peer_rhs_python',
+           'GENERAL_PEER_METHODS']
 
 #: (package, method) pairs that the benchmark runs, per package
 PEER_METHODS = {
@@ -39,6 +40,8 @@ PEER_METHODS = {
     'numbalsoda': ('DOP853', 'LSODA'),
 }
 _IMPORT_NAME = {'cyrk': 'CyRK', 'numbalsoda': 'numbalsoda'}
+#: CyRK's methods in the general systems' benchmark (the implicit ones are far behind there)
+GENERAL_PEER_METHODS = ('RK45', 'DOP853', 'Vern7', 'Vern8', 'LSODA')
 
 
 def available() -> tuple:
@@ -199,13 +202,13 @@ def _cyrk_runner():
 
 def peer_run(peer: PeerRHS, package: str, method: str, y0, t_eval, rtol, atol,
              max_steps: int = 3_000_000):
-    """Run one peer solver; return (Y (m, 9) or None, steps or -1).
+    """Run one peer solver; return (Y (m, peer.n) or None, steps or -1).
 
     CyRK: ``nbsolve2_ivp`` (one call compiled by numba, the solution copied out and freed);
     numbalsoda: ``lsoda`` or ``dop853`` (``mxstep``: max_steps for dop853, whose budget is
     the whole run's; LSODA's is per output interval).
     """
-    y0 = np.ascontiguousarray(y0[:9], dtype=float)
+    y0 = np.ascontiguousarray(y0[:peer.n], dtype=float)
     te = np.ascontiguousarray(t_eval, dtype=float)
     if package == 'cyrk':
         ok, Y, steps = _cyrk_runner()(peer.cyrk_address, float(te[-1]), y0, method, te,
@@ -221,3 +224,81 @@ def peer_run(peer: PeerRHS, package: str, method: str, y0, t_eval, rtol, atol,
                    mxstep=int(mx))
         return (Y if ok else None), -1
     raise ValueError(f'unknown peer package {package!r}')
+
+
+# -- general rotor systems ---------------------------------------------------------------------
+def _general_body(scene):
+    """Return the njit ``body(y, dy)`` of a general scene: numba on sympy's lambdify.
+
+    The user's path: the mass matrix Mbar and the force vector F of the derived equations
+    (:func:`gyro_rotor.core.system.equations.derive`) lambdified to numpy with common
+    subexpressions (``cse=True``) and the scene's constants substituted, compiled by numba,
+    the accelerations from ``np.linalg.solve(Mbar, F + drive torques)``. The state is the
+    package's (q, qdot, z, zdot, D), so the runs compare sample by sample.
+    """
+    import sympy
+    from numba import njit
+    from gyro_rotor.core.system.equations import derive
+    system = scene.system
+    eq = derive(system, jacobians=False)
+    n, m = eq.n, eq.m
+    N = n + m
+    z = sympy.symbols(f'z0:{m}', real=True)
+    args = list(eq.q) + list(z) + list(eq.v)
+    sub = dict(zip(eq.consts, [float(v) for v in system.constants.values()]))
+    sub.update(zip(eq.Omega0, [float(d.Omega0) for d in system.drives]))
+    f_M = njit(inline='always')(sympy.lambdify(args, eq.Mbar.xreplace(sub), 'numpy', cse=True))
+    f_F = njit(inline='always')(sympy.lambdify(args, eq.F.xreplace(sub), 'numpy', cse=True))
+    KS = np.array([float(d.K_S) for d in system.drives])
+    KD = np.array([float(d.K_D) for d in system.drives])
+    # positions of the lambdified arguments in the state (q, qdot, z, zdot, D)
+    pos = (list(range(n)) + [2 * n + j for j in range(m)] + list(range(n, 2 * n))
+           + [2 * n + m + j for j in range(m)])
+    call = ', '.join(f'y[{i}]' for i in pos)
+    src = f"""
+def body(y, dy):
+    Mb = np.asarray(f_M({call}), dtype=np.float64)
+    Fv = np.asarray(f_F({call}), dtype=np.float64).reshape({N})
+    for j in range({m}):
+        Fv[{n} + j] += -KS[j] * y[{2 * n} + j] - KD[j] * y[{2 * n + m} + j]
+    acc = np.linalg.solve(Mb, Fv)
+    dsum = 0.0
+    for i in range({n}):
+        dy[i] = y[{n} + i]
+        dy[{n} + i] = acc[i]
+    for j in range({m}):
+        zd = y[{2 * n + m} + j]
+        dy[{2 * n} + j] = zd
+        dy[{2 * n + m} + j] = acc[{n} + j]
+        dsum += KD[j] * zd * zd
+    dy[{2 * N}] = dsum
+"""
+    ns = {'np': np, 'f_M': f_M, 'f_F': f_F, 'KS': KS, 'KD': KD}
+    exec(compile(src, f'<peer rhs of {system.name}>', 'exec'), ns)
+    return njit(inline='always')(ns['body']), 2 * N + 1
+
+
+def make_general_peer(scene) -> PeerRHS:
+    """Compile CyRK's right-hand side of a general scene (numba lambdify, module doc)."""
+    body, size = _general_body(scene)
+    if 'cyrk' not in available():
+        return PeerRHS(size, None, None, ())
+    from CyRK import cyjit
+
+    def diffeq(dy, t, y, args):
+        body(y, dy)
+    cf = cyjit(diffeq)
+    return PeerRHS(size, cf.address, None, (cf,))
+
+
+def general_peer_rhs_python(scene):
+    """Return ``f(y) -> dy`` of the general peer, callable from Python (tests)."""
+    from numba import njit
+    body, size = _general_body(scene)
+
+    @njit
+    def f(y):
+        dy = np.empty(size)
+        body(y, dy)
+        return dy
+    return f

@@ -28,7 +28,8 @@ from __future__ import annotations
 import enum
 import math
 
-from gyro_rotor.core.model import full_rhs, locked_rhs, pack_params, upright_rhs
+from gyro_rotor.core.model import (full_rhs, FullModel, locked_rhs, LockedHousingModel,
+                                   pack_params, upright_rhs, UprightAxisModel)
 import numpy as np
 
 try:  # pragma: no cover - exercised by whichever branch the install has
@@ -160,7 +161,9 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
             return _model_rhs.py_func
         return lambda kind, y, P, out: kind(y, P, out)
 
-    _KIND_SIZE = {FullKind: 10, UprightKind: 5, LockedKind: 3}
+    _KIND_SIZE = {FullKind: len(FullModel.state_names),        # 10, 5, 3
+                  UprightKind: len(UprightAxisModel.state_names),
+                  LockedKind: len(LockedHousingModel.state_names)}
 
     @overload(state_size, inline='always')
     def _state_size_typed(kind, y):
