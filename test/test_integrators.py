@@ -336,3 +336,58 @@ def test_dop853_lands_on_samples_instead_of_interpolating():
     h_max = 0.0095
     r = integrate(m, y0, (0.0, 1.0), te[:101], 'dop853', rtol=1e-6, atol=1e-8, step=h_max)
     assert r.success and r.nsteps >= 1.0 / h_max
+
+
+# -- the generated straight-line kernels (rk_codegen) ------------------------------------------
+def test_generated_kernels_are_what_the_generator_writes():
+    """rk_generated.py is the generator's output from the tableaux (regenerate: module doc)."""
+    from gyro_rotor.numerics.integrators import rk_codegen
+    assert rk_codegen.TARGET.read_text() == rk_codegen.generate(), \
+        'run python -m gyro_rotor.numerics.integrators.rk_codegen'
+
+
+@pytest.mark.parametrize('scene', ['precession', 'pole_slip', 'upright'])
+def test_generated_dop853_step_and_dense_equal_the_tableau_loops(scene):
+    """The straight-line DOP853 step, error norm and dense output are the generic ones.
+
+    Summed in another order (and with fused multiply-adds), so equal to round-off: tens of
+    eps times the sizes of the terms (each stage's round-off feeds the next stages), where
+    a wrong coefficient would show as 1e-3 of them.
+    """
+    from gyro_rotor.numerics.integrators import kernels, rk_generated
+    from gyro_rotor.numerics.integrators.base import kernel_args
+    sc, m, y0 = _setup(scene)
+    kind, P, _ = kernel_args(m, sc.params)
+    rng = np.random.default_rng(7)
+    tb = tableaux
+    eps = np.finfo(float).eps
+    n = m.n
+    for _ in range(20):
+        y = y0 + rng.normal(scale=0.1, size=y0.shape)
+        f = m.rhs(0.0, y)
+        h = float(rng.uniform(1e-4, 5e-2))
+        K_a, K_b = np.empty((16, n)), np.empty((16, n))
+        y_a, y_b, f_a, f_b, tmp = (np.empty(n) for _ in range(5))
+        e_a = kernels.dop853_step(kind, P, y, f, h, 1e-6, 1e-8, tb.DOP853_A, tb.DOP853_B,
+                                  tb.DOP853_E3, tb.DOP853_E5, K_a, tmp, y_a, f_a)
+        e_b = rk_generated.dop853_step(kind, P, y, f, h, 1e-6, 1e-8, K_b, tmp, y_b, f_b)
+        terms = np.abs(y) + h * (np.abs(tb.DOP853_B)[:, None] * np.abs(K_a[:12])).sum(axis=0)
+        assert np.all(np.abs(y_a - y_b) <= 64 * eps * terms.max())     # stages couple all
+        # f(y_new), of its own y_new (the RHS's round-off only; the two y_new differ slightly)
+        assert np.all(np.abs(f_b - m.rhs(0.0, y_b)) <= 64 * eps * np.abs(f_b).max())
+        # the error norm is a difference of stage sums that cancel to about the tolerance
+        # (1e-6 here): its round-off is relative to the stages, not to itself
+        assert math.isclose(e_a, e_b, rel_tol=1e-7, abs_tol=1e-300)
+        # dense output from the same stages
+        F_a, F_b = np.empty((7, n)), np.empty((7, n))
+        K_b[:] = K_a
+        kernels.dop853_dense(kind, P, y, y_a, f, f_a, h, tb.DOP853_A, tb.DOP853_C,
+                             tb.DOP853_D, K_a, tmp, F_a)
+        rk_generated.dop853_dense(kind, P, y, y_a, f, f_a, h, K_b, tmp, F_b)
+        dterms = (h * (np.abs(tb.DOP853_D) @ np.abs(K_a))).max(axis=0) + np.abs(F_a[:3]).max(0)
+        assert np.all(np.abs(F_a - F_b) <= 64 * eps * dterms)
+        for x in (0.0, 0.3, 1.0):
+            out_a, out_b = np.empty(n), np.empty(n)
+            kernels.dense_eval(F_a, y, x, out_a)
+            rk_generated.dop853_eval(kind, F_a, y, x, out_b)
+            assert np.all(np.abs(out_a - out_b) <= 16 * eps * (np.abs(y) + np.abs(F_a).sum(0)))

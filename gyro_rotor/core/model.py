@@ -53,7 +53,11 @@ __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODE
            'numba_able']
 
 try:  # pragma: no cover - exercised by whichever branch the install has
-    from numba.extending import register_jitable as numba_able
+    from numba.extending import register_jitable
+
+    def numba_able(f):
+        """Numba's register_jitable, inlined into the caller (the kernels call it per stage)."""
+        return register_jitable(inline='always')(f)
 except ImportError:  # pragma: no cover
     def numba_able(f):
         """Stand-in for numba's register_jitable: the function as it is."""
@@ -97,7 +101,10 @@ def drive_law(z, zdot, K_S, K_D, pp):
     """
     lin = 1.0 * (pp == 0)
     ppn = pp + lin
-    return lin * (-K_S * z) + (1.0 - lin) * (-(K_S / ppn) * np.sin(ppn * z)) - K_D * zdot
+    # the sine's argument is 0 for the linear law: sin(0) is its fast path (the blend still
+    # takes the sine's value only where pp > 0, elementwise on arrays)
+    sine = 1.0 - lin
+    return lin * (-K_S * z) + sine * (-(K_S / ppn) * np.sin(ppn * z * sine)) - K_D * zdot
 
 
 @numba_able
@@ -107,10 +114,10 @@ def tilt_twist_torque(qw, qx, qy, qz, Gs, c_theta, c_psi):
     Returns (M_1, M_2, M_3): tilt M = -(dV/dcos theta) (e_3 x k) with dV/dcos theta =
     G s - c_theta theta/sin theta, plus twist -c_psi chi w, chi = 2 atan2(q_z, q_w).
     """
-    n = qw * qw + qx * qx + qy * qy + qz * qz
-    k1 = 2.0 * (qx * qz - qw * qy) / n
-    k2 = 2.0 * (qy * qz + qw * qx) / n
-    k3 = (qw * qw - qx * qx - qy * qy + qz * qz) / n
+    inv_n = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
+    k1 = 2.0 * (qx * qz - qw * qy) * inv_n
+    k2 = 2.0 * (qy * qz + qw * qx) * inv_n
+    k3 = (qw * qw - qx * qx - qy * qy + qz * qz) * inv_n
     st = np.sqrt(k1 * k1 + k2 * k2)
     th = np.arctan2(st, k3)
     t2 = th * th
@@ -145,8 +152,9 @@ def full_rhs(y, P, out):
     out[1] = 0.5 * (qw * W1 + qy * W3 - qz * W2)
     out[2] = 0.5 * (qw * W2 + qz * W1 - qx * W3)
     out[3] = 0.5 * (qw * W3 + qx * W2 - qy * W1)
-    out[4] = (M1 - W2 * g) / I_
-    out[5] = (M2 + W1 * g) / I_
+    inv_I = 1.0 / I_
+    out[4] = (M1 - W2 * g) * inv_I
+    out[5] = (M2 + W1 * g) * inv_I
     out[6] = dW3
     out[7] = zd
     out[8] = Q / C_R - dW3

@@ -10,23 +10,29 @@ RODAS4 agrees with scipy's Radau at 1e-12 to 2e-12 on stiff_drive). Recorded per
   reference symmetry axes [rad], |z - z_ref| [rad]);
 - ``axis_err``, ``z_err``, ``end_err`` (max-norm of the end-state difference), ``residual``
   (max |r| of the energy balance, J), ``qnorm`` (max ||q| - 1|);
-- ``wall_per_sim``: wall seconds per simulated second (median of the repeats);
+- ``wall_per_sim``: wall seconds per simulated second (the best of the repeats: on a shared
+  machine other work only ever slows a run down, so the fastest repeat is the one least
+  disturbed; every family is timed the same way);
 - ``nfev``, ``nsteps``; ``status`` (0 ok; a run over its budget stops and reports its
   cost rate over the part it did, with err = nan; after such a run, or one slower than
   SLOW_RUN wall seconds, the method's tighter settings are skipped).
 
 scipy's ``solve_ivp`` (RK45, DOP853, Radau, LSODA) runs on the same model as the baseline,
 with the model's right-hand side compiled by numba (``Model.rhs``; about 1.4 us a call, so
-scipy's own per-step overhead dominates its cost). Also: the E* drift of each method on the
-conservative scene over 1000 s, and the slipped-pole count on pole_slip at each method's default
-tolerance. Results are data; :mod:`gyro_rotor.commands.bench` prints and plots.
+scipy's own per-step overhead dominates its cost). The compiled peers (family ``peer``,
+:mod:`gyro_rotor.numerics.bench_peers`, where installed): CyRK's ``nbsolve2_ivp`` (RK45,
+DOP853, Vern7, Vern8, Radau, LSODA) and numbalsoda's ``dop853`` and ``lsoda``, on a numba
+cfunc of the same equations with the scene's constants folded in, over the same tolerance
+sweep; their rows are named ``CyRK:DOP853``, ``numbalsoda:LSODA``, ... Also: the E* drift of
+each method on the conservative scene over 1000 s, and the slipped-pole count on pole_slip at
+each method's default tolerance. Results are data; :mod:`gyro_rotor.commands.bench` prints
+and plots.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import statistics
 import time
 from typing import Callable
 
@@ -47,6 +53,8 @@ DEFAULT_SCENES = ('precession', 'nutation', 'upright', 'stiff_drive@K_D=100', 's
 QUICK_SCENES = ('precession', 'stiff_drive', 'conservative')
 SCIPY = ('RK45', 'DOP853', 'Radau', 'LSODA')
 QUICK_SCIPY = ('LSODA',)
+#: the peers' row names: PEER_LABEL[package] + ':' + method
+PEER_LABEL = {'cyrk': 'CyRK', 'numbalsoda': 'numbalsoda'}
 # tolerance sweeps (atol = rtol * ATOL_RATIO) and step sweeps (step = factor / model rate)
 RTOLS = {'full': (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
          'quick': (1e-5, 1e-8)}
@@ -73,7 +81,7 @@ class BenchRow:
 
     scene: str
     method: str
-    family: str          # 'gyro_rotor' or 'scipy'
+    family: str          # 'gyro_rotor', 'scipy' or 'peer'
     setting: str         # 'rtol=1e-08' or 'h=1.2e-04'
     err: float
     axis_err: float
@@ -195,6 +203,19 @@ def _ours_run(model, y0, t_eval, method, rtol=None, atol=None, step=None):
     return Y, wall, res.nfev, res.nsteps, res.status, (t_eval[-1] if res.success else t_done)
 
 
+def _peer_run(peer, package, model, y0, t_eval, method, rtol, atol):
+    from gyro_rotor.numerics import bench_peers
+    t0 = time.perf_counter()
+    Y9, steps = bench_peers.peer_run(peer, package, method, y0, t_eval, rtol, atol,
+                                     max_steps=MAX_STEPS)
+    wall = time.perf_counter() - t0
+    if Y9 is None:
+        return None, wall, -1, steps, -3, t_eval[-1]
+    # the peers' model has no D: its column is NaN (the residual is then not measured)
+    Y = np.column_stack([Y9, np.full(len(Y9), np.nan)])
+    return Y, wall, -1, steps, 0, t_eval[-1]
+
+
 def _repeat(fn: Callable, repeats: int):
     walls = []
     out = None
@@ -203,11 +224,12 @@ def _repeat(fn: Callable, repeats: int):
         walls.append(out[1])
         if out[1] > 2.0:      # slow runs: one is enough (their noise is small)
             break
-    return out, statistics.median(walls)
+    return out, min(walls)
 
 
 def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool = True,
-              methods=None, progress: Callable[[str], None] | None = None) -> list[BenchRow]:
+              peers: bool = True, methods=None,
+              progress: Callable[[str], None] | None = None) -> list[BenchRow]:
     """All runs of one scene spec (see module doc); returns the rows."""
     from gyro_rotor.numerics.integrators import model_rate
     scene, label = parse_scene_spec(spec)
@@ -238,9 +260,26 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         for name in (QUICK_SCIPY if quick else SCIPY):
             for r in rtols:
                 jobs.append(('scipy', name, f'rtol={r:.0e}', {'rtol': r, 'atol': r * ATOL_RATIO}))
+    peer = None
+    if peers and scene.model == 'full':
+        from gyro_rotor.numerics import bench_peers
+        have = bench_peers.available()
+        if have:
+            peer = bench_peers.make_peer_rhs(scene.params)
+        for package in have:
+            for m in bench_peers.PEER_METHODS[package]:
+                for r in rtols:
+                    jobs.append(('peer', f'{PEER_LABEL[package]}:{m}', f'rtol={r:.0e}',
+                                 {'package': package, 'method': m, 'rtol': r,
+                                  'atol': r * ATOL_RATIO}))
     for name in dict.fromkeys(j[1] for j in jobs if j[0] == 'gyro_rotor'):
         # compile (or load from numba's cache) before timing
         integrate(model, y0, (0.0, te[1]), te[:2], name, max_steps=1000)
+    if peer is not None:
+        from gyro_rotor.numerics import bench_peers
+        for package in bench_peers.available():
+            bench_peers.peer_run(peer, package, bench_peers.PEER_METHODS[package][0], y0,
+                                 te[:2], 1e-3, 1e-5)
     rows = []
     over_budget = set()
     for family, name, setting, kw in jobs:
@@ -249,6 +288,9 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         if family == 'scipy':
             fn = (lambda name=name, kw=kw: _scipy_run(model, y0, te, name, kw['rtol'],
                                                       kw['atol']))
+        elif family == 'peer':
+            fn = (lambda kw=kw: _peer_run(peer, kw['package'], model, y0, te, kw['method'],
+                                          kw['rtol'], kw['atol']))
         else:
             fn = (lambda name=name, kw=kw: _ours_run(model, y0, te, name, **kw))
         (Y, _, nfev, nsteps, status, t_done), wall = _repeat(fn, repeats)
@@ -259,7 +301,7 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         if status == -3 or wall > SLOW_RUN:
             over_budget.add(name)
         if progress:
-            progress(f'{label:22s} {name:7s} {setting:14s} err {e["err"]:.2e} '
+            progress(f'{label:22s} {name:17s} {setting:14s} err {e["err"]:.2e} '
                      f'wall/sim {wall / t_done:.3e} s  nfev {nfev}  status {status}')
     return rows
 

@@ -15,7 +15,10 @@ Three measurements, each returned as data (``gyro-rotor bench-general`` prints a
   ``auto``) against the usual user's path, sympy ``lambdify`` to numpy plus scipy
   ``solve_ivp`` (RK45, DOP853, Radau, LSODA) on the same equations: error (max over samples
   at 100 Hz of the largest |q - q_ref|, |z - z_ref|) against wall time over a tolerance
-  sweep, the reference being dop853 at rtol 1e-13.
+  sweep, the reference being dop853 at rtol 1e-13; and, where installed, the speed-conscious
+  user's path: CyRK's ``nbsolve2_ivp`` (RK45, DOP853, Vern7, Vern8, LSODA) on a numba cfunc of
+  the same lambdify with the constants substituted
+  (:func:`gyro_rotor.numerics.bench_peers.make_general_peer`), rows ``CyRK+numba:<method>``.
 """
 
 from __future__ import annotations
@@ -41,6 +44,8 @@ __all__ = ['rhs_cost', 'compile_times', 'work_precision', 'WPRow', 'best_at', 'S
 SCIPY_METHODS = ('RK45', 'DOP853', 'Radau', 'LSODA')
 #: the label of our rows: general.integrate with method 'auto'
 DEFAULT_LABEL = 'default'
+#: the label prefix of the compiled peer's rows (CyRK on a numba lambdify)
+PEER_PREFIX = 'CyRK+numba:'
 OUR_RTOLS = (1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 SCIPY_RTOLS = (1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 SAMPLE_RATE = 100.0
@@ -48,17 +53,17 @@ SAMPLE_RATE = 100.0
 SLOW_RUN = 5.0
 
 
-@kernels.njit
-def _loop_hand(y, P, out, count):
+@kernels.njit(error_model='numpy')      # as the integrators' kernels
+def _loop_hand(kind, y, P, out, count):
     acc = 0.0
     for i in range(count):
         y[8] += 1e-15
-        kernels.rhs(0, y, P, out)
+        kernels.rhs(kind, y, P, out)
         acc += out[4]
     return acc
 
 
-@kernels.njit
+@kernels.njit(error_model='numpy')      # as the integrators' kernels
 def _loop_generated(f, y, P, out, count):
     acc = 0.0
     for i in range(count):
@@ -82,12 +87,13 @@ def rhs_cost(count: int = 2_000_000, repeats: int = 5) -> dict:
     Ph = kernels.pack_params(RotorParams())
     Pg = pack(model.system)
     oh, og = np.empty(10), np.empty(9)
-    _loop_hand(yh.copy(), Ph, oh, 10)
+    kind = kernels.KIND['full']        # the full model's kind, as the integrators pass it
+    _loop_hand(kind, yh.copy(), Ph, oh, 10)
     _loop_generated(model.compiled.rhs, yg.copy(), Pg, og, 10)
     th, tg = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        _loop_hand(yh.copy(), Ph, oh, count)
+        _loop_hand(kind, yh.copy(), Ph, oh, count)
         th.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
         _loop_generated(model.compiled.rhs, yg.copy(), Pg, og, count)
@@ -201,6 +207,7 @@ def work_precision(names=('centrifuge_euler', 'twin_gimbal', 'elastic_frame'),
                 walls.append(time.perf_counter() - t0)
             rows.append(WPRow(name, f'{DEFAULT_LABEL} ({run.method})', rtol,
                               _err(run.y, ref, n, m), min(walls), run.nfev))
+        rows += _peer_rows(name, scene, y0, te, ref, n, m, repeats)
         rhs = _lambdified(scene)
         for method in SCIPY_METHODS:
             for rtol in SCIPY_RTOLS:
@@ -212,6 +219,29 @@ def work_precision(names=('centrifuge_euler', 'twin_gimbal', 'elastic_frame'),
                 rows.append(WPRow(name, f'lambdify+{method}', rtol, err, wall, int(sol.nfev)))
                 if wall > SLOW_RUN:
                     break
+    return rows
+
+
+def _peer_rows(name, scene, y0, te, ref, n, m, repeats) -> list[WPRow]:
+    """Return the rows of CyRK (nbsolve2_ivp) on a numba lambdify of the same equations."""
+    from gyro_rotor.numerics import bench_peers
+    if 'cyrk' not in bench_peers.available():
+        return []
+    peer = bench_peers.make_general_peer(scene)
+    bench_peers.peer_run(peer, 'cyrk', 'DOP853', y0, te[:2], 1e-3, 1e-6)   # compile
+    rows = []
+    for method in bench_peers.GENERAL_PEER_METHODS:
+        for rtol in SCIPY_RTOLS:
+            walls = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                Y, steps = bench_peers.peer_run(peer, 'cyrk', method, y0, te, rtol,
+                                                rtol * 1e-3)
+                walls.append(time.perf_counter() - t0)
+            err = _err(Y, ref, n, m) if Y is not None else math.nan
+            rows.append(WPRow(name, f'{PEER_PREFIX}{method}', rtol, err, min(walls), -1))
+            if min(walls) > SLOW_RUN:
+                break
     return rows
 
 

@@ -1,7 +1,9 @@
-"""``gyro-rotor bench``: work-precision benchmark of the integrators against scipy.
+"""``gyro-rotor bench``: work-precision benchmark of the integrators against scipy and peers.
 
-Writes ``work_precision.csv`` (every run), ``work_precision.md`` (best wall seconds per
-simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
+Writes ``work_precision.csv`` (every run), ``work_precision.md`` (the default method against
+the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where they are
+installed; best milliseconds per simulated second at errors 1e-3, 1e-6, 1e-9 per scene and
+method; E* drift; pole counts)
 and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
 by default a new directory ``bench-YYYYmmdd-HHMMSS``: the committed results in ``bench/``
 are replaced only when ``--out bench`` is given. ``--quick`` is a smoke run of under a
@@ -40,13 +42,64 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='output directory (default: a new bench-YYYYmmdd-HHMMSS; the '
                    'committed results are in bench)')
     p.add_argument('--no-scipy', action='store_true', help='skip the scipy baselines')
+    p.add_argument('--no-peers', action='store_true',
+                   help='skip the compiled peers (CyRK, numbalsoda; run where installed: '
+                   'pip install -r requirements-bench.txt)')
     p.add_argument('--drift-t-end', type=float, default=None,
                    help='horizon of the E* drift study on conservative [s] (0 = skip; '
                    'default 1000, 100 with --quick)')
 
 
 def _fmt(v) -> str:
-    return '-' if v is None else f'{v:.2e}'
+    return '-' if v is None else f'{v * 1e3:.3g}'
+
+
+def _families(rows) -> dict:
+    """Map each method to its family, in the order of the rows."""
+    return {r.method: r.family for r in rows}
+
+
+def _best(table, scene, methods, i):
+    """Return (method, wall/sim) of the fastest of ``methods`` at error level i, or Nones."""
+    cands = [(table[(scene, m)][i], m) for m in methods
+             if (scene, m) in table and table[(scene, m)][i] is not None]
+    if not cands:
+        return None, None
+    v, m = min(cands)
+    return m, v
+
+
+def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
+    """Markdown lines: the default method (auto) against the best compiled peer, per scene.
+
+    Per scene and error level: auto's method and cost, the fastest compiled peer (CyRK,
+    numbalsoda) and the fastest of gyro_rotor's methods at that error, the ratios peer /
+    auto (the speed-up of auto, > 1 = auto faster) and auto / own best (1.00 = auto is the
+    fastest own method). Costs in ms per simulated second.
+    """
+    idx = [bench.ERROR_LEVELS.index(lev) for lev in levels]
+    table = bench.best_table(rows)
+    fam = _families(rows)
+    own = [m for m, f in fam.items() if f == 'gyro_rotor']
+    peers = [m for m, f in fam.items() if f == 'peer']
+    scenes = list(dict.fromkeys(r.scene for r in rows))
+    lines = ['| scene | error | auto | auto [ms/s] | best compiled peer [ms/s] | '
+             'peer / auto | best own [ms/s] | auto / own best |',
+             '|---|---|---|---|---|---|---|---|']
+    for s in scenes:
+        auto = bench.auto_choice(bench.parse_scene_spec(s)[0])
+        for lev, i in zip(levels, idx):
+            ours = (table.get((s, auto)) or [None] * len(bench.ERROR_LEVELS))[i]
+            pm, pv = _best(table, s, peers, i)
+            om, ov = _best(table, s, own, i)
+            ratio = '-' if ours is None or pv is None else f'{pv / ours:.2f}x'
+            own_ratio = '-' if ours is None or ov is None else f'{ours / ov:.2f}'
+            lines.append(f'| {s} | {lev:.0e} | {auto} | {_fmt(ours)} | '
+                         + ('-' if pm is None else f'{_fmt(pv)} ({pm})')
+                         + f' | {ratio} | '
+                         + ('-' if om is None else f'{_fmt(ov)} ({om})')
+                         + f' | {own_ratio} |')
+    return lines
 
 
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
@@ -54,18 +107,31 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     table = bench.best_table(rows)
     load = (getattr(args, 'load_before', math.nan), getattr(args, 'load_after', math.nan))
     scenes = list(dict.fromkeys(r.scene for r in rows))
-    methods = list(dict.fromkeys(r.method for r in rows))
-    lines = [f'Best wall seconds per simulated second at error <= 1e-3 / 1e-6 / 1e-9 '
-             f'(error = max over samples of the symmetry-axis angle and |z| error against '
-             f'a reference; `-` = not reached within the sweep or budget). Machine: '
-             f'{platform.machine()}, {os.cpu_count()} cores, shared and noisy; '
-             f'{"quick" if args.quick else "full"} sweep, {args.repeats} repeats, '
-             f'{elapsed / 60:.1f} min, load average {load[0]:.1f} at the start and '
+    fam = _families(rows)
+    methods = list(fam)
+    have_peers = any(f == 'peer' for f in fam.values())
+    lines = [f'Machine: {platform.machine()}, {os.cpu_count()} cores, shared and noisy; '
+             f'{"quick" if args.quick else "full"} sweep, best of {args.repeats} repeats per '
+             f'run, {elapsed / 60:.1f} min, load average {load[0]:.1f} at the start and '
              f'{load[1]:.1f} at the end (all ratios are side by side in this one run). '
-             f"Methods in lower case are gyro_rotor's, upper case "
-             f'scipy solve_ivp.', '',
-             '| scene | ' + ' | '.join(methods) + ' |',
-             '|---|' + '---|' * len(methods)]
+             f'Error = max over samples (100 Hz) of the symmetry-axis angle and |z| error '
+             f'against a high-accuracy reference; cost = wall milliseconds per simulated '
+             f'second at the cheapest setting of the sweep that reaches the error.', '']
+    if have_peers:
+        lines += ['The default method (auto) against the compiled peers (CyRK nbsolve2_ivp, '
+                  'numbalsoda; numba cfunc right-hand side of the same equations, constants '
+                  'folded):', ''] + peer_table(rows) + ['']
+    else:
+        from gyro_rotor.numerics import bench_peers
+        why = ('skipped (--no-peers)' if getattr(args, 'no_peers', False)
+               else bench_peers.missing_reason())
+        lines += [f'Compiled peers: {why}.', '']
+    lines += ['Best cost [ms per simulated second] at error <= 1e-3 / 1e-6 / 1e-9 per method '
+              '(`-` = not reached within the sweep or budget). Lower case: gyro_rotor; upper '
+              'case: scipy solve_ivp (numba right-hand side called from Python); '
+              '`CyRK:...`, `numbalsoda:...`: the compiled peers.', '',
+              '| scene | ' + ' | '.join(methods) + ' |',
+              '|---|' + '---|' * len(methods)]
     for s in scenes:
         cells = []
         for m in methods:
@@ -80,15 +146,15 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     for s in scenes:
         auto = bench.auto_choice(bench.parse_scene_spec(s)[0])
         cells = []
-        for family in (bench.SCIPY, None):
+        for family in ('scipy', 'gyro_rotor'):
             for i in (1, 2):
                 ours = (table.get((s, auto)) or [None] * 3)[i]
                 other = [table[(s, m)][i] for m in methods
-                         if (family is None) == m.islower() and (s, m) in table
+                         if fam[m] == family and (s, m) in table
                          and table[(s, m)][i] is not None]
                 if ours is None or not other:
                     cells.append('-')
-                elif family is None:
+                elif family == 'gyro_rotor':
                     cells.append(f'{ours / min(other):.2f}')
                 else:
                     cells.append(f'{min(other) / ours:.1f}x')
@@ -135,8 +201,9 @@ def write_plot(path, rows) -> str | None:
                          and math.isfinite(r.err) and r.err > 0)
             if pts:
                 x, y = zip(*pts)
-                ax.loglog(x, y, 'o-' if m.islower() else 's--', color=cmap(i % 10), label=m,
-                          ms=3, lw=1)
+                fam = next(r.family for r in rows if r.method == m)
+                style = {'gyro_rotor': 'o-', 'scipy': 's--', 'peer': '^:'}[fam]
+                ax.loglog(x, y, style, color=cmap(i % 10), label=m, ms=3, lw=1)
         ax.set_title(s, fontsize=9)
         ax.set_xlabel('wall s per simulated s', fontsize=8)
         ax.set_ylabel('error [rad]', fontsize=8)
@@ -192,7 +259,8 @@ def run(args: argparse.Namespace) -> int:
     rows = []
     for spec in specs:
         rows += bench.run_sweep(spec, quick=args.quick, repeats=args.repeats,
-                                scipy=not args.no_scipy, progress=print)
+                                scipy=not args.no_scipy, peers=not args.no_peers,
+                                progress=print)
     methods = bench.QUICK_DRIFT_METHODS if args.quick else bench.DRIFT_METHODS
     drift = (bench.energy_drift(args.drift_t_end, methods=methods, progress=print)
              if args.drift_t_end > 0 else None)

@@ -151,7 +151,18 @@ class Integrator:
         self.nsteps = 0
         self.nrejected = 0
         self.step_size: float | None = None
-        self.f = self._rhs(self.y)
+        self._f: np.ndarray | None = None     # f(y), evaluated when a step needs it
+
+    @property
+    def f(self) -> np.ndarray:
+        """dy/dt at the current state (evaluated on first use after a run: one evaluation)."""
+        if self._f is None:
+            self._f = self._rhs(self.y)
+        return self._f
+
+    @f.setter
+    def f(self, value: np.ndarray) -> None:
+        self._f = value
 
     # -- helpers ---------------------------------------------------------------------------
     def _rhs(self, y: np.ndarray) -> np.ndarray:
@@ -230,7 +241,7 @@ class Integrator:
         k = int(np.count_nonzero(done))
         if status == 0:
             self.t, self.y = float(te[-1]), Y[-1].copy()
-            self.f = self._rhs(self.y)
+            self._f = None
             self.status = 'finished' if self.t >= self.t_bound else 'running'
         else:
             self.status = 'failed'

@@ -6,10 +6,13 @@ compiled once per machine, then loaded from ``__pycache__``). Without numba the 
 functions run as ordinary Python (slower, same results): real ROS installs without numba
 still work.
 
-Models are selected by ``kind``: an integer for the hand-written models (0 full,
-1 upright_axis, 2 locked_housing) or a compiled general rotor system's right-hand side as a
-numba first-class function (:func:`rhs`); the parameters travel as one float array ``P``
-(see :func:`pack_params`), so a single compiled kernel serves every scene of a model.
+Models are selected by ``kind``: a member of the hand-written model's own IntEnum class
+(:data:`KIND`: FullKind.FULL = 0, UprightKind.UPRIGHT_AXIS = 1,
+LockedKind.LOCKED_HOUSING = 2; each class is its own numba type, so each kernel is compiled
+once per model with that model's right-hand side inlined) or a compiled general rotor
+system's right-hand side as a numba first-class function (:func:`rhs`); the parameters
+travel as one float array ``P`` (see :func:`pack_params`), so a single compiled kernel
+serves every scene of a model.
 
 Status codes returned by the run loops: :class:`Status` (0 finished, -1 step size
 underflow, -2 non-finite state, -3 step budget exhausted, -4 Newton/fixed-point iteration
@@ -25,7 +28,8 @@ from __future__ import annotations
 import enum
 import math
 
-from gyro_rotor.core.model import full_rhs, locked_rhs, pack_params, upright_rhs
+from gyro_rotor.core.model import (full_rhs, FullModel, locked_rhs, LockedHousingModel,
+                                   pack_params, upright_rhs, UprightAxisModel)
 import numpy as np
 
 try:  # pragma: no cover - exercised by whichever branch the install has
@@ -40,11 +44,36 @@ except ImportError:  # pragma: no cover
             return args[0]
         return lambda f: f
 
-__all__ = ['HAVE_NUMBA', 'KIND', 'Status', 'pack_params', 'rhs', 'rk_run', 'dop853_run',
-           'gauss_run', 'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense',
-           'gauss_step', 'rodas_step', 'fd_jacobian', 'normalize_quaternion']
+__all__ = ['HAVE_NUMBA', 'KIND', 'FullKind', 'UprightKind', 'LockedKind', 'Status',
+           'pack_params', 'rhs', 'state_size', 'rk_run', 'dop853_run', 'gauss_run',
+           'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense', 'gauss_step', 'rodas_step',
+           'fd_jacobian', 'normalize_quaternion']
 
-KIND = {'full': 0, 'upright_axis': 1, 'locked_housing': 2}
+
+class FullKind(enum.IntEnum):
+    """Kind of the full model (one enum class per model: numba types each class apart)."""
+
+    FULL = 0
+
+
+class UprightKind(enum.IntEnum):
+    """Kind of the upright_axis model."""
+
+    UPRIGHT_AXIS = 1
+
+
+class LockedKind(enum.IntEnum):
+    """Kind of the locked_housing model."""
+
+    LOCKED_HOUSING = 2
+
+
+#: the kinds of the hand-written models: each its own type in compiled code, so that a
+#: kernel is compiled per model with that model's right-hand side inlined (a plain int
+#: 0, 1, 2 still works, through a run-time branch that costs about 40 % of the full
+#: model's evaluation)
+KIND = {'full': FullKind.FULL, 'upright_axis': UprightKind.UPRIGHT_AXIS,
+        'locked_housing': LockedKind.LOCKED_HOUSING}
 
 # step size control (as scipy's rk.py and Hairer's codes)
 SAFETY = 0.9
@@ -91,6 +120,16 @@ def rhs(kind, y, P, out):
         _model_rhs(kind, y, P, out)
 
 
+def state_size(kind, y):
+    """Return the size of the state: a compile-time constant for the hand-written models.
+
+    In compiled code the models' sizes (10, 5, 3) are constants of the kernel compiled for
+    each model, so that LLVM unrolls the loops over the components; for a general system
+    (a first-class function) it is ``y.shape[0]``.
+    """
+    return y.shape[0]
+
+
 def _is_full(kind):
     """Return True for the full (quaternion) model, False for others and for functions."""
     return not callable(kind) and kind == 0
@@ -100,14 +139,44 @@ if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
     from numba import types
     from numba.extending import overload
 
-    @overload(rhs, jit_options={'error_model': 'numpy'})
+    from numba.extending import typeof_impl
+
+    _KIND_RHS = {FullKind: full_rhs, UprightKind: upright_rhs, LockedKind: locked_rhs}
+
+    def _register_kind_type(cls):
+        # numba's generic typeof of an IntEnum member builds and interns its type on every
+        # call (about 10 us a kernel call from Python); these are fixed
+        ty = types.IntEnumMember(cls, types.int64)
+        typeof_impl.register(cls)(lambda val, c: ty)
+
+    for _cls in _KIND_RHS:
+        _register_kind_type(_cls)
+
+    @overload(rhs, jit_options={'error_model': 'numpy'}, inline='always')
     def _rhs_typed(kind, y, P, out):
+        if isinstance(kind, types.IntEnumMember) and kind.instance_class in _KIND_RHS:
+            fn = _KIND_RHS[kind.instance_class]
+            return lambda kind, y, P, out: fn(y, P, out)
         if isinstance(kind, types.Integer):
             return _model_rhs.py_func
         return lambda kind, y, P, out: kind(y, P, out)
 
+    _KIND_SIZE = {FullKind: len(FullModel.state_names),        # 10, 5, 3
+                  UprightKind: len(UprightAxisModel.state_names),
+                  LockedKind: len(LockedHousingModel.state_names)}
+
+    @overload(state_size, inline='always')
+    def _state_size_typed(kind, y):
+        if isinstance(kind, types.IntEnumMember) and kind.instance_class in _KIND_SIZE:
+            size = _KIND_SIZE[kind.instance_class]
+            return lambda kind, y: size
+        return lambda kind, y: y.shape[0]
+
     @overload(_is_full)
     def _is_full_typed(kind):
+        if isinstance(kind, types.IntEnumMember):
+            full = kind.instance_class is FullKind
+            return lambda kind: full
         if isinstance(kind, types.Integer):
             return lambda kind: kind == 0
         return lambda kind: False
@@ -382,12 +451,14 @@ def _land_on_sample(t_eval, k, t, h, h_max):
 
 @njit(cache=True, error_model='numpy')
 def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
-               A, B, C, D, E3, E5, Y_out, counts):
+               Y_out, counts):
     """Adaptive DOP853 from t0 to t_eval[-1], sampling ``t_eval`` with the dense output.
 
+    Steps and dense output are the straight-line kernels of :mod:`~.rk_generated` (the same
+    formulas as :func:`dop853_step` and :func:`dop853_dense`, about half the cost).
     Returns the status; ``counts`` = (nfev, nsteps, rejected, last step size).
     """
-    n = y0.shape[0]
+    n = state_size(kind, y0)
     y = y0.copy()
     y_new = np.empty(n)
     f = np.empty(n)
@@ -414,6 +485,7 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
         nfev += 1
     # a non-finite derivative at the start (a singular state) ends the run at once
     status = OK if _all_finite(f) else NONFINITE
+    just_rejected = False
     while status == OK and t < t_end:
         min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
         if not h >= min_step:           # also a NaN step (never compares)
@@ -426,29 +498,31 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
         landed = _land_on_sample(t_eval, k, t, h, h_max)
         if landed:
             h = t_eval[k] - t
-        err = dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_new)
+        err = rk_generated.dop853_step(kind, P, y, f, h, rtol, atol, K, ytmp, y_new, f_new)
         nfev += 12
         if not math.isfinite(err):
             h *= MIN_FACTOR
             nrej += 1
+            just_rejected = True
             continue
         if err > 1.0:
             h *= max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
             nrej += 1
+            just_rejected = True
             continue
         t_new = t_eval[k] if landed else t + h
         if renorm:
             normalize_quaternion(kind, y_new, f_new)
         if k < t_eval.shape[0] and t_eval[k] <= t_new:
             if t_eval[k] < t_new:       # a sample inside the step: the dense output
-                dop853_dense(kind, P, y, y_new, f, f_new, h, A, C, D, K, ytmp, F)
+                rk_generated.dop853_dense(kind, P, y, y_new, f, f_new, h, K, ytmp, F)
                 nfev += 3
             while k < t_eval.shape[0] and t_eval[k] <= t_new:
                 if t_eval[k] == t_new:
                     for j in range(n):
                         Y_out[k, j] = y_new[j]
                 else:
-                    dense_eval(F, y, (t_eval[k] - t) / h, Y_out[k])
+                    rk_generated.dop853_eval(kind, F, y, (t_eval[k] - t) / h, Y_out[k])
                 k += 1
         for j in range(n):
             y[j] = y_new[j]
@@ -465,6 +539,9 @@ def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
             fac = MAX_FACTOR
         else:
             fac = min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+        if just_rejected:           # Hairer's DOP853: no growth right after a rejection
+            fac = min(fac, 1.0)
+            just_rejected = False
         h *= fac
     counts[0] = nfev
     counts[1] = nsteps
@@ -785,3 +862,7 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     counts[3] = h
     counts[4] = njev
     return status
+
+
+# The specialised kernels import njit and rhs from this module, so they are imported last.
+from gyro_rotor.numerics.integrators import rk_generated  # noqa: E402,I100,I202

@@ -30,7 +30,8 @@ import math
 
 from gyro_rotor.core.model import Model
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.numerics.integrators import kernels, radau, splitting as split, tableaux as tb
+from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
+                                             splitting as split, tableaux as tb)
 from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
 import numpy as np
 
@@ -146,10 +147,9 @@ class DOP853(Integrator):
             clipped = self.t + h >= t_limit
             if clipped:
                 h = t_limit - self.t
-            err = kernels.dop853_step(self.kind, self.P, self.y, self.f, h, self.rtol,
-                                      self.atol, tb.DOP853_A, tb.DOP853_B, tb.DOP853_E3,
-                                      tb.DOP853_E5, self._K, self._ytmp, self._ynew,
-                                      self._fnew)
+            err = rk_generated.dop853_step(self.kind, self.P, self.y, self.f, h, self.rtol,
+                                           self.atol, self._K, self._ytmp, self._ynew,
+                                           self._fnew)
             self.nfev += 12
             if math.isfinite(err) and err <= 1.0:
                 break
@@ -176,21 +176,18 @@ class DOP853(Integrator):
         if not (t0 <= t <= self.t):
             raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
         if not self._dense_ready:
-            kernels.dop853_dense(self.kind, self.P, self._y_old, self.y, self._f_old, self.f,
-                                 h, tb.DOP853_A, tb.DOP853_C, tb.DOP853_D, self._K,
-                                 self._ytmp, self._F)
+            rk_generated.dop853_dense(self.kind, self.P, self._y_old, self.y, self._f_old,
+                                      self.f, h, self._K, self._ytmp, self._F)
             self.nfev += 3
             self._dense_ready = True
         out = np.empty(self.model.n)
-        kernels.dense_eval(self._F, self._y_old, (t - t0) / h, out)
+        rk_generated.dop853_eval(self.kind, self._F, self._y_old, (t - t0) / h, out)
         return out
 
     def _run(self, t_eval, Y, counts):
         return kernels.dop853_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
                                   self.atol, self.h_max, self._h_next, self.renormalize,
-                                  self.max_steps - self.nsteps, tb.DOP853_A, tb.DOP853_B,
-                                  tb.DOP853_C, tb.DOP853_D, tb.DOP853_E3, tb.DOP853_E5, Y,
-                                  counts)
+                                  self.max_steps - self.nsteps, Y, counts)
 
 
 class Gauss6(Integrator):

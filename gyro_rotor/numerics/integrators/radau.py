@@ -28,11 +28,14 @@ import math
 from gyro_rotor.numerics.integrators.kernels import (_all_finite, BUDGET, initial_step,
                                                      MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
                                                      normalize_quaternion, OK, rhs, SAFETY,
-                                                     UNDERFLOW)
+                                                     state_size, UNDERFLOW)
 import numpy as np
 
 __all__ = ['stiff_direction', 'radau_run', 'MAX_ITER']
 
+#: the number of stages of the kernels (the tableau RADAU5_*: a compile-time constant, so
+#: that LLVM unrolls the loops over the stages)
+STAGES = 5
 #: most simplified-Newton iterations per step before the step is retried at half size
 MAX_ITER = 20
 #: the stage iteration stops when its update is this small, in tolerance units
@@ -40,7 +43,7 @@ ITER_TOL = 0.01
 #: ... in units of a relative tolerance of at most this (loose tolerances do not leave the
 #: stages unsolved: the step's error is then the method's, not the iteration's); the
 #: kernels take it as the argument ``itol_max``
-ITER_RTOL_MAX = 1e-6
+ITER_RTOL_MAX = 1e-4
 
 
 @njit(cache=True, error_model='numpy')
@@ -94,27 +97,34 @@ def _inverse(M, out):
 @njit(cache=True, error_model='numpy')
 def _extrapolate(C, Zp, ratio, Z):
     """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio)."""
-    s = C.shape[0]
+    s = STAGES
     n = Z.shape[1]
+    w = np.empty(STAGES)          # 1 / (the basis polynomials' denominators)
+    for j in range(s):
+        den = C[j]                    # the node 0 of the basis
+        for q in range(s):
+            if q != j:
+                den *= C[j] - C[q]
+        w[j] = 1.0 / den
     for i in range(s):
         th = 1.0 + C[i] * ratio
         for m in range(n):
             Z[i, m] = -Zp[s - 1, m]
         for j in range(s):
-            lj = th / C[j]                    # the node 0 of the basis
+            lj = th * w[j]
             for q in range(s):
                 if q != j:
-                    lj *= (th - C[q]) / (C[j] - C[q])
+                    lj *= th - C[q]
             for m in range(n):
                 Z[i, m] += lj * Zp[j, m]
 
 
-@njit(cache=True, error_model='numpy')
+@njit(cache=True, error_model='numpy', fastmath={'contract', 'reassoc', 'arcp', 'nsz'})
 def radau_solve(kind, P, y, f, h, rtol, atol, A, C, b, k, lam, Z, F, V, T, Tm, ytmp, sc,
                 itol_max):
     """Solve the stage equations for Z (start values in Z); return the iterations or -1."""
-    s = C.shape[0]
-    n = y.shape[0]
+    s = STAGES
+    n = state_size(kind, y)
     bk = b[k]
     for i in range(s):
         for j in range(s):
@@ -123,7 +133,7 @@ def radau_solve(kind, P, y, f, h, rtol, atol, A, C, b, k, lam, Z, F, V, T, Tm, y
     ra = min(rtol, itol_max)
     aa = min(atol, itol_max * 1e-2)
     for m in range(n):
-        sc[m] = aa + ra * abs(y[m])
+        sc[m] = 1.0 / (aa + ra * abs(y[m]))     # the inverse scale
     prev = math.inf
     for it in range(MAX_ITER):
         for i in range(s):
@@ -145,7 +155,7 @@ def radau_solve(kind, P, y, f, h, rtol, atol, A, C, b, k, lam, Z, F, V, T, Tm, y
             for m in range(n):
                 d = V[i, m] + corr * b[m]
                 Z[i, m] += d
-                e = d / sc[m]
+                e = d * sc[m]
                 norm += e * e
         norm = math.sqrt(norm / (s * n))
         if not math.isfinite(norm) or (it > 2 and norm > prev):
@@ -164,8 +174,8 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     Returns the status; ``counts`` = (nfev, nsteps, rejected, next step size, -, t at the
     end) and ``y_last`` the state there (after ``max_steps`` steps, or the end).
     """
-    n = y0.shape[0]
-    s = C.shape[0]
+    n = state_size(kind, y0)
+    s = STAGES
     b = np.empty(n)
     k, lam = stiff_direction(kind, P, b)
     y = y0.copy()

@@ -21,12 +21,20 @@ def warm_up() -> float:
     from gyro_rotor.numerics.integrators import METHODS, integrate, make_integrator
     from gyro_rotor.core.scene import load_scene
     t0 = time.perf_counter()
+    # the kernels are compiled per model (kernels.KIND): the full model and the shipped
+    # locked_housing scene's
+    for scene_name in ('precession', 'locked_housing'):
+        scene = load_scene(scene_name)
+        model = scene.make_model()
+        y0 = scene.initial_state(model)
+        for name in METHODS:
+            if name == 'split8' and model.name != 'full':
+                continue
+            integrate(model, y0, (0.0, 0.01), np.array([0.0, 0.01]), method=name)
+            make_integrator(name, model, y0).advance_to(0.01)
     scene = load_scene('precession')
     model = scene.make_model()
     y0 = scene.initial_state(model)
-    for name in METHODS:
-        integrate(model, y0, (0.0, 0.01), np.array([0.0, 0.01]), method=name)
-        make_integrator(name, model, y0).advance_to(0.01)
     t_eval = np.linspace(0.0, 0.01, 3)
     for method in ('rk4', 'rk8'):
         run_ensemble(model, np.tile(y0, (2, 1)), t_eval, method=method)
