@@ -53,6 +53,8 @@ DEFAULT_SCENES = ('precession', 'nutation', 'upright', 'stiff_drive@K_D=100', 's
 QUICK_SCENES = ('precession', 'stiff_drive', 'conservative')
 SCIPY = ('RK45', 'DOP853', 'Radau', 'LSODA')
 QUICK_SCIPY = ('LSODA',)
+#: the quick sweep's compiled peer (where installed): CyRK's DOP853 only
+QUICK_PEERS = {'cyrk': ('DOP853',)}
 #: the peers' row names: PEER_LABEL[package] + ':' + method
 PEER_LABEL = {'cyrk': 'CyRK', 'numbalsoda': 'numbalsoda'}
 # tolerance sweeps (atol = rtol * ATOL_RATIO) and step sweeps (step = factor / model rate)
@@ -263,11 +265,12 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
     peer = None
     if peers and scene.model == 'full':
         from gyro_rotor.numerics import bench_peers
-        have = bench_peers.available()
+        table = QUICK_PEERS if quick else bench_peers.PEER_METHODS
+        have = [p for p in bench_peers.available() if p in table]
         if have:
-            peer = bench_peers.make_peer_rhs(scene.params)
+            peer = bench_peers.make_peer_rhs(scene.params, have)
         for package in have:
-            for m in bench_peers.PEER_METHODS[package]:
+            for m in table[package]:
                 for r in rtols:
                     jobs.append(('peer', f'{PEER_LABEL[package]}:{m}', f'rtol={r:.0e}',
                                  {'package': package, 'method': m, 'rtol': r,
@@ -276,10 +279,8 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         # compile (or load from numba's cache) before timing
         integrate(model, y0, (0.0, te[1]), te[:2], name, max_steps=1000)
     if peer is not None:
-        from gyro_rotor.numerics import bench_peers
-        for package in bench_peers.available():
-            bench_peers.peer_run(peer, package, bench_peers.PEER_METHODS[package][0], y0,
-                                 te[:2], 1e-3, 1e-5)
+        for package in have:
+            bench_peers.peer_run(peer, package, 'DOP853', y0, te[:2], 1e-3, 1e-5)
     rows = []
     over_budget = set()
     for family, name, setting, kw in jobs:

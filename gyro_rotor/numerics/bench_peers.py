@@ -134,11 +134,14 @@ class PeerRHS:
     keep: tuple          # the cfunc objects (their addresses live as long as they do)
 
 
-def make_peer_rhs(params) -> PeerRHS:
-    """Compile the peers' right-hand sides for ``params`` (RotorParams of a full model)."""
-    from numba import cfunc, types
+def make_peer_rhs(params, packages=None) -> PeerRHS:
+    """Compile the peers' right-hand sides for ``params`` (RotorParams of a full model).
+
+    ``packages``: the peers to compile for (default: every installed one).
+    """
+    from numba import cfunc
     body = _body_factory(params)
-    have = available()
+    have = [p for p in available() if packages is None or p in packages]
     keep = []
     cy_addr = ls_addr = None
     if 'cyrk' in have:
@@ -157,7 +160,6 @@ def make_peer_rhs(params) -> PeerRHS:
             body(u, du)
         keep.append(rhs)
         ls_addr = rhs.address
-    del types
     return PeerRHS(9, cy_addr, ls_addr, tuple(keep))
 
 

@@ -7,8 +7,8 @@ method; E* drift; pole counts)
 and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
 by default a new directory ``bench-YYYYmmdd-HHMMSS``: the committed results in ``bench/``
 are replaced only when ``--out bench`` is given. ``--quick`` is a smoke run of under a
-minute (3 scenes, 2 tolerances, the methods auto picks and dop853, scipy's LSODA, 1
-repeat, 100-s drift study, no pole counts).
+minute (3 scenes, 2 tolerances, the methods auto picks and dop853, scipy's LSODA, CyRK's
+DOP853 where installed, 1 repeat, 100-s drift study, no pole counts).
 """
 
 from __future__ import annotations
