@@ -218,8 +218,9 @@ def load_yaml(text: str | bytes, what: str, error: type[GyroRotorError] = Parame
     if len(text) > MAX_CHARS:
         raise error(f'{what}: {len(text)} characters, more than the {MAX_CHARS} a YAML '
                     'document may have')
-    loader = _Loader(text)
+    loader = None
     try:
+        loader = _Loader(text)          # the reader refuses control characters already here
         node = loader.get_single_node()
         if node is None:
             return None
@@ -233,8 +234,10 @@ def load_yaml(text: str | bytes, what: str, error: type[GyroRotorError] = Parame
         where = f' (line {mark.line + 1}, column {mark.column + 1})' if mark else ''
         raise error(f'{what} is not valid YAML{where}: {err.problem}') from None
     except yaml.YAMLError as err:
-        raise error(f'{what} is not valid YAML: {str(err)[:200]}') from None
+        raise error(f'{what} is not valid YAML: {" ".join(str(err).split())[:200]}'
+                    ) from None
     except RecursionError:
         raise error(f'{what}: nested too deeply') from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
