@@ -155,7 +155,7 @@ class AnalysisSession:
         self.max_pending = max_pending
         self.scene_docs = 0
         self.energy_fields: tuple = ()
-        self._joint_names: tuple = ()
+        self._joint_names: tuple | None = None     # checked against the scene's once
         #: simulation time of the newest paired sample [s]: the time base of the stamps the
         #: analysis node writes (0 before the first sample)
         self.t_sim = 0.0
@@ -207,7 +207,7 @@ class AnalysisSession:
             If its joints are not the scene's (a recording of another system).
         """
         names = tuple(msg.name)
-        if names != self._joint_names and self.scene is not None:
+        if self.scene is not None and names != self._joint_names:
             want = joint_names(self.scene)
             if names != want:
                 raise OtherSystemError(
@@ -215,6 +215,9 @@ class AnalysisSession:
                     f"'{self.scene.name}' has the joints {', '.join(want)}: a recording "
                     f'of another system')
             self._joint_names = names
+        if not len(msg.position) == len(msg.velocity) == len(names):
+            raise AnalysisError(f'joint_states with {len(names)} names, {len(msg.position)} '
+                                f'positions and {len(msg.velocity)} velocities')
         stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
         self._take(self.pairer.add_joints(stamp, msg.position, msg.velocity))
 

@@ -179,7 +179,7 @@ class BagRecorder:
             name = node.resolve_topic_name(topic)
             self._types[name] = type_name
             latched_topic = name in latched_names
-            keep_all = depth > 0 and not latched_topic
+            keep_all = depth > 0       # latched topics too: a flood must not overwrite
             qos = QoSProfile(history=(HistoryPolicy.KEEP_ALL if keep_all
                                       else HistoryPolicy.KEEP_LAST),
                              depth=depth or 1000,
