@@ -1,8 +1,9 @@
-"""MkDocs hooks: the home page from README.md, the CLI reference from the argparse parsers,
-the benchmark pages from bench/.
+"""MkDocs hooks: the home page, the CLI reference and the benchmark pages, generated.
 
-All are generated at every build, so the site cannot disagree with the README, the code or
-the benchmark records (the generated files are not tracked: .gitignore).
+The home page comes from README.md, the CLI reference from the argparse parsers, the
+benchmark pages from bench/. All are generated at every build, so the site cannot disagree
+with the README, the code or the benchmark records (the generated files are not tracked:
+.gitignore).
 """
 
 import pathlib

@@ -209,7 +209,7 @@ def test_one_checker_on_every_centrifuge_scene(scene):
 
 # -- end to end: random systems written as system files ------------------------------------------
 def _system_file(seed, n, m):
-    """A random valid system as a system file: constant M, guidance, quadratic potential."""
+    """Return a random valid system file: constant M and guidance, a quadratic potential."""
     rng = np.random.default_rng(seed)
     Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
     M = Q @ np.diag(rng.uniform(0.5, 3.0, n)) @ Q.T
