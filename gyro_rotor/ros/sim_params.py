@@ -24,7 +24,8 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-__all__ = ['declare_parameters', 'type_error', 'PARAM_RANGES', 'NODE_RANGES', 'READ_ONLY']
+__all__ = ['declare_parameters', 'declare_node_parameter', 'type_error', 'PARAM_RANGES',
+           'NODE_RANGES', 'READ_ONLY']
 
 _BIG = 1e9
 #: ranges of the RotorParams fields (RotorParams validates the rest)
@@ -38,10 +39,11 @@ NODE_RANGES = {
     'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
     'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
     'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, _BIG), 't_end': (1e-6, _BIG),
+    'visualization_rate': (0.0, 10000.0), 'realtime_priority': (0, 99),
 }
 #: node keys that only take effect at start
 READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers',
-             'wait_for_node'}
+             'wait_for_node', 'realtime_priority'}
 _TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
           str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
 _TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double',
@@ -117,6 +119,15 @@ def _declare(node: Node, name: str, value, doc: str, read_only: bool = False,
     if reason:
         raise ParameterError(reason)
     return param.value
+
+
+def declare_node_parameter(node: Node, name: str, default, doc: str,
+                           read_only: bool = False):
+    """Declare a parameter of the node alone (not a scene key); return its value.
+
+    Its range, if any, is in :data:`NODE_RANGES`; its type is that of ``default``.
+    """
+    return _declare(node, name, default, doc, read_only, type(default))
 
 
 def declare_parameters(node: Node) -> tuple:
