@@ -611,6 +611,8 @@ def test_code_generation_says_what_it_does(tmp_path, monkeypatch):
     from gyro_rotor.core.system import codegen
     from gyro_rotor.core.system.system_file import load_system
     monkeypatch.setattr(codegen, 'cache_dir', lambda: tmp_path)
+    # an earlier test of this process may have loaded twin_gimbal already (in memory)
+    monkeypatch.setattr(codegen, '_LOADED', {})
     lines: list[str] = []
     codegen.compile_system(load_system('twin_gimbal'), warm=False, progress=lines.append)
     assert lines[0].startswith('generating the equations of system twin_gimbal (n = 3, m = 2)')

@@ -1,6 +1,7 @@
 """Pure tests of gyro_rotor.numerics.realtime (no ROS): pacing with a fake steady clock."""
 
 import math
+import os
 import subprocess
 import sys
 
@@ -244,3 +245,120 @@ def test_an_overflowed_quaternion_norm_is_a_divergence_not_q_equal_zero():
     y[0:4] = (3.0, 0.0, 4.0, 0.0)                   # an ordinary norm is still projected
     kernels.normalize_quaternion(0, y, f)
     np.testing.assert_allclose(y[0:4], (0.6, 0.0, 0.8, 0.0), rtol=1e-15)
+
+
+# -- the real-time loop's clock (issue 27) ------------------------------------------------------
+class FakeClock:
+    """A steady clock that ``sleep_until`` advances to the deadline plus a wake-up delay."""
+
+    def __init__(self, t=100.0, delay=2e-5):
+        self.t, self.delay, self.sleeps = t, delay, []
+
+    def __call__(self):
+        return self.t
+
+    def sleep(self, deadline, stop=None):
+        self.sleeps.append(deadline)
+        self.t = max(self.t, deadline) + self.delay
+
+
+def test_deadlines_are_absolute_and_lateness_is_measured_against_them():
+    from gyro_rotor.numerics.realtime import Deadlines
+    clock = FakeClock()
+    d = Deadlines(0.001, clock=clock, sleep=clock.sleep)
+    d.start(100.0)
+    got = []
+    for _ in range(5):
+        scheduled, woke = d.wait()
+        got.append(scheduled)
+        clock.t += 3e-4                                  # the tick's work
+        d.done()
+    # the deadlines are t0 + k period, however long the work and the wake-up took
+    np.testing.assert_allclose(got, 100.0 + 1e-3 * np.arange(5), rtol=0, atol=1e-12)
+    assert clock.sleeps == pytest.approx(got[1:], abs=1e-12)   # (the first is due at once)
+    w = d.take_window()
+    assert w.ticks == 5 and w.skipped == 0 and w.late == 0
+    assert w.lateness_p99 == pytest.approx(2e-5) and w.done_max == pytest.approx(3.2e-4)
+    assert d.take_window().ticks == 0                    # a fresh window
+
+
+def test_passed_deadlines_are_skipped_and_counted_late_never_worked_off():
+    from gyro_rotor.numerics.realtime import Deadlines
+    clock = FakeClock(t=99.9, delay=0.0)
+    d = Deadlines(0.001, clock=clock, sleep=clock.sleep)
+    d.start(100.0)
+    d.wait()
+    assert d.busy_streak == 0
+    clock.t += 3.5e-3                                    # a stall of 3.5 periods
+    d.done()
+    scheduled, woke = d.wait()                           # no sleep: the latest passed one
+    assert scheduled == pytest.approx(100.003) and woke == pytest.approx(100.0035)
+    assert d.busy_streak == 1
+    d.done()
+    scheduled, _ = d.wait()                              # back on the grid, asleep again
+    assert scheduled == pytest.approx(100.004) and d.busy_streak == 0
+    d.done()
+    w = d.take_window()
+    # skipped: 100.001 and 100.002; late: those two and the stalled tick (done 3.5 ms)
+    assert w.skipped == 2 and w.late == 3 and d.late_total == 3
+    assert w.lateness_max == pytest.approx(5e-4)
+
+
+def test_deadlines_refuse_a_bad_period():
+    from gyro_rotor.numerics.realtime import Deadlines
+    for bad in (0.0, -1.0, math.inf, math.nan):
+        with pytest.raises(ParameterError):
+            Deadlines(bad)
+
+
+def test_sleep_until_wakes_at_the_absolute_deadline():
+    import time
+    from gyro_rotor.numerics.realtime import sleep_until
+    for _ in range(3):
+        deadline = time.monotonic() + 0.01
+        sleep_until(deadline)
+        assert time.monotonic() >= deadline
+    import threading
+    stop = threading.Event()
+    stop.set()
+    start = time.monotonic()
+    sleep_until(start + 5.0, stop)                       # a long sleep ends with stop
+    assert time.monotonic() - start < 1.0
+
+
+def test_thread_priority_is_raised_or_the_reason_given():
+    import threading
+    from gyro_rotor.numerics.realtime import set_thread_priority
+    out = {}
+
+    def run():
+        out['fifo'] = set_thread_priority(10)
+        out['policy'] = os.sched_getscheduler(0) if hasattr(os, 'sched_getscheduler') else None
+        out['other'] = set_thread_priority(0)
+    t = threading.Thread(target=run)
+    t.start()
+    t.join()
+    assert out['other'] is None
+    if out['fifo'] is None:
+        assert out['policy'] == os.SCHED_FIFO
+    else:
+        assert isinstance(out['fifo'], str) and out['fifo']       # why not, for the log
+
+
+def test_pacer_targets_the_scheduled_time_and_says_when_the_next_sample_is_due():
+    """A loop passes the deadline as ``now`` (the target lands on the grid), ``woke`` apart."""
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    pacer = Pacer(st, sample_rate=1000.0, rtf=1.0)
+    assert pacer.due() is None                            # no time base yet
+    out = pacer.tick(50.0, woke=50.0004)
+    assert [s.k for s in out] == [0] and st.t == 0.0
+    assert pacer.anchor == (50.0, 0.0) and pacer.k_next == 1
+    assert pacer.due() == pytest.approx(50.001, abs=1e-12)
+    out = pacer.tick(50.001, woke=50.0013)
+    assert [s.k for s in out] == [1] and st.t == pytest.approx(0.001, abs=1e-15)
+    pacer.end_tick(50.0015)
+    w = pacer.take_window(50.002)
+    assert w.interval_mean == pytest.approx(0.0009)        # between the wake-ups
+    assert w.busy_max == pytest.approx(0.0002)             # from the wake-up
+    pacer.pause(50.002)
+    assert pacer.due() is None

@@ -85,6 +85,7 @@ def test_double_sigint_in_process_tears_down_fully_with_status_0():
     assert status == 0
     assert seen.get('on_shutdown') and seen.get('destroyed')
     assert seen['published']['joint_states'] >= 50
+    assert not seen['node']._thread                       # the loop thread was stopped
     assert signal.getsignal(signal.SIGINT) is before
 
 

@@ -16,6 +16,7 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402, I100
+from geometry_msgs.msg import PoseStamped, Vector3Stamped  # noqa: E402
 from gyro_rotor.ros.messages import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
 from gyro_rotor.ros.sim_node import RotorSimNode  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -153,6 +154,10 @@ def test_diagnostics_carry_byte_levels_and_pacing_figures(rig):
         assert key in values
     assert values['scene'] == 'precession' and values['integrator'] == 'dop853'
     assert 'rotor_sim' in st.name
+    # the real-time loop's timing against its deadlines, and the scheduling it got
+    for key in ('tick_late_p99', 'tick_late_max', 'late_ticks', 'late_ticks_total'):
+        assert float(values[key]) >= 0.0, key
+    assert values['scheduling'].startswith(('SCHED_FIFO', 'SCHED_OTHER'))
 
 
 def test_perturb_and_reset_services(rig):
@@ -212,25 +217,28 @@ def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
         assert not result.successful
         assert word in result.reason
     assert node.sim.scene.params.K_D == 0.05 and node.sim.scene.params.A_R == 0.05
-    # K_S: E* jumps by (K_S' - K_S) z^2 / 2, the residual baseline moves with it
-    y = node.stepper.y.copy()
-    E_ref = node.sim.baseline.E_ref
-    (result,) = node.set_parameters([Parameter('K_S', value=40.0)])
-    assert result.successful, result.reason
-    assert node.sim.scene.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
-    assert node.sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2, rel=1e-9,
-                                                            abs=1e-15)
-    seq_change = node.sim.seq          # samples from here on were computed with K_S = 40
+    # K_S: E* jumps by (K_S' - K_S) z^2 / 2, the residual baseline moves with it (the
+    # node's lock holds its loop thread between the reading of the state and the change)
+    with node.lock:
+        y = node.stepper.y.copy()
+        E_ref = node.sim.baseline.E_ref
+        (result,) = node.set_parameters([Parameter('K_S', value=40.0)])
+        assert result.successful, result.reason
+        assert node.sim.scene.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
+        assert node.sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2,
+                                                                rel=1e-9, abs=1e-15)
+        seq_change = node.sim.seq      # samples from here on were computed with K_S = 40
     rig.spin_until(lambda: rig.energy[-1].data[F['seq']] > seq_change + 20)
     rows = rig.energy_rows()
     rows = rows[rows[:, F['seq']] >= seq_change]
     assert np.max(np.abs(rows[:, F['residual']])) < 1e-8
     assert np.all(np.diff(rows[:, F['E_star']]) <= 1e-10)
     # Omega0: the rotor keeps its absolute spin rate, zdot takes the difference
-    zdot = node.stepper.y[8]
-    (result,) = node.set_parameters([Parameter('Omega0', value=320.0)])
-    assert result.successful, result.reason
-    assert node.stepper.y[8] == pytest.approx(zdot - (320.0 - 314.16))
+    with node.lock:
+        zdot = node.stepper.y[8]
+        (result,) = node.set_parameters([Parameter('Omega0', value=320.0)])
+        assert result.successful, result.reason
+        assert node.stepper.y[8] == pytest.approx(zdot - (320.0 - 314.16))
     node.set_parameters([Parameter('Omega0', value=314.16), Parameter('K_S', value=20.0)])
 
 
@@ -258,17 +266,20 @@ def test_divergence_guard_stops_keeps_state_and_reports_error(rig):
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_separate_process_publishes_and_shuts_down_cleanly(sig):
     env = dict(os.environ, PYTHONUNBUFFERED='1')
+    # in a namespace of its own: the rig's node (module fixture) publishes in the background
     proc = subprocess.Popen(
         [sys.executable, '-m', 'gyro_rotor.ros.sim_node', '--ros-args', '-p', 'scene:=precession',
-         '-p', 'real_time_factor:=0.0'],
+         '-p', 'real_time_factor:=0.0', '-r', '__ns:=/separate'],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
     context = rclpy.context.Context()
     rclpy.init(context=context)
     try:
         probe = rclpy.create_node('probe_proc', context=context)
         energy, joints = [], []
-        probe.create_subscription(Float64MultiArray, 'energy', energy.append, PROBE_QOS)
-        probe.create_subscription(JointState, 'joint_states', joints.append, PROBE_QOS)
+        probe.create_subscription(Float64MultiArray, '/separate/energy', energy.append,
+                                  PROBE_QOS)
+        probe.create_subscription(JointState, '/separate/joint_states', joints.append,
+                                  PROBE_QOS)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(probe)
         deadline = time.monotonic() + 30.0
@@ -393,3 +404,70 @@ def test_a_scene_file_applies_to_the_node_under_any_name(scene):
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_three_d_topics_at_their_own_rate(rig):
+    """axis, stator_pose, axis_marker at visualization_rate (50 Hz) of simulation time."""
+    got = {}
+    subs = [rig.probe.create_subscription(cls, topic, got.setdefault(topic, []).append,
+                                          PROBE_QOS)
+            for topic, cls in (('axis', Vector3Stamped), ('stator_pose', PoseStamped))]
+    try:
+        n0 = len(rig.energy)
+        rig.spin_until(lambda: len(rig.energy) - n0 >= RATE and len(got['axis']) >= 20)
+        for topic in ('axis', 'stator_pose'):
+            t = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+                          for m in got[topic]])
+            dt = np.diff(t)
+            assert np.all(np.abs(dt - 1 / 50) < 0.5 / RATE), dt       # 50 Hz on the grid
+            assert set(np.round(t * RATE, 6)) <= set(np.round(t * RATE))
+    finally:
+        for sub in subs:
+            rig.probe.destroy_subscription(sub)
+
+
+def test_the_loop_runs_once_an_executor_spins_the_node_and_stops_with_it():
+    """A node only constructed (to read its parameters, say) does not integrate."""
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    ex = SingleThreadedExecutor(context=context)
+    try:
+        node = RotorSimNode(context=context, parameter_overrides=[
+            Parameter('scene', value='precession'), Parameter('publish_rate', value=500.0)])
+        time.sleep(0.2)
+        assert node._thread is None and node.published['joint_states'] == 0
+        ex.add_node(node)
+        deadline = time.monotonic() + 20
+        while node.published['joint_states'] < 100:
+            assert time.monotonic() < deadline
+            ex.spin_once(timeout_sec=0.05)
+        assert node._thread.is_alive() and node._thread.name == 'rotor_sim-loop'
+        assert node.scheduling.startswith(('SCHED_FIFO', 'SCHED_OTHER'))
+        thread = node._thread
+        node.stop_loop()
+        assert not thread.is_alive()
+        n = node.published['joint_states']
+        time.sleep(0.1)
+        assert node.published['joint_states'] == n
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_loop_that_never_sleeps_gives_up_its_real_time_priority(rig):
+    """Under SCHED_FIFO a loop that cannot keep up would hold a CPU: it is demoted."""
+    from gyro_rotor.ros import sim_node
+    node = rig.node
+    saved = node.scheduling, node.rt_priority
+    try:
+        node.scheduling = 'SCHED_FIFO 20'
+        node.deadlines.busy_streak = sim_node.BUSY_DEMOTE_TICKS - 1
+        node._check_busy()                          # not yet
+        assert node.scheduling == 'SCHED_FIFO 20'
+        node.deadlines.busy_streak = max(sim_node.BUSY_DEMOTE_TICKS, int(
+            sim_node.BUSY_DEMOTE_S / node.deadlines.period) + 1)
+        node._check_busy()
+        assert node.scheduling == 'SCHED_OTHER (demoted)' and node.rt_priority == 0
+    finally:
+        node.scheduling, node.rt_priority = saved

@@ -193,6 +193,11 @@ def test_time_is_monotonic_across_live_interventions():
             assert node.set_parameters([Parameter('real_time_factor',
                                                   value=rtf)])[0].successful
             more(30)
+        # rotor_sim's loop thread publishes /clock right after a tick's samples: hold it,
+        # then take what is still in flight
+        call(SetBool, '/rotor_sim/pause', SetBool.Request(data=True))
+        spin_until(lambda: clock and _ns(clock[-1].clock) >= int(round(
+            energy[-1].data[F['t_sim']] * 1e9)))
     finally:
         ex.shutdown()
         probe.destroy_node()

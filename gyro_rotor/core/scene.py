@@ -61,6 +61,7 @@ NODE_RANGES = {
     'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
     'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
     'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, 1e9), 't_end': (1e-6, 1e9),
+    'visualization_rate': (0.0, 10000.0), 'realtime_priority': (0, 99),
 }
 
 PERTURBATION_KEYS = ('dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot')

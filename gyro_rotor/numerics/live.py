@@ -82,7 +82,8 @@ class SampleBlock:
 
     ``position``, ``velocity`` and ``effort`` are (m, 4) in joint order theta, psi, phi_R,
     phi_M; ``energy`` maps each of :data:`ENERGY_COLUMNS` to an (m,) array; ``quaternion``
-    (4,) and ``axis`` (3,) (the symmetry axis in space axes) belong to the last sample.
+    (4,) and ``axis`` (3,) (the symmetry axis in space axes) belong to the last sample,
+    ``quaternions`` (m, 4) to every sample (None for a system without a 3-D pose).
     """
 
     t: np.ndarray
@@ -92,6 +93,7 @@ class SampleBlock:
     energy: dict[str, np.ndarray]
     quaternion: np.ndarray
     axis: np.ndarray
+    quaternions: np.ndarray | None = None
 
     def __len__(self) -> int:
         """Return the number of samples."""
@@ -327,18 +329,24 @@ class LiveSimulation:
                             f'baseline moved with it); integrator {self.stepper.method}')
 
     # -- ticks -------------------------------------------------------------------------------
-    def tick(self) -> SampleBlock | None:
+    def tick(self, now: float | None = None, woke: float | None = None) -> SampleBlock | None:
         """Advance to the pacer's target now; return the new good samples (None if none).
 
-        Never raises for a failure of the model or the integrator: that is a divergence.
+        ``now``: the steady-clock time to advance to (default: the clock now); a loop that
+        sleeps to absolute deadlines passes the deadline, and when it ``woke`` (the work
+        budget and the tick figures count from then). Never raises for a failure of the
+        model or the integrator: that is a divergence.
         """
         if self.diverged:
             return None
-        now = self.clock()
-        deadline = None if self.budget is None else now + self.budget
+        if woke is None:
+            woke = self.clock()
+        if now is None:
+            now = woke
+        deadline = None if self.budget is None else woke + self.budget
         block = None
         try:
-            samples = self.pacer.tick(now, deadline)
+            samples = self.pacer.tick(now, deadline, woke=woke)
             if samples:
                 block = self._block(samples)
         except Exception as err:  # noqa: B902 -- the divergence guard
@@ -414,7 +422,7 @@ class LiveSimulation:
             velocity=np.column_stack([thetadot, psidot, p.Omega0 + zdot + phi_M_dot,
                                       phi_M_dot]),
             effort=np.asarray(m.generalized_forces(Y), dtype=float), energy=energy,
-            quaternion=q[-1], axis=axis_from_quaternion(q[-1]))
+            quaternion=q[-1], axis=axis_from_quaternion(q[-1]), quaternions=q)
 
     # -- services ----------------------------------------------------------------------------
     def reset(self) -> str:

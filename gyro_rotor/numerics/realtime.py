@@ -41,6 +41,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import sys
+import threading
 import time
 from typing import Callable, Protocol
 
@@ -51,7 +54,8 @@ import numpy as np
 __all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
            'resolve_method', 'Pacer', 'Sample', 'WorkBudgetExceeded',
            'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL', 'DEFAULT_RK4_STEP',
-           'EnergyBaseline']
+           'EnergyBaseline', 'Deadlines', 'LatenessStats', 'sleep_until', 'set_thread_priority',
+           'set_timer_slack', 'set_threads_priority']
 
 #: default step of the fixed-step RK4 [s]
 DEFAULT_RK4_STEP = 2.5e-4
@@ -420,6 +424,28 @@ class Pacer:
         if was and not self.finished:
             self._anchor = None
 
+    @property
+    def anchor(self) -> tuple[float, float] | None:
+        """Return the time base (wall0, t_sim0): t_target = t_sim0 + rtf (now - wall0)."""
+        return self._anchor
+
+    @property
+    def k_next(self) -> int:
+        """Return the grid index of the next sample to produce."""
+        return self._k_next
+
+    def due(self) -> float | None:
+        """Return when the next sample is due on the steady clock (None: not known).
+
+        Known while running in real time (rtf > 0) with a time base; a loop sleeping to
+        absolute deadlines aligns them with it, so that each sample is produced at the
+        first deadline at or after its due time, not one period later.
+        """
+        if self._anchor is None or self.rtf <= 0 or self.paused or self.finished:
+            return None
+        wall0, t0 = self._anchor
+        return wall0 + (self.grid_time(self._k_next) - t0) / self.rtf
+
     def _first_k(self, t: float) -> int:
         """Index of the first grid point at or after t."""
         return int(math.ceil(t * self.sample_rate - _GRID_EPS))
@@ -465,20 +491,25 @@ class Pacer:
             self._last_tick = None
 
     # -- stepping --------------------------------------------------------------------------
-    def tick(self, now: float, deadline: float | None = None) -> list[Sample]:
+    def tick(self, now: float, deadline: float | None = None,
+             woke: float | None = None) -> list[Sample]:
         """Advance to the target time for steady-clock reading ``now``; return grid samples.
 
         With a ``deadline`` (a ``time.monotonic()`` reading) the work stops at the first
-        step that ends after it (see the module doc: ``cut``, ``budget_cuts``). Raises
+        step that ends after it (see the module doc: ``cut``, ``budget_cuts``). ``woke``:
+        when the tick really started, if ``now`` is its scheduled time (a loop sleeping to
+        absolute deadlines passes the deadline as ``now``, so that the target time lands on
+        the grid); the interval and busy-time figures use it. Raises
         :class:`~gyro_rotor.errors.IntegrationError` from the stepper (its last good state
         remains ``stepper.t, stepper.y``).
         """
         self.cut = False
-        self._tick_start = now
+        woke = now if woke is None else woke
+        self._tick_start = woke
         if self._last_tick is not None:
-            dt = now - self._last_tick
+            dt = woke - self._last_tick
             self._w_intervals.append(dt)
-        self._last_tick = now
+        self._last_tick = woke
         self.ticks += 1
         self._w_ticks += 1
         if self._window_wall0 is None:
@@ -614,3 +645,248 @@ class EnergyBaseline:
         """Return the residual r = E*(y) + D(y) - E_ref."""
         E = float(self.energy(y)) if E is None else E
         return E + float(y[self.idiss]) - self.E_ref
+
+
+# -- the loop's clock: absolute deadlines, lateness, scheduling priority ------------------------
+def _clock_nanosleep():
+    """Return libc's clock_nanosleep (ctypes releases the GIL while it sleeps), or None."""
+    import ctypes
+    import ctypes.util
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6', use_errno=True)
+        fn = libc.clock_nanosleep
+    except (OSError, AttributeError):
+        return None
+
+    class Timespec(ctypes.Structure):
+        _fields_ = [('tv_sec', ctypes.c_long), ('tv_nsec', ctypes.c_long)]
+
+    fn.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.POINTER(Timespec), ctypes.c_void_p]
+    fn.restype = ctypes.c_int
+    return fn, Timespec
+
+
+_NANOSLEEP = None
+#: CLOCK_MONOTONIC and TIMER_ABSTIME of <time.h> (Linux): time.monotonic() reads that clock
+_CLOCK_MONOTONIC, _TIMER_ABSTIME = 1, 1
+
+
+def sleep_until(deadline: float, stop=None) -> None:
+    """Sleep until ``time.monotonic()`` reaches ``deadline`` (an absolute reading) [s].
+
+    Uses ``clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)`` where available, so that the
+    time spent computing the sleep cannot shift the wake-up; ``time.sleep`` elsewhere.
+    ``stop``: a ``threading.Event`` that ends a long sleep early (waits longer than 50 ms
+    are spent in ``stop.wait`` up to 2 ms before the deadline).
+    """
+    global _NANOSLEEP
+    if _NANOSLEEP is None:
+        _NANOSLEEP = _clock_nanosleep() or False
+    if stop is not None:
+        rest = deadline - time.monotonic()
+        if rest > 0.05 and stop.wait(rest - 0.002):
+            return
+    if _NANOSLEEP and sys.platform.startswith('linux'):
+        fn, Timespec = _NANOSLEEP
+        sec = math.floor(deadline)
+        ts = Timespec(sec, min(int((deadline - sec) * 1e9), 999_999_999))
+        while fn(_CLOCK_MONOTONIC, _TIMER_ABSTIME, ctypes_byref(ts), None) == 4:   # EINTR
+            pass
+        return
+    rest = deadline - time.monotonic()
+    if rest > 0:
+        time.sleep(rest)
+
+
+def ctypes_byref(obj):
+    """Return ``ctypes.byref(obj)`` (imported on first use)."""
+    import ctypes
+    return ctypes.byref(obj)
+
+
+@dataclasses.dataclass(frozen=True)
+class LatenessStats:
+    """Timing of a loop's ticks against their absolute deadlines over a window [s].
+
+    ``lateness`` of a tick is when it woke minus its deadline; ``done`` is when its samples
+    were published minus the deadline. A deadline passed while an earlier tick was still
+    running (or the thread was not scheduled) is *skipped*: the next tick serves the latest
+    deadline passed, with every sample of the skipped ones (the pacer integrates by elapsed
+    time), so no sample is lost, but they go out late. ``late`` counts the deadlines whose
+    samples went out more than one period after them: the skipped ones and the ticks with
+    ``done`` above the period.
+    """
+
+    ticks: int
+    period: float
+    lateness_p50: float
+    lateness_p99: float
+    lateness_max: float
+    done_p99: float
+    done_max: float
+    skipped: int
+    late: int
+
+
+class Deadlines:
+    """Absolute deadlines ``t0 + k period`` on the monotonic clock, and how late ticks are.
+
+    :meth:`wait` sleeps to the next deadline and returns ``(deadline, woke)``; when the
+    loop fell behind, it returns at once with the latest deadline already passed (the ones
+    in between are counted as skipped), so the loop never works off a backlog of deadlines.
+    :meth:`done` records the end of the tick's work. :attr:`busy_streak` counts the
+    consecutive waits that found their deadline passed (the loop never slept).
+    ``clock`` and ``sleep_until`` are injectable (tests use a fake clock).
+    """
+
+    def __init__(self, period: float, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[..., None] = sleep_until):
+        if not (math.isfinite(period) and period > 0):
+            raise ParameterError(f'period must be positive, got {period!r}')
+        self.period = float(period)
+        self.clock, self.sleep = clock, sleep
+        self._t0: float | None = None
+        self._k = 0
+        self.skipped_total = 0
+        self.late_total = 0
+        self.ticks_total = 0
+        self._current: float | None = None
+        #: consecutive calls of :meth:`wait` that did not sleep
+        self.busy_streak = 0
+
+        self._lock = threading.Lock()       # the figures are taken from another thread
+        self._reset()
+
+    def _reset(self) -> None:
+        self._late: list[float] = []
+        self._done: list[float] = []
+        self._skipped = 0
+        self._n_late = 0
+
+    def start(self, now: float | None = None) -> None:
+        """Put the first deadline at ``now`` (default: the clock now)."""
+        self._t0 = self.clock() if now is None else now
+        self._k = 0
+
+    def wait(self, stop=None) -> tuple[float, float]:
+        """Sleep to the next deadline; return (deadline, woke) (see the class doc)."""
+        if self._t0 is None:
+            self.start()
+        deadline = self._t0 + self._k * self.period
+        now = self.clock()
+        if now < deadline:
+            if stop is None:
+                self.sleep(deadline)
+            else:
+                self.sleep(deadline, stop)
+            now = self.clock()
+            self.busy_streak = 0
+        else:
+            self.busy_streak += 1
+            behind = int((now - deadline) / self.period)
+            if behind:
+                self._k += behind
+                deadline = self._t0 + self._k * self.period
+                with self._lock:
+                    self._skipped += behind
+                    self.skipped_total += behind
+                    self._n_late += behind
+                    self.late_total += behind
+        self._k += 1
+        self._current = deadline
+        with self._lock:
+            self._late.append(now - deadline)
+            self.ticks_total += 1
+        return deadline, now
+
+    def done(self, now: float | None = None) -> None:
+        """Record the end of the current tick's work (its samples published)."""
+        if self._current is None:
+            return
+        d = (self.clock() if now is None else now) - self._current
+        with self._lock:
+            self._done.append(d)
+            if d > self.period:
+                self._n_late += 1
+                self.late_total += 1
+        self._current = None
+
+    def restart(self, now: float | None = None) -> None:
+        """Start the deadlines afresh at ``now`` (after a pause in the loop)."""
+        self.start(now)
+
+    def take_window(self) -> LatenessStats:
+        """Figures since the last call (or the start) and a fresh window."""
+        with self._lock:
+            late_s, done_s, skipped, n_late = self._late, self._done, self._skipped, \
+                self._n_late
+            self._reset()
+        late = np.array(late_s) if late_s else np.array([math.nan])
+        done = np.array(done_s) if done_s else np.array([math.nan])
+        return LatenessStats(
+            ticks=len(late_s), period=self.period,
+            lateness_p50=float(np.percentile(late, 50)),
+            lateness_p99=float(np.percentile(late, 99)), lateness_max=float(np.max(late)),
+            done_p99=float(np.percentile(done, 99)), done_max=float(np.max(done)),
+            skipped=skipped, late=n_late)
+
+
+def set_thread_priority(priority: int) -> str | None:
+    """Put the calling thread under SCHED_FIFO at ``priority`` (1..99); 0: SCHED_OTHER.
+
+    Returns None when done, else why not (e.g. no CAP_SYS_NICE and an RLIMIT_RTPRIO of 0).
+    """
+    if not hasattr(os, 'sched_setscheduler'):
+        return 'this platform has no sched_setscheduler'
+    try:
+        if priority > 0:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except OSError as err:
+        limit = ''
+        if hasattr(os, 'RLIMIT_RTPRIO'):
+            import resource
+            limit = f'; RLIMIT_RTPRIO {resource.getrlimit(resource.RLIMIT_RTPRIO)[0]}'
+        return f'{err.strerror or err}{limit}'
+    return None
+
+
+def set_threads_priority(priority: int, exclude: tuple = ()) -> int | str:
+    """Put every thread of this process but ``exclude`` (native ids) under SCHED_FIFO.
+
+    ``priority`` 0: back to SCHED_OTHER. Returns how many threads were set, or why not
+    (Linux: /proc/self/task; SCHED_FIFO needs CAP_SYS_NICE or an RLIMIT_RTPRIO).
+    """
+    if not hasattr(os, 'sched_setscheduler'):
+        return 'this platform has no sched_setscheduler'
+    try:
+        tids = [int(t) for t in os.listdir('/proc/self/task')]
+    except OSError as err:
+        return f'no /proc/self/task ({err.strerror or err})'
+    policy = os.SCHED_FIFO if priority > 0 else os.SCHED_OTHER
+    n = 0
+    for tid in tids:
+        if tid in exclude:
+            continue
+        try:
+            os.sched_setscheduler(tid, policy, os.sched_param(max(0, int(priority))))
+            n += 1
+        except ProcessLookupError:
+            continue                        # (a thread that ended meanwhile)
+        except OSError as err:
+            return err.strerror or str(err)
+    return n
+
+
+def set_timer_slack(ns: int = 1) -> bool:
+    """Set the calling thread's timer slack [ns] (Linux; default 50 us); return success."""
+    if not sys.platform.startswith('linux'):
+        return False
+    import ctypes
+    import ctypes.util
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6', use_errno=True)
+        return libc.prctl(29, ctypes.c_ulong(ns), 0, 0, 0) == 0     # PR_SET_TIMERSLACK
+    except (OSError, AttributeError):
+        return False

@@ -4,19 +4,36 @@ The node declares every scene key as a parameter (:mod:`gyro_rotor.ros.sim_param
 loads the scene named by ``scene`` and hands it to a
 :class:`~gyro_rotor.numerics.live.LiveSimulation` (for a general scene of any rotor
 system, a :class:`~gyro_rotor.numerics.live_general.GeneralLiveSimulation`: joints q and
-z_ROTOR, no 3-D topics), which integrates it from a
-steady-clock timer and returns each tick's samples on the output grid
-t_k = k / publish_rate with every derived output. The node publishes them:
+z_ROTOR, no 3-D topics), which integrates it in real time and returns each tick's
+samples on the output grid t_k = k / publish_rate with every derived output. The node
+publishes them:
 
 * ``joint_states`` (sensor_msgs/JointState): theta, psi, phi_R, phi_M; effort = the
   generalized forces (Q_theta, Q_psi, Q, -c_psi chi - Q) of eqs. (19, 23);
 * ``energy`` (std_msgs/Float64MultiArray, layout in :mod:`gyro_rotor.ros.messages`);
-* ``axis`` (Vector3Stamped), ``stator_pose`` (PoseStamped), ``axis_marker`` (Marker);
+* ``axis`` (Vector3Stamped), ``stator_pose`` (PoseStamped), ``axis_marker`` (Marker), the
+  3-D views, at ``visualization_rate`` (default 50 Hz of simulation time: RViz and
+  Foxglove need no more), each the sample of the first tick past a multiple of
+  1 / visualization_rate;
 * ``/diagnostics`` about once a second, ``/clock`` (unless ``publish_clock`` is false);
 * ``~/scene`` (std_msgs/String, transient local): the current scene as YAML.
 
 Services ``~/reset``, ``~/perturb`` (std_srvs/Trigger) and ``~/pause`` (std_srvs/SetBool).
 Run: ``rotor_sim --ros-args -p scene:=nutation`` or ``python -m gyro_rotor.ros.sim_node``.
+
+**The real-time loop.** The integration and the publishing of the state topics run on a
+thread of their own (started when an executor first spins the node), which sleeps to
+absolute deadlines ``t0 + k / publish_rate`` on the steady clock, aligned with the times
+at which the samples are due (:class:`~gyro_rotor.numerics.realtime.Deadlines`); the
+executor serves the services, the parameters and the diagnostics, under one lock with the
+loop. The loop thread runs under SCHED_FIFO at ``realtime_priority`` while the simulation
+runs in real time (real_time_factor > 0), if the process may do that (CAP_SYS_NICE or an
+RLIMIT_RTPRIO), and in rotor_sim's own process the other threads (executor, DDS) under
+SCHED_FIFO at :data:`OTHERS_RT_PRIORITY`, below it; the log says which it got. At
+real_time_factor 0 it runs unpaced at normal priority; a loop that cannot keep up (it
+never sleeps) gives up SCHED_FIFO. The interpreter's switch interval is
+:data:`SWITCH_INTERVAL` while a loop runs. The diagnostics report how late the ticks
+were against their deadlines (``tick_late_p99``, ``tick_late_max``, ``late_ticks``).
 
 **Time.** rotor_sim is the clock source (``/clock``): it refuses ``use_sim_time`` true, at
 start and live.
@@ -28,18 +45,22 @@ import json
 import os
 import sys
 import tempfile
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
+from gyro_rotor.core.rotations import axis_from_quaternion
 from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.numerics.live import Level, LiveSimulation
 from gyro_rotor.numerics.live_general import GeneralLiveSimulation
+from gyro_rotor.numerics.realtime import (Deadlines, set_thread_priority,
+                                          set_threads_priority, set_timer_slack, sleep_until)
 import gyro_rotor.ros.messages as ros_msgs
 from gyro_rotor.ros.qos import profile
 from gyro_rotor.ros.runner import run_node
-from gyro_rotor.ros.sim_params import declare_parameters, type_error
+from gyro_rotor.ros.sim_params import declare_node_parameter, declare_parameters, type_error
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
@@ -68,6 +89,25 @@ SHUTDOWN_ACK_WAIT = 2.0
 ACK_WINDOW = STATE_QOS.depth // 2
 #: ... and how long a subscriber may stay silent before the simulator goes on without it [s]
 ACK_GIVE_UP = 5.0
+#: the interpreter's switch interval while the loop runs in real time [s] (Python's default,
+#: 5 ms, is how long the loop thread may wait for the GIL when another thread of the
+#: process computes: the executor's diagnostics, a service)
+SWITCH_INTERVAL = 2e-4
+#: a loop thread under SCHED_FIFO that found its deadline passed at this many consecutive
+#: ticks, and for at least BUSY_DEMOTE_S, never slept: it would hold a CPU against every
+#: ordinary process, so it goes back to normal scheduling (and says so)
+BUSY_DEMOTE_TICKS, BUSY_DEMOTE_S = 50, 0.5
+#: SCHED_FIFO priority of the process' other threads (the executor's, the DDS threads)
+#: while the loop runs under SCHED_FIFO in a process of its own: below the loop's. The
+#: loop takes the GIL and DDS locks that those threads hold at times; preempted by
+#: ordinary processes while they held one, they stalled it (measured, precession at 1 kHz
+#: with a CPU hog per core, three 10-s runs each: lateness max 8.3-10.7 ms, samples out
+#: up to 14.1 ms late, 0-23 late ticks with the other threads at normal priority; 0.4-0.7
+#: ms, 1.0-1.7 ms, 1-4 with them at SCHED_FIFO 10)
+OTHERS_RT_PRIORITY = 10
+#: SCHED_FIFO priority of the loop thread in real time (if permitted): above the default
+#: of ordinary processes (SCHED_OTHER), below the kernel's own threaded interrupts (50)
+DEFAULT_RT_PRIORITY = 20
 USE_SIM_TIME_REFUSED = ('use_sim_time cannot be true for rotor_sim: it is the clock source '
                         '(it publishes /clock); set use_sim_time on the other nodes')
 _TOPICS = ('joint_states', 'energy', 'axis', 'stator_pose', 'axis_marker', 'clock',
@@ -112,22 +152,55 @@ class AckWindow:
         return True
 
 
+_process_lock = threading.Lock()
+_process_users = [0, None]          # loop threads running, the switch interval before
+
+
+def _process_settings(delta: int) -> None:
+    """Count a loop thread in (+1) or out (-1): :data:`SWITCH_INTERVAL` while any runs.
+
+    Measured with a thread sleeping to 1-kHz deadlines under SCHED_FIFO while another
+    thread of the process computes without pause: woken 13-15 ms late at p99 with
+    Python's 5 ms (it waits for the GIL), 2.4 ms with 0.2 ms. (The cyclic garbage
+    collector, checked too, did not run at all in 30 s of a running node: its objects die
+    by reference counting.)
+    """
+    with _process_lock:
+        if delta > 0 and _process_users[0] == 0:
+            _process_users[1] = sys.getswitchinterval()
+            sys.setswitchinterval(min(SWITCH_INTERVAL, _process_users[1]))
+        _process_users[0] += delta
+        if delta < 0 and _process_users[0] == 0 and _process_users[1] is not None:
+            sys.setswitchinterval(_process_users[1])
+
+
 class RotorSimNode(Node):
     """The simulation node (see module doc); importable so that tests can compose it."""
 
-    def __init__(self, node_name: str = 'rotor_sim', **kwargs):
+    def __init__(self, node_name: str = 'rotor_sim', *, own_process: bool = False, **kwargs):
+        """Make the node; ``own_process``: the process is rotor_sim's alone (_schedule)."""
         super().__init__(node_name, **kwargs)
+        self._own_process = own_process
         if self.get_parameter('use_sim_time').value:
             raise ParameterError(USE_SIM_TIME_REFUSED)
         scene, cfg, perturbation = declare_parameters(self)
+        self.viz_rate = declare_node_parameter(
+            self, 'visualization_rate', 50.0, 'rate of the 3-D topics axis, stator_pose and '
+            'axis_marker per second of simulation time [Hz] (at most the publish rate; 0: '
+            'none); live')
+        self.rt_priority = declare_node_parameter(
+            self, 'realtime_priority', DEFAULT_RT_PRIORITY, 'SCHED_FIFO priority of the '
+            'integration thread while real_time_factor > 0, if the process may raise it '
+            '(0: normal scheduling)', read_only=True)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         #: the simulation (everything but ROS)
         kind = GeneralLiveSimulation if isinstance(scene, GeneralScene) else LiveSimulation
         self.sim = kind(scene, cfg, perturbation, log=self._log)
+        #: held by the loop thread while it ticks and publishes, and by every service,
+        #: parameter change and diagnostics call on the executor
+        self.lock = threading.RLock()
         self.pub = {'joint_states': self.create_publisher(JointState, 'joint_states', STATE_QOS),
                     'energy': self.create_publisher(Float64MultiArray, 'energy', STATE_QOS),
-                    # one message per tick: as deep as the state topics, so that a recorder
-                    # busy with those does not lose them (depth 10 lost 0.2 % at 1000 Hz)
                     'axis': self.create_publisher(Vector3Stamped, 'axis', STATE_QOS),
                     'stator_pose': self.create_publisher(PoseStamped, 'stator_pose', STATE_QOS),
                     'axis_marker': self.create_publisher(Marker, 'axis_marker', STATE_QOS),
@@ -143,13 +216,28 @@ class RotorSimNode(Node):
         self.published = dict.fromkeys(_TOPICS, 0)
         self.acks = AckWindow((self.pub['joint_states'], self.pub['energy']), self.get_logger())
         self._t_clock: float | None = None
+        self._viz_k: int | None = None          # index of the last 3-D sample published
         reset = self._service(self.sim.reset, self._publish_scene)
         self.create_service(Trigger, '~/reset', reset)
         self.create_service(Trigger, '~/perturb', self._service(self.sim.perturb))
         self.create_service(SetBool, '~/pause', self._service(self.sim.pause))
         self._waiting = cfg['wait_for_subscribers'] > 0 or bool(cfg['wait_for_node'])
-        self._timer = self._diag_timer = None
-        self._make_timers(tick=True, diag=True)
+        #: the loop's deadlines (period 1 / publish_rate) and its scheduling
+        self.deadlines = Deadlines(1.0 / cfg['publish_rate'])
+        self.scheduling = 'not started'
+        #: the scheduling of the process' other threads (set in a process of its own)
+        self.scheduling_others = 'unchanged'
+        self._rt_error: str | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._aligned: tuple | None = None
+        #: the scheduled (steady-clock) time of the last tick in real time (None: none yet)
+        self.tick_time: float | None = None
+        # the loop starts when an executor first spins the node (a node that is only
+        # constructed, e.g. to inspect its parameters, does not run)
+        self._starter = self.create_timer(0.0, self._start_loop, clock=self._steady)
+        self._diag_timer = None
+        self._make_diag_timer()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._post_set)
         self._publish_scene()
@@ -196,7 +284,8 @@ class RotorSimNode(Node):
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         try:
-            self.sim.check({p.name: p.value for p in params})
+            with self.lock:
+                self.sim.check({p.name: p.value for p in params})
         except GyroRotorError as err:
             return SetParametersResult(successful=False, reason=str(err))
         except Exception as err:  # noqa: B902 -- a refusal, never a dead node
@@ -207,27 +296,133 @@ class RotorSimNode(Node):
     def _post_set(self, params) -> None:
         """Apply accepted changes without restart."""
         changes = {p.name: p.value for p in params}
-        was_fast = self.sim.pacer.rtf == 0
-        self.sim.apply(changes)
-        self._make_timers(tick=was_fast != (self.sim.pacer.rtf == 0),
-                          diag='diagnostics_period' in changes)
+        if 'visualization_rate' in changes:
+            self.viz_rate = float(changes['visualization_rate'])
+            self._viz_k = None
+        with self.lock:
+            self.sim.apply(changes)
+        if 'diagnostics_period' in changes:
+            self._make_diag_timer()
         self._publish_scene()
 
-    def _make_timers(self, tick: bool, diag: bool) -> None:
-        cfg = self.sim.cfg
-        if tick:
-            if self._timer is not None:
-                self.destroy_timer(self._timer)
-            period = 1.0 / cfg['publish_rate'] if cfg['real_time_factor'] > 0 else 0.0
-            self._timer = self.create_timer(period, self._tick, clock=self._steady)
-        if diag:
-            if self._diag_timer is not None:
-                self.destroy_timer(self._diag_timer)
-            self._diag_timer = self.create_timer(cfg['diagnostics_period'],
-                                                 self._publish_diagnostics, clock=self._steady)
+    def _make_diag_timer(self) -> None:
+        if self._diag_timer is not None:
+            self.destroy_timer(self._diag_timer)
+        self._diag_timer = self.create_timer(self.sim.cfg['diagnostics_period'],
+                                             self._publish_diagnostics, clock=self._steady)
 
-    # -- ticks -------------------------------------------------------------------------------
-    def _tick(self) -> None:
+    # -- the loop thread ---------------------------------------------------------------------
+    def _start_loop(self) -> None:
+        """Start the loop thread (once, from the executor's first spin)."""
+        self.destroy_timer(self._starter)
+        if self._thread is None and not self._stop.is_set():
+            _process_settings(+1)
+            self._thread = threading.Thread(target=self._loop, name='rotor_sim-loop',
+                                            daemon=True)
+            self._thread.start()
+
+    def stop_loop(self, timeout: float = 5.0) -> None:
+        """Stop the loop thread and wait for it (idempotent)."""
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+
+    def _loop(self) -> None:
+        """Tick until stopped: to absolute deadlines in real time, unpaced at rtf 0."""
+        set_timer_slack(1)
+        rt = False
+        try:
+            while not self._stop.is_set():
+                real_time = self.sim.pacer.rtf > 0
+                if real_time != rt or self.scheduling == 'not started':
+                    rt = real_time
+                    self._schedule(rt)
+                if real_time:
+                    self._align()
+                    scheduled, woke = self.deadlines.wait(self._stop)
+                    if self._stop.is_set():
+                        break
+                    self._tick(scheduled, woke)
+                    self.deadlines.done()
+                    self._check_busy()
+                else:
+                    self._aligned = None
+                    self._tick(None, None)
+        except Exception as err:  # noqa: B902 -- (the context shut down under the loop)
+            if not self._stop.is_set() and self.context.ok():
+                self.get_logger().error(f'the loop thread stopped: {type(err).__name__}: '
+                                        f'{err}')
+        finally:
+            if rt:
+                set_thread_priority(0)
+            _process_settings(-1)
+
+    def _check_busy(self) -> None:
+        """Go back to normal scheduling when the loop under SCHED_FIFO never sleeps."""
+        streak = self.deadlines.busy_streak
+        if self.scheduling.startswith('SCHED_FIFO') and streak >= BUSY_DEMOTE_TICKS and \
+                streak * self.deadlines.period >= BUSY_DEMOTE_S:
+            set_thread_priority(0)
+            if self.scheduling_others != 'unchanged':
+                set_threads_priority(0, exclude=(threading.get_native_id(),))
+                self.scheduling_others = 'SCHED_OTHER'
+            self.rt_priority = 0
+            self.scheduling = 'SCHED_OTHER (demoted)'
+            self.get_logger().warn(
+                f'the integration thread did not sleep for {streak} ticks (it cannot keep '
+                'up): back to normal scheduling, so that it does not hold a CPU against '
+                'every other process')
+
+    def _schedule(self, real_time: bool) -> None:
+        """SCHED_FIFO at realtime_priority in real time if permitted; log what it got.
+
+        In a process of its own (``rotor_sim``'s main, ``gyro-rotor rt-bench``) the other
+        threads go under SCHED_FIFO at :data:`OTHERS_RT_PRIORITY` with it, and back.
+        """
+        prio = self.rt_priority if real_time else 0
+        error = set_thread_priority(prio)
+        if self._own_process and (prio and error is None or
+                                  self.scheduling_others != 'unchanged'):
+            others = min(OTHERS_RT_PRIORITY, prio - 1) if prio else 0
+            n = set_threads_priority(others, exclude=(threading.get_native_id(),))
+            self.scheduling_others = ((f'SCHED_FIFO {others}' if others else 'SCHED_OTHER')
+                                      if isinstance(n, int) else f'unchanged ({n})')
+        if prio and error is None:
+            self.scheduling = f'SCHED_FIFO {prio}'
+        elif prio:
+            self.scheduling = 'SCHED_OTHER'
+            if self._rt_error is None:
+                self._rt_error = error
+                self.get_logger().warn(
+                    f'the integration thread keeps normal scheduling: SCHED_FIFO priority '
+                    f'{prio} is not permitted ({error}); expect late ticks on a loaded '
+                    'machine (grant CAP_SYS_NICE or an rtprio limit to raise it)')
+            return
+        else:
+            self.scheduling = 'SCHED_OTHER'
+        if real_time or self.rt_priority:
+            self.get_logger().info(
+                f'integration thread: {self.scheduling}'
+                + (' (real_time_factor 0: unpaced, normal priority)' if not real_time else
+                   ' (realtime_priority 0)' if not prio else
+                   f', deadlines every {1e3 * self.deadlines.period:g} ms')
+                + ('' if self.scheduling_others == 'unchanged' else
+                   f'; the other threads of the process: {self.scheduling_others}'))
+
+    def _align(self) -> None:
+        """Align the deadlines with the pacer's time base when that moved (start, kick, ...).
+
+        Each sample is then produced at the deadline at which it is due, not up to a period
+        later.
+        """
+        with self.lock:
+            anchor, due = self.sim.pacer.anchor, self.sim.pacer.due()
+        if anchor is not None and anchor != self._aligned and due is not None:
+            self.deadlines.start(due)
+            self._aligned = anchor
+
+    def _tick(self, scheduled: float | None, woke: float | None) -> None:
         sim = self.sim
         if self._waiting:
             if not self._subscribers_ready():
@@ -240,16 +435,19 @@ class RotorSimNode(Node):
         if sim.pacer.rtf == 0 and not sim.diverged and not self.acks.ready(
                 sim.pacer.chunk_samples):
             return
-        block = sim.tick()
-        if block is not None:
-            self._publish_block(block)
-        t = sim.stepper.t
-        if sim.cfg['publish_clock'] and not sim.diverged and t != self._t_clock:
-            # only when time moved: a paused or finished simulator sends nothing new
-            self.pub['clock'].publish(ros_msgs.clock(ros_msgs.stamp(t)))
-            self._t_clock = t
-            self.published['clock'] += 1
-        if block is None and (sim.pacer.paused or sim.pacer.finished or sim.diverged):
+        with self.lock:
+            block = sim.tick(scheduled, woke)
+            self.tick_time = scheduled
+            if block is not None:
+                self._publish_block(block)
+            t = sim.stepper.t
+            if sim.cfg['publish_clock'] and not sim.diverged and t != self._t_clock:
+                # only when time moved: a paused or finished simulator sends nothing new
+                self.pub['clock'].publish(ros_msgs.clock(ros_msgs.stamp(t)))
+                self._t_clock = t
+                self.published['clock'] += 1
+            idle = block is None and (sim.pacer.paused or sim.pacer.finished or sim.diverged)
+        if idle:
             self._idle()
 
     def _subscribers_ready(self) -> bool:
@@ -265,12 +463,12 @@ class RotorSimNode(Node):
                        self.get_subscriptions_info_by_topic(p.topic_name)) for p in pubs)
 
     def _idle(self) -> None:
-        """At real_time_factor 0 the timer has period 0: do not spin hot with nothing to do."""
+        """At real_time_factor 0 nothing paces the loop: do not spin hot with nothing to do."""
         if self.sim.pacer.rtf == 0:
-            time.sleep(IDLE_SLEEP)
+            sleep_until(time.monotonic() + IDLE_SLEEP)
 
     def _publish_block(self, b) -> None:
-        """Publish joint_states and energy for every sample, the 3-D topics for the last."""
+        """Publish joint_states and energy for every sample, the 3-D topics at their rate."""
         n = len(b)
         js, en = self._msg_joints, self._msg_energy
         stamp = js.header.stamp
@@ -287,35 +485,53 @@ class RotorSimNode(Node):
         self.acks.unacked += n
         self.published['joint_states'] += n
         self.published['energy'] += n
-        if b.quaternion is None:          # a general system: no 3-D pose of its own
+        if b.quaternion is None or self.viz_rate <= 0:  # a general system: no 3-D pose
             return
-        st, frame = ros_msgs.stamp(ns[-1]), self.sim.cfg['frame_id']
-        self.pub['axis'].publish(ros_msgs.axis_vector(st, frame, b.axis))
-        self.pub['stator_pose'].publish(ros_msgs.stator_pose(st, frame, b.quaternion))
-        self.pub['axis_marker'].publish(ros_msgs.axis_marker(st, frame, b.axis))
-        for topic in ('axis', 'stator_pose', 'axis_marker'):
-            self.published[topic] += 1
+        # the 3-D views: the first sample at or past each multiple of 1 / visualization_rate
+        frame = self.sim.cfg['frame_id']
+        for i, k in enumerate(np.floor(b.t * self.viz_rate + 1e-9).astype(np.int64).tolist()):
+            if k == self._viz_k:
+                continue
+            self._viz_k = k
+            q = b.quaternion if b.quaternions is None else b.quaternions[i]
+            axis = axis_from_quaternion(q)
+            st = ros_msgs.stamp(ns[i])
+            self.pub['axis'].publish(ros_msgs.axis_vector(st, frame, axis))
+            self.pub['stator_pose'].publish(ros_msgs.stator_pose(st, frame, q))
+            self.pub['axis_marker'].publish(ros_msgs.axis_marker(st, frame, axis))
+            for topic in ('axis', 'stator_pose', 'axis_marker'):
+                self.published[topic] += 1
 
     # -- diagnostics, scene, services --------------------------------------------------------
     def _publish_diagnostics(self) -> None:
-        level, msg, values = self.sim.diagnostics()
+        with self.lock:
+            level, msg, values = self.sim.diagnostics()
+            t = self.sim.stepper.t
+            scene_name = self.sim.scene.name
+        late = self.deadlines.take_window()
         values.update(ack_wait_s=self.acks.wait_s, ack_timeouts=self.acks.timeouts,
+                      scheduling=self.scheduling, scheduling_others=self.scheduling_others,
+                      tick_late_p99=late.lateness_p99,
+                      tick_late_max=late.lateness_max, late_ticks=late.late,
+                      late_ticks_total=self.deadlines.late_total,
                       **{f'published_{k}': v for k, v in self.published.items()})
         self.published['diagnostics'] += 1
         self.pub['diagnostics'].publish(ros_msgs.diagnostic_array(
-            ros_msgs.stamp(self.sim.stepper.t), f'{self.get_name()}: simulation', level, msg,
-            values, hardware_id=f'scene:{self.sim.scene.name}'))
+            ros_msgs.stamp(t), f'{self.get_name()}: simulation', level, msg,
+            values, hardware_id=f'scene:{scene_name}'))
 
     def _publish_scene(self) -> None:
-        text = yaml.safe_dump(self.sim.scene_doc(), sort_keys=False)
-        self.pub['scene'].publish(ros_msgs.text(text))
+        with self.lock:
+            doc = self.sim.scene_doc()
+        self.pub['scene'].publish(ros_msgs.text(yaml.safe_dump(doc, sort_keys=False)))
 
     def _service(self, action, after=None):
         """Wrap a simulation action as a service callback (Trigger or SetBool)."""
         def callback(request, response):
             try:
                 args = (request.data,) if hasattr(request, 'data') else ()
-                response.message = action(*args)
+                with self.lock:
+                    response.message = action(*args)
                 response.success = True
             except Exception as err:  # noqa: B902 -- a service never takes the node down
                 response.success, response.message = False, str(err)
@@ -325,7 +541,8 @@ class RotorSimNode(Node):
         return callback
 
     def on_shutdown(self) -> None:
-        """Report the published counts (the soak compares them) and flush reliable writers."""
+        """Stop the loop, report the published counts (the soak compares them), flush."""
+        self.stop_loop()
         try:        # (stderr may be a pipe whose reader is gone: a killed ros2 launch)
             print(f'published counts: {json.dumps(self.published)}', file=sys.stderr,
                   flush=True)
@@ -334,6 +551,11 @@ class RotorSimNode(Node):
         # a reliable writer's unacknowledged messages die with it: give them a moment
         for pub in (self.pub['joint_states'], self.pub['energy']):
             pub.wait_for_all_acked(Duration(seconds=SHUTDOWN_ACK_WAIT))
+
+    def destroy_node(self):
+        """Stop the loop thread, then destroy the node."""
+        self.stop_loop()
+        return super().destroy_node()
 
 
 #: Fast DDS profile of the simulator's writers: a reliable writer asks its readers for
@@ -374,7 +596,7 @@ def use_fastdds_profile() -> str | None:
 def main(args: list[str] | None = None) -> int:
     """Run ``rotor_sim`` until SIGINT/SIGTERM (see :mod:`gyro_rotor.ros.runner`)."""
     use_fastdds_profile()
-    return run_node(RotorSimNode, args)
+    return run_node(lambda: RotorSimNode(own_process=True), args)
 
 
 if __name__ == '__main__':

@@ -25,7 +25,8 @@ from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-__all__ = ['declare_parameters', 'type_error', 'PARAM_RANGES', 'NODE_RANGES', 'READ_ONLY']
+__all__ = ['declare_parameters', 'declare_node_parameter', 'type_error', 'PARAM_RANGES',
+           'NODE_RANGES', 'READ_ONLY']
 
 _BIG = 1e9
 #: ranges of the RotorParams fields (RotorParams validates the rest)
@@ -38,7 +39,7 @@ PARAM_RANGES = {
 NODE_RANGES = _SCENE_NODE_RANGES
 #: node keys that only take effect at start
 READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers',
-             'wait_for_node'}
+             'wait_for_node', 'realtime_priority'}
 _TYPES = {float: Parameter.Type.DOUBLE, int: Parameter.Type.INTEGER, bool: Parameter.Type.BOOL,
           str: Parameter.Type.STRING, list: Parameter.Type.DOUBLE_ARRAY}
 _TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double',
@@ -114,6 +115,15 @@ def _declare(node: Node, name: str, value, doc: str, read_only: bool = False,
     if reason:
         raise ParameterError(reason)
     return param.value
+
+
+def declare_node_parameter(node: Node, name: str, default, doc: str,
+                           read_only: bool = False):
+    """Declare a parameter of the node alone (not a scene key); return its value.
+
+    Its range, if any, is in :data:`NODE_RANGES`; its type is that of ``default``.
+    """
+    return _declare(node, name, default, doc, read_only, type(default))
 
 
 def declare_parameters(node: Node) -> tuple:
