@@ -63,13 +63,32 @@ def n_real(A):
     return int(np.sum(np.linalg.eigvals(A).imag == 0.0))
 
 
-def bisect_meeting(sys, lo, hi):
-    """K where the real-root count changes between lo and hi, by bisection (independent)."""
+def n_real_near(A0, B, C, K, lam):
+    """Real roots of A0 - K B C within |lam|/2 of ``lam``, as LAPACK returns them.
+
+    A root small against ||A(K)|| is resolved through A(K)^-1 (Woodbury, written here
+    independently of the checker): its reciprocal is then among the largest eigenvalues.
+    """
+    A = A0 - K * B @ C
+    if abs(lam) ** 2 * 1e3 >= np.linalg.norm(A, 2) or np.linalg.cond(A0) > 1e12:
+        roots = np.linalg.eigvals(A)
+    else:
+        A0i = np.linalg.inv(A0)
+        X = A0i @ B
+        Ai = A0i + X @ np.linalg.solve(np.eye(B.shape[1]) / K - C @ X, C @ A0i)
+        mu = np.linalg.eigvals(Ai)
+        roots = 1.0 / mu[np.abs(mu) > 0]
+    near = roots[np.abs(roots - lam) < 0.5 * abs(lam)]
+    return int(np.sum(near.imag == 0.0))
+
+
+def bisect_meeting(sys, lo, hi, lam):
+    """K where the real-root count near lam changes between lo and hi, by bisection."""
     A0, B, C = sys.locus_pieces()
-    c_lo = n_real(A0 - lo * B @ C)
+    c_lo = n_real_near(A0, B, C, lo, lam)
     for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if n_real(A0 - mid * B @ C) == c_lo:
+        if n_real_near(A0, B, C, mid, lam) == c_lo:
             lo = mid
         else:
             hi = mid
@@ -96,10 +115,10 @@ def test_every_meeting_is_a_real_root_count_change(seed, n, m):
     sys = random_system(seed, n, m)
     A0, B, C = sys.locus_pieces()
     for mt in cl.check(sys).meetings:
-        below = n_real(A0 - mt.K_D * (1 - 1e-7) * B @ C)
-        above = n_real(A0 - mt.K_D * (1 + 1e-7) * B @ C)
+        below = n_real_near(A0, B, C, mt.K_D * (1 - 1e-7), mt.lam)
+        above = n_real_near(A0, B, C, mt.K_D * (1 + 1e-7), mt.lam)
         assert above - below == (2 if mt.kind is cl.MeetingKind.BREAK_IN else -2)
-        K_ind = bisect_meeting(sys, mt.K_D * (1 - 1e-7), mt.K_D * (1 + 1e-7))
+        K_ind = bisect_meeting(sys, mt.K_D * (1 - 1e-7), mt.K_D * (1 + 1e-7), mt.lam)
         assert abs(K_ind - mt.K_D) <= 1e-10 * mt.K_D
 
 
@@ -157,7 +176,8 @@ def test_a_bubble_narrower_than_1e_4_is_found_both_ends_with_kinds():
     assert not np.any((grid > away.K_D) & (grid < back.K_D))
     # both ends independently: the real-root count bisected
     for mt in (away, back):
-        K_ind = bisect_meeting(sys, mt.K_D * (1 - 0.2 * width), mt.K_D * (1 + 0.2 * width))
+        K_ind = bisect_meeting(sys, mt.K_D * (1 - 0.2 * width), mt.K_D * (1 + 0.2 * width),
+                               mt.lam)
         assert abs(K_ind - mt.K_D) <= 1e-10 * mt.K_D
     assert res.claims['d'].data['net_meetings'] == 2
 
