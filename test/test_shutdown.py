@@ -148,8 +148,10 @@ def _rostools(tmp_root: Path) -> str:
             pytest.skip(f'ros2 launch is not installed and {venv} has no colcon (a first '
                         'rostools build downloads it): run ../shared/rostools/build.sh '
                         f'{venv} DEST --package {REPO}, then GYRO_ROTOR_ROSTOOLS=DEST')
+        import hashlib
+        key = hashlib.sha256(str(venv).encode()).hexdigest()[:12]     # one per venv
         dest = str(Path(os.environ.get('TMPDIR', '/tmp')) /
-                   f'gyro_rotor_rostools_{os.getuid()}_{abs(hash(str(venv))) % 10 ** 8}')
+                   f'gyro_rotor_rostools_{os.getuid()}_{key}')
     if not build.is_file():
         env_sh = Path(dest) / 'env.sh'
         if not env_sh.is_file():
