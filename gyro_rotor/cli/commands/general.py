@@ -192,29 +192,23 @@ def locus(args) -> int:
                 for j, z in enumerate(row):
                     f.write(f'{K!r},{j},{z.real!r},{z.imag!r}\n')
     if args.out:
-        _plot_locus(args.out, grid, roots, claims, scene.name)
+        _plot_locus(args.out, lin, claims, scene.name, float(grid[0]), float(grid[-1]))
     return 0 if claims.all_hold else CLAIM_FAILS
 
 
-def _plot_locus(path, grid, roots, claims, name) -> None:
+def _plot_locus(path, lin, claims, name, K_lo, K_hi) -> None:
     try:
         import matplotlib
         matplotlib.use('Agg')
         import matplotlib.pyplot as plt
     except ImportError:
         raise ParameterError('--out needs matplotlib') from None
-    fig, ax = plt.subplots(figsize=(7, 5))
-    sc = ax.scatter(roots.real.ravel(), roots.imag.ravel(), s=2,
-                    c=np.repeat(np.log10(grid), roots.shape[1]), cmap='viridis')
-    for x in claims.meetings:
-        ax.plot([x.lam], [0.0], 'rx')
-    fig.colorbar(sc, label='log10 K_D')
-    ax.set_xlabel('Re [1/s]')
-    ax.set_ylabel('Im [1/s]')
-    ax.set_title(f'root locus over K_D: {name}')
-    ax.grid(True, alpha=0.3)
-    fig.savefig(path, dpi=120)
+    from gyro_rotor.linear.locus_plot import general_locus_figure
+    fig = general_locus_figure(lin, claims, K_lo=K_lo, K_hi=K_hi,
+                               title=f'root locus over K_D: scene {name}')
+    fig.savefig(path)
     plt.close(fig)
+    print(f'  wrote {path}')
 
 
 def tune(args) -> int:

@@ -1,0 +1,269 @@
+"""A user's first hour (issue 28): plots that explain every system, a CLI with no surprises.
+
+Campbell diagrams with tracked modes on every shipped scene, root-locus plots zoomed to
+where the roots meet, one resolution rule for eigenvalues, "did you mean" for every scene
+name, benchmark and demo outputs where they belong, a monitor that prints what changed.
+The plots are checked through the figures the commands build (data limits, legend
+entries), not through PNG files.
+"""
+
+import json
+import math
+
+from gyro_rotor.cli.main import main
+from gyro_rotor.core.scene import list_scenes, load_scene
+from gyro_rotor.core.system.scene import list_general_scenes, load_general_scene
+import numpy as np
+import pytest
+
+plt = pytest.importorskip('matplotlib.pyplot')
+
+ALL_SCENES = tuple(list_scenes()) + tuple(list_general_scenes())
+
+
+def _load(name, **sets):
+    if name in list_general_scenes():
+        return load_general_scene(name, overrides=sets)
+    return load_scene(name, overrides=sets)
+
+
+def _W0(scene):
+    return scene.system.drives[0].Omega0 if hasattr(scene, 'system') else scene.params.Omega0
+
+
+def _legend(ax):
+    leg = ax.get_legend()
+    assert leg is not None, 'no legend'
+    return [t.get_text() for t in leg.get_texts()]
+
+
+# -- Campbell diagrams: tracked modes, every scene ------------------------------------------
+def test_campbell_twin_gimbal_where_the_root_count_changes(tmp_path, capsys):
+    """The crash of the issue: K_D = 0.28 makes a pair real over part of the range."""
+    out = tmp_path / 'c.json'
+    assert main(['campbell', 'twin_gimbal', '--set', 'K_D=0.28', '--points', '200',
+                 '--json', str(out)]) == 0
+    text = capsys.readouterr().out
+    assert 'the number of real roots changes over the range' in text
+    doc = json.loads(out.read_text())
+    F = np.array(doc['frequencies_hz'])
+    assert F.shape == np.array(doc['decay_rates']).shape == (200, len(doc['modes']))
+    roots = np.array(doc['roots'])
+    upper = np.sum(roots[:, :, 1] >= 0, axis=1)
+    assert upper.min() < upper.max()        # the count of roots with Im >= 0 changes
+    # the mode that is real at the scene's speed oscillates at the top of the range
+    k = [i for i, t in enumerate(doc['modes']) if 'real at the scene speed' in t]
+    assert len(k) == 1 and F[-1, k[0]] > 0 and F[100, k[0]] == 0
+
+
+@pytest.mark.parametrize('name', ALL_SCENES)
+def test_campbell_exits_0_on_every_shipped_scene(name, tmp_path):
+    out = tmp_path / 'c.json'
+    assert main(['campbell', name, '--points', '40', '--json', str(out)]) == 0
+    doc = json.loads(out.read_text())
+    F = np.array(doc['frequencies_hz'])
+    assert F.ndim == 2 and F.shape[1] == len(doc['modes']) == len(set(doc['modes']))
+    assert np.all(np.isfinite(F)) and np.all(np.isfinite(np.array(doc['decay_rates'])))
+
+
+@pytest.mark.parametrize('name', ALL_SCENES)
+def test_campbell_tracks_roots_continuously(name):
+    """Each column follows one root: no jump from speed to speed (sorting would jump)."""
+    from gyro_rotor.linear.campbell import campbell
+    scene = _load(name)
+    W0 = _W0(scene)
+    cb = campbell(scene, np.linspace(0.05 * W0, 2 * W0, 120))
+    R = cb.roots
+    scale = max(float(np.sort(np.abs(R).max(axis=0))[-2]), 1.0)
+    step = np.abs(np.diff(R, axis=0))
+    assert step.max() < 0.1 * scale, (name, step.max(), scale)
+
+
+def test_campbell_modes_cross_instead_of_swapping():
+    """Nutation and rotor-field coupling frequencies cross (precession).
+
+    The j-th lowest frequency would swap them; the tracked modes keep their names on both
+    sides.
+    """
+    from gyro_rotor.linear.campbell import campbell
+    scene = load_scene('precession')
+    cb = campbell(scene, np.linspace(0.05, 2.0, 150) * scene.params.Omega0)
+    nut = [k for k, t in enumerate(cb.labels) if t.startswith('nutation')]
+    rfc = [k for k, t in enumerate(cb.labels) if t.startswith('rotor-field')]
+    assert len(nut) == len(rfc) == 1
+    d = cb.frequencies[:, nut[0]] - cb.frequencies[:, rfc[0]]
+    assert d[0] < 0 < d[-1]
+
+
+def test_campbell_pairs_split_and_join_by_continuity():
+    """Two modes throughout: a pair that lands on the real axis, an undamped pair.
+
+    Synthetic: lambda^2 + 2 zeta lambda + 1 with zeta from 0.5 to 1.5 (the pair lands on
+    the real axis at zeta = 1) and an undamped pair at 3j.
+    """
+    from gyro_rotor.linear.campbell import _assemble
+    zeta = np.linspace(0.5, 1.5, 41)
+    rows = []
+    for z in zeta:
+        s = np.sqrt(complex(z * z - 1))
+        rows.append([-z + s, -z - s, 3j, -3j])
+    R = np.array(rows)
+    # the tracks as continuity gives them: columns 0/1 swap their roles at the meeting
+    res = np.full(R.shape, 1e-12)
+    cb = _assemble(zeta, R, res, lambda i, j: ['d', 'd', 'u', 'u'][j], orders=(1,),
+                   nominal=1.0)
+    assert len(cb.labels) == 2 and cb.frequencies.shape == (41, 2)
+    k_u = [k for k, t in enumerate(cb.labels) if t.startswith('u')][0]
+    k_d = 1 - k_u
+    assert np.all(cb.decay[:, k_u] == 0)              # undamped: exactly 0, not 1e-12
+    assert np.all(cb.undamped[:, k_u])
+    assert np.allclose(cb.frequencies[:, k_u], 3 / (2 * math.pi))
+    over = zeta >= 1
+    assert np.all(cb.frequencies[over, k_d] == 0) and np.all(cb.frequencies[~over, k_d] > 0)
+    assert np.allclose(cb.decay[over, k_d], zeta[over] - np.sqrt(zeta[over] ** 2 - 1))
+
+
+def _campbell_fig(name, **sets):
+    from gyro_rotor.cli.commands.campbell import campbell_figure
+    from gyro_rotor.linear.campbell import campbell
+    scene = _load(name, **sets)
+    W0 = _W0(scene)
+    cb = campbell(scene, np.linspace(0.05 * W0, 2 * W0, 120))
+    return cb, campbell_figure(cb, name)
+
+
+def test_campbell_plot_zoomed_to_the_modes_with_a_legend():
+    cb, fig = _campbell_fig('twin_gimbal')
+    try:
+        a1, a2 = fig.axes[:2]
+        lo, hi = a1.get_ylim()
+        fmax = float(cb.frequencies.max())
+        assert fmax < 12 and lo == 0 and fmax <= hi <= 1.2 * fmax   # not a 0-200 Hz axis
+        texts = _legend(a1)
+        assert '1x rotor speed' in texts and '2x rotor speed' in texts
+        assert any(t.startswith('critical speed') for t in texts)
+        for label in cb.labels:       # every oscillating mode named
+            assert any(t.startswith(label) for t in texts), label
+        # every critical speed marked inside the axes
+        x0, x1 = a1.get_xlim()
+        for c in cb.critical:
+            rpm = c['Omega0'] * 30 / math.pi
+            assert x0 <= rpm <= x1 and lo <= c['frequency_hz'] <= hi
+        assert 'rpm' in a2.get_xlabel() and '[Hz]' in a1.get_ylabel()
+        assert '[1/s]' in a2.get_ylabel()
+    finally:
+        plt.close(fig)
+
+
+def test_campbell_plot_draws_undamped_modes_at_zero():
+    """Draw the modes the drive does not reach (elastic_frame) as undamped.
+
+    Decay 0, dashed, named so in the legend (never a decay of 1e-12 on a log axis).
+    """
+    cb, fig = _campbell_fig('elastic_frame')
+    try:
+        a1, a2 = fig.axes[:2]
+        und = [t for t in _legend(a1) if t.endswith('(undamped)')]
+        assert len(und) == int(np.sum(np.all(cb.undamped, axis=0))) == 3
+        assert a2.get_yscale() == 'symlog' and a2.get_ylim()[0] < 0 < a2.get_ylim()[1]
+        zero_lines = [ln for ln in a2.get_lines()
+                      if len(ln.get_ydata()) > 2 and np.all(ln.get_ydata() == 0)
+                      and ln.get_linestyle() == '--']
+        assert len(zero_lines) >= 3
+    finally:
+        plt.close(fig)
+
+
+def test_campbell_command_writes_the_plot(tmp_path, capsys):
+    out = tmp_path / 'c.png'
+    assert main(['campbell', 'twin_gimbal', '--set', 'K_D=0.28', '--points', '60',
+                 '--out', str(out)]) == 0
+    assert out.stat().st_size > 10000
+
+
+# -- root-locus plots: zoomed to where the roots meet --------------------------------------
+def _general_locus_fig(name):
+    from gyro_rotor.linear.general import check_claims, linearize_scene
+    from gyro_rotor.linear.locus_plot import general_locus_figure
+    lin = linearize_scene(load_general_scene(name))
+    claims = check_claims(lin)
+    scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max()))
+    K_ref = scale / float(lin.fast_rates.min())
+    return claims, general_locus_figure(lin, claims, K_lo=1e-4 * K_ref, K_hi=1e4 * K_ref,
+                                        title=name)
+
+
+@pytest.mark.parametrize('name', list_general_scenes())
+def test_general_locus_plot_shows_every_meeting(name):
+    claims, fig = _general_locus_fig(name)
+    try:
+        ax = fig.axes[0]
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        assert claims.meetings
+        lam = [mt.lam for mt in claims.meetings]
+        for x in lam:
+            assert x0 < x < x1 and y0 < 0 < y1
+        # zoomed: the meetings take a good part of the axis, not one pixel column at Re = 0
+        assert -x0 < 5 * max(abs(x) for x in lam) and x1 < 0.2 * -x0
+        texts = _legend(ax)
+        assert any(t.startswith('K_D*') for t in texts) and 'K_D = 0' in texts
+        notes = [t.get_text() for t in ax.texts]
+        for mt in claims.meetings:
+            assert any(f'K_D* = {mt.K_D:.4g}' in t and str(mt.kind) in t for t in notes)
+        # readable ticks: a handful of short labels on each axis
+        fig.canvas.draw()
+        for axis in (ax.xaxis, ax.yaxis):
+            labels = [t.get_text() for t in axis.get_ticklabels() if t.get_text()]
+            assert 2 <= len(labels) <= 8 and max(len(t) for t in labels) <= 7, labels
+    finally:
+        plt.close(fig)
+
+
+def test_general_locus_plot_magnifies_the_slow_branches():
+    """Give each slow branch its own magnified panel (twin_gimbal).
+
+    The gimbal branches leave the axis by 1e-4 .. 0.1 1/s while the drive branches reach
+    -74 1/s.
+    """
+    claims, fig = _general_locus_fig('twin_gimbal')
+    try:
+        side = fig.axes[1:]
+        assert len(side) == 3
+        for a in side:
+            assert 'Re x 1e' in a.get_title()
+            x0, x1 = a.get_xlim()
+            data = np.concatenate([ln.get_xdata() for ln in a.get_lines()
+                                   if len(ln.get_xdata()) > 2])
+            assert data.min() < 0.5 * x0      # the branch fills its panel
+    finally:
+        plt.close(fig)
+
+
+@pytest.mark.parametrize('name', ['precession', 'stiff_drive', 'nutation'])
+def test_centrifuge_locus_plot_marks_every_meeting(name):
+    from gyro_rotor.linear.linearize import linearize
+    from gyro_rotor.linear.locus import check_claims, default_grid
+    from gyro_rotor.linear.locus_plot import root_locus_figure
+    from gyro_rotor.linear.stability import scene_operating_point
+    p, sm, model = scene_operating_point(load_scene(name))
+    cr = check_claims(linearize(p, sm, model), np.concatenate([[0.0], default_grid(p)[1:]]))
+    fig = root_locus_figure(cr.locus, claims=cr, K_D_mark=p.K_D)
+    try:
+        ax = fig.axes[0]
+        x0, x1 = ax.get_xlim()
+        assert cr.meetings
+        for mt in cr.meetings:
+            assert x0 < mt.lam < x1
+        texts = _legend(ax)
+        assert any(t.startswith('K_D*') for t in texts) and 'K_D = 0' in texts
+    finally:
+        plt.close(fig)
+
+
+@pytest.mark.parametrize('name', list_general_scenes())
+def test_locus_command_writes_the_plot(name, tmp_path, capsys):
+    out = tmp_path / 'l.png'
+    assert main(['locus', name, '--points', '40', '--out', str(out)]) == 0
+    assert out.stat().st_size > 10000
+    assert f'wrote {out}' in capsys.readouterr().out
