@@ -267,3 +267,57 @@ def test_locus_command_writes_the_plot(name, tmp_path, capsys):
     assert main(['locus', name, '--points', '40', '--out', str(out)]) == 0
     assert out.stat().st_size > 10000
     assert f'wrote {out}' in capsys.readouterr().out
+
+
+# -- eig: one resolution rule for every system ---------------------------------------------
+def _eig_rows(out):
+    rows = []
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) >= 6 and parts[-1] in ('yes', 'no'):
+            rows.append(line)
+    return rows
+
+
+@pytest.mark.parametrize('name,sets', [('twin_gimbal', ['K_D=0']), ('elastic_frame', []),
+                                       ('centrifuge_euler', ['K_D=0']), ('twin_gimbal', [])])
+def test_general_eig_shows_round_off_as_zero(name, sets, capsys, tmp_path):
+    args = ['eig', name] + [x for s in sets for x in ('--set', s)]
+    out_json = tmp_path / 'e.json'
+    assert main(args + ['--json', str(out_json)]) == 0
+    out = capsys.readouterr().out
+    rows = _eig_rows(out)
+    assert rows
+    for line in rows:
+        re_text = line[39:52].strip()      # the Re column (2 + 36 + 1 characters in)
+        if re_text != '0':
+            assert abs(float(re_text)) > 1e-9, line           # never a round-off real part
+        if re_text == '0' and 'zero root' not in line:
+            assert 'undamped' in line, line                   # no decay time from round-off
+    sa = out.split('spectral abscissa ')[1].split()[0]
+    assert sa == '0' or abs(float(sa)) > 1e-9
+    doc = json.loads(out_json.read_text())
+    n_und = sum(1 for m in doc['modes'] if m['undamped'] and not m['structural_zero']
+                and m['im'] > 0)
+    assert n_und == sum(1 for line in rows if 'undamped' in line)
+    if sets == ['K_D=0']:
+        assert sa == '0' and all(('undamped' in r) or ('zero root' in r) for r in rows)
+        assert 'e+12 s' not in out and 'e+13 s' not in out
+
+
+def test_centrifuge_eig_same_rule_and_consistent_with_its_verdict(capsys):
+    """Print Re = 1.8e-102 as 0, undamped (pole_slip), and Re = -4.3e-8 as a result.
+
+    stiff_drive: the nutation's -4.3e-8 1/s is resolved (the pencil keeps it), printed with
+    its time constant, as the verdict says.
+    """
+    assert main(['eig', 'pole_slip']) == 0
+    out = capsys.readouterr().out
+    assert 'e-102' not in out and 'spectral abscissa 0 1/s' in out
+    assert [ln for ln in out.splitlines() if ln.strip().startswith('nutation')][0].count(
+        'undamped') == 1
+    assert main(['eig', 'stiff_drive']) == 0
+    out = capsys.readouterr().out
+    nut = [ln for ln in out.splitlines() if ln.strip().startswith('nutation')][0]
+    assert '-4.28' in nut and 'undamped' not in nut
+    assert 'spectral abscissa -4.28' in out
