@@ -146,8 +146,8 @@ def eig(args) -> int:
         x, r = max(judged, key=lambda t: t[0].value.real)
         sa = x.value.real if abs(x.value.real) > r else 0.0
         print(f'  spectral abscissa {fmt_re(sa, 0.0, 0).strip() if sa else "0"} 1/s (slowest: '
-              f'{x.name}; a |Re| within its root\'s resolution, about {r:.1e} 1/s here, '
-              'prints as 0)')
+              f'{x.name}; a |Re| within the resolution of its root, about {r:.1e} 1/s '
+              'here, prints as 0)')
     undamped = [f'{x.name} at {abs(x.value.imag) / (2 * math.pi):.4g} Hz' for x, r in shown
                 if not x.structural_zero and abs(x.value.real) <= r]
     if undamped:
