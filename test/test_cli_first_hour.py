@@ -321,3 +321,30 @@ def test_centrifuge_eig_same_rule_and_consistent_with_its_verdict(capsys):
     nut = [ln for ln in out.splitlines() if ln.strip().startswith('nutation')][0]
     assert '-4.28' in nut and 'undamped' not in nut
     assert 'spectral abscissa -4.28' in out
+
+
+# -- scene names: did you mean, and the full list -------------------------------------------
+TYPO_COMMANDS = [['eig', 'twin_gimbel'], ['simulate', 'twin_gimbel'], ['steady', 'twin_gimbel'],
+                 ['locus', 'twin_gimbel'], ['tune', 'twin_gimbel'],
+                 ['campbell', 'twin_gimbel'], ['demo', 'twin_gimbel'],
+                 ['sweep', 'twin_gimbel', '--grid', 'K_D=0.1:0.2:2', '--out', '{tmp}/s'],
+                 ['soak', '--scene', 'twin_gimbel'], ['rt-bench', '--scenes', 'twin_gimbel'],
+                 ['bench', '--quick', '--scenes', 'twin_gimbel', '--out', '{tmp}/b']]
+
+
+@pytest.mark.parametrize('argv', TYPO_COMMANDS, ids=lambda a: a[0])
+def test_every_scene_name_error_says_did_you_mean(argv, tmp_path, capsys):
+    argv = [a.replace('{tmp}', str(tmp_path)) for a in argv]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "did you mean 'twin_gimbal'?" in err, err
+    for name in ALL_SCENES:          # the full list, the general systems' scenes included
+        assert name in err.split('(scenes:')[1], (name, err)
+    assert err.count('\n') == 1      # one line, no traceback
+
+
+def test_did_you_mean_ignores_case_and_underscores(capsys):
+    assert main(['eig', 'TwinGimbal']) == 1
+    assert "did you mean 'twin_gimbal'?" in capsys.readouterr().err
+    assert main(['eig', 'precesion']) == 1
+    assert "did you mean 'precession'?" in capsys.readouterr().err
