@@ -348,3 +348,110 @@ def test_did_you_mean_ignores_case_and_underscores(capsys):
     assert "did you mean 'twin_gimbal'?" in capsys.readouterr().err
     assert main(['eig', 'precesion']) == 1
     assert "did you mean 'precession'?" in capsys.readouterr().err
+
+
+# -- run outputs: never the tracked tree by default, one folder per run ---------------------
+def test_unique_dirs_for_runs_started_in_the_same_second(tmp_path):
+    from gyro_rotor.cli.util import make_unique_dir
+    base = tmp_path / 'runs' / 'x_20260101-000000'
+    made = [make_unique_dir(base) for _ in range(3)]
+    assert [p.name for p in made] == ['x_20260101-000000', 'x_20260101-000000-2',
+                                      'x_20260101-000000-3']
+    assert all(p.is_dir() for p in made)
+
+
+def test_unique_dirs_under_concurrency(tmp_path):
+    """Eight threads asking for the same name at once get eight folders."""
+    import concurrent.futures
+    from gyro_rotor.cli.util import make_unique_dir
+    base = tmp_path / 'same'
+    with concurrent.futures.ThreadPoolExecutor(8) as ex:
+        made = list(ex.map(lambda _: make_unique_dir(base), range(8)))
+    assert len(set(made)) == 8
+
+
+def test_two_demos_in_the_same_second_get_two_folders(tmp_path, monkeypatch):
+    import argparse
+    from gyro_rotor.cli.commands import demo
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(demo.time, 'strftime', lambda fmt, *a: '20260101-120000')
+    scene = load_scene('precession')
+    args = argparse.Namespace(out=None)
+    a, b = demo._out_dir(args, scene), demo._out_dir(args, scene)
+    assert a != b and a.is_dir() and b.is_dir()
+    assert a.parent.name == b.parent.name == 'demo_runs'
+    (a / 'bag').mkdir()
+    with pytest.raises(Exception, match='exists and is not empty'):
+        demo._out_dir(argparse.Namespace(out=str(a)), scene)
+
+
+def test_bench_default_output_is_untracked_and_new(tmp_path, monkeypatch):
+    from gyro_rotor.cli.commands import bench as bench_cmd
+    from gyro_rotor.cli.main import build_parser
+    monkeypatch.chdir(tmp_path)
+    args = build_parser().parse_args(['bench', '--quick'])
+    assert bench_cmd.resolve_settings(args) is None
+    assert args.out.startswith('bench_out/bench-') and args.out_is_default
+    explicit = build_parser().parse_args(['bench', '--quick', '--out', 'bench'])
+    assert bench_cmd.resolve_settings(explicit) is None and explicit.out == 'bench'
+    assert not getattr(explicit, 'out_is_default', False)
+
+
+def test_bench_general_writes_bench_general_md_only_when_asked(tmp_path, monkeypatch,
+                                                               capsys):
+    from gyro_rotor.numerics import general_bench as gb
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(gb, 'rhs_cost', lambda: {'hand_ns': 1.0, 'generated_ns': 2.0,
+                                                 'ratio': 2.0})
+    times = {'imports': 0.1, 'load_system': 0.1, 'compile_system': 0.1, 'first_run': 0.1}
+    monkeypatch.setattr(gb, 'compile_times', lambda: {'first': times, 'cached': times})
+    monkeypatch.setattr(gb, 'work_precision', lambda **kw: [])
+    monkeypatch.setattr(gb, 'best_at', lambda rows, level: {})
+    assert main(['bench-general']) == 0
+    assert not (tmp_path / 'bench').exists()
+    written = list((tmp_path / 'bench_out').glob('general-*/general.md'))
+    assert len(written) == 1 and 'wrote bench_out/general-' in capsys.readouterr().out
+    assert main(['bench-general']) == 0          # a second run: a second file
+    assert len(list((tmp_path / 'bench_out').glob('general-*/general.md'))) == 2
+    (tmp_path / 'bench').mkdir()
+    assert main(['bench-general', '--out', 'bench/general.md']) == 0
+    assert (tmp_path / 'bench' / 'general.md').is_file()
+
+
+def test_gitignore_covers_the_run_outputs():
+    import shutil
+    import subprocess
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    if not (root / '.git').exists() or shutil.which('git') is None:
+        pytest.skip('not a git checkout')
+    for path in ('bench_out/bench-20260101-000000/work_precision.md',
+                 'bench-20260101-000000/work_precision.md',
+                 'demo_runs/precession_20260101-000000/report.txt',
+                 'sweep-bench-20260101-000000/sweep_bench.md'):
+        r = subprocess.run(['git', 'check-ignore', '-q', '--no-index', path], cwd=root)
+        assert r.returncode == 0, path
+    r = subprocess.run(['git', 'check-ignore', '-q', '--no-index', 'bench/general.md'],
+                       cwd=root)
+    assert r.returncode == 1          # the committed results stay tracked
+
+
+def test_bench_quick_plot_has_a_legend_and_every_point():
+    """The work-precision figure of a quick run: a legend per panel, every point inside."""
+    from gyro_rotor.cli.commands.bench import work_precision_figure
+    from gyro_rotor.numerics import bench
+    rows = bench.run_sweep('precession', quick=True, repeats=1, scipy=True, peers=False)
+    fig = work_precision_figure(rows)
+    try:
+        ax = fig.axes[0]
+        assert ax.get_title() == 'precession'
+        texts = _legend(ax)
+        ok = [r for r in rows if r.status == 0 and math.isfinite(r.err) and r.err > 0]
+        assert set(texts) == {r.method for r in ok}
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        for r in ok:
+            assert x0 <= r.wall_per_sim <= x1 and y0 <= r.err <= y1
+        assert '[s/s]' in ax.get_xlabel() and '[rad]' in ax.get_ylabel()
+    finally:
+        plt.close(fig)
