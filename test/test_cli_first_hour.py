@@ -455,3 +455,100 @@ def test_bench_quick_plot_has_a_legend_and_every_point():
         assert '[s/s]' in ax.get_xlabel() and '[rad]' in ax.get_ylabel()
     finally:
         plt.close(fig)
+
+
+# -- the monitor: only what changed, no NaN, the topics the system publishes ----------------
+def _feed(mon, topic, msg):
+    from rclpy.serialization import serialize_message
+    from gyro_rotor.tools.monitor import TopicStats
+    mon.stats.setdefault(topic, TopicStats(topic, type(msg).__name__))
+    mon._callback(topic, type(msg))(serialize_message(msg))
+
+
+def _general_scene_doc():
+    import yaml
+    return yaml.safe_dump({'scene': 'twin_gimbal', 'system': 'twin_gimbal', 't_end': 20.0,
+                           'joint_names': ['alpha', 'beta1', 'beta2', 'z_R1', 'z_R2'],
+                           'node': {'publish_rate': 250.0, 'real_time_factor': 0.0}},
+                          sort_keys=False)
+
+
+@pytest.mark.ros
+def test_monitor_prints_no_nan_before_the_first_result():
+    from gyro_rotor.cli.commands.monitor import Monitor
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+    msg = Float64MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label='t_sim,E_star,decay', size=3, stride=3)]
+    msg.data = [math.nan, math.nan, math.nan]
+    mon = Monitor(node=None)
+    _feed(mon, '/analysis', msg)
+    text = mon.render()
+    assert 'nan' not in text.lower() and '/analysis: no result yet' in text
+    msg.data = [1.5, 0.001, math.nan]
+    _feed(mon, '/analysis', msg)
+    line = [ln for ln in mon.render().splitlines() if ln.startswith('/analysis:')][0]
+    assert line == '/analysis: t_sim 1.5, E_star 0.001'
+
+
+@pytest.mark.ros
+def test_monitor_log_prints_only_what_changed_and_the_scene_once():
+    from gyro_rotor.cli.commands.monitor import Monitor
+    from gyro_rotor.tools.monitor import TopicStats
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import String
+    mon = Monitor(node=None)
+    for t in ('/axis', '/stator_pose', '/axis_marker'):       # in the graph, never published
+        mon.stats[t] = TopicStats(t, 'x')
+    doc = _general_scene_doc()
+    _feed(mon, '/rotor_sim/scene', String(data=doc))
+    js = JointState(name=['alpha', 'beta1', 'beta2', 'z_R1', 'z_R2'],
+                    position=[0.1, 0.2, 0.3, 0.4, 0.5])
+    _feed(mon, '/joint_states', js)
+    first = mon.render(changed_only=True, full_docs=True)
+    assert first.count('scene: twin_gimbal') == 1 and '/rotor_sim/scene (' in first
+    assert not [ln for ln in first.splitlines() if ln.startswith(('/axis', '/stator_pose'))]
+    assert 'no message yet' not in first
+    assert 'twin_gimbal publishes no 3-D pose: /axis, /axis_marker, /stator_pose' in first
+    assert '/joint_states: alpha 0.1' in first
+    second = mon.render(changed_only=True, full_docs=True)
+    assert second.splitlines()[1:] == ['(nothing changed)']
+    js.position = [0.1, 0.2, 0.3, 0.4, 0.6]
+    _feed(mon, '/joint_states', js)
+    third = mon.render(changed_only=True, full_docs=True)
+    assert 'z_R2 0.6' in third and 'scene: twin_gimbal' not in third
+    assert '/joint_states ' in third and 'publishes no 3-D pose' not in third
+    # the terminal view: everything, the document in one line
+    screen = mon.render()
+    assert '/rotor_sim/scene: a ' in screen and 'scene: twin_gimbal\n' not in screen
+    assert len(screen.splitlines()) < 12
+
+
+@pytest.mark.ros
+def test_monitor_knows_the_system_from_the_joints_before_the_scene():
+    from gyro_rotor.cli.commands.monitor import Monitor
+    from gyro_rotor.tools.monitor import TopicStats
+    from sensor_msgs.msg import JointState
+    mon = Monitor(node=None)
+    mon.stats['/axis'] = TopicStats('/axis', 'x')
+    _feed(mon, '/joint_states', JointState(name=['theta', 'psi', 'phi_R', 'phi_M'],
+                                           position=[0.1, 0.0, 0.0, 0.0]))
+    assert not mon.hidden('/axis') and 'no message yet on /axis' in mon.render()
+    mon2 = Monitor(node=None)
+    mon2.stats['/axis'] = TopicStats('/axis', 'x')
+    _feed(mon2, '/joint_states', JointState(name=['a', 'b', 'z_R'], position=[0.0] * 3))
+    assert mon2.hidden('/axis') and 'no message yet' not in mon2.render()
+    assert 'a general system publishes no 3-D pose: /axis not listed' in mon2.render()
+
+
+def test_monitor_names_missed_messages_as_the_monitor_s_own():
+    from gyro_rotor.tools.monitor import Changes, system_topics, TopicStats
+    s = TopicStats('/energy')
+    s.add(0.0, seq=0)
+    s.add(0.1, seq=74)
+    assert s.gaps == 73
+    assert system_topics('scene: precession\nt_end: 10\n')['absent'] == ()
+    absent = system_topics(_general_scene_doc())['absent']
+    assert absent == ('axis', 'stator_pose', 'axis_marker')
+    assert system_topics('just a verdict') is None
+    c = Changes()
+    assert c.changed('k', 'a') and not c.changed('k', 'a') and c.changed('k', 'b')
