@@ -144,7 +144,7 @@ def test_bench_writes_to_a_new_directory_unless_told_bench(argv):
     from gyro_rotor.cli.main import build_parser
     args = build_parser().parse_args(argv)
     assert resolve_settings(args) is None
-    assert re.fullmatch(r'bench-\d{8}-\d{6}', args.out), args.out
+    assert re.fullmatch(r'bench_out/bench-\d{8}-\d{6}', args.out), args.out   # git ignores it
     args = build_parser().parse_args(argv + ['--out', 'bench'])
     assert resolve_settings(args) is None and args.out == 'bench'
     args = build_parser().parse_args(argv + ['--scenes', 'no_such_scene'])

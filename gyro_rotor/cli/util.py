@@ -111,3 +111,29 @@ def check_number(name: str, value: float, *, low: float | None = None,
         raise ParameterError(f'{name} must be finite{" and " + " and ".join(rng) if rng else ""}'
                              f'{" " + what if what else ""}, got {value!r}')
     return value
+
+
+#: where run outputs go by default (benchmarks, demos): never the tracked tree, ignored by
+#: the repository's .gitignore
+RUNS_DIR = 'bench_out'
+
+
+def make_unique_dir(base, *, tries: int = 1000):
+    """Create and return a new directory ``base``, or ``base-2``, ``base-3``, ...
+
+    ``mkdir`` without ``exist_ok`` is atomic: two runs started in the same second (the
+    same time stamp in ``base``) get two folders, never one shared.
+    """
+    from pathlib import Path
+    base = Path(base)
+    base.parent.mkdir(parents=True, exist_ok=True)
+    for k in range(1, tries + 1):
+        out = base if k == 1 else base.with_name(f'{base.name}-{k}')
+        try:
+            out.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as err:
+            raise ParameterError(f'cannot create output directory {out}: {err}') from err
+        return out
+    raise ParameterError(f'no free output directory like {base} after {tries} tries')

@@ -34,7 +34,6 @@ Unknown keys are refused with the nearest valid name.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import os
 from pathlib import Path
@@ -278,10 +277,22 @@ def scene_path(name_or_path: str | os.PathLike) -> Path:
         f = d / f'{s}.yaml'
         if f.is_file():
             return f
+    raise SceneError(unknown_scene_message(s))
+
+
+def unknown_scene_message(name: str) -> str:
+    """``unknown scene 'X'; did you mean 'Y'? (scenes: ...)``: every shipped scene listed.
+
+    The centrifuge's scenes and the general systems' (config/systems/scenes) both, so that
+    every command that takes a scene name says the same thing.
+    """
+    from gyro_rotor.core.system.scene import list_general_scenes
+    from gyro_rotor.errors import did_you_mean
     names = list_scenes()
-    near = difflib.get_close_matches(s, names, n=1)
-    hint = f"; did you mean '{near[0]}'?" if near else ''
-    raise SceneError(f"unknown scene '{s}'{hint} (scenes: {', '.join(names)})")
+    general = [g for g in list_general_scenes() if g not in names]
+    hint = did_you_mean(name, names + general)
+    listed = ', '.join(names) + (f'; general systems: {", ".join(general)}' if general else '')
+    return f"unknown scene '{name}'{hint} (scenes: {listed})"
 
 
 find_scene = scene_path

@@ -35,6 +35,7 @@ import math
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.scene import check_steady, GeneralScene
 from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.linear.campbell import Campbell  # noqa: F401 -- the result of campbell()
 import numpy as np
 
 __all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims',
@@ -228,52 +229,14 @@ def check_claims(lin: GeneralLinear):
     return check(lin.drive_system())
 
 
-@dataclasses.dataclass(frozen=True)
-class Campbell:
-    """Frequencies [Hz] and decay rates [1/s] of every mode over the field speed scale."""
+def campbell(scene: GeneralScene, Omega0_values, *, orders=(1, 2)):
+    """Campbell diagram over Omega0 with tracked modes: :mod:`gyro_rotor.linear.campbell`.
 
-    Omega0: np.ndarray
-    frequencies: np.ndarray
-    decay: np.ndarray
-    critical: list
-
-
-def campbell(scene: GeneralScene, Omega0_values, *, orders=(1, 2)) -> Campbell:
-    """Campbell diagram over Omega0 (every drive's Omega0 scaled by the same factor).
-
-    The steady motion must be an equilibrium (steady.qdot = 0) that stays steady at every
-    speed. Critical speeds: a mode frequency crosses k times the rotor speed Omega0/2 pi.
+    Every drive's Omega0 is scaled by the same factor; critical speeds: a mode frequency
+    crosses k times the rotor speed Omega0/2 pi.
     """
-    if np.any(np.asarray(scene.steady_qdot) != 0):
-        raise SceneError(f'scene {scene.name}: campbell needs a steady motion that is an '
-                         'equilibrium (steady.qdot = 0); this one moves and changes with '
-                         'Omega0')
-    values = np.asarray(Omega0_values, dtype=float)
-    ref = scene.system.drives[0].Omega0
-    if ref == 0:
-        raise ParameterError('campbell: the first drive has Omega0 = 0; nothing to scale')
-    model = scene.make_model()
-    freqs, decay = [], []
-    for W in values:
-        f = W / ref
-        drives = [d.replace(Omega0=d.Omega0 * f) for d in scene.system.drives]
-        sc = dataclasses.replace(scene, system=scene.system.with_drives(drives))
-        mdl = GeneralModel(sc.system, model.compiled)
-        lam = np.linalg.eigvals(linearize_scene(sc, model=mdl).A_scene())
-        lam = lam[lam.imag >= 0]
-        order = np.argsort(lam.imag)
-        freqs.append(lam.imag[order] / (2 * math.pi))
-        decay.append(-lam.real[order])
-    F = np.array(freqs)
-    crit = []
-    rot = values / (2 * math.pi)
-    for k in orders:
-        for j in range(F.shape[1]):
-            g = F[:, j] - k * np.abs(rot)
-            for i in np.flatnonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0):
-                w = values[i] + (values[i + 1] - values[i]) * g[i] / (g[i] - g[i + 1])
-                crit.append({'order': k, 'mode': j, 'Omega0': float(w)})
-    return Campbell(Omega0=values, frequencies=F, decay=np.array(decay), critical=crit)
+    from gyro_rotor.linear.campbell import campbell_general
+    return campbell_general(scene, Omega0_values, orders=orders)
 
 
 def solve_steady(scene: GeneralScene, *, max_iter: int = 50) -> tuple:

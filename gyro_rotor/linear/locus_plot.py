@@ -1,6 +1,11 @@
-"""Root-locus figure in the style of the paper's figure 2 (matplotlib, imported lazily).
+"""Root-locus figures in the style of the paper's figure 2 (matplotlib, imported lazily).
 
-Only the command line calls this; everything else works without matplotlib.
+The centrifuge's (:func:`root_locus_figure`) and any general system's
+(:func:`general_locus_figure`): zoomed to where the roots meet, each K_D* marked and
+annotated, a legend for the branches and the markers, short tick labels, and a magnified
+view of the branches that barely leave the imaginary axis. The figure functions return the
+figure (tests read its limits and legend); only the command line saves them. Everything
+else works without matplotlib.
 """
 
 from __future__ import annotations
@@ -11,7 +16,7 @@ from gyro_rotor.linear.locus import ClaimsReport, RootLocus
 from gyro_rotor.linear.spectrum import ZERO_ROOT
 import numpy as np
 
-__all__ = ['plot_root_locus']
+__all__ = ['plot_root_locus', 'root_locus_figure', 'general_locus_figure']
 
 COLORS = {'nutation': 'tab:blue', 'precession': 'tab:cyan', 'housing twist': 'tab:green',
           'rotor-field coupling': 'tab:red', ZERO_ROOT: 'black'}
@@ -22,17 +27,30 @@ def plot_root_locus(loc: RootLocus, path: str, *, title: str = '',
     """Draw the upper half plane of the root locus over K_D and save it to ``path``.
 
     Branches are coloured by mode; x marks K_D = 0, o the K_D -> infinity asymptotes, a
-    diamond the meeting point K_D* on the real axis, a dot the roots at ``K_D_mark``.
+    diamond each meeting point K_D* on the real axis, a dot the roots at ``K_D_mark``
+    (:func:`root_locus_figure`).
     """
+    import matplotlib.pyplot as plt
+    fig = root_locus_figure(loc, title=title, claims=claims, K_D_mark=K_D_mark)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def root_locus_figure(loc: RootLocus, *, title: str = '', claims: ClaimsReport | None = None,
+                      K_D_mark: float | None = None):
+    """Return the centrifuge's root-locus figure (:func:`plot_root_locus`) unsaved."""
     try:
         import matplotlib
         matplotlib.use('Agg')
         import matplotlib.pyplot as plt
+        from matplotlib.lines import Line2D
     except ImportError as err:   # pragma: no cover -- optional dependency
         from gyro_rotor.errors import AnalysisError
         raise AnalysisError('plotting needs matplotlib (pip install matplotlib)') from err
     lam = loc.eigenvalues
-    scale = max(np.max(np.abs(lam[0])), np.max(np.abs(loc.zeros)), 1e-9)
+    meetings = list(getattr(claims, 'meetings', None) or [])
+    scale = max(np.max(np.abs(lam[0])), np.max(np.abs(loc.zeros)),
+                max((abs(mt.lam) for mt in meetings), default=0.0), 1e-9)
     fig, ax = plt.subplots(figsize=(8.0, 5.5), dpi=110)
     seen = set()
     for j, nm in enumerate(loc.labels):
@@ -52,10 +70,14 @@ def plot_root_locus(loc: RootLocus, path: str, *, title: str = '',
         if zz.imag >= -1e-9 * scale:
             ax.plot(zz.real, zz.imag, 'o', mfc='none', color=COLORS.get(nm, 'tab:gray'), ms=9,
                     mew=1.5)
-    if claims is not None and claims.K_D_star is not None:
+    if not meetings and claims is not None and claims.K_D_star is not None:
         ax.plot(claims.breakaway, 0.0, 'D', color='tab:red', ms=7)
         ax.annotate(f'K_D* = {claims.K_D_star:.4g}', (claims.breakaway, 0.0),
                     textcoords='offset points', xytext=(5, 12), color='tab:red')
+    for i, mt in enumerate(sorted(meetings, key=lambda mt: mt.lam)):
+        ax.plot(mt.lam, 0.0, 'D', color='tab:red', ms=7)
+        ax.annotate(f'K_D* = {mt.K_D:.4g} ({mt.kind})', (mt.lam, 0.0),
+                    textcoords='offset points', xytext=(6, 12 + 20 * i), color='tab:red')
     ax.axvline(0.0, color='0.4', lw=0.8)
     ax.axhline(0.0, color='0.4', lw=0.8)
     ax.set_xlim(-1.15 * scale, 0.08 * scale)
@@ -66,12 +88,22 @@ def plot_root_locus(loc: RootLocus, path: str, *, title: str = '',
     fig.text(0.01, 0.005, f'K_D from 0 to {loc.K_D[-1]:.3g} N m s/rad (log grid); the fast '
              f'{loc.fast_label} root leaves to the left like -{loc.fast_gain:.4g} K_D',
              fontsize=8, color='0.3')
-    ax.legend(loc='upper left', fontsize=9)
+    marks = [Line2D([], [], ls='', marker='x', color='0.3', ms=8, mew=2, label='K_D = 0'),
+             Line2D([], [], ls='', marker='o', mfc='none', color='0.3', ms=8,
+                    label='K_D -> infinity')]
+    if meetings or (claims is not None and claims.K_D_star is not None):
+        marks.append(Line2D([], [], ls='', marker='D', color='tab:red', ms=6,
+                            label='K_D*: a pair meets on the real axis'))
+    if K_D_mark is not None:
+        marks.append(Line2D([], [], ls='', marker='.', color='0.3', ms=9,
+                            label=f"scene's K_D = {K_D_mark:.4g}"))
+    h, t = ax.get_legend_handles_labels()
+    ax.legend(h + marks, t + [m.get_label() for m in marks], loc='upper left', fontsize=8)
+    _ticks(ax)
     ax.grid(True, alpha=0.3)
     _nutation_inset(ax, loc, K_D_mark)
     fig.tight_layout(rect=(0, 0.03, 1, 1))
-    fig.savefig(path)
-    plt.close(fig)
+    return fig
 
 
 def _nutation_inset(ax, loc: RootLocus, K_D_mark) -> None:
@@ -85,12 +117,244 @@ def _nutation_inset(ax, loc: RootLocus, K_D_mark) -> None:
     if re_min >= 0:
         return
     ins = ax.inset_axes([0.55, 0.35, 0.3, 0.3])
-    ins.plot(z.real * 1e3, z.imag, '-', color=COLORS['nutation'])
-    ins.plot(z[0].real * 1e3, z[0].imag, 'x', color=COLORS['nutation'], ms=8, mew=2)
+    w0 = float(abs(z[0].imag))          # Im about its K_D = 0 value: no digits lost
+    ins.plot(z.real * 1e3, z.imag - w0, '-', color=COLORS['nutation'])
+    ins.plot(z[0].real * 1e3, z[0].imag - w0, 'x', color=COLORS['nutation'], ms=8, mew=2)
     if K_D_mark is not None:
         i = int(np.argmin(np.abs(np.log(np.maximum(loc.K_D, 1e-300)) - math.log(K_D_mark))))
-        ins.plot(z[i].real * 1e3, z[i].imag, '.', color=COLORS['nutation'], ms=9)
+        ins.plot(z[i].real * 1e3, z[i].imag - w0, '.', color=COLORS['nutation'], ms=9)
     ins.axvline(0.0, color='0.4', lw=0.8)
     ins.set_xlim(1.15 * re_min * 1e3, -0.1 * re_min * 1e3)
-    ins.set_title('nutation branch, Re x 1000', fontsize=8)
+    ins.set_title(f'nutation branch: Re x 1000, Im - {w0:.6g} rad/s', fontsize=8)
+    _ticks(ins)
     ins.tick_params(labelsize=7)
+
+
+# -- general systems ---------------------------------------------------------------------------
+def _retrack(roots: np.ndarray) -> np.ndarray:
+    """Columns that follow each root: nearest to the linear prediction from row to row."""
+    from scipy.optimize import linear_sum_assignment
+    out = roots.copy()
+    for i in range(1, len(out)):
+        prev = out[i - 1]
+        pred = 2 * prev - out[i - 2] if i > 1 else prev
+        r, c = linear_sum_assignment(np.abs(pred[:, None] - out[i][None, :])
+                                     + 0.5 * np.abs(prev[:, None] - out[i][None, :]))
+        row = np.empty_like(out[i])
+        row[r] = out[i][c]
+        out[i] = row
+    return out
+
+
+def _densify(Ks: np.ndarray, R: np.ndarray, eig_at, sub: int = 4) -> tuple:
+    """Add ``sub - 1`` K values (geometric) in every step of the continuation.
+
+    For smooth arcs: the roots there are matched to the tracked columns (interpolated
+    prediction).
+    """
+    from scipy.optimize import linear_sum_assignment
+    out_K, out_R = [Ks[0]], [R[0]]
+    for i in range(len(Ks) - 1):
+        a, b = math.log(Ks[i]), math.log(Ks[i + 1])
+        for t in np.arange(1, sub) / sub:
+            lam = eig_at(math.exp(a + t * (b - a)))
+            pred = (1 - t) * R[i] + t * R[i + 1]
+            r, c = linear_sum_assignment(np.abs(pred[:, None] - lam[None, :]))
+            row = np.empty(R.shape[1], dtype=complex)
+            row[r] = lam[c]
+            out_K.append(math.exp(a + t * (b - a)))
+            out_R.append(row)
+        out_K.append(Ks[i + 1])
+        out_R.append(R[i + 1])
+    return np.array(out_K), np.array(out_R)
+
+
+def _ticks(ax) -> None:
+    """Few, short tick labels (never run together): at most 7 per axis, '%g' text."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MaxNLocator(nbins=6))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f'{v:.4g}'))
+
+
+class _GeneralLocus:
+    """What the general root-locus figure draws (:func:`general_locus_figure`)."""
+
+    def __init__(self, lin, claims, K_lo: float, K_hi: float):
+        """Collect the branches (tracked, densified), names, fixed and limit roots, scale."""
+        from gyro_rotor.linear.claims import locked_spectrum
+        from gyro_rotor.linear.general import _dominant
+        loc = claims.locus
+        sel = (loc.K >= K_lo * (1 - 1e-12)) & (loc.K <= K_hi * (1 + 1e-12))
+        if np.sum(sel) < 2:
+            sel = np.ones(len(loc.K), bool)
+        self.ds = ds = lin.drive_system()
+        A0l, Bl, Cl = ds.locus_pieces()
+        self.K, R = _densify(loc.K[sel], _retrack(loc.roots)[sel],
+                             lambda K: np.linalg.eigvals(A0l - K * (Bl @ Cl)))
+        self.R = R
+        # names at the start of the locus: the dominant coordinate of each eigenvector;
+        # the roots of A(K) on no branch do not move (not reached by the drives)
+        lam_s, V_s = np.linalg.eig(ds.A(float(self.K[0])))
+        self.names, used = [], set()
+        for z in R[0]:
+            d = np.abs(lam_s - z)
+            d[list(used)] = np.inf
+            k = int(np.argmin(d))
+            used.add(k)
+            self.names.append(_dominant(lin, V_s[:, k] / np.linalg.norm(V_s[:, k])))
+        self.fixed = np.array([lam_s[i] for i in range(len(lam_s)) if i not in used],
+                              dtype=complex)
+        try:
+            self.locked = locked_spectrum(A0l, Bl, Cl)
+        except np.linalg.LinAlgError:
+            self.locked = np.zeros(0, complex)
+        self.meetings = sorted(claims.meetings, key=lambda mt: mt.lam)
+        meet = np.array([mt.lam for mt in self.meetings], dtype=float)
+        self.S = S = max(float(np.abs(R[0]).max(initial=0.0)),
+                         float(np.abs(self.fixed).max(initial=0.0)),
+                         float(np.abs(self.locked).max(initial=0.0)),
+                         float(np.abs(meet).max(initial=0.0)), 1e-9)
+        self.z_up = np.where(R.imag < 0, R.conj(), R)
+        self.upper = ~np.all(R.imag < -1e-9 * S, axis=0)
+        self.excursion = np.abs(R.real).max(axis=0)
+        # the slow branches: reached, but their real parts stay below 2 % of the picture
+        slow = [j for j in range(R.shape[1]) if self.upper[j]
+                and 0 < self.excursion[j] < 0.02 * S and np.all(np.abs(self.z_up[:, j]) < 2 * S)]
+        self.slow = sorted(slow, key=lambda j: -abs(R[0, j].imag))[:4]
+        K_scene = np.asarray(ds.K_scene)[list(ds.vary)]
+        self.mark = float(K_scene[0]) if K_scene.size and np.all(K_scene == K_scene[0]) \
+            and K_scene[0] > 0 else None
+        self.fast = np.sort(lin.fast_rates)
+
+    def label(self, j: int) -> str:
+        """Return the legend entry of branch ``j``."""
+        return f'{self.names[j]} ({abs(self.R[0, j].imag):.4g} rad/s at K_D = 0)'
+
+
+def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = ''):
+    """Return the root-locus figure of a general system (matplotlib), like the centrifuge's.
+
+    ``lin``: :class:`~gyro_rotor.linear.general.GeneralLinear`; ``claims``: its
+    :class:`~gyro_rotor.linear.claims.ClaimsResult` (the continuation's locus, the
+    meetings). The upper half plane is drawn (the lower is its mirror image), zoomed to
+    where the roots meet: every K_D* meeting point, the K_D = 0 roots and the locked
+    system's lie inside; the m fast roots that leave to -infinity leave the picture
+    (a note gives their rate). Branches are coloured by mode (the dominant coordinate of
+    the K_D = 0 eigenvector); x marks K_D = 0, o the K_D -> infinity limits, a diamond
+    each meeting K_D* (annotated with its value and kind), a dot the scene's K_D, + the
+    roots the drives do not reach. Branches that barely leave the imaginary axis get a
+    panel each beside it (Re scaled by a power of ten, Im about its K_D = 0 value).
+    """
+    try:
+        import matplotlib
+        matplotlib.use('Agg')
+        import matplotlib.pyplot as plt
+    except ImportError as err:   # pragma: no cover -- optional dependency
+        from gyro_rotor.errors import AnalysisError
+        raise AnalysisError('plotting needs matplotlib (pip install matplotlib)') from err
+    d = _GeneralLocus(lin, claims, K_lo, K_hi)
+    if d.slow:
+        fig = plt.figure(figsize=(12.5, 6.0), dpi=110)
+        gs = fig.add_gridspec(len(d.slow), 2, width_ratios=(2.2, 1))
+        ax = fig.add_subplot(gs[:, 0])
+        side = [fig.add_subplot(gs[k, 1]) for k in range(len(d.slow))]
+    else:
+        fig, ax = plt.subplots(figsize=(8.5, 5.8), dpi=110)
+        side = []
+    cmap = plt.get_cmap('tab10').colors
+    labels = sorted({d.label(j) for j in range(d.R.shape[1]) if d.upper[j]},
+                    key=lambda t: -float(t.split('(')[-1].split()[0]))
+    color = {t: cmap[i % len(cmap)] for i, t in enumerate(labels)}
+    _draw_general_main(ax, d, color, title)
+    for ax2, j in zip(side, d.slow):
+        _draw_slow_branch(ax2, d, j, color.get(d.label(j), 'tab:gray'))
+    if side:
+        side[-1].set_xlabel('Re lambda x 10^p [1/s] (p in each title)', fontsize=8)
+    fast = ', '.join(f'{g:.4g}' for g in d.fast)
+    fig.text(0.01, 0.005, f'K_D from {d.K[0]:.3g} to {d.K[-1]:.3g} N m s/rad (log); the '
+             f'{len(d.fast)} fast root(s) leave to the left like -K_D x ({fast}) '
+             '1/(N m s/rad) and leave the picture', fontsize=7.5, color='0.3')
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    return fig
+
+
+def _draw_general_main(ax, d: _GeneralLocus, color: dict, title: str) -> None:
+    """Draw the branches, markers, annotations, limits and legend of the main panel."""
+    from matplotlib.lines import Line2D
+    S, seen = d.S, set()
+    for j in range(d.R.shape[1]):
+        if not d.upper[j]:
+            continue                                   # lower half plane: the mirror image
+        t = d.label(j)
+        col = color.get(t, 'tab:gray')
+        ax.plot(d.z_up[:, j].real, d.z_up[:, j].imag, '-', color=col, lw=1.6,
+                label=None if t in seen else t)
+        seen.add(t)
+        ax.plot(d.z_up[0, j].real, d.z_up[0, j].imag, 'x', color=col, ms=9, mew=2)
+    for zs, kw in ((d.locked, {'marker': 'o', 'mfc': 'none', 'color': '0.2', 'ms': 9,
+                               'mew': 1.5}),
+                   (d.fixed, {'marker': '+', 'color': 'k', 'ms': 11, 'mew': 2})):
+        for z in zs:
+            if z.imag >= -1e-9 * S:
+                ax.plot(z.real, abs(z.imag), ls='', **kw)
+    if d.mark is not None:
+        for z in np.linalg.eigvals(d.ds.A(d.mark)):
+            if z.imag >= -1e-9 * S and abs(z) < 2 * S:
+                ax.plot(z.real, abs(z.imag), '.', color='tab:purple', ms=9)
+    for i, mt in enumerate(d.meetings):
+        ax.plot(mt.lam, 0.0, 'D', color='tab:red', ms=7)
+        ax.annotate(f'K_D* = {mt.K_D:.4g} ({mt.kind})', (mt.lam, 0.0),
+                    textcoords='offset points', xytext=(8, 12 + 20 * i), color='tab:red',
+                    fontsize=8, arrowprops={'arrowstyle': '-', 'color': 'tab:red', 'lw': 0.6})
+    ax.axvline(0.0, color='0.4', lw=0.8)
+    ax.axhline(0.0, color='0.4', lw=0.8)
+    ax.set_xlim(-1.15 * S, 0.08 * S)
+    ax.set_ylim(-0.04 * S, 1.15 * S)
+    ax.set_xlabel('Re lambda [1/s]')
+    ax.set_ylabel('Im lambda [rad/s]')
+    ax.set_title(title or 'root locus over K_D', fontsize=10)
+    _ticks(ax)
+    ax.grid(True, alpha=0.3)
+    marks = [Line2D([], [], ls='', marker='x', color='0.3', ms=8, mew=2, label='K_D = 0'),
+             Line2D([], [], ls='', marker='o', mfc='none', color='0.2', ms=8,
+                    label='K_D -> infinity (locked system)'),
+             Line2D([], [], ls='', marker='D', color='tab:red', ms=6,
+                    label='K_D*: a pair meets on the real axis')]
+    if d.mark is not None:
+        marks.append(Line2D([], [], ls='', marker='.', color='tab:purple', ms=9,
+                            label=f"scene's K_D = {d.mark:.4g}"))
+    if d.fixed.size:
+        marks.append(Line2D([], [], ls='', marker='+', color='k', ms=9, mew=2,
+                            label='not reached by the drives (fixed)'))
+    h, t = ax.get_legend_handles_labels()
+    ax.legend(h + marks, t + [m.get_label() for m in marks], loc='upper left', fontsize=7.5,
+              framealpha=0.9)
+
+
+def _draw_slow_branch(ax2, d: _GeneralLocus, j: int, col) -> None:
+    """Draw one slow branch, Re magnified by a power of ten to fill the panel."""
+    top = max(float(d.excursion[j]), 1e-300)
+    p = int(math.floor(math.log10(d.S / top) / 3) * 3) or 3
+    f = 10.0 ** p
+    w0 = float(abs(d.R[0, j].imag))      # Im about its K_D = 0 value (no digits lost)
+    z = d.z_up[:, j]
+    y = z.imag - w0
+    ax2.plot(z.real * f, y, '-', color=col, lw=1.6)
+    ax2.plot(z[0].real * f, y[0], 'x', color=col, ms=9, mew=2)
+    if d.mark is not None:
+        i = int(np.argmin(np.abs(np.log(d.K) - math.log(d.mark))))
+        ax2.plot(z[i].real * f, y[i], '.', color='tab:purple', ms=9)
+    im_lo, im_hi = float(y.min()), float(y.max())
+    pad = max(0.15 * (im_hi - im_lo), 1e-9 * max(w0, 1.0))
+    for x in d.locked:
+        if x.imag >= 0 and im_lo - pad <= x.imag - w0 <= im_hi + pad:
+            ax2.plot(x.real * f, x.imag - w0, 'o', mfc='none', color='0.2', ms=9, mew=1.5)
+    ax2.axvline(0.0, color='0.4', lw=0.8)
+    ax2.set_xlim(-1.15 * top * f, 0.1 * top * f)
+    ax2.set_ylim(im_lo - pad, im_hi + pad)
+    ax2.set_title(f'{d.names[j]} near {w0:.6g} rad/s: Re x 1e{p}', fontsize=8)
+    ax2.set_ylabel(f'Im - {w0:.6g} [rad/s]', fontsize=8)
+    ax2.tick_params(labelsize=7)
+    _ticks(ax2)
+    ax2.grid(True, alpha=0.3)

@@ -5,10 +5,11 @@ the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where they a
 installed; best milliseconds per simulated second at errors 1e-3, 1e-6, 1e-9 per scene and
 method; E* drift; pole counts)
 and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
-by default a new directory ``bench-YYYYmmdd-HHMMSS``: the committed results in ``bench/``
-are replaced only when ``--out bench`` is given. ``--quick`` is a smoke run of under a
-minute (3 scenes, 2 tolerances, the methods auto picks and dop853, scipy's LSODA, CyRK's
-DOP853 where installed, 1 repeat, 100-s drift study, no pole counts).
+by default a new directory ``bench_out/bench-YYYYmmdd-HHMMSS`` (ignored by git; a suffix -2,
+-3 if two runs start in the same second): the committed results in ``bench/`` are replaced
+only when ``--out bench`` is given. ``--quick`` is a smoke run of under a minute (3 scenes,
+2 tolerances, the methods auto picks and dop853, scipy's LSODA, CyRK's DOP853 where
+installed, 1 repeat, 100-s drift study, no pole counts).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import platform
 import sys
 import time
 
+from gyro_rotor.cli.util import make_unique_dir, RUNS_DIR
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.numerics.bench as bench
 
@@ -39,8 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--repeats', type=int, default=None,
                    help='repeats per run, median wall (default 3; 1 with --quick)')
     p.add_argument('--out', default=None,
-                   help='output directory (default: a new bench-YYYYmmdd-HHMMSS; the '
-                   'committed results are in bench)')
+                   help='output directory (default: a new bench_out/bench-YYYYmmdd-HHMMSS, '
+                   'ignored by git; the committed results are in bench: --out bench)')
     p.add_argument('--no-scipy', action='store_true', help='skip the scipy baselines')
     p.add_argument('--no-peers', action='store_true',
                    help='skip the compiled peers (CyRK, numbalsoda; run where installed: '
@@ -181,19 +183,35 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
 
 
 def write_plot(path, rows) -> str | None:
-    """Error against wall time per scene (log-log); None if matplotlib is missing."""
+    """Error against wall time per scene (log-log); a message if matplotlib is missing."""
     try:
         import matplotlib
         matplotlib.use('Agg')
         import matplotlib.pyplot as plt
     except ImportError:
         return 'matplotlib is not installed: no plot'
+    fig = work_precision_figure(rows)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return None
+
+
+def work_precision_figure(rows):
+    """Return the work-precision figure: one panel per scene, a legend in each.
+
+    Error against wall seconds per simulated second (log-log), one line per method:
+    circles gyro_rotor's, squares scipy's, triangles the compiled peers; grey lines the
+    error levels of the tables.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
     scenes = list(dict.fromkeys(r.scene for r in rows))
     methods = list(dict.fromkeys(r.method for r in rows))
-    ncol = 3
-    nrow = math.ceil(len(scenes) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(5 * ncol, 3.6 * nrow), squeeze=False)
-    cmap = plt.get_cmap('tab10')
+    ncol = min(3, max(len(scenes), 1))
+    nrow = max(math.ceil(len(scenes) / ncol), 1)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 3.8 * nrow), squeeze=False)
+    cmap = plt.get_cmap('tab10' if len(methods) <= 10 else 'tab20')
     for ax, s in zip(axes.flat, scenes):
         for i, m in enumerate(methods):
             pts = sorted((r.wall_per_sim, r.err) for r in rows
@@ -202,27 +220,27 @@ def write_plot(path, rows) -> str | None:
             if pts:
                 x, y = zip(*pts)
                 fam = next(r.family for r in rows if r.method == m)
-                style = {'gyro_rotor': 'o-', 'scipy': 's--', 'peer': '^:'}[fam]
-                ax.loglog(x, y, style, color=cmap(i % 10), label=m, ms=3, lw=1)
+                style = {'gyro_rotor': 'o-', 'scipy': 's--', 'peer': '^:'}.get(fam, 'd-.')
+                ax.loglog(x, y, style, color=cmap(i % cmap.N), label=m, ms=3, lw=1)
         ax.set_title(s, fontsize=9)
-        ax.set_xlabel('wall s per simulated s', fontsize=8)
+        ax.set_xlabel('wall time per simulated time [s/s]', fontsize=8)
         ax.set_ylabel('error [rad]', fontsize=8)
         for lev in bench.ERROR_LEVELS:
             ax.axhline(lev, color='0.8', lw=0.5)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6, ncol=2)
     for ax in list(axes.flat)[len(scenes):]:
         ax.axis('off')
-    axes.flat[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return None
+    return fig
 
 
 def resolve_settings(args: argparse.Namespace) -> str | None:
     """Fill the defaults that depend on --quick; return an error text, or None if valid.
 
-    The output directory defaults to a new ``bench-YYYYmmdd-HHMMSS``: the committed
-    ``bench/`` is written only when ``--out bench`` is given.
+    The output directory defaults to a new ``bench_out/bench-YYYYmmdd-HHMMSS`` (created by
+    :func:`run`, unique): the committed ``bench/`` is written only when ``--out bench`` is
+    given.
     """
     if args.repeats is None:
         args.repeats = 1 if args.quick else 3
@@ -231,7 +249,8 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
     if args.scenes is None:
         args.scenes = ','.join(bench.QUICK_SCENES if args.quick else bench.DEFAULT_SCENES)
     if args.out is None:
-        args.out = bench.default_out_dir()
+        args.out = os.path.join(RUNS_DIR, bench.default_out_dir())
+        args.out_is_default = True
     if args.repeats < 1:
         return f'--repeats must be >= 1, got {args.repeats}'
     if not (math.isfinite(args.drift_t_end) and args.drift_t_end >= 0):
@@ -253,7 +272,10 @@ def run(args: argparse.Namespace) -> int:
         return 1
     specs = [s.strip() for s in args.scenes.split(',') if s.strip()]
     args.load_before = os.getloadavg()[0]
-    os.makedirs(args.out, exist_ok=True)
+    if getattr(args, 'out_is_default', False):
+        args.out = str(make_unique_dir(args.out))
+    else:
+        os.makedirs(args.out, exist_ok=True)
     print(f'writing to {args.out}')
     t0 = time.perf_counter()
     rows = []

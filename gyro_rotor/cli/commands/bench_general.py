@@ -13,7 +13,10 @@ HELP = ('benchmark the general rotor systems: generated RHS vs the hand-written 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add the arguments of bench-general."""
-    p.add_argument('--out', default='bench/general.md', help='markdown table to write')
+    p.add_argument('--out', default=None, metavar='FILE.md',
+                   help='markdown table to write (default: a new '
+                   'bench_out/general-YYYYmmdd-HHMMSS/general.md, ignored by git; the committed '
+                   'table: --out bench/general.md)')
     p.add_argument('--t-end', type=float, default=2.0, help='simulated seconds per run')
     p.add_argument('--level', type=float, default=1e-9, help='error level of the comparison')
     p.add_argument('--repeats', type=int, default=3, help='repeats of our runs (best wall)')
@@ -26,6 +29,12 @@ def run(args: argparse.Namespace) -> int:
     from gyro_rotor.numerics import general_bench as gb
     if not (math.isfinite(args.t_end) and args.t_end > 0) or not args.level > 0:
         raise ParameterError('--t-end and --level must be positive')
+    if args.out is None:
+        # never the tracked bench/general.md unless --out says so; a new file per run
+        import time
+        from gyro_rotor.cli.util import make_unique_dir, RUNS_DIR
+        d = make_unique_dir(Path(RUNS_DIR) / time.strftime('general-%Y%m%d-%H%M%S'))
+        args.out = str(d / 'general.md')
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     check_output_file(args.out, ('.md',))
     lines = ['# General rotor systems: benchmark', '',

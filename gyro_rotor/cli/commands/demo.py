@@ -255,8 +255,16 @@ def expected_outcome(scene, duration: float) -> dict:
 
 
 def _out_dir(args: argparse.Namespace, scene) -> Path:
-    stamp = time.strftime('%Y%m%d-%H%M%S')
-    out = Path(args.out) if args.out else Path('demo_runs') / f'{scene.name}_{stamp}'
+    """Return the output directory: --out (new or empty), else a new one for this run.
+
+    The default demo_runs/<scene>_<time>[-k] is created here, atomically: two demos started
+    in the same second get two folders (the second one the suffix -2), never one shared.
+    """
+    if not args.out:
+        from gyro_rotor.cli.util import make_unique_dir
+        stamp = time.strftime('%Y%m%d-%H%M%S')
+        return make_unique_dir(Path('demo_runs') / f'{scene.name}_{stamp}')
+    out = Path(args.out)
     if out.exists() and any(out.iterdir()):
         raise ParameterError(f'output directory {out} exists and is not empty')
     try:

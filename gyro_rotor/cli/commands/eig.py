@@ -9,8 +9,9 @@ import math
 from gyro_rotor.cli.util import check_output_file, parse_sets
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.stability import analyze, scene_operating_point, TOL_RE_REL
-import numpy as np
+from gyro_rotor.linear.linearize import linearize
+from gyro_rotor.linear.roundoff import floor, fmt_re
+from gyro_rotor.linear.stability import analyze, scene_operating_point
 
 HELP = 'eigenvalues, named modes, drive penetration and the stability verdict of a scene'
 
@@ -37,13 +38,18 @@ def run(args: argparse.Namespace) -> int:
     print(f'  state: ({", ".join(r.state_names)})')
     print(f'  {"mode":40s} {"Re [1/s]":>13s} {"Im [rad/s]":>12s} {"f [Hz]":>9s} '
           f'{"zeta":>10s} {"tau [s]":>10s} {"dRe/dK_D":>11s}  reached')
-    # a real part below the eigensolver's resolution is 0, not a result (never 1e-102)
-    res = TOL_RE_REL * max(float(np.linalg.norm(r.A)), 1.0)
+    # a real part below the eigensolver's resolution is 0, not a result (never 1e-102): the
+    # rule of every system (linear/roundoff.py), the floor TOL_RE_REL ||A0|| to which the
+    # spectrum's pencil keeps its roots at any K_D
+    res = floor(linearize(p, sm, model).A0)
 
     def re(x: float, width: int = 13) -> str:
-        return f'{x:+{width}.6e}' if abs(x) > res else f'{"0":>{width}s}'
+        return fmt_re(x, res, width)
     for m in r.modes:
-        tau = f'{m.tau:10.4g}' if math.isfinite(m.tau) else f'{"inf":>10s}'
+        if abs(m.eigenvalue.real) <= res:
+            tau = f'{"undamped" if m.eigenvalue.imag else "inf":>10s}'
+        else:
+            tau = f'{m.tau:10.4g}' if math.isfinite(m.tau) else f'{"inf":>10s}'
         print(f'  {m.name:40s} {re(m.eigenvalue.real)} {m.eigenvalue.imag:12.6f} '
               f'{m.freq_hz:9.4f} {m.zeta:10.3e} {tau} {m.dRe_dKD:+11.4e}  '
               f'{"yes" if m.reached_by_drive else "no"}')

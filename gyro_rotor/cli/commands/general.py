@@ -116,25 +116,50 @@ def steady(args) -> int:
 
 
 def eig(args) -> int:
-    """Eigenvalues and modes (PBH reach, names) about the scene's steady motion."""
+    """Eigenvalues and modes (PBH reach, names) about the scene's steady motion.
+
+    One line per mode (a complex pair once, Im >= 0). A real part within the root's
+    resolution (:mod:`gyro_rotor.linear.roundoff`, the rule of every system) prints as 0
+    and the mode as undamped: no decay time from round-off.
+    """
     from gyro_rotor.linear.general import linearize_scene, modes
+    from gyro_rotor.linear.roundoff import decay_text, fmt_re, resolutions
     if args.json:
         check_output_file(args.json, ('.json',))
     scene = _scene(args)
     lin = linearize_scene(scene)
     ms = sorted(modes(lin), key=lambda x: (-x.value.real, x.value.imag))
+    lam_r, res_r = resolutions(lin.A_scene(), lin.A_cons)
+    res = [float(res_r[int(np.argmin(np.abs(lam_r - x.value)))]) for x in ms]
+    shown = [(x, r) for x, r in zip(ms, res) if x.value.imag >= -r]
     print(f'scene {scene.name}: {len(ms)} roots of system {scene.system.name} about its steady '
-          f'motion, K_D = {lin.K_each.tolist()}')
-    for x in ms:
-        damped = x.reached and x.value.real < 0
-        decay = f'{-1 / x.value.real:10.4g} s' if damped else '         -'
-        print(f'  {x.value.real:+.6e} {x.value.imag:+.6e}j  decay {decay}  {x.name}')
+          f'motion, K_D = {lin.K_each.tolist()} (one line per complex pair)')
+    print(f'  {"mode":36s} {"Re [1/s]":>13s} {"Im [rad/s]":>13s} {"f [Hz]":>9s} '
+          f'{"decay time":>13s}  reached')
+    for x, r in shown:
+        im = abs(x.value.imag) if abs(x.value.imag) > r else 0.0
+        decay = '-' if x.structural_zero else decay_text(x.value.real, r)
+        print(f'  {x.name:36s} {fmt_re(x.value.real, r)} {im:13.6f} {im / (2 * math.pi):9.4f} '
+              f'{decay:>13s}  {"yes" if x.reached else "no"}')
+    judged = [(x, r) for x, r in zip(ms, res) if not x.structural_zero]
+    if judged:
+        x, r = max(judged, key=lambda t: t[0].value.real)
+        sa = x.value.real if abs(x.value.real) > r else 0.0
+        print(f'  spectral abscissa {fmt_re(sa, 0.0, 0).strip() if sa else "0"} 1/s (slowest: '
+              f'{x.name}; a |Re| within the resolution of its root, about {r:.1e} 1/s '
+              'here, prints as 0)')
+    undamped = [f'{x.name} at {abs(x.value.imag) / (2 * math.pi):.4g} Hz' for x, r in shown
+                if not x.structural_zero and abs(x.value.real) <= r]
+    if undamped:
+        print(f'  undamped (Re = 0 within round-off): {", ".join(undamped)}')
     if args.json:
         doc = {'scene': scene.name, 'system': scene.system.name,
                'K_D': lin.K_each.tolist(),
                'eigenvalues': [[x.value.real, x.value.imag] for x in ms],
                'modes': [{'re': x.value.real, 'im': x.value.imag, 'reached': x.reached,
-                          'name': x.name, 'structural_zero': x.structural_zero} for x in ms]}
+                          'name': x.name, 'structural_zero': x.structural_zero,
+                          'resolution': r, 'undamped': abs(x.value.real) <= r}
+                         for x, r in zip(ms, res)]}
         with open(args.json, 'w', encoding='utf-8') as f:
             json.dump(doc, f, indent=1)
     return 0
@@ -192,29 +217,23 @@ def locus(args) -> int:
                 for j, z in enumerate(row):
                     f.write(f'{K!r},{j},{z.real!r},{z.imag!r}\n')
     if args.out:
-        _plot_locus(args.out, grid, roots, claims, scene.name)
+        _plot_locus(args.out, lin, claims, scene.name, float(grid[0]), float(grid[-1]))
     return 0 if claims.all_hold else CLAIM_FAILS
 
 
-def _plot_locus(path, grid, roots, claims, name) -> None:
+def _plot_locus(path, lin, claims, name, K_lo, K_hi) -> None:
     try:
         import matplotlib
         matplotlib.use('Agg')
         import matplotlib.pyplot as plt
     except ImportError:
         raise ParameterError('--out needs matplotlib') from None
-    fig, ax = plt.subplots(figsize=(7, 5))
-    sc = ax.scatter(roots.real.ravel(), roots.imag.ravel(), s=2,
-                    c=np.repeat(np.log10(grid), roots.shape[1]), cmap='viridis')
-    for x in claims.meetings:
-        ax.plot([x.lam], [0.0], 'rx')
-    fig.colorbar(sc, label='log10 K_D')
-    ax.set_xlabel('Re [1/s]')
-    ax.set_ylabel('Im [1/s]')
-    ax.set_title(f'root locus over K_D: {name}')
-    ax.grid(True, alpha=0.3)
-    fig.savefig(path, dpi=120)
+    from gyro_rotor.linear.locus_plot import general_locus_figure
+    fig = general_locus_figure(lin, claims, K_lo=K_lo, K_hi=K_hi,
+                               title=f'root locus over K_D: scene {name}')
+    fig.savefig(path)
     plt.close(fig)
+    print(f'  wrote {path}')
 
 
 def tune(args) -> int:

@@ -1,0 +1,56 @@
+"""One rule for every system: a real part within its eigenvalue's resolution is 0.
+
+An eigenvalue computed in double precision carries round-off; a real part within it is
+not a result (never ``decay 2.2e+12 s`` from ``Re = -4.5e-13``, never a spectral abscissa
+of ``1.8e-102``). The resolution of each eigenvalue is the larger of
+
+- ``TOL_RE_REL ||A0||_F`` (:data:`gyro_rotor.linear.spectrum.TOL_RE_REL`), A0 the matrix
+  without drive damping: the floor of the eigen-solver (the centrifuge's spectrum keeps
+  its roots to it at any K_D through the pencil form);
+- the eigenvalue's own round-off bound ``100 eps ||A|| kappa`` (condition number kappa,
+  :func:`gyro_rotor.linear.claims.resolution`) where it is computed from A itself (the
+  general systems' ``eig`` and ``campbell``).
+
+Every command that prints an eigenvalue (``eig``, ``campbell``, ``locus`` of either kind
+of system) shows such a real part as 0 and the mode as undamped.
+"""
+
+from __future__ import annotations
+
+import math
+
+from gyro_rotor.linear.spectrum import TOL_RE_REL
+import numpy as np
+
+__all__ = ['floor', 'resolutions', 'shown', 'fmt_re', 'decay_text', 'TOL_RE_REL']
+
+
+def floor(A0: np.ndarray) -> float:
+    """Return TOL_RE_REL max(||A0||_F, 1): the smallest real part that is a result."""
+    return TOL_RE_REL * max(float(np.linalg.norm(A0)), 1.0) if np.size(A0) else TOL_RE_REL
+
+
+def resolutions(A: np.ndarray, A0: np.ndarray | None = None) -> tuple:
+    """Eigenvalues of A and the resolution of each (module doc); A0 defaults to A."""
+    from gyro_rotor.linear.claims import resolution
+    lam, res = resolution(np.asarray(A, dtype=float))
+    return lam, np.maximum(res, floor(A if A0 is None else A0))
+
+
+def shown(x: float, res: float) -> float:
+    """Return ``x``, or 0.0 if ``|x| <= res`` (round-off)."""
+    return 0.0 if abs(x) <= res else float(x)
+
+
+def fmt_re(x: float, res: float, width: int = 13) -> str:
+    """``x`` as ``+1.234560e-03`` right-aligned in ``width``, or ``0`` within resolution."""
+    return f'{x:+{width}.6e}' if abs(x) > res else f'{"0":>{width}s}'
+
+
+def decay_text(re: float, res: float) -> str:
+    """``'4.819 s'`` (time constant -1/Re), ``'undamped'`` within resolution, or growth."""
+    if abs(re) <= res:
+        return 'undamped'
+    if re < 0:
+        return f'{-1.0 / re:.4g} s'
+    return f'grows (x2 in {math.log(2.0) / re:.4g} s)'
