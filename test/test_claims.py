@@ -58,11 +58,6 @@ def random_system(seed, n, m, indefinite=False):
     return pieces(M, G, K, K_S, K_D)
 
 
-def n_real(A):
-    """Real roots as LAPACK returns them (a 1 x 1 block of the real Schur form)."""
-    return int(np.sum(np.linalg.eigvals(A).imag == 0.0))
-
-
 def n_real_near(A0, B, C, K, lam):
     """Real roots of A0 - K B C within |lam|/2 of ``lam``, as LAPACK returns them.
 
