@@ -240,6 +240,20 @@ def test_general_locus_plot_magnifies_the_slow_branches():
         plt.close(fig)
 
 
+def test_general_locus_plot_of_a_part_of_the_range_says_where_it_starts():
+    from gyro_rotor.linear.general import check_claims, linearize_scene
+    from gyro_rotor.linear.locus_plot import general_locus_figure
+    lin = linearize_scene(load_general_scene('twin_gimbal'))
+    fig = general_locus_figure(lin, check_claims(lin), K_lo=0.1, K_hi=0.5)
+    try:
+        texts = _legend(fig.axes[0])
+        start = [t for t in texts if t.startswith('K_D = ')]
+        assert len(start) == 1 and 0.1 <= float(start[0][6:]) < 0.11      # not 'K_D = 0'
+        assert all(t.endswith(f'at {start[0]})') for t in texts if 'rad/s at' in t)
+    finally:
+        plt.close(fig)
+
+
 @pytest.mark.parametrize('name', ['precession', 'stiff_drive', 'nutation'])
 def test_centrifuge_locus_plot_marks_every_meeting(name):
     from gyro_rotor.linear.linearize import linearize

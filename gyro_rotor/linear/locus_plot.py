@@ -226,10 +226,14 @@ class _GeneralLocus:
         self.mark = float(K_scene[0]) if K_scene.size and np.all(K_scene == K_scene[0]) \
             and K_scene[0] > 0 else None
         self.fast = np.sort(lin.fast_rates)
+        # the start of the range is 'K_D = 0' when no root has moved visibly from there yet
+        lam0 = np.linalg.eigvals(A0l)
+        moved = max((float(np.min(np.abs(lam0 - z))) for z in R[0]), default=0.0)
+        self.start = 'K_D = 0' if moved <= 1e-3 * S else f'K_D = {self.K[0]:.3g}'
 
     def label(self, j: int) -> str:
         """Return the legend entry of branch ``j``."""
-        return f'{self.names[j]} ({abs(self.R[0, j].imag):.4g} rad/s at K_D = 0)'
+        return f'{self.names[j]} ({abs(self.R[0, j].imag):.4g} rad/s at {self.start})'
 
 
 def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = ''):
@@ -316,7 +320,7 @@ def _draw_general_main(ax, d: _GeneralLocus, color: dict, title: str) -> None:
     ax.set_title(title or 'root locus over K_D', fontsize=10)
     _ticks(ax)
     ax.grid(True, alpha=0.3)
-    marks = [Line2D([], [], ls='', marker='x', color='0.3', ms=8, mew=2, label='K_D = 0'),
+    marks = [Line2D([], [], ls='', marker='x', color='0.3', ms=8, mew=2, label=d.start),
              Line2D([], [], ls='', marker='o', mfc='none', color='0.2', ms=8,
                     label='K_D -> infinity (locked system)'),
              Line2D([], [], ls='', marker='D', color='tab:red', ms=6,
@@ -342,7 +346,7 @@ def _draw_slow_branch(ax2, d: _GeneralLocus, j: int, col) -> None:
     y = z.imag - w0
     ax2.plot(z.real * f, y, '-', color=col, lw=1.6)
     ax2.plot(z[0].real * f, y[0], 'x', color=col, ms=9, mew=2)
-    if d.mark is not None:
+    if d.mark is not None and d.K[0] <= d.mark <= d.K[-1]:
         i = int(np.argmin(np.abs(np.log(d.K) - math.log(d.mark))))
         ax2.plot(z[i].real * f, y[i], '.', color='tab:purple', ms=9)
     im_lo, im_hi = float(y.min()), float(y.max())
