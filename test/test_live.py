@@ -189,6 +189,18 @@ def test_work_budget_switches_to_autos_method_and_says_so():
     assert sim.stepper.method == 'rk4'
 
 
+def test_reset_forgets_the_previous_runs_cannot_keep_up():
+    """Issue 24, finding 15: after ~/reset the diagnostics showed the old run's message."""
+    sim, _ = make_sim(time.monotonic, budget=-1.0, integrator='dop853', real_time_factor=0.0)
+    sim.tick()
+    sim.tick()
+    assert "auto's choice already" in sim.switch
+    sim.reset()
+    level, msg, values = sim.diagnostics()
+    assert sim.switch == '' and values['method_switch'] == ''
+    assert 'cannot keep up' not in msg and level != Level.WARN
+
+
 def test_budget_cut_keeps_the_grid_whole():
     """Cut ticks lose simulation time, never a sample: k runs on without gaps."""
     sim, _ = make_sim(time.monotonic, budget=-1.0, real_time_factor=0.0)

@@ -430,6 +430,8 @@ class LiveSimulation:
         y0 = self.scene.initial_state(self.model)
         self.start(y0)
         self.pacer.set_rtf(self.cfg['real_time_factor'], self.clock())
+        # the previous run's "cannot keep up" is not this run's (issue 24, finding 15)
+        self.switch = ''
         return f"reset to scene '{self.scene.name}' at t = 0"
 
     def perturb(self) -> str:
