@@ -566,3 +566,12 @@ def test_monitor_names_missed_messages_as_the_monitor_s_own():
     assert system_topics('just a verdict') is None
     c = Changes()
     assert c.changed('k', 'a') and not c.changed('k', 'a') and c.changed('k', 'b')
+
+
+def test_live_table_mode_names_are_whole_words():
+    """Issue 28: the live table cut 'rotor-field coupling' to 'rotor-fie'."""
+    from gyro_rotor.cli.commands.demo import _short
+    assert _short('rotor-field coupling') == 'rotor-field'
+    assert _short('housing twist') == 'housing'
+    assert _short('mode (beta1) 6.11 Hz') == 'beta1 6.11'
+    assert _short('unreached mode (a)') == 'a'

@@ -184,11 +184,16 @@ class _LiveView:
 
 
 def _short(name: str) -> str:
-    """Return a mode's name for the live table: 'nutation', 'z_R2', 'beta1 6.11' (at most 10)."""
+    """Return a mode's name for the live table: 'nutation', 'z_R2', 'beta1 6.11'.
+
+    Whole words, never cut inside one ('rotor-field', not 'rotor-fie'): the first word of
+    a centrifuge mode, the dominant coordinate (and the frequency that tells two such
+    modes apart) of a general system's.
+    """
     if name.startswith(('mode (', 'unreached mode (')):
         inner, _, rest = name.split('(', 1)[1].partition(')')
-        return (inner + (' ' + rest.split()[0] if rest.strip() else ''))[:10]
-    return name.split(' ')[0][:10]
+        return inner + (' ' + rest.split()[0] if rest.strip() else '')
+    return name.split(' ')[0]
 
 
 def _mode_cell(row: dict) -> str:
