@@ -254,12 +254,7 @@ class LaunchRun:
             os.killpg(self.proc.pid, sig)
         except ProcessLookupError:
             pass
-        try:
-            self.status = self.proc.wait(timeout)
-        except subprocess.TimeoutExpired:
-            self.kill()
-        self._log.close()
-        return self.status
+        return self._wait(timeout)
 
     def signal_launch(self, sig: int = signal.SIGTERM, timeout: float = 40.0) -> int:
         """Send ``sig`` to ``ros2 launch`` alone; return its exit status (see interrupt)."""
@@ -267,6 +262,10 @@ class LaunchRun:
             self.proc.send_signal(sig)
         except ProcessLookupError:
             pass
+        return self._wait(timeout)
+
+    def _wait(self, timeout: float) -> int:
+        """Wait for launch to exit (SIGKILL to the group after ``timeout`` s); its status."""
         try:
             self.status = self.proc.wait(timeout)
         except subprocess.TimeoutExpired:
