@@ -575,3 +575,10 @@ def test_live_table_mode_names_are_whole_words():
     assert _short('housing twist') == 'housing'
     assert _short('mode (beta1) 6.11 Hz') == 'beta1 6.11'
     assert _short('unreached mode (a)') == 'a'
+
+
+def test_state_plot_names_the_first_coordinate():
+    """Issue 28: the state plot's axis said 'first coordinate q_1' with no name."""
+    from gyro_rotor.analysis.report import _first_coordinate
+    assert _first_coordinate('twin_gimbal').startswith('alpha = q_1')
+    assert _first_coordinate('elastic_frame').startswith('y = q_1')

@@ -239,7 +239,22 @@ def _state_series(res, S) -> tuple:
         return np.array([getattr(s, attr)[i] if len(getattr(s, attr)) > n else np.nan
                          for s in S])
     return (col('positions', 0), col('positions', n), col('velocities', n),
-            ('first coordinate q_1', 'z of rotor 1 [rad]', 'zdot of rotor 1 [rad/s]'))
+            (_first_coordinate(res.scene), 'z of rotor 1 [rad]', 'zdot of rotor 1 [rad/s]'))
+
+
+def _first_coordinate(scene: str) -> str:
+    """Return the axis label of a general system's first coordinate: its name (q_1).
+
+    The system file names its coordinates but gives no units (angles in rad, lengths in m,
+    as its constants make them); a scene that cannot be found by name keeps 'q_1'.
+    """
+    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.errors import GyroRotorError
+    try:
+        name = load_general_scene(scene, check=False).system.coordinates[0]
+    except (GyroRotorError, OSError):
+        return 'first coordinate q_1 (SI: rad or m)'
+    return f'{name} = q_1 (SI: rad or m)'
 
 
 def _plot_state(plt, res, S, t, out: Path) -> Path:
