@@ -480,14 +480,13 @@ def _step(R: _Roots, K, lam, vel, gaps, h):
 
 def _close_pairs(lam: np.ndarray, gaps: np.ndarray) -> list:
     """Pairs (i, j) of roots closer than MEET_RTOL of their size."""
-    N = len(lam)
     close = np.flatnonzero(gaps <= MEET_RTOL * np.maximum(np.abs(lam), 1e-300))
     pairs = []
     for i in close:
         d = np.abs(lam - lam[i])
         d[i] = np.inf
         j = int(np.argmin(d))
-        if (min(i, j), max(i, j)) not in pairs and j < N:
+        if (min(i, j), max(i, j)) not in pairs:
             pairs.append((min(int(i), j), max(int(i), j)))
     return pairs
 
