@@ -260,9 +260,9 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     """A general scene's sweep point equals the scene loaded with the point's values, run alone.
 
     Reference: the project's dop853 at rtol 1e-11 (not the sweep's RK4 ensemble) on
-    ``load_general_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
+    ``load_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
     """
-    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.core.scene import load_scene
     from gyro_rotor.numerics.general import integrate
     spec = _general_spec()
     assert spec.general and spec.n_points == 4 and spec.n_blocks == 2
@@ -272,7 +272,7 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     np.testing.assert_array_equal(got['point'], np.arange(4))
     assert np.all(got['status'] == PointStatus.OK)
     j = int(np.nonzero((got['constants.c_a'] == 40.0) & np.isclose(got['K_D'], 0.2))[0][0])
-    scene = load_general_scene('twin_gimbal', {'constants.c_a': 40.0, 'K_D': 0.2})
+    scene = load_scene('twin_gimbal', {'constants.c_a': 40.0, 'K_D': 0.2})
     model = scene.make_model()
     run = integrate(model, scene.initial_state(model), spec.t_eval, method='dop853',
                     rtol=1e-11, atol=1e-13)

@@ -2,7 +2,7 @@
 
 Sweepable keys: ``constants.NAME`` (a constant of the system), ``K_S``, ``K_D``, ``Omega0``
 (every rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's). Each value of each axis is
-loaded with :func:`~gyro_rotor.core.system.scene.load_general_scene` (the loader's own
+loaded with :func:`~gyro_rotor.core.scene.load_scene` (the loader's own
 checks) before any work. A block of points is one call of
 :func:`gyro_rotor.numerics.general.run_ensemble` (RK4, lockstep, compiled; one system per
 trajectory, all of the scene's structure) with the step common to the sweep, so the numbers
@@ -33,8 +33,8 @@ _DRIVE = ('K_S', 'K_D', 'Omega0')
 
 
 def _load(scene: str, overrides: Mapping):
-    from gyro_rotor.core.system.scene import load_general_scene
-    return load_general_scene(scene, overrides=dict(overrides))
+    from gyro_rotor.core.scene import load_scene
+    return load_scene(scene, overrides=dict(overrides))
 
 
 def check_general_grid(scene: str, grid: SweepGrid, metrics: Sequence) -> float:

@@ -152,14 +152,14 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
 
     Raises :class:`~gyro_rotor.errors.ParameterError` or ``SceneError`` naming the problem.
     """
-    from gyro_rotor.core.system.scene import general_scene_path, is_general_scene
-    general = is_general_scene(scene)
+    from gyro_rotor.core.scene import load_scene
     grid = SweepGrid.parse(grid_specs)
+    loaded = load_scene(scene)
+    general = not loaded.builtin
     if general:
         from gyro_rotor.analysis.sweep.general import check_general_grid, GENERAL_METRICS
-        from gyro_rotor.core.system.scene import load_general_scene
-        path = str(general_scene_path(scene))
-        base = {'t_end': load_general_scene(path).t_end}
+        path = str(loaded.path)
+        base = {'t_end': loaded.t_end}
         wanted = GENERAL_METRICS if metrics is None else tuple(metrics)
         _check_metrics(wanted)
         fastest = check_general_grid(path, grid, wanted)

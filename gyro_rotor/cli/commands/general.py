@@ -20,8 +20,8 @@ __all__ = ['handles', 'extend_parser', 'dispatch', 'RUNNERS', 'csv_columns']
 
 def handles(scene) -> bool:
     """Return True if ``scene`` names a general scene (a file with a ``system`` key)."""
-    from gyro_rotor.core.system.scene import is_general_scene
-    return scene is not None and is_general_scene(scene)
+    from gyro_rotor.core.scene import load_scene
+    return scene is not None and not load_scene(scene, check=False).builtin
 
 
 def extend_parser(command: str, p: argparse.ArgumentParser) -> None:
@@ -32,11 +32,11 @@ def extend_parser(command: str, p: argparse.ArgumentParser) -> None:
 
 
 def _scene(args, check: bool = True):
-    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.core.scene import load_scene
     overrides = parse_sets(getattr(args, 'set', []))
     if getattr(args, 't_end', None) is not None:
         overrides['t_end'] = args.t_end
-    return load_general_scene(args.scene, overrides=overrides, check=check)
+    return load_scene(args.scene, overrides=overrides, check=check)
 
 
 def csv_columns(system) -> list[str]:
@@ -96,7 +96,7 @@ def simulate(args) -> int:
 
 def steady(args) -> int:
     """Check the scene's steady motion and solve for one from that guess (Newton)."""
-    from gyro_rotor.core.system.scene import steady_residual
+    from gyro_rotor.core.scene import steady_residual
     from gyro_rotor.linear.general import solve_steady
     scene = _scene(args, check=False)
     acc = steady_residual(scene)
