@@ -6,11 +6,11 @@ import random
 from gyro_rotor.cli.main import main
 from gyro_rotor.core.model import FullModel
 from gyro_rotor.core.params import RotorParams
+from gyro_rotor.core.scene import list_scenes, load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.core.system.codegen import compile_system
 from gyro_rotor.core.system.expression import parse_expression
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.core.scene import list_scenes, load_scene
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
 from gyro_rotor.errors import ParameterError, SystemFileError
 from gyro_rotor.linear.general import check_claims, linearize_scene, modes

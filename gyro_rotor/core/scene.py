@@ -719,6 +719,14 @@ def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
     ``path``). The scene keeps the typed keys as :attr:`Scene.flat`.
     """
     where = where or (f'scene file {path}' if path else 'scene')
+    if system is None:      # the system first: the other keys are read as its keys
+        if 'system' not in flat:
+            raise SceneError(f'{where}: the key system is missing')
+        try:
+            system = load_system(_typed('system', str, flat['system'], where,
+                                        strict_float=True), relative_to=path)
+        except SystemFileError as err:
+            raise SceneError(f'{where}: {err}') from None
     vals = {}
     for key, value in flat.items():
         want = _key_type(key, False)
@@ -729,12 +737,8 @@ def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
         if not all(math.isfinite(x) for x in (v if isinstance(v, tuple) and key != 'locked'
                                               else [v] if isinstance(v, float) else [])):
             raise SceneError(f'{where}: {key} must be finite, got {short(value)}')
-    if 'system' not in vals and system is None:
-        raise SceneError(f'{where}: the key system is missing')
     check_node_ranges(vals, where)
     try:
-        if system is None:
-            system = load_system(vals['system'], relative_to=path)
         base = system
         system = system.with_constants({k.split('.', 1)[1]: v for k, v in vals.items()
                                         if k.startswith('constants.')},

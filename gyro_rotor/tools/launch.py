@@ -146,16 +146,16 @@ _TRUE = ('true', '1', 'yes', 'on')
 def scene_urdf(scene: str, share: str) -> str | None:
     """Return the URDF of a scene's system, or None if it has none (or is not found).
 
-    The centrifuge scenes (``config/<scene>.yaml``) have ``urdf/centrifuge.urdf``; a general
-    scene (a ``system`` key; ``config/systems/scenes/<scene>.yaml`` first, as rotor_sim
-    looks it up) has none. Light: reads the YAML file only, for launch files.
+    The centrifuge's scenes (``system: centrifuge``, or no ``system`` key) have
+    ``urdf/centrifuge.urdf``; a system file's scene has none. Light: reads the YAML file
+    only, for launch files.
     """
     import yaml
     if scene.endswith(('.yaml', '.yml')) or os.sep in scene or os.path.isfile(scene):
         candidates = [scene]
     else:
-        candidates = [os.path.join(share, 'config', 'systems', 'scenes', f'{scene}.yaml'),
-                      os.path.join(share, 'config', f'{scene}.yaml')]
+        candidates = [os.path.join(share, 'config', f'{scene}.yaml'),     # as scene_path
+                      os.path.join(share, 'config', 'systems', 'scenes', f'{scene}.yaml')]
     for path in candidates:
         if not os.path.isfile(path):
             continue
@@ -167,7 +167,8 @@ def scene_urdf(scene: str, share: str) -> str | None:
         params = next((v['ros__parameters'] for v in (doc or {}).values()
                        if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)),
                       {})
-        return None if 'system' in params else os.path.join(share, 'urdf', 'centrifuge.urdf')
+        return (os.path.join(share, 'urdf', 'centrifuge.urdf')
+                if params.get('system', 'centrifuge') == 'centrifuge' else None)
     return None
 
 
