@@ -429,3 +429,13 @@ def test_sweep_of_twin_gimbal_gives_no_growth_at_stable_points():
                               tol=1e-3)['decay_rate']
         # every root is stable (eig): a rate is positive or not resolved, never negative
         assert math.isnan(rate) or rate > 0, (k_d, rate)
+
+
+def test_codes_on_the_topics_are_the_positions():
+    """The numbers the analysis sends for its closed choices (the topics' contract)."""
+    from gyro_rotor.analysis.verdict import ModeStatus, SyncState, Verdict
+    assert [s.code for s in Status] == [0, 1, 2] and Status.NOT_YET.code == 2
+    assert Verdict.INSUFFICIENT_DATA.code == 0 and Verdict.NOT_CONFIRMED.code == 5
+    assert ModeStatus.NOT_IDENTIFIED.code == 0 and ModeStatus.UNOBSERVABLE.code == 8
+    assert (SyncState.SYNCHRONOUS.code, SyncState.RESYNCHRONIZED.code) == (0, 2)
+    assert not hasattr(CriterionName.DECAY, 'code')
