@@ -418,15 +418,24 @@ def test_sweep_decay_rate_is_a_decay_or_not_resolved():
 
 
 def test_sweep_of_twin_gimbal_gives_no_growth_at_stable_points():
-    from gyro_rotor.analysis.sweep.general import _metrics
-    from gyro_rotor.analysis.sweep.metrics import Metric
+    from gyro_rotor.analysis.sweep.metrics import Metric, system_metrics
     from gyro_rotor.numerics.general import integrate
     for k_d in (0.01, 0.0316):
         scene = load_scene('twin_gimbal').with_changes({'K_D': k_d})
         model = scene.make_model()
         t = np.linspace(0.0, 10.0, 1001)
         run = integrate(model, scene.initial_state(model), t)
-        rate = _metrics(model, np.asarray(scene.steady_q), t, run.y, {Metric.DECAY},
-                        1e-3)['decay_rate']
+        rate = system_metrics(model, np.asarray(scene.steady_q), t, run.y, {Metric.DECAY},
+                              tol=1e-3)['decay_rate']
         # every root is stable (eig): a rate is positive or not resolved, never negative
         assert math.isnan(rate) or rate > 0, (k_d, rate)
+
+
+def test_codes_on_the_topics_are_the_positions():
+    """The numbers the analysis sends for its closed choices (the topics' contract)."""
+    from gyro_rotor.analysis.verdict import ModeStatus, SyncState, Verdict
+    assert [s.code for s in Status] == [0, 1, 2] and Status.NOT_YET.code == 2
+    assert Verdict.INSUFFICIENT_DATA.code == 0 and Verdict.NOT_CONFIRMED.code == 5
+    assert ModeStatus.NOT_IDENTIFIED.code == 0 and ModeStatus.UNOBSERVABLE.code == 8
+    assert (SyncState.SYNCHRONOUS.code, SyncState.RESYNCHRONIZED.code) == (0, 2)
+    assert not hasattr(CriterionName.DECAY, 'code')

@@ -35,11 +35,10 @@ import math
 from gyro_rotor.core.scene import check_steady, Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import ParameterError, SceneError
-from gyro_rotor.linear.campbell import Campbell  # noqa: F401 -- the result of campbell()
 import numpy as np
 
 __all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims',
-           'campbell', 'Campbell', 'solve_steady', 'REL_AXIS']
+           'solve_steady', 'REL_AXIS']
 
 #: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
 #: labels and the predicted verdict; the claims use each root's own resolution)
@@ -227,16 +226,6 @@ def check_claims(lin: GeneralLinear):
     """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`."""
     from gyro_rotor.linear.claims import check
     return check(lin.drive_system())
-
-
-def campbell(scene: Scene, Omega0_values, *, orders=(1, 2)):
-    """Campbell diagram over Omega0 with tracked modes: :mod:`gyro_rotor.linear.campbell`.
-
-    Every drive's Omega0 is scaled by the same factor; critical speeds: a mode frequency
-    crosses k times the rotor speed Omega0/2 pi.
-    """
-    from gyro_rotor.linear.campbell import campbell_general
-    return campbell_general(scene, Omega0_values, orders=orders)
 
 
 def solve_steady(scene: Scene, *, max_iter: int = 50) -> tuple:

@@ -18,12 +18,16 @@ from __future__ import annotations
 import fcntl
 import os
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
 from typing import Any, IO, Mapping
 
-__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param']
+from gyro_rotor.errors import GyroRotorError
+
+__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param',
+           'energy_seq_from_cdr']
 
 
 class DomainClaim:
@@ -321,6 +325,16 @@ def _running(pid: int) -> bool:
         return False
 
 
+def energy_seq_from_cdr(data: bytes) -> int:
+    """Return the ``seq`` of a serialized ``energy`` message (its data array ends the CDR)."""
+    from gyro_rotor.bag.wire import ENERGY_FIELDS
+    n = len(ENERGY_FIELDS)
+    off = len(data) - 8 * n + 8 * ENERGY_FIELDS.index('seq')
+    if off < 4:
+        raise GyroRotorError(f'energy message of {len(data)} bytes is too short')
+    return int(struct.unpack_from('<d', data, off)[0])
+
+
 def check_bag(path: str, sim_log_text: str = '') -> list[str]:
     """Return what is wrong with a bag recorded under launch (empty: finalized, whole).
 
@@ -331,8 +345,6 @@ def check_bag(path: str, sim_log_text: str = '') -> list[str]:
     import re
     import warnings
     from gyro_rotor.bag.bagio import open_bag
-    from gyro_rotor.errors import GyroRotorError
-    from gyro_rotor.tools.soak import energy_seq_from_cdr
     found = []
     if not os.path.isfile(os.path.join(path, 'metadata.yaml')):
         found.append(f'{path}: no metadata.yaml')
