@@ -1,7 +1,8 @@
 """simulate(): energy balance, conservation, the passage through theta = 0, reduced models."""
 
+from gyro_rotor.core.model import Model
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.numerics.simulate import CSV_COLUMNS, simulate
+from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
 from scipy.signal import argrelmin
@@ -78,9 +79,9 @@ def test_trajectory_outputs_and_csv(tmp_path):
     f = tmp_path / 'x.csv'
     tr.save(str(f))
     header = f.read_text().splitlines()[0].split(',')
-    assert header == list(CSV_COLUMNS)
+    assert header == [f'{name} [{unit}]' for name, unit, *_ in Model.CSV_COLUMNS]
     data = np.loadtxt(f, delimiter=',', skiprows=1)
-    assert data.shape == (51, len(CSV_COLUMNS))
+    assert data.shape == (51, len(Model.CSV_COLUMNS))
     assert np.allclose(np.linalg.norm(data[:, 9:12], axis=1), 1.0)
     tr.save(str(tmp_path / 'x.npz'))
     assert 'E_star' in np.load(tmp_path / 'x.npz')
