@@ -15,9 +15,9 @@ from gyro_rotor.analysis.offline import analyze_bag
 from gyro_rotor.analysis.prediction import predict_general
 from gyro_rotor.bag.bagio import open_bag
 from gyro_rotor.core.scene import list_scenes, load_scene, NODE_KEYS, scene_from_flat
+from gyro_rotor.core.system.model import GeneralModel, joint_names
 from gyro_rotor.errors import GyroRotorError
-from gyro_rotor.numerics.live_general import (GENERAL_ENERGY_FIELDS, general_joint_names,
-                                              GeneralLiveSimulation)
+from gyro_rotor.numerics.live import LiveSimulation
 import numpy as np
 import pytest
 import yaml
@@ -28,7 +28,7 @@ SHIPPED = ('centrifuge_euler', 'elastic_frame', 'twin_gimbal')
 def _sim(name='twin_gimbal', **kick):
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
     cfg['real_time_factor'] = 0.0
-    return GeneralLiveSimulation(load_scene(name), cfg, kick, budget=None)
+    return LiveSimulation(load_scene(name), cfg, kick, budget=None)
 
 
 def _run_to(sim, t):
@@ -48,11 +48,10 @@ def test_outputs_name_coordinates_and_rotor_lags():
     sim = _sim()
     scene = sim.scene
     assert sim.joint_names == ('alpha', 'beta1', 'beta2', 'z_R1', 'z_R2')
-    assert sim.joint_names == general_joint_names(scene.system.coordinates,
-                                                  scene.system.rotors)
+    assert sim.joint_names == joint_names(scene.system)
     b = _run_to(sim, 0.2)[-1]
     assert b.position.shape[1] == b.velocity.shape[1] == 5 and b.effort.shape[1] == 0
-    assert set(b.energy) == set(GENERAL_ENERGY_FIELDS) and b.quaternion is None
+    assert set(b.energy) == set(GeneralModel.energy_fields) and b.quaternion is None
     y = sim.last[1]
     m = sim.model
     sq, sqd, sz, szd = m.slices()
@@ -164,7 +163,7 @@ def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_pat
     assert f'RESULT: CONFIRMED: {expected}' in r.stdout
     bag = out / 'bag'
     counts = _readers(bag)
-    joints = list(general_joint_names(scene.system.coordinates, scene.system.rotors))
+    joints = list(joint_names(scene.system))
     assert counts['mcap'][1] == counts['rosbags'][1] == joints
     assert counts['mcap'][0] == counts['rosbags'][0] == counts['own'][0] == 2501
     reader = open_bag(bag)
@@ -233,9 +232,14 @@ def test_rotor_sim_declares_a_general_scenes_parameters_and_checks_changes():
 
 def test_the_live_layouts_are_the_wire_layouts():
     from gyro_rotor.bag import wire
-    from gyro_rotor.numerics.live import ENERGY_COLUMNS, LiveSimulation
-    assert LiveSimulation.joint_names == wire.JOINT_NAMES
-    assert LiveSimulation.energy_fields == ENERGY_COLUMNS == wire.ENERGY_FIELDS
+    from gyro_rotor.core.model import MODELS
+    from gyro_rotor.numerics.live import ENERGY_COLUMNS
+    for model in MODELS.values():        # every model of the centrifuge
+        assert model.joint_names == wire.JOINT_NAMES
+        assert model.energy_fields == ENERGY_COLUMNS == wire.ENERGY_FIELDS
+    cfg = {k: v[1] for k, v in NODE_KEYS.items()}
+    sim = LiveSimulation(load_scene('precession'), cfg, budget=None)
+    assert sim.joint_names == wire.JOINT_NAMES and sim.energy_fields == wire.ENERGY_FIELDS
 
 
 def test_the_committed_general_bag_gives_the_live_verdict_offline():
@@ -298,7 +302,7 @@ def test_a_scene_with_a_locked_coordinate_runs_and_kicks_the_free_ones(tmp_path)
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
     scene = load_scene(_locked_scene(tmp_path))
     assert scene.system.coordinates == ('alpha', 'beta1')
-    sim = GeneralLiveSimulation(scene, cfg, {'qdot': [0.0, 0.01, 0.0]}, budget=None)
+    sim = LiveSimulation(scene, cfg, {'qdot': [0.0, 0.01, 0.0]}, budget=None)
     assert sim.joint_names == ('alpha', 'beta1', 'z_R1', 'z_R2')
     y = sim.stepper.y.copy()
     sim.perturb()

@@ -104,6 +104,45 @@ def test_parameter_changes_are_checked_then_applied_with_the_baseline_moved():
     assert max(np.max(np.abs(b.energy['residual'])) for b in blocks) < 1e-8
 
 
+def test_an_omega0_change_keeps_the_rotor_angle_continuous():
+    """phi_R = field + z + phi_M across a live Omega0 change: the field angle carries on.
+
+    Published angle against the trapezoid of the published rate (about 320 rad/s, 1.3 rad
+    per sample); a field angle that restarted from Omega0_new t would jump by
+    delta Omega0 t = 0.47 rad here.
+    """
+    clock = FakeClock()
+    sim, _ = make_sim(clock)
+    blocks = run_ticks(sim, clock, 5)
+    n_before = sum(len(b) for b in blocks)
+    sim.apply({'Omega0': 320.0})
+    blocks += run_ticks(sim, clock, 3)
+    t = np.concatenate([b.t for b in blocks])
+    phi_R = np.unwrap(np.concatenate([b.position[:, 2] for b in blocks]))
+    rate = np.concatenate([b.velocity[:, 2] for b in blocks])
+    assert len(t) > n_before + 10
+    step = np.diff(phi_R) - 0.5 * (rate[1:] + rate[:-1]) * np.diff(t)
+    assert np.abs(step).max() < 1e-4, (np.abs(step).max(), n_before)
+
+
+def test_a_kick_is_checked_by_the_scene_before_it_is_taken():
+    clock = FakeClock()
+    sim, _ = make_sim(clock)
+    kick = dict(sim.perturbation)
+    for bad, word in (({'perturbation.dthetta': 0.1},
+                       "unknown key 'perturbation.dthetta'; did you mean 'perturbation.dtheta'"),
+                      ({'perturbation.dz': 'abc'}, 'perturbation.dz must be a number')):
+        with pytest.raises(GyroRotorError, match=word):
+            sim.check(bad)
+    assert sim.perturbation == kick
+    sim.check({'perturbation.dz': 0.25})
+    sim.apply({'perturbation.dz': 0.25})
+    assert sim.perturbation == {**kick, 'dz': 0.25}
+    z = sim.stepper.y[7]
+    sim.perturb()
+    assert sim.stepper.y[7] == pytest.approx(z + 0.25, abs=1e-15)
+
+
 def test_residual_guard_stops_keeps_the_last_good_state_and_reset_recovers():
     clock = FakeClock()
     sim, events = make_sim(clock)

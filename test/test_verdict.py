@@ -184,13 +184,10 @@ def write_bag(run, path: Path) -> None:
     pytest.importorskip('rclpy')
     from gyro_rotor.analysis.fit import joint_names
     from gyro_rotor.bag.bagio import BagWriter
-    from gyro_rotor.numerics.live import ENERGY_COLUMNS
-    from gyro_rotor.numerics.live_general import GENERAL_ENERGY_FIELDS
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-    general = not hasattr(run.scene, 'params')
-    fields = GENERAL_ENERGY_FIELDS if general else ENERGY_COLUMNS
+    fields = run.scene.make_model().energy_fields     # the layout rotor_sim publishes
     names = list(joint_names(run.scene))
     meta = {'gyro_rotor.scene': {'name': run.scene.name,
                                  'flat': yaml.safe_dump(scene_to_flat(run.scene),

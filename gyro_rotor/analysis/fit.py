@@ -39,8 +39,8 @@ def _general(scene) -> bool:
 def joint_names(scene) -> tuple:
     """Return the ``joint_states`` names rotor_sim publishes for a scene."""
     if _general(scene):
-        from gyro_rotor.numerics.live_general import general_joint_names
-        return general_joint_names(scene.system.coordinates, scene.system.rotors)
+        from gyro_rotor.core.system.model import joint_names as system_joint_names
+        return system_joint_names(scene.system)
     from gyro_rotor.bag.wire import JOINT_NAMES
     return JOINT_NAMES
 
@@ -48,23 +48,10 @@ def joint_names(scene) -> tuple:
 def start_joints(scene) -> tuple[tuple, tuple, float]:
     """(positions, velocities, E*) that rotor_sim publishes for a scene at t = 0."""
     model = scene.make_model()
-    y0 = np.asarray(scene.initial_state(model), dtype=float)
-    E = float(np.asarray(model.energy(y0[None, :])).reshape(-1)[0])
-    if _general(scene):
-        sq, sqd, sz, szd = model.slices()
-        return (tuple(np.concatenate([y0[sq], y0[sz]]).tolist()),
-                tuple(np.concatenate([y0[sqd], y0[szd]]).tolist()), E)
-    from gyro_rotor.core.rotations import euler_from_quaternion, euler_rates_from_body
-    from gyro_rotor.numerics.live import wrap_angles
-    Y = y0[None, :]
-    q = model.quaternion(Y)
-    psi, theta, phi_M = euler_from_quaternion(q)
-    psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, model.body_rates(Y))
-    z, zdot = Y[:, model.iz], Y[:, model.izd]
-    Omega0 = scene.params.Omega0
-    pos = wrap_angles(np.column_stack([theta, psi, z + phi_M, phi_M]))[0]
-    vel = np.column_stack([thetadot, psidot, Omega0 + zdot + phi_M_dot, phi_M_dot])[0]
-    return tuple(float(v) for v in pos), tuple(float(v) for v in vel), E
+    Y = np.asarray(scene.initial_state(model), dtype=float)[None, :]
+    E = float(np.asarray(model.energy(Y)).reshape(-1)[0])
+    pos, vel, _, _ = model.joints(Y, np.zeros((1, len(model.field_speeds()))))
+    return tuple(float(v) for v in pos[0]), tuple(float(v) for v in vel[0]), E
 
 
 def energy_from_joints(scene, model, s: Sample) -> float:

@@ -47,15 +47,13 @@ def _live(scene, rate: float):
     cfg.update({k: v for k, v in node.items() if k in cfg})
     cfg.update({'publish_rate': float(rate), 'real_time_factor': 0.0,
                 'stop_at_t_end': False})
-    if not scene.builtin:
-        from gyro_rotor.numerics.live_general import GeneralLiveSimulation
-        return GeneralLiveSimulation(scene, cfg, scene.perturbation, budget=None)
     from gyro_rotor.numerics.live import LiveSimulation
     return LiveSimulation(scene, cfg, scene.perturbation, budget=None)
 
 
-def _samples(block, general: bool) -> list:
+def _samples(block) -> list:
     e = block.energy
+    general = 'z' not in e         # a system file's z and zdot are joints
     out = []
     for i in range(len(block)):
         out.append(Sample(
@@ -83,7 +81,6 @@ def run_like_demo(scene, duration: float, *, rate: float = 250.0,
         scene = load_scene(scene)
     if kick_at is None:
         kick_at = default_kick_at(scene, duration)
-    general = not scene.builtin
     sim = _live(scene, rate)
     n_end = int(round(duration * rate))
     samples: list = []
@@ -95,7 +92,7 @@ def run_like_demo(scene, duration: float, *, rate: float = 250.0,
         while (not samples or samples[-1].k < target) and not sim.diverged:
             block = sim.tick()
             if block is not None:
-                samples += [s for s in _samples(block, general) if s.k <= n_end]
+                samples += [s for s in _samples(block) if s.k <= n_end]
         if stop < duration:
             kick = sim.perturb()
     return DemoRun(scene=scene, samples=samples, kick_at=kick_at, kick=kick)

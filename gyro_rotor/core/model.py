@@ -39,18 +39,19 @@ twist direction w of the restraint has no limit: a run that gets there stops wit
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, Mapping
 
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.rotations import (axis_from_quaternion, body_rates_from_euler,
                                        euler_from_quaternion, euler_rates_from_body,
-                                       quaternion_from_euler, tilt, twist)
+                                       quaternion_from_euler, tilt, twist, wrap_angles)
+from gyro_rotor.errors import did_you_mean, SceneError
 import numpy as np
 
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
            'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
            'pack_params', 'tilt_twist_torque', 'full_rhs', 'upright_rhs', 'locked_rhs',
-           'numba_able']
+           'numba_able', 'perturb_state', 'PERTURBATION_KEYS']
 
 try:  # pragma: no cover - exercised by whichever branch the install has
     from numba.extending import register_jitable
@@ -64,6 +65,8 @@ except ImportError:  # pragma: no cover
         return f
 
 _SERIES_LIMIT = 1e-4
+#: the kick of a centrifuge scene (``perturbation.KEY``, :func:`perturb_state`)
+PERTURBATION_KEYS = ('dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot')
 
 #: layout of the packed parameter array P (:func:`pack_params`)
 P_I, P_C_R, P_C_M, P_GS, P_C_THETA, P_C_PSI, P_K_S, P_K_D, P_OMEGA0, P_PP = range(10)
@@ -387,6 +390,57 @@ class Model:
         W = self.body_rates(Y)
         return np.column_stack([q, W, Y[:, self.iz], Y[:, self.izd], Y[:, self.idiss]])
 
+    # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
+    #: names of the joint_states columns (bag/wire.py's JOINT_NAMES; a test checks that
+    #: they agree): the 3-1-3 angles theta, psi, the rotor angle phi_R and phi_M
+    joint_names = ('theta', 'psi', 'phi_R', 'phi_M')
+    #: fields of the ``energy`` array (bag/wire.py's ENERGY_FIELDS)
+    energy_fields = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
+                     'D', 'k')
+
+    def field_speeds(self) -> np.ndarray:
+        """Return the speed Omega0 of the drive's rotating field (eq. 7), one per rotor."""
+        return np.array([self.params.Omega0])
+
+    def dissipation(self, Y) -> np.ndarray:
+        """Power of the drive damping K_D zdot^2 (= -dE*/dt, eq. 17) of rows of states."""
+        zdot = np.atleast_2d(np.asarray(Y, dtype=float))[:, self.izd]
+        return self.params.K_D * zdot * zdot
+
+    def state_fields(self, Y) -> dict:
+        """Return the ``energy`` fields read off rows of states: the rotor's z and zdot."""
+        return {'z': Y[:, self.iz], 'zdot': Y[:, self.izd]}
+
+    def kick(self, y, perturbation: Mapping[str, float]) -> np.ndarray:
+        """Return the state y kicked by ``perturbation`` (:func:`perturb_state`, its checks)."""
+        return perturb_state(self, y, perturbation)
+
+    def carried_state(self, old: 'Model', y) -> np.ndarray:
+        """Return the state y of the model ``old`` under this model's parameters.
+
+        The rotor keeps its absolute spin Omega0 + zdot (eq. 7): zdot jumps by -delta Omega0
+        (the field angle stays continuous); every other component is kept.
+        """
+        y = np.array(y, dtype=float)
+        y[self.izd] -= self.params.Omega0 - old.params.Omega0
+        return y
+
+    def joints(self, Y, field) -> tuple:
+        """Return the joint_states of rows of states: (positions, velocities, efforts, q).
+
+        Positions theta, psi, phi_R = field + z + phi_M, phi_M (3-1-3 angles, wrapped to
+        (-pi, pi]), their rates, the generalized forces of eqs. (19, 23) and the stator
+        quaternions q (k, 4); ``field`` (k, 1) is the field angle at each state.
+        """
+        p = self.params
+        q = self.quaternion(Y)
+        psi, theta, phi_M = euler_from_quaternion(q)
+        psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, self.body_rates(Y))
+        z, zdot = Y[:, self.iz], Y[:, self.izd]
+        position = wrap_angles(np.column_stack([theta, psi, field[:, 0] + z + phi_M, phi_M]))
+        velocity = np.column_stack([thetadot, psidot, p.Omega0 + zdot + phi_M_dot, phi_M_dot])
+        return position, velocity, np.asarray(self.generalized_forces(Y), dtype=float), q
+
 
 class FullModel(Model):
     """The full nonlinear 4-DOF gyrostat with the drive (quaternion form, see module doc)."""
@@ -532,3 +586,49 @@ def make_model(name: str, params: RotorParams) -> Model:
     except KeyError:
         raise ValueError(f"unknown model '{name}'; valid: {', '.join(MODELS)}") from None
     return cls(params)
+
+
+def perturb_state(model: Model, y: np.ndarray, perturbation: Mapping[str, float]) -> np.ndarray:
+    """Apply a kick (dtheta, dthetadot, dpsidot, dchi, dz, dzdot) to a state.
+
+    Full model: the orientation is turned by dtheta and dchi in the current 3-1-3 angles
+    (psi, theta + dtheta, phi_M + dchi), and the rate kick is added to the body rates,
+    W += J(psi, theta, phi_M) (dpsidot, dthetadot, 0) with J the map of
+    :func:`~gyro_rotor.core.rotations.body_rates_from_euler` at the (new) angles. This is
+    linear in the kick and regular at theta = 0, where the Euler rates themselves are not
+    defined: every other component of W is kept. The quaternion keeps its hemisphere, so
+    chi moves by exactly dchi. Reduced models: the same in their coordinates. z and zdot
+    are kicked directly; the dissipated work D is kept.
+    """
+    for key in perturbation:
+        if key not in PERTURBATION_KEYS:
+            raise SceneError(f"unknown key 'perturbation.{key}'" + did_you_mean(
+                f'perturbation.{key}', [f'perturbation.{k}' for k in PERTURBATION_KEYS]))
+    d = {k: float(perturbation.get(k, 0.0)) for k in PERTURBATION_KEYS}
+    for k, v in d.items():
+        if not math.isfinite(v):
+            raise SceneError(f'perturbation.{k} must be finite, got {v!r}')
+    y = np.asarray(y, dtype=float)
+    if model.name != 'full' and (d['dtheta'] or d['dthetadot']):
+        raise SceneError(f'model {model.name} holds the axis vertical: dtheta and dthetadot '
+                         f'cannot be applied')
+    q = model.quaternion(y)
+    W = model.body_rates(y)
+    psi, theta, phi = (float(v) for v in euler_from_quaternion(q))
+    if model.name == 'full':
+        new = np.array(y, dtype=float)
+        if d['dtheta'] or d['dchi']:
+            theta, phi = theta + d['dtheta'], phi + d['dchi']
+            new[0:4] = quaternion_from_euler(psi, theta, phi) * np.linalg.norm(q)
+        new[4:7] = W + body_rates_from_euler(psi, theta, phi, d['dpsidot'], d['dthetadot'],
+                                             0.0)
+        new[model.iz] += d['dz']
+        new[model.izd] += d['dzdot']
+        return new
+    psidot, thetadot, phidot = euler_rates_from_body(theta, phi, W)
+    new = model.state_from_euler(theta=theta, thetadot=float(thetadot), psi=psi,
+                                 psidot=float(psidot) + d['dpsidot'], phi_M=phi + d['dchi'],
+                                 phi_M_dot=float(phidot), z=float(y[model.iz]) + d['dz'],
+                                 zdot=float(y[model.izd]) + d['dzdot'])
+    new[model.idiss] = y[model.idiss]
+    return new

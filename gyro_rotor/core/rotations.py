@@ -16,11 +16,22 @@ All functions accept scalars or numpy arrays (the last axis of ``q`` holds the c
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ['quaternion_from_euler', 'euler_from_quaternion', 'axis_from_quaternion',
            'vertical_in_body', 'tilt', 'twist', 'body_rates_from_euler',
-           'euler_rates_from_body', 'quaternion_multiply']
+           'euler_rates_from_body', 'quaternion_multiply', 'wrap_angles']
+
+_wrap = np.frompyfunc(math.remainder, 2, 1)
+
+
+def wrap_angles(a: np.ndarray) -> np.ndarray:
+    """Angles wrapped to (-pi, pi] (exactly: IEEE remainder, -pi maps to pi)."""
+    w = _wrap(np.asarray(a, dtype=float), 2 * math.pi).astype(float)
+    w[w == -math.pi] = math.pi
+    return w
 
 
 def quaternion_multiply(a, b):

@@ -68,11 +68,12 @@ import os
 from pathlib import Path
 import re
 from typing import Any, Mapping
+import warnings
 
-from gyro_rotor.core.model import make_model, Model, MODELS
+from gyro_rotor.core.model import make_model, Model, MODELS, perturb_state, PERTURBATION_KEYS
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
-from gyro_rotor.core.system.model import GeneralModel
+from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS
 from gyro_rotor.core.system.system_file import (config_dirs, DRIVE_KEYS, load_system,
                                                 RotorSystem, system_from_mapping, systems_dirs)
 from gyro_rotor.core.yamlio import SCENE_NAME, short
@@ -100,8 +101,6 @@ NODE_RANGES = {
     'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, 1e9), 't_end': (1e-6, 1e9),
     'visualization_rate': (0.0, 10000.0), 'realtime_priority': (0, 99),
 }
-
-PERTURBATION_KEYS = ('dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot')
 
 #: keys of the simulation node that a scene file may carry as well (type, default, doc)
 NODE_KEYS: dict[str, tuple[type, Any, str]] = {
@@ -291,6 +290,124 @@ class Scene:
         """Copy with another duration."""
         return dataclasses.replace(self, t_end=t_end, flat={**self.flat, 't_end': t_end})
 
+    # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
+    def with_live_changes(self, changes: Mapping[str, Any]) -> 'Scene | None':
+        """Return the scene with the physical keys of ``changes`` (None if there are none).
+
+        The centrifuge's are RotorParams fields (validated by RotorParams); a system
+        file's ``constants.NAME``, ``drive.ROTOR.KEY`` and the drive keys of every rotor
+        (validated as in a scene file, :meth:`with_changes`: positive definite mass matrix,
+        steady motion still steady). Raises ParameterError.
+        """
+        if self.system is None:
+            phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
+            if not phys:
+                return None
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                return dataclasses.replace(self, params=self.params.replace(**phys))
+        phys = {k: v for k, v in changes.items()
+                if k in DRIVE_KEYS or k.startswith(('constants.', 'drive.'))}
+        if not phys:
+            return None
+        try:
+            return self.with_changes(phys)
+        except SceneError as err:
+            raise ParameterError(str(err)) from None
+
+    def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Return the kick of rotor_sim's ~/perturb: ``values`` checked, the other keys 0.
+
+        The centrifuge's keys are :data:`PERTURBATION_KEYS` (numbers; finite and fit for
+        the model when applied, :func:`perturb_state`); a system file's scene kicks q,
+        qdot, z, zdot, lists of n, n, m, m finite numbers, n the system file's coordinates
+        as for ``initial.q`` (a locked coordinate's entry must be 0). Raises
+        ParameterError.
+        """
+        if self.system is None:
+            out = dict.fromkeys(PERTURBATION_KEYS, 0.0)
+            for key, value in values.items():
+                if key not in out:
+                    raise ParameterError(_unknown(f'perturbation.{key}', [
+                        f'perturbation.{k}' for k in PERTURBATION_KEYS]))
+                try:
+                    out[key] = float(value)
+                except (TypeError, ValueError):
+                    raise ParameterError(f'perturbation.{key} must be a number, got '
+                                         f'{short(value)}') from None
+            return out
+        n, m = self.full_system.n, self.system.m
+        sizes = dict(zip(KICK_KEYS, (n, n, m, m)))
+        out = {k: [0.0] * size for k, size in sizes.items()}
+        for key, value in values.items():
+            if key not in sizes:
+                raise ParameterError(f"unknown key 'perturbation.{key}': a general scene "
+                                     f"kicks perturbation.{', perturbation.'.join(sizes)}")
+            try:    # a list, a tuple, or the array.array('d') of a ROS double-array parameter
+                v = [float(x) for x in np.atleast_1d(np.asarray(value, dtype=float))]
+            except (TypeError, ValueError):
+                v = []
+            if len(v) != sizes[key] or not all(math.isfinite(x) for x in v):
+                raise ParameterError(
+                    f'perturbation.{key} must be {sizes[key]} finite numbers, got '
+                    f'{list(value) if hasattr(value, "__len__") else value!r}')
+            held = [c for c, x in zip(self.full_system.coordinates, v)
+                    if c in self.locked and x != 0.0] if key in ('q', 'qdot') else []
+            if held:
+                raise ParameterError(f'perturbation.{key}: the locked coordinate '
+                                     f'{held[0]} cannot be kicked (its entry must be 0)')
+            out[key] = v
+        return out
+
+    def model_kick(self, kick: Mapping[str, Any]) -> Mapping[str, Any]:
+        """Return a kick of :meth:`kick_values` in the terms of the scene's model.
+
+        (A system file's scene drops the entries of its locked coordinates.)
+        """
+        if self.system is None:
+            return kick
+        free = [i for i, c in enumerate(self.full_system.coordinates) if c not in self.locked]
+        return {k: [v[i] for i in free] if k in ('q', 'qdot') else v for k, v in kick.items()}
+
+    def initial_doc(self) -> dict[str, Any]:
+        """Return the initial condition as ``initial.*`` keys without the prefix."""
+        if self.system is not None:
+            return {'q': list(self.q0), 'qdot': list(self.qdot0), 'z': list(self.z0),
+                    'zdot': list(self.zdot0)}
+        ic = self.initial
+        keys = (('mode', 'theta0', 'branch', *PERTURBATION_KEYS) if ic.mode == 'steady'
+                else ('mode', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'))
+        out = {}
+        for k in keys:
+            v = getattr(ic, k)
+            if v is None:
+                continue
+            if isinstance(v, (tuple, list, np.ndarray)):
+                v = [float(x) for x in v]
+            elif not isinstance(v, (bool, int, str)):
+                v = float(v)
+            out[k] = v
+        return out
+
+    def document_parts(self) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Return the scene's keys of rotor_sim's ``~/scene`` document: (head, tail).
+
+        The node's keys (perturbation, node, integrator, t_sim) go between them. A system
+        file's ``flat`` holds the scene's keys with the system file's document embedded
+        (:meth:`to_flat`): a reader rebuilds the scene without the file.
+        """
+        if self.system is None:
+            return ({'scene': self.name, 'model': self.model, 't_end': self.t_end,
+                     'params': self.params.to_mapping(), 'initial': self.initial_doc()},
+                    {'path': self.path})
+        s = self.system
+        return ({'scene': self.name, 'system': s.name, 't_end': self.t_end,
+                 'constants': dict(self.full_system.constants),
+                 'drives': {r: {k: getattr(d, k) for k in DRIVE_KEYS}
+                            for r, d in zip(s.rotors, s.drives)},
+                 'joint_names': list(joint_names(s)), 'initial': self.initial_doc()},
+                {'path': self.path, 'flat': self.to_flat()})
+
     def to_flat(self) -> dict[str, Any]:
         """Return the flat dotted keys that :func:`scene_from_flat` rebuilds the scene from.
 
@@ -364,54 +481,6 @@ def _centrifuge_state(scene: Scene, model: Model) -> np.ndarray:
         chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
         return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
     return np.array([ic.z, ic.zdot, 0.0])
-
-
-def perturb_state(model: Model, y: np.ndarray, perturbation: Mapping[str, float]) -> np.ndarray:
-    """Apply a kick (dtheta, dthetadot, dpsidot, dchi, dz, dzdot) to a state.
-
-    Full model: the orientation is turned by dtheta and dchi in the current 3-1-3 angles
-    (psi, theta + dtheta, phi_M + dchi), and the rate kick is added to the body rates,
-    W += J(psi, theta, phi_M) (dpsidot, dthetadot, 0) with J the map of
-    :func:`~gyro_rotor.core.rotations.body_rates_from_euler` at the (new) angles. This is
-    linear in the kick and regular at theta = 0, where the Euler rates themselves are not
-    defined: every other component of W is kept. The quaternion keeps its hemisphere, so
-    chi moves by exactly dchi. Reduced models: the same in their coordinates. z and zdot
-    are kicked directly; the dissipated work D is kept.
-    """
-    from gyro_rotor.core.rotations import (body_rates_from_euler, euler_from_quaternion,
-                                           euler_rates_from_body, quaternion_from_euler)
-    for key in perturbation:
-        if key not in PERTURBATION_KEYS:
-            raise SceneError(_unknown(f'perturbation.{key}', [f'perturbation.{k}'
-                                                              for k in PERTURBATION_KEYS]))
-    d = {k: float(perturbation.get(k, 0.0)) for k in PERTURBATION_KEYS}
-    for k, v in d.items():
-        if not math.isfinite(v):
-            raise SceneError(f'perturbation.{k} must be finite, got {v!r}')
-    y = np.asarray(y, dtype=float)
-    if model.name != 'full' and (d['dtheta'] or d['dthetadot']):
-        raise SceneError(f'model {model.name} holds the axis vertical: dtheta and dthetadot '
-                         f'cannot be applied')
-    q = model.quaternion(y)
-    W = model.body_rates(y)
-    psi, theta, phi = (float(v) for v in euler_from_quaternion(q))
-    if model.name == 'full':
-        new = np.array(y, dtype=float)
-        if d['dtheta'] or d['dchi']:
-            theta, phi = theta + d['dtheta'], phi + d['dchi']
-            new[0:4] = quaternion_from_euler(psi, theta, phi) * np.linalg.norm(q)
-        new[4:7] = W + body_rates_from_euler(psi, theta, phi, d['dpsidot'], d['dthetadot'],
-                                             0.0)
-        new[model.iz] += d['dz']
-        new[model.izd] += d['dzdot']
-        return new
-    psidot, thetadot, phidot = euler_rates_from_body(theta, phi, W)
-    new = model.state_from_euler(theta=theta, thetadot=float(thetadot), psi=psi,
-                                 psidot=float(psidot) + d['dpsidot'], phi_M=phi + d['dchi'],
-                                 phi_M_dot=float(phidot), z=float(y[model.iz]) + d['dz'],
-                                 zdot=float(y[model.izd]) + d['dzdot'])
-    new[model.idiss] = y[model.idiss]
-    return new
 
 
 # -- loading ---------------------------------------------------------------------------------

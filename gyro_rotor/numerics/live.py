@@ -1,56 +1,71 @@
 """The live simulation behind ``rotor_sim``: pure Python, no rclpy (tested without ROS).
 
-:class:`LiveSimulation` owns everything the simulation node computes; the node only
-declares parameters, services and timers and copies the arrays of a
-:class:`SampleBlock` into messages. It holds the scene, its model, a stepper driven by a
+:class:`LiveSimulation` owns everything the simulation node computes for a scene of any
+rotor system (the built-in centrifuge or a system file's); the node only declares
+parameters, services and timers and copies the arrays of a :class:`SampleBlock` into
+messages. It holds the scene, its model, a stepper driven by a
 :class:`~gyro_rotor.numerics.realtime.Pacer` and the energy baseline, and does:
 
-* **parameter changes** (:meth:`LiveSimulation.check`, :meth:`LiveSimulation.apply`): a
-  change of the physical constants is validated by building the new model and stepper at
-  the current state; applied, it keeps the state (an Omega0 change keeps the rotor's
-  absolute spin: zdot jumps by -delta Omega0, the field angle stays continuous) and moves
-  the baseline of the residual by the jump of E* (eq. 13);
+* **parameter changes** (:meth:`LiveSimulation.check`, :meth:`LiveSimulation.apply`): the
+  scene applies the physical ones (:meth:`Scene.with_live_changes
+  <gyro_rotor.core.scene.Scene.with_live_changes>`); they are validated by building the
+  new model and stepper at the current state; applied, the state is kept (an Omega0 change
+  keeps each rotor's absolute spin: zdot jumps by -delta Omega0, the model's
+  ``carried_state``; the field angle stays continuous) and the baseline of the residual
+  moves by the jump of E* (eq. 13);
 * **ticks** (:meth:`LiveSimulation.tick`) with a work budget: a tick stops after
   ``budget`` seconds of work (see the pacer's module doc); when that happens in
-  ``CUTS_TO_SWITCH`` consecutive ticks of one stepper, the method
-  that ``auto`` would choose for the current parameters
-  (:func:`~gyro_rotor.numerics.realtime.resolve_method`) takes over, if it is not the
-  one running already, and the diagnostics say so;
+  ``CUTS_TO_SWITCH`` consecutive ticks of one stepper, the method that ``auto`` would
+  choose for the current parameters (:func:`auto_method`) takes over, if it is not the one
+  running already, and the diagnostics say so;
 * **the divergence guard**: an energy-balance residual r = E* + D - E_ref above
   ``max_residual``, a non-finite E*, or *any* exception raised by the model or the
   integrator (a diverging solution can make the right-hand side divide by zero) stops the
   integration; the last good state is kept, the diagnostics turn ERROR, and
   :meth:`LiveSimulation.reset` starts again;
 * **the sample block** (:class:`SampleBlock`): for every grid sample of a tick the
-  joint positions (3-1-3 angles theta, psi, the rotor angle phi_R = field + z + phi_M,
-  phi_M; wrapped to (-pi, pi]), their rates, the generalized forces of eqs. (19, 23), and
-  the ``energy`` columns (t_sim, E*, dE*/dt = -K_D zdot^2 (eq. 17), the dissipation, the
-  residual, z, zdot, the sample counter seq, D and the grid index k), all as arrays;
-* the services' actions (:meth:`reset`, :meth:`perturb`, :meth:`pause`), the diagnostics
-  (:meth:`diagnostics`) and the scene document (:meth:`scene_doc`).
+  joint outputs the model names (``joint_names``, ``joints``: for the centrifuge the 3-1-3
+  angles theta, psi, the rotor angle phi_R = field + z + phi_M, phi_M, wrapped to
+  (-pi, pi], their rates and the generalized forces of eqs. (19, 23); for a system file
+  its coordinates q and the rotor lags z_ROTOR = phi - Omega0 t (eq. 7) as integrated,
+  their rates, no efforts and no 3-D pose), and the model's ``energy_fields`` (t_sim, E*,
+  dE*/dt = -sum K_D zdot^2 (eq. 17), the dissipation, the residual, the centrifuge's z
+  and zdot, the sample counter seq, D and the grid index k), all as arrays;
+* the services' actions (:meth:`reset`, :meth:`perturb`: the scene's ``perturbation``
+  kick, :meth:`Scene.kick_values <gyro_rotor.core.scene.Scene.kick_values>`, applied by
+  the model's ``kick``; :meth:`pause`), the diagnostics (:meth:`diagnostics`) and the
+  scene document (:meth:`scene_doc`).
+
+What the integrators need of a model lives here, since the models sit in the layer below
+(gyro_rotor.core may not import gyro_rotor.numerics): :func:`auto_method` (the centrifuge:
+:func:`~gyro_rotor.numerics.realtime.resolve_method`; a system file:
+:func:`~gyro_rotor.numerics.general.choose_method`, rodas4 for a stiff drive, dop853
+otherwise, from the linearization at the current state) and :func:`live_stepper` (a
+system file integrates with the methods of :mod:`gyro_rotor.numerics.general` through its
+kernel handle), each a single-dispatch function over the model's class.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
+import functools
 import math
 import time
 from typing import Any, Callable, Mapping
-import warnings
 
-from gyro_rotor.core.model import make_model, Model
-from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.core.rotations import (axis_from_quaternion, euler_from_quaternion,
-                                       euler_rates_from_body)
-from gyro_rotor.core.scene import perturb_state, PERTURBATION_KEYS, Scene
+from gyro_rotor.core.model import Model
+from gyro_rotor.core.rotations import axis_from_quaternion, wrap_angles
+from gyro_rotor.core.scene import Scene
+from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import GyroRotorError, IntegrationError, ParameterError
+from gyro_rotor.numerics.general import choose_method, KernelSystem, METHODS
 from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
                                           Stepper)
 import numpy as np
 
 __all__ = ['LiveSimulation', 'SampleBlock', 'Level', 'TICK_BUDGET', 'CUTS_TO_SWITCH', 'FAST_CHUNK',
-           'STEPPER_KEYS', 'ENERGY_COLUMNS']
+           'STEPPER_KEYS', 'ENERGY_COLUMNS', 'auto_method', 'live_stepper', 'wrap_angles']
 
 #: most wall seconds of integration work in one tick; a tick that needs more is cut
 #: (services are answered between ticks, so this bounds their latency)
@@ -62,10 +77,8 @@ CUTS_TO_SWITCH = 2
 FAST_CHUNK = 0.04
 #: node keys whose change rebuilds the integrator at the current state
 STEPPER_KEYS = ('integrator', 'rtol', 'atol', 'step_size')
-#: the columns of :attr:`SampleBlock.energy` (the ``energy`` topic's layout)
-ENERGY_COLUMNS = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
-                  'D', 'k')
-_wrap = np.frompyfunc(math.remainder, 2, 1)
+#: the columns of the centrifuge's :attr:`SampleBlock.energy` (the ``energy`` topic's layout)
+ENERGY_COLUMNS = Model.energy_fields
 
 
 class Level(enum.StrEnum):
@@ -80,10 +93,11 @@ class Level(enum.StrEnum):
 class SampleBlock:
     """The grid samples of one tick with every derived output (m samples).
 
-    ``position``, ``velocity`` and ``effort`` are (m, 4) in joint order theta, psi, phi_R,
-    phi_M; ``energy`` maps each of :data:`ENERGY_COLUMNS` to an (m,) array; ``quaternion``
-    (4,) and ``axis`` (3,) (the symmetry axis in space axes) belong to the last sample,
-    ``quaternions`` (m, 4) to every sample (None for a system without a 3-D pose).
+    ``position``, ``velocity`` and ``effort`` are (m, j) in the model's joint order
+    (``joint_names``; no efforts: (m, 0)); ``energy`` maps each of the model's
+    ``energy_fields`` to an (m,) array; ``quaternion`` (4,) and ``axis`` (3,) (the symmetry
+    axis in space axes) belong to the last sample, ``quaternions`` (m, 4) to every sample
+    (all None for a system without a 3-D pose).
     """
 
     t: np.ndarray
@@ -91,20 +105,13 @@ class SampleBlock:
     velocity: np.ndarray
     effort: np.ndarray
     energy: dict[str, np.ndarray]
-    quaternion: np.ndarray
-    axis: np.ndarray
+    quaternion: np.ndarray | None
+    axis: np.ndarray | None
     quaternions: np.ndarray | None = None
 
     def __len__(self) -> int:
         """Return the number of samples."""
         return len(self.t)
-
-
-def wrap_angles(a: np.ndarray) -> np.ndarray:
-    """Angles wrapped to (-pi, pi] (exactly: IEEE remainder, -pi maps to pi)."""
-    w = _wrap(np.asarray(a, dtype=float), 2 * math.pi).astype(float)
-    w[w == -math.pi] = math.pi
-    return w
 
 
 def _describe(err: BaseException) -> str:
@@ -114,19 +121,59 @@ def _describe(err: BaseException) -> str:
     return f'{type(err).__name__} in the model or integrator: {err}'
 
 
+# -- what the integrators need of a model (module doc) ---------------------------------------
+@functools.singledispatch
+def auto_method(model, y: np.ndarray, t_end: float) -> tuple[str, str]:
+    """Return ``(method, reason)``: auto's choice for ``model`` at the state y, up to t_end."""
+    raise TypeError(f'no automatic integrator for {type(model).__name__}')
+
+
+@auto_method.register
+def _auto_centrifuge(model: Model, y: np.ndarray, t_end: float) -> tuple[str, str]:
+    return resolve_method('auto', model.params, t_end)
+
+
+@auto_method.register
+def _auto_system(model: GeneralModel, y: np.ndarray, t_end: float) -> tuple[str, str]:
+    return choose_method(model, y)
+
+
+@functools.singledispatch
+def live_stepper(model, method: str, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
+    """Return a stepper of ``method`` for ``model`` from (t, y) with cfg's tolerances, step."""
+    raise TypeError(f'no stepper for {type(model).__name__}')
+
+
+@live_stepper.register
+def _centrifuge_stepper(model: Model, method: str, t: float, y: np.ndarray,
+                        cfg: Mapping) -> Stepper:
+    return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
+                        step_size=cfg['step_size'], model=model)
+
+
+@live_stepper.register
+def _system_stepper(model: GeneralModel, method: str, t: float, y: np.ndarray,
+                    cfg: Mapping) -> Stepper:
+    if method not in METHODS:
+        raise ParameterError(f"integrator '{method}': general systems integrate with "
+                             f"auto, {', '.join(METHODS)}")
+    return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
+                        step_size=cfg['step_size'], model=KernelSystem(model))
+
+
 class LiveSimulation:
-    """A scene integrated in real time (see the module doc).
+    """A scene of any rotor system integrated in real time (see the module doc).
 
     Parameters
     ----------
     scene : Scene
-        The scene (its parameters and initial condition; ``t_end``).
+        The scene (its system, parameters and initial condition; ``t_end``).
     cfg : mapping
         The node keys of :data:`~gyro_rotor.core.scene.NODE_KEYS` (publish_rate,
         real_time_factor, integrator, rtol, atol, step_size, max_catch_up, stop_at_t_end,
         max_residual, ...); kept as :attr:`cfg` and updated by :meth:`apply`.
     perturbation : mapping
-        The kick of :meth:`perturb` (keys of ``PERTURBATION_KEYS``).
+        The kick of :meth:`perturb` (the scene's keys, :meth:`Scene.kick_values`).
     budget : float or None
         Work budget of a tick [s] (None: unbounded).
     clock : callable
@@ -136,17 +183,18 @@ class LiveSimulation:
         ``log(level, text)`` for events worth a log line (a :class:`Level`).
     """
 
-    def __init__(self, scene: Scene, cfg: Mapping[str, Any], perturbation: Mapping[str, float],
+    def __init__(self, scene: Scene, cfg: Mapping[str, Any],
+                 perturbation: Mapping[str, Any] | None = None,
                  *, budget: float | None = TICK_BUDGET,
                  clock: Callable[[], float] = time.monotonic,
                  log: Callable[[Level, str], None] | None = None):
         self.scene = scene
         self.cfg = dict(cfg)
-        self.perturbation = {k: float(perturbation.get(k, 0.0)) for k in PERTURBATION_KEYS}
+        self.perturbation = scene.kick_values(perturbation or {})
         self.budget = budget
         self.clock = clock
         self._log = log or (lambda level, text: None)
-        self.model: Model = scene.make_model()
+        self.model: Model | GeneralModel = scene.make_model()
         #: samples produced over the simulation's life (never reset)
         self.seq = 0
         #: the last work-budget event (a method switch), for the diagnostics
@@ -155,13 +203,24 @@ class LiveSimulation:
         self._switched: Stepper | None = None      # the stepper a budget switch made
         self.start(scene.initial_state(self.model))
 
+    @property
+    def joint_names(self) -> tuple:
+        """Return the names of the joint_states columns (the model's)."""
+        return tuple(self.model.joint_names)
+
+    @property
+    def energy_fields(self) -> tuple:
+        """Return the fields of the energy array (the model's)."""
+        return self.model.energy_fields
+
     # -- state -------------------------------------------------------------------------------
     def start(self, y0: np.ndarray) -> None:
         """(Re)start at t = 0 from y0."""
         self.stepper = self._new_stepper(self.model, 0.0, y0, self.cfg)
         self._cuts = 0              # consecutive ticks of this stepper cut by the budget
         self.baseline = EnergyBaseline(self.model.energy, self.model.idiss, y0)
-        self._field = (0.0, 0.0)     # (t_c, field angle at t_c) for phi_R
+        # (t_c, field angles at t_c) of the rotors, for phi_R
+        self._field = (0.0, np.zeros(len(self.model.field_speeds())))
         self.pacer = Pacer(self.stepper, self.cfg['publish_rate'],
                            rtf=self.cfg['real_time_factor'],
                            max_catch_up=self.cfg['max_catch_up'],
@@ -175,60 +234,14 @@ class LiveSimulation:
     def _t_end(self) -> float | None:
         return self.scene.t_end if self.cfg['stop_at_t_end'] else None
 
-    def _new_stepper(self, model: Model, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
+    def _new_stepper(self, model, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
         t_end = self.scene.t_end if cfg['stop_at_t_end'] else math.inf
         method = 'auto' if self._auto else cfg['integrator']
-        method, self.method_reason = self._resolve(method, model, y, t_end)
+        method, self.method_reason = (auto_method(model, y, t_end) if method == 'auto'
+                                      else (method, 'requested'))
         if self._auto:
             self.method_reason = f'work budget: {self.method_reason}'
-        return self._make_stepper(method, model, t, y, cfg)
-
-    # -- what depends on the kind of scene (GeneralLiveSimulation overrides these) -----------
-    #: names of the joint_states columns (the wire layout's JOINT_NAMES; a test checks that
-    #: they agree) and of the energy array's fields
-    joint_names: tuple = ('theta', 'psi', 'phi_R', 'phi_M')
-    energy_fields: tuple = ENERGY_COLUMNS
-
-    def _resolve(self, method: str, model: Model, y: np.ndarray, t_end: float) -> tuple:
-        """Return (method, reason) for ``method`` ('auto': the automatic choice)."""
-        return resolve_method(method, model.params, t_end)
-
-    def _make_stepper(self, method: str, model: Model, t: float, y: np.ndarray,
-                      cfg: Mapping) -> Stepper:
-        return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
-                            step_size=cfg['step_size'], model=model)
-
-    def _changed_scene(self, changes: Mapping[str, Any]):
-        """Return the scene with the physical changes (None if there are none)."""
-        new = self._params(self.scene.params, changes)
-        return None if new is self.scene.params else dataclasses.replace(self.scene,
-                                                                         params=new)
-
-    def _model_of(self, scene) -> Model:
-        return make_model(scene.model, scene.params)
-
-    def _jump(self, model: Model, t: float, y: np.ndarray) -> np.ndarray:
-        """Return the state under ``model``'s parameters (Omega0: the absolute spin is kept)."""
-        dOmega = model.params.Omega0 - self.model.params.Omega0
-        if dOmega:
-            self._field = (t, self._field_angle(t))
-            y = y.copy()
-            y[self.model.izd] -= dOmega
-        return y
-
-    def _with_t_end(self, scene, t_end: float):
-        """Return the scene with another t_end."""
-        return dataclasses.replace(scene, t_end=t_end)
-
-    def _set_perturbation(self, key: str, value: Any) -> None:
-        self.perturbation[key] = float(value)
-
-    def _kicked(self, y: np.ndarray) -> np.ndarray:
-        return perturb_state(self.model, y, self.perturbation)
-
-    def _norm_error(self, y: np.ndarray) -> float:
-        """Drift of the quaternion's norm (0 for a model without one)."""
-        return float(self.model.quaternion_norm_error(y))
+        return live_stepper(model, method, t, y, cfg)
 
     def _restart_stepper(self, y: np.ndarray) -> None:
         self._use(self._new_stepper(self.model, self.stepper.t, y, self.cfg))
@@ -239,9 +252,9 @@ class LiveSimulation:
         self._cuts = 0
         self.pacer.restart(stepper, self.clock())
 
-    def _field_angle(self, t: float) -> float:
+    def _field_angle(self, t: float) -> np.ndarray:
         t_c, a_c = self._field
-        return a_c + self.model.params.Omega0 * (t - t_c)
+        return a_c + self.model.field_speeds() * (t - t_c)
 
     def _diverge(self, reason: str) -> None:
         self.diverged = reason
@@ -249,29 +262,25 @@ class LiveSimulation:
                                f'{self.last[0]:.6f} s kept: {reason}')
 
     # -- parameter changes -------------------------------------------------------------------
-    @staticmethod
-    def _params(params: RotorParams, changes: Mapping[str, Any]) -> RotorParams:
-        phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
-        if not phys:
-            return params
-        with warnings.catch_warnings():
-            warnings.simplefilter('ignore')
-            return params.replace(**phys)
-
     def check(self, changes: Mapping[str, Any]) -> None:
         """Raise a GyroRotorError if the changes cannot be applied (nothing changes here).
 
-        New physical constants are validated by RotorParams, and with the integrator
-        settings by building the new model and stepper at the current (or, after a
-        divergence, the last good) state.
+        A kick is checked by the scene (:meth:`Scene.kick_values`); new physical constants
+        by the scene (:meth:`Scene.with_live_changes`) and, with the integrator settings,
+        by building the new model and stepper at the current (or, after a divergence, the
+        last good) state.
         """
         try:
-            new = self._changed_scene(changes)
+            kick = {k.split('.', 1)[1]: v for k, v in changes.items()
+                    if k.startswith('perturbation.')}
+            if kick:
+                self.scene.kick_values({**self.perturbation, **kick})
+            new = self.scene.with_live_changes(changes)
             if new is not None or any(k in changes for k in STEPPER_KEYS):
                 cfg = {**self.cfg, **{k: v for k, v in changes.items() if k in self.cfg}}
                 t, y = self.last if self.diverged else (self.stepper.t, self.stepper.y)
                 auto, self._auto = self._auto, self._auto and 'integrator' not in changes
-                model = self.model if new is None else self._model_of(new)
+                model = self.model if new is None else new.make_model()
                 try:
                     self._new_stepper(model, t, y, cfg)
                 finally:
@@ -289,23 +298,26 @@ class LiveSimulation:
             self._diverge(_describe(err))
 
     def _apply(self, changes: Mapping[str, Any]) -> None:
+        kick = {}
         for k, v in changes.items():
             if k in self.cfg:
                 self.cfg[k] = v
             elif k.startswith('perturbation.'):
-                self._set_perturbation(k.split('.', 1)[1], v)
+                kick[k.split('.', 1)[1]] = v
+        if kick:
+            self.perturbation = self.scene.kick_values({**self.perturbation, **kick})
         if 'integrator' in changes:
             self._auto = False
-        new = self._changed_scene(changes)
+        new = self.scene.with_live_changes(changes)
         if 't_end' in changes:
             if new is None:
-                self.scene = self._with_t_end(self.scene, changes['t_end'])
+                self.scene = self.scene.with_t_end(changes['t_end'])
             else:
-                new = self._with_t_end(new, changes['t_end'])
+                new = new.with_t_end(changes['t_end'])
         if new is not None and self.diverged:
             # stopped: take the parameters for the next reset, integrate nothing
             self.scene = new
-            self.model = self._model_of(new)
+            self.model = new.make_model()
         elif new is not None:
             self._apply_params(new)
         elif not self.diverged and any(k in changes for k in STEPPER_KEYS):
@@ -316,11 +328,14 @@ class LiveSimulation:
         self.pacer.max_catch_up = self.cfg['max_catch_up']
         self.pacer.t_end = self._t_end()
 
-    def _apply_params(self, new) -> None:
+    def _apply_params(self, new: Scene) -> None:
         """Switch to the scene's new parameters at the current state (module doc)."""
         y_old = self.stepper.y.copy()
-        model = self._model_of(new)
-        y = self._jump(model, self.stepper.t, y_old)
+        model = new.make_model()
+        t = self.stepper.t
+        if np.any(model.field_speeds() != self.model.field_speeds()):
+            self._field = (t, self._field_angle(t))
+        y = model.carried_state(self.model, y_old)
         self.scene = new
         self.model = model
         jump = self.baseline.rebase(self.model.energy, y, y_old)
@@ -361,7 +376,7 @@ class LiveSimulation:
         """Switch to auto's method for the current parameters, or say that none is better."""
         cur = self.stepper.method
         t_end = self.scene.t_end if self.cfg['stop_at_t_end'] else math.inf
-        method, reason = self._resolve('auto', self.model, self.stepper.y, t_end)
+        method, reason = auto_method(self.model, self.stepper.y, t_end)
         what = (f'tick work budget {1e3 * self.budget:g} ms exceeded with {cur} at '
                 f't = {self.stepper.t:.6f} s')
         if method.lower() != cur.lower():
@@ -383,7 +398,6 @@ class LiveSimulation:
     def _block(self, samples) -> SampleBlock | None:
         """Derive every output of the samples; stop before the first one the guard rejects."""
         m = self.model
-        p = m.params
         n = len(samples)
         t = np.fromiter((s.t for s in samples), float, n)
         Y = np.array([s.y for s in samples])
@@ -394,35 +408,31 @@ class LiveSimulation:
         bad = ~(np.isfinite(E) & (np.abs(resid) <= self.cfg['max_residual']))
         n_good = int(np.argmax(bad)) if bad.any() else n
         block = self._outputs(samples[:n_good], t[:n_good], Y[:n_good], E[:n_good],
-                              resid[:n_good], p) if n_good else None
+                              resid[:n_good]) if n_good else None
         if n_good < n:
             self._diverge(f'energy-balance residual {resid[n_good]:.6g} J at t = '
                           f'{t[n_good]:.6f} s exceeds max_residual '
                           f'{self.cfg["max_residual"]:g} J (or E* is not finite)')
         return block
 
-    def _outputs(self, samples, t, Y, E, resid, p: RotorParams) -> SampleBlock:
+    def _outputs(self, samples, t, Y, E, resid) -> SampleBlock:
         m = self.model
         n = len(t)
-        q = m.quaternion(Y)
-        psi, theta, phi_M = euler_from_quaternion(q)
-        psidot, thetadot, phi_M_dot = euler_rates_from_body(theta, phi_M, m.body_rates(Y))
-        z, zdot = Y[:, m.iz], Y[:, m.izd]
         t_c, a_c = self._field
-        field = a_c + p.Omega0 * (t - t_c)
-        diss = p.K_D * zdot * zdot
-        energy = {'t_sim': t, 'E_star': E, 'dE_dt': -diss, 'dissipation': diss,
-                  'residual': resid, 'z': z, 'zdot': zdot,
-                  'seq': np.arange(self.seq, self.seq + n, dtype=float), 'D': Y[:, m.idiss],
-                  'k': np.fromiter((s.k for s in samples), float, n)}
+        field = a_c + m.field_speeds() * (t - t_c)[:, None]
+        position, velocity, effort, q = m.joints(Y, field)
+        diss = m.dissipation(Y)
+        columns = {'t_sim': t, 'E_star': E, 'dE_dt': -diss, 'dissipation': diss,
+                   'residual': resid, **m.state_fields(Y),
+                   'seq': np.arange(self.seq, self.seq + n, dtype=float), 'D': Y[:, m.idiss],
+                   'k': np.fromiter((s.k for s in samples), float, n)}
         self.seq += n
         self.last = (samples[-1].t, samples[-1].y)
         return SampleBlock(
-            t=t, position=wrap_angles(np.column_stack([theta, psi, field + z + phi_M, phi_M])),
-            velocity=np.column_stack([thetadot, psidot, p.Omega0 + zdot + phi_M_dot,
-                                      phi_M_dot]),
-            effort=np.asarray(m.generalized_forces(Y), dtype=float), energy=energy,
-            quaternion=q[-1], axis=axis_from_quaternion(q[-1]), quaternions=q)
+            t=t, position=position, velocity=velocity, effort=effort,
+            energy={f: columns[f] for f in m.energy_fields},
+            quaternion=None if q is None else q[-1],
+            axis=None if q is None else axis_from_quaternion(q[-1]), quaternions=q)
 
     # -- services ----------------------------------------------------------------------------
     def reset(self) -> str:
@@ -439,7 +449,7 @@ class LiveSimulation:
         if self.diverged:
             raise ParameterError('diverged: reset first')
         y_old = self.stepper.y.copy()
-        y = self._kicked(y_old)
+        y = self.model.kick(y_old, self.scene.model_kick(self.perturbation))
         try:       # the new stepper first: a state the model cannot evaluate changes nothing
             stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
         except GyroRotorError as err:
@@ -462,6 +472,10 @@ class LiveSimulation:
         return 'paused' if paused else 'running'
 
     # -- reports -----------------------------------------------------------------------------
+    def _norm_error(self, y: np.ndarray) -> float:
+        """Drift of the quaternion's norm (the model's: 0 for a model without one)."""
+        return float(self.model.quaternion_norm_error(y))
+
     def _status(self, w) -> tuple[Level, str]:
         rtf = self.pacer.rtf
         qn = self._norm_error(self.last[1])
@@ -512,26 +526,11 @@ class LiveSimulation:
         return level, msg, values
 
     def scene_doc(self) -> dict[str, Any]:
-        """Return the current scene as a document (the node's ``~/scene``)."""
-        return {'scene': self.scene.name, 'model': self.scene.model,
-                't_end': self.scene.t_end, 'params': self.scene.params.to_mapping(),
-                'initial': self._initial_doc(), 'perturbation': self.perturbation,
-                'node': self.cfg, 'integrator': self.stepper.method, 't_sim': self.stepper.t,
-                'path': self.scene.path}
+        """Return the current scene as a document (the node's ``~/scene``).
 
-    def _initial_doc(self) -> dict[str, Any]:
-        """Return the initial condition as ``initial.*`` keys without the prefix."""
-        ic = self.scene.initial
-        keys = (('mode', 'theta0', 'branch', *PERTURBATION_KEYS) if ic.mode == 'steady'
-                else ('mode', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'))
-        out = {}
-        for k in keys:
-            v = getattr(ic, k)
-            if v is None:
-                continue
-            if isinstance(v, (tuple, list, np.ndarray)):
-                v = [float(x) for x in v]
-            elif not isinstance(v, (bool, int, str)):
-                v = float(v)
-            out[k] = v
-        return out
+        The scene's keys (:meth:`Scene.document_parts`) around the node's: the kick, the
+        node keys, the integrator and the simulation time.
+        """
+        head, tail = self.scene.document_parts()
+        return {**head, 'perturbation': self.perturbation, 'node': self.cfg,
+                'integrator': self.stepper.method, 't_sim': self.stepper.t, **tail}

@@ -1,15 +1,15 @@
 """``rotor_sim``: the full nonlinear gyrostat in real time on ROS 2 (a thin adapter).
 
 The node declares every scene key as a parameter (:mod:`gyro_rotor.ros.sim_params`),
-loads the scene named by ``scene`` and hands it to a
-:class:`~gyro_rotor.numerics.live.LiveSimulation` (for a general scene of any rotor
-system, a :class:`~gyro_rotor.numerics.live_general.GeneralLiveSimulation`: joints q and
-z_ROTOR, no 3-D topics), which integrates it in real time and returns each tick's
-samples on the output grid t_k = k / publish_rate with every derived output. The node
-publishes them:
+loads the scene named by ``scene`` (of any rotor system) and hands it to a
+:class:`~gyro_rotor.numerics.live.LiveSimulation`, which integrates it in real time and
+returns each tick's samples on the output grid t_k = k / publish_rate with every derived
+output. The node publishes them:
 
 * ``joint_states`` (sensor_msgs/JointState): theta, psi, phi_R, phi_M; effort = the
-  generalized forces (Q_theta, Q_psi, Q, -c_psi chi - Q) of eqs. (19, 23);
+  generalized forces (Q_theta, Q_psi, Q, -c_psi chi - Q) of eqs. (19, 23) (a system
+  file's scene: its coordinates q and the rotor lags z_ROTOR, no efforts and no 3-D
+  topics);
 * ``energy`` (std_msgs/Float64MultiArray, layout in :mod:`gyro_rotor.ros.messages`);
 * ``axis`` (Vector3Stamped), ``stator_pose`` (PoseStamped), ``axis_marker`` (Marker), the
   3-D views, at ``visualization_rate`` (default 50 Hz of simulation time: RViz and
@@ -53,7 +53,6 @@ from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from gyro_rotor.core.rotations import axis_from_quaternion
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.numerics.live import Level, LiveSimulation
-from gyro_rotor.numerics.live_general import GeneralLiveSimulation
 from gyro_rotor.numerics.realtime import (Deadlines, set_thread_priority,
                                           set_threads_priority, set_timer_slack, sleep_until)
 import gyro_rotor.ros.messages as ros_msgs
@@ -193,8 +192,7 @@ class RotorSimNode(Node):
             '(0: normal scheduling)', read_only=True)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         #: the simulation (everything but ROS)
-        kind = LiveSimulation if scene.builtin else GeneralLiveSimulation
-        self.sim = kind(scene, cfg, perturbation, log=self._log)
+        self.sim = LiveSimulation(scene, cfg, perturbation, log=self._log)
         #: held by the loop thread while it ticks and publishes, and by every service,
         #: parameter change and diagnostics call on the executor
         self.lock = threading.RLock()

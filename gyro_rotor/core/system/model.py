@@ -13,12 +13,20 @@ from gyro_rotor.core.system.system_file import RotorSystem
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
-__all__ = ['GeneralModel', 'system_rate']
+__all__ = ['GeneralModel', 'system_rate', 'joint_names', 'KICK_KEYS']
+
+#: the parts of the state a kick (``perturbation.KEY``) adds to: lengths n, n, m, m
+KICK_KEYS = ('q', 'qdot', 'z', 'zdot')
 
 
 def system_rate(system: RotorSystem) -> float:
     """Return a typical fastest rate [1/s] of a system: the largest field speed, at least 1."""
     return max([1.0] + [abs(d.Omega0) for d in system.drives])
+
+
+def joint_names(system: RotorSystem) -> tuple:
+    """Joint names of a system: its coordinates, then z_ROTOR for each rotor."""
+    return tuple(system.coordinates) + tuple(f'z_{r}' for r in system.rotors)
 
 
 class GeneralModel:
@@ -69,6 +77,56 @@ class GeneralModel:
                                np.asarray(qdot, float).reshape(self.n),
                                np.asarray(z, float).reshape(self.m),
                                np.asarray(zdot, float).reshape(self.m), [D]])
+
+    # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
+    #: fields of the ``energy`` array (z and zdot of each rotor are joints)
+    energy_fields = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'seq', 'D', 'k')
+
+    @property
+    def joint_names(self) -> tuple:
+        """Names of the joint_states columns (:func:`joint_names`)."""
+        return joint_names(self.system)
+
+    def field_speeds(self) -> np.ndarray:
+        """Return the speed Omega0 of each rotor's field (eq. 7)."""
+        return np.array([d.Omega0 for d in self.system.drives])
+
+    def state_fields(self, Y) -> dict:
+        """Return the ``energy`` fields read off the states: none (z, zdot are joints)."""
+        return {}
+
+    def kick(self, y, perturbation) -> np.ndarray:
+        """Return the state y with ``perturbation``'s q, qdot, z, zdot added (n, n, m, m)."""
+        y = np.array(y, dtype=float)
+        for key, sl in zip(KICK_KEYS, self.slices()):
+            y[sl] += np.asarray(perturbation[key], dtype=float)
+        return y
+
+    def carried_state(self, old: 'GeneralModel', y) -> np.ndarray:
+        """Return the state y of the model ``old`` under this model's drives.
+
+        Each rotor keeps its absolute spin Omega0 + zdot (eq. 7): zdot_k jumps by
+        -(Omega0_k new - old); every other component is kept.
+        """
+        y = np.array(y, dtype=float)
+        y[self.slices()[3]] -= self.field_speeds() - old.field_speeds()
+        return y
+
+    def quaternion_norm_error(self, Y) -> np.ndarray:
+        """Zero: a system file's state holds no quaternion."""
+        return np.zeros(np.asarray(Y, dtype=float).shape[:-1])
+
+    def joints(self, Y, field) -> tuple:
+        """Return the joint_states of rows of states: (positions, velocities, efforts, None).
+
+        Positions q and the rotor lags z = phi - Omega0 t (eq. 7), as integrated (not
+        wrapped: a lag or a coordinate may pass pi), their rates; no efforts and no 3-D
+        pose. (``field`` is not used: after a live Omega0 change z is phi minus the field
+        angle, continuous, no longer phi - Omega0 t.)
+        """
+        sq, sqd, sz, szd = self.slices()
+        return (np.column_stack([Y[:, sq], Y[:, sz]]), np.column_stack([Y[:, sqd], Y[:, szd]]),
+                np.zeros((len(Y), 0)), None)
 
     def rhs(self, t: float, y) -> np.ndarray:
         """dy/dt at y (the system is autonomous; t is ignored)."""
