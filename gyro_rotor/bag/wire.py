@@ -25,16 +25,18 @@ from enum import StrEnum
 import struct
 from typing import NamedTuple
 
+from gyro_rotor.core.model import Model
+
 __all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'ENERGY_LABEL', 'SIM_TOPICS', 'ANALYSIS_TOPICS',
            'Topic', 'QOS', 'sim_topics', 'scene_ref', 'scene_doc_for_bag',
            'array_labels', 'energy_from_cdr', 'joints_from_cdr', 'EnergyRow',
            'JointRow', 'CdrError']
 
-#: joint order of ``joint_states`` (3-1-3 angles of the paper; the rotor's phi_R)
-JOINT_NAMES = ('theta', 'psi', 'phi_R', 'phi_M')
-#: fields of the ``energy`` array, in order (see gyro_rotor.ros.messages for their units)
-ENERGY_FIELDS = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
-                 'D', 'k')
+#: joint order of the centrifuge's ``joint_states`` (3-1-3 angles of the paper; the rotor's
+#: phi_R) and the fields of its ``energy`` array, in order (units: gyro_rotor.ros.messages):
+#: the layout is the model's (written once, in core; a system file's model gives its own)
+JOINT_NAMES = Model.joint_names
+ENERGY_FIELDS = Model.energy_fields
 ENERGY_LABEL = ','.join(ENERGY_FIELDS)
 
 

@@ -391,10 +391,10 @@ class Model:
         return np.column_stack([q, W, Y[:, self.iz], Y[:, self.izd], Y[:, self.idiss]])
 
     # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
-    #: names of the joint_states columns (bag/wire.py's JOINT_NAMES; a test checks that
-    #: they agree): the 3-1-3 angles theta, psi, the rotor angle phi_R and phi_M
+    #: names of the joint_states columns (the wire layout, written here once; bag/wire.py's
+    #: JOINT_NAMES is this): the 3-1-3 angles theta, psi, the rotor angle phi_R and phi_M
     joint_names = ('theta', 'psi', 'phi_R', 'phi_M')
-    #: fields of the ``energy`` array (bag/wire.py's ENERGY_FIELDS)
+    #: fields of the ``energy`` array (bag/wire.py's ENERGY_FIELDS is this)
     energy_fields = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'z', 'zdot', 'seq',
                      'D', 'k')
 
