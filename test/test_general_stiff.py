@@ -1,6 +1,8 @@
 """Stiff drives on generated systems (issue 25, item 4): the exact Jacobian and its method."""
 
 from gyro_rotor.core.system.scene import load_general_scene
+from gyro_rotor.numerics.general import integrate
+from gyro_rotor.numerics.integrators import radau_jac
 import numpy as np
 import pytest
 
@@ -62,3 +64,79 @@ def test_jacobian_check_detects_a_wrong_entry():
     n = model.n
     J[n + 1, 1] *= 1.0 + 1e-5                           # d(beta1_ddot)/d beta1
     assert J[n + 1, 1] != 0.0 and _relative_error(J, Jfd) > 1e-7
+
+
+# -- radau9 with the exact Jacobian ------------------------------------------------------------
+def test_transformation_block_diagonalizes_A_inverse_and_matches_scipy_for_3_stages():
+    """TI A^-1 T is diag(mu_r, [[a, -b], [b, a]], ...); for s = 3 scipy's Radau numbers."""
+    from scipy.integrate._ivp import radau as sr
+    for s in (3, 5):
+        A, C, T, TI, mu_r, mu_c, E = radau_jac.tableau(s)
+        L = TI @ np.linalg.inv(A) @ T
+        expect = np.zeros((s, s))
+        expect[0, 0] = mu_r
+        for p, mu in enumerate(mu_c):
+            i = 1 + 2 * p
+            expect[i:i + 2, i:i + 2] = [[mu.real, -mu.imag], [mu.imag, mu.real]]
+        assert np.abs(L - expect).max() < 1e-12 * np.abs(expect).max()
+    A, C, T, TI, mu_r, mu_c, E = radau_jac.tableau(3)
+    assert mu_r == pytest.approx(sr.MU_REAL, rel=1e-14)
+    assert mu_c[0] == pytest.approx(sr.MU_COMPLEX, rel=1e-14)
+    assert np.allclose(E, sr.E, rtol=1e-12, atol=0.0)
+
+
+def _twin(K_D=None):
+    scene = load_general_scene('twin_gimbal')
+    if K_D is not None:
+        scene = scene.with_drives(K_D=K_D)
+    model = scene.make_model()
+    return model, scene.initial_state(model)
+
+
+def test_radau9_agrees_with_dop853_on_the_non_stiff_system():
+    model, y0 = _twin()
+    te = np.linspace(0.0, 1.0, 101)
+    ref = integrate(model, y0, te, method='dop853', rtol=1e-13, atol=1e-15).y
+    errs = []
+    for rtol in (1e-6, 1e-8, 1e-10):
+        run = integrate(model, y0, te, method='radau9', rtol=rtol, atol=rtol * 1e-3)
+        assert run.method == 'radau9'
+        errs.append(np.abs(run.y - ref).max())
+    assert errs[2] < 1e-8
+    assert errs[0] > errs[1] > errs[2]                  # converges as the tolerance shrinks
+
+
+@pytest.mark.parametrize('K_D, method, rtol', [(1e2, 'dop853', 1e-12),
+                                               (1e6, 'rodas4', 1e-11)])
+def test_radau9_on_a_stiff_drive_against_a_tight_reference(K_D, method, rtol):
+    """Stiff twin_gimbal: radau9 at rtol 1e-8 within 1e-7 of an independent tight run."""
+    model, y0 = _twin(K_D)
+    te = np.linspace(0.0, 0.5, 51)
+    ref = integrate(model, y0, te, method=method, rtol=rtol, atol=rtol * 1e-3).y
+    run = integrate(model, y0, te, method='radau9', rtol=1e-8, atol=1e-11)
+    pos = np.r_[0:model.n, 2 * model.n:2 * model.n + model.m]
+    assert np.abs(run.y[:, pos] - ref[:, pos]).max() < 1e-7
+    assert np.abs(model.residual(run.y)).max() < 1e-8 * model.energy(y0)
+
+
+def test_radau9_cost_does_not_grow_with_K_D():
+    """A cost budget, not a timing: evaluations at K_D = 1e6 within 1.5 x those at 1e2."""
+    te = np.linspace(0.0, 1.0, 101)
+    nfev = {}
+    for K_D in (1e2, 1e4, 1e6):
+        model, y0 = _twin(K_D)
+        nfev[K_D] = integrate(model, y0, te, method='radau9', rtol=1e-8, atol=1e-11).nfev
+    assert max(nfev.values()) < 1.5 * min(nfev.values()), nfev
+
+
+def test_auto_and_the_stepper_use_radau9_with_the_generated_jacobian():
+    from gyro_rotor.numerics.general import choose_method, KernelSystem
+    from gyro_rotor.numerics.integrators.methods import make_integrator
+    model, y0 = _twin(1e4)
+    assert choose_method(model, y0)[0] == 'radau9'
+    stepper = make_integrator('radau9', KernelSystem(model), y0, 0.0, 1.0, rtol=1e-8,
+                              atol=1e-11)
+    assert isinstance(stepper, radau_jac.Radau9Jac)
+    assert stepper.advance_to(0.1) == 'running' and stepper.t == 0.1
+    run = integrate(model, y0, [0.0, 0.1], method='radau9', rtol=1e-8, atol=1e-11)
+    assert np.abs(stepper.y - run.y[-1]).max() < 1e-7

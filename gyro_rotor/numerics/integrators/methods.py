@@ -33,6 +33,7 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
                                              splitting as split, tableaux as tb)
 from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
+from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
 import numpy as np
 
 __all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'Radau9', 'Split8', 'METHODS', 'integrate',
@@ -400,6 +401,9 @@ class Split8(Integrator):
 
 METHODS: dict[str, type[Integrator]] = {
     cls.name: cls for cls in (RK4, RK8, DOP853, Gauss6, Rodas4, Radau9, Split8)}
+#: a generated rotor system (a model with ``kernel_jac``) runs these classes under the same
+#: names: radau9 with its exact generated Jacobian (:mod:`~.radau_jac`)
+GENERATED_METHODS: dict[str, type[Integrator]] = {Radau9Jac.name: Radau9Jac}
 
 
 def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str, str]:
@@ -454,6 +458,8 @@ def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
     except KeyError:
         raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
                              f"{', '.join(METHODS)}") from None
+    if hasattr(model, 'kernel_jac'):
+        cls = GENERATED_METHODS.get(method, cls)
     return cls(model, y0, t0, t_bound, **kwargs)
 
 
