@@ -291,7 +291,7 @@ class StiffRow:
 
 
 def _lambdified_jac(scene):
-    """The user's Jacobian: lambdified Mbar, dMbar/dq, dF/dq, dF/dv assembled with numpy.
+    """Return the user's Jacobian: lambdified Mbar, dMbar/dq, dF/dq, dF/dv, assembled with numpy.
 
     da/dx = Mbar^-1 (dF/dx + dQ/dx - (dMbar/dx) a), da/dv = Mbar^-1 (dF/dv + dQ/dv) (the
     derivatives of :mod:`~gyro_rotor.core.system.codegen`'s ``jac``, here from lambdify).

@@ -100,7 +100,7 @@ def _write(out: str, lines: list) -> int:
 
 
 def _stiff_lines(args: argparse.Namespace) -> list:
-    """The stiff-drive table (general_bench.stiff_table) as markdown lines."""
+    """Return the stiff-drive table (general_bench.stiff_table) as markdown lines."""
     import platform
     from gyro_rotor.numerics import general_bench as gb
     rows, checks = gb.stiff_table(t_end=args.t_end, level=args.level, repeats=args.repeats)
