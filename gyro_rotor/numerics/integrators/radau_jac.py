@@ -138,8 +138,9 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
             bc):
     """Simplified Newton iterations on the stages (start values in Z).
 
-    Returns (iterations, rate); iterations < 0 when the iteration diverged, was predicted
-    not to converge within NEWTON_MAXITER, or met a non-finite value.
+    Returns (iterations, rate); -iterations (the evaluations made: -iterations * s) when
+    the iteration diverged, was predicted not to converge within NEWTON_MAXITER, or met a
+    non-finite value.
     """
     s = C.shape[0]
     n = y.shape[0]
@@ -158,7 +159,7 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
                 ytmp[m] = y[m] + Z[i, m]
             rhs(f, ytmp, P, F[i])
         if not _all_finite(F[s - 1]):
-            return -1, rate
+            return -(it + 1), rate
         # right-hand sides of the transformed equations, then their solutions dW
         for m in range(n):
             acc = 0.0
@@ -187,11 +188,11 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
                 norm += e * e
         norm = math.sqrt(norm / (s * n))
         if not math.isfinite(norm):
-            return -1, rate
+            return -(it + 1), rate
         if norm_old >= 0.0:
             rate = norm / norm_old
             if rate >= 1.0 or rate ** (NEWTON_MAXITER - it) / (1.0 - rate) * norm > tol:
-                return -1, rate
+                return -(it + 1), rate
         for m in range(n):
             W[0, m] += br[m]
             for p in range(npair):
@@ -206,7 +207,7 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
         if norm == 0.0 or (norm_old >= 0.0 and rate / (1.0 - rate) * norm < tol):
             return it + 1, rate
         norm_old = norm
-    return -1, rate
+    return -NEWTON_MAXITER, rate
 
 
 @njit(cache=True, error_model='numpy')
@@ -295,7 +296,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
             sc[m] = 1.0 / (atol + rtol * abs(y[m]))
         it, rate = _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z,
                            W, F, ytmp, br, bc)
-        nfev += (NEWTON_MAXITER if it < 0 else it) * s
+        nfev += abs(it) * s
         if it < 0:
             nrej += 1
             if not jac_current:
