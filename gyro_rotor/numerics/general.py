@@ -50,7 +50,11 @@ class KernelSystem:
         self.n = model.size
         self.name = f'system {model.system.name}'
         self.kernel_rhs = model.compiled.first_class
-        self.kernel_jac = model.compiled.jac_first_class
+
+    @property
+    def kernel_jac(self):
+        """Return the generated exact Jacobian, a first-class function (compiled at first use)."""
+        return self.model.compiled.jac_first_class
 
     def pack(self, system: RotorSystem) -> np.ndarray:
         """Parameter array of ``system`` (same structure as the model's, other numbers)."""

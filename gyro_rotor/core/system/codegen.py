@@ -200,6 +200,55 @@ def _ldl_solve(M, d, B):
 '''
 
 
+def _jac_symbols(eq: Equations) -> tuple:
+    """Names and sympy expressions of jac's pieces: Mbar, F, dMbar/dq, dF/dq, dF/dv.
+
+    Returns (names, exprs, dM, Fq, Fv); the dicts map the index tuples of the non-zero
+    derivatives to their names (dM[k, i, j], i >= j: dMbar_ij / dq_k; Fq[i, j]; Fv[i, j]).
+    """
+    n, N = eq.n, eq.n + eq.m
+    zero = sympy.Integer(0)
+    names = [f'M{i}_{j}' for i in range(N) for j in range(i + 1)] + [f'F{i}' for i in range(N)]
+    exprs = [eq.Mbar[i, j] for i in range(N) for j in range(i + 1)] + list(eq.F)
+    dM = {}
+    for k in range(n):
+        for i in range(N):
+            for j in range(i + 1):
+                e = sympy.diff(eq.Mbar[i, j], eq.q[k])
+                if e != zero:
+                    dM[k, i, j] = f'dM{k}_{i}_{j}'
+                    names.append(dM[k, i, j])
+                    exprs.append(e)
+    Fq = {(i, j): f'Fq{i}_{j}' for i in range(N) for j in range(n) if eq.F_q[i, j] != zero}
+    Fv = {(i, j): f'Fv{i}_{j}' for i in range(N) for j in range(N) if eq.F_v[i, j] != zero}
+    names += list(Fq.values()) + list(Fv.values())
+    exprs += [eq.F_q[i, j] for i, j in Fq] + [eq.F_v[i, j] for i, j in Fv]
+    return names, exprs, dM, Fq, Fv
+
+
+def _jac_columns(eq: Equations, dM: dict, Fq: dict, Fv: dict, ind: str) -> list[str]:
+    """Lines filling G (N x 2 N): [dG/dx | dG/dv] with G = F + [0; Q] - Mbar a at fixed a."""
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    lines = []
+    for j in range(n):                  # columns x_j = q_j: dF/dq_j - (dMbar/dq_j) a
+        for i in range(N):
+            terms = [Fq[i, j]] if (i, j) in Fq else []
+            terms += [f'{dM[j, max(i, c), min(i, c)]} * a[{c}, 0]' for c in range(N)
+                      if (j, max(i, c), min(i, c)) in dM]
+            if terms:
+                first, rest = terms[0], terms[1:]
+                line = (first if (i, j) in Fq else f'-{first}') + ''.join(
+                    f' - {t}' for t in rest)
+                lines.append(f'{ind}G[{i}, {j}] = {line}')
+    for k in range(m):                  # columns x_{n+k} = z_k: the drive law only
+        lines.append(f'{ind}G[{n + k}, {n + k}] = Qz{k}')
+    for (i, j), name in Fv.items():     # columns v_j
+        lines.append(f'{ind}G[{i}, {N + j}] = {name}')
+    for k in range(m):
+        lines.append(f'{ind}G[{n + k}, {N + n + k}] -= KD{k}')
+    return lines
+
+
 def _jac_source(system: RotorSystem, eq: Equations, pr: _Printer) -> str:
     """Source of ``jac(y, P, J)``: the exact Jacobian of ``rhs`` (y = (q, qdot, z, zdot, D)).
 
@@ -214,27 +263,7 @@ def _jac_source(system: RotorSystem, eq: Equations, pr: _Printer) -> str:
     """
     n, m, N = eq.n, eq.m, eq.n + eq.m
     nc = len(system.constants)
-    zero = sympy.Integer(0)
-    names, exprs = [], []
-    for i in range(N):
-        for j in range(i + 1):
-            names.append(f'M{i}_{j}')
-            exprs.append(eq.Mbar[i, j])
-    names += [f'F{i}' for i in range(N)]
-    exprs += list(eq.F)
-    dM = {}                             # (k, i, j), i >= j: dMbar_ij / dq_k, non-zero only
-    for k in range(n):
-        for i in range(N):
-            for j in range(i + 1):
-                e = sympy.diff(eq.Mbar[i, j], eq.q[k])
-                if e != zero:
-                    dM[k, i, j] = f'dM{k}_{i}_{j}'
-                    names.append(dM[k, i, j])
-                    exprs.append(e)
-    Fq = {(i, j): f'Fq{i}_{j}' for i in range(N) for j in range(n) if eq.F_q[i, j] != zero}
-    Fv = {(i, j): f'Fv{i}_{j}' for i in range(N) for j in range(N) if eq.F_v[i, j] != zero}
-    names += list(Fq.values()) + list(Fv.values())
-    exprs += [eq.F_q[i, j] for i, j in Fq] + [eq.F_v[i, j] for i, j in Fv]
+    names, exprs, dM, Fq, Fv = _jac_symbols(eq)
     ind = '    '
     body = _unpack_lines(eq, nc, ind) + _cse_lines(names, exprs, ind, pr)
     for k in range(m):
@@ -249,28 +278,10 @@ def _jac_source(system: RotorSystem, eq: Equations, pr: _Printer) -> str:
                  f'{ind}    Qz{k} = -KS{k}']
     body += [f'{ind}Mb = np.empty(({N}, {N}))', f'{ind}dg = np.empty({N})',
              f'{ind}a = np.empty(({N}, 1))', f'{ind}G = np.zeros(({N}, {2 * N}))']
-    for i in range(N):
-        for j in range(i + 1):
-            body.append(f'{ind}Mb[{i}, {j}] = M{i}_{j}')
-    for i in range(N):
-        body.append(f'{ind}a[{i}, 0] = F{i}' + (f' + Q{i - n}' if i >= n else ''))
+    body += [f'{ind}Mb[{i}, {j}] = M{i}_{j}' for i in range(N) for j in range(i + 1)]
+    body += [f'{ind}a[{i}, 0] = F{i}' + (f' + Q{i - n}' if i >= n else '') for i in range(N)]
     body += [f'{ind}_ldl_factor(Mb, dg)', f'{ind}_ldl_solve(Mb, dg, a)']
-    for j in range(n):                  # columns x_j = q_j: dF/dq_j - (dMbar/dq_j) a
-        for i in range(N):
-            terms = [Fq[i, j]] if (i, j) in Fq else []
-            terms += [f'{dM[j, max(i, c), min(i, c)]} * a[{c}, 0]' for c in range(N)
-                      if (j, max(i, c), min(i, c)) in dM]
-            if terms:
-                first, rest = terms[0], terms[1:]
-                line = (first if (i, j) in Fq else f'-{first}') + ''.join(
-                    f' - {t}' for t in rest)
-                body.append(f'{ind}G[{i}, {j}] = {line}')
-    for k in range(m):                  # columns x_{n+k} = z_k: the drive law only
-        body.append(f'{ind}G[{n + k}, {n + k}] = Qz{k}')
-    for (i, j), name in Fv.items():     # columns v_j
-        body.append(f'{ind}G[{i}, {N + j}] = {name}')
-    for k in range(m):
-        body.append(f'{ind}G[{n + k}, {N + n + k}] -= KD{k}')
+    body += _jac_columns(eq, dM, Fq, Fv, ind)
     body += [f'{ind}_ldl_solve(Mb, dg, G)',
              f'{ind}for r in range({2 * N + 1}):',
              f'{ind}    for c in range({2 * N + 1}):',
@@ -441,10 +452,12 @@ def compile_system(system: RotorSystem, *, warm: bool = True,
                    progress=_stderr_progress) -> CompiledSystem:
     """Return the compiled equations of ``system``, generating them only if not cached.
 
-    ``warm`` runs each compiled function once, so that numba compiles (or loads from its
-    cache) now and not at the first use. When the code is generated (first use of a
-    structure: minutes for tens of rotors), ``progress(text)`` gets one line per stage with
-    its time (default: to stderr; None: silent).
+    ``warm`` runs ``rhs`` and ``energy`` once, so that numba compiles (or loads from its
+    cache) now and not at the first use; ``jac`` compiles at its first use (a stiff run,
+    :attr:`CompiledSystem.jac_first_class`), so that other runs do not wait for it. When
+    the code is generated (first use of a structure: minutes for tens of rotors),
+    ``progress(text)`` gets one line per stage with its time (default: to stderr; None:
+    silent).
     """
     key = f'{system.structure_key()}_v{GENERATOR_VERSION}'
     if key in _LOADED:
@@ -472,8 +485,7 @@ def compile_system(system: RotorSystem, *, warm: bool = True,
         y = np.zeros(ny)
         P = pack(system)
         module.rhs(y, P, np.empty(ny))
-        module.energy(y, P)
-        module.jac(y, P, np.empty((ny, ny)))
+        module.energy(y, P)      # jac: compiled (or loaded) at its first use, a stiff run
     compiled = CompiledSystem(key=key, module=module, path=path, from_cache=from_cache,
                               seconds=time.perf_counter() - start)
     say(f'  ready in {compiled.seconds:.1f} s')

@@ -461,7 +461,7 @@ def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
     except KeyError:
         raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
                              f"{', '.join(METHODS)}") from None
-    if hasattr(model, 'kernel_jac'):
+    if hasattr(type(model), 'kernel_jac'):       # a generated system (not evaluated here)
         cls = GENERATED_METHODS.get(method, cls)
     return cls(model, y0, t0, t_bound, **kwargs)
 

@@ -419,7 +419,7 @@ class Radau9Jac(Integrator):
     default_atol = 1e-11
 
     def __init__(self, model, *args, **kwargs):
-        if not hasattr(model, 'kernel_jac'):
+        if not hasattr(type(model), 'kernel_jac'):
             raise ParameterError(f'{self.name} with the generated Jacobian needs a generated '
                                  f'system, not {getattr(model, "name", model)!r}')
         super().__init__(model, *args, **kwargs)
