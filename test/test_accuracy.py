@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 
-@pytest.mark.parametrize('name', list_scenes())
+@pytest.mark.parametrize('name', list_scenes(builtin=True))
 def test_default_run_accurate_to_1e_8_in_axis_direction(name):
     tr = simulate(name, rate=20.0)
     assert METHODS[tr.method].adaptive     # else tighter tolerances would change nothing

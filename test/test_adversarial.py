@@ -376,10 +376,10 @@ def test_infinite_potential_is_refused_before_anything_runs(tmp_path):
     for cmd in (['simulate', str(scene), '--t-end', '0.1', '--out',
                  str(tmp_path / 'o.csv')], ['eig', str(scene)]):
         assert cli.main(cmd) == 1
-    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.core.scene import load_scene
     from gyro_rotor.errors import SceneError
     with pytest.raises(SceneError, match='E\\* of system twin_gimbal is inf at the steady'):
-        load_general_scene(scene)
+        load_scene(scene)
 
 
 #: a flow sequence of 10 anchored lists, each holding the one before 9 times: 9**9 leaves

@@ -51,8 +51,8 @@ def test_general_peer_rhs_equals_the_generated_model_at_random_states(name):
     """The general systems' peer (numba on sympy lambdify, a linear solve per call)."""
     pytest.importorskip('sympy')
     from gyro_rotor.core.system.codegen import pack
-    from gyro_rotor.core.system.scene import load_general_scene
-    scene = load_general_scene(name)
+    from gyro_rotor.core.scene import load_scene
+    scene = load_scene(name)
     model = scene.make_model()
     y0 = scene.initial_state(model)
     f = bench_peers.general_peer_rhs_python(scene)

@@ -12,7 +12,6 @@ import math
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion
-from gyro_rotor.core.system.scene import load_general_scene
 from gyro_rotor.linear import claims as cl
 from gyro_rotor.linear.general import check_claims, linearize_scene
 from gyro_rotor.linear.linearize import linearize
@@ -198,7 +197,7 @@ def test_centrifuge_K_D_star_same_from_quaternion_model_and_system_file(values):
     consts = {f'constants.{k}': v for k, v in values.items() if k not in ('K_S', 'K_D')}
     drive = {f'drive.R.{k}': v for k, v in values.items() if k in ('K_S', 'K_D')}
     qdot = [0.0, sm.psidot0, sm.phi_M_dot0]
-    scene = load_general_scene('centrifuge_euler', overrides={
+    scene = load_scene('centrifuge_euler', overrides={
         **consts, **drive, 'drive.R.Omega0': p.Omega0, 'steady.q': [0.1, 0.0, 0.0],
         'steady.qdot': qdot})
     res = check_claims(linearize_scene(scene))
@@ -252,7 +251,7 @@ def test_random_system_files_end_to_end(seed, n, m, tmp_path_factory):
     (folder / 'sys.yaml').write_text(yaml.safe_dump(_system_file(seed, n, m)))
     (folder / 'scene.yaml').write_text(yaml.safe_dump(
         {'/**': {'ros__parameters': {'system': 'sys.yaml', 't_end': 1.0}}}))
-    lin = linearize_scene(load_general_scene(str(folder / 'scene.yaml')))
+    lin = linearize_scene(load_scene(str(folder / 'scene.yaml')))
     res = check_claims(lin)
     assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
     assert res.claims['d'].data['net_meetings'] == m

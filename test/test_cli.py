@@ -16,9 +16,9 @@ def test_simulate_prints_summary_and_writes_csv(tmp_path, capsys):
         assert word in text
     header = out.read_text().splitlines()[0].split(',')
     assert header[:6] == ['t [s]', 'theta [rad]', 'psi [rad]', 'phi_R [rad]', 'phi_M [rad]',
-                          'thetadot [rad/s]']
-    from gyro_rotor.numerics.simulate import CSV_COLUMNS
-    assert [h.split(' [')[0] for h in header] == list(CSV_COLUMNS)
+                          'theta_dot [rad/s]']
+    from gyro_rotor.core.model import Model
+    assert [h.split(' [')[0] for h in header] == [c[0] for c in Model.CSV_COLUMNS]
     assert all(h.endswith(']') for h in header)
 
 

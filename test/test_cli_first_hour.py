@@ -12,23 +12,20 @@ import math
 
 from gyro_rotor.cli.main import main
 from gyro_rotor.core.scene import list_scenes, load_scene
-from gyro_rotor.core.system.scene import list_general_scenes, load_general_scene
 import numpy as np
 import pytest
 
 plt = pytest.importorskip('matplotlib.pyplot')
 
-ALL_SCENES = tuple(list_scenes()) + tuple(list_general_scenes())
+ALL_SCENES = tuple(list_scenes())
 
 
 def _load(name, **sets):
-    if name in list_general_scenes():
-        return load_general_scene(name, overrides=sets)
     return load_scene(name, overrides=sets)
 
 
 def _W0(scene):
-    return scene.system.drives[0].Omega0 if hasattr(scene, 'system') else scene.params.Omega0
+    return scene.params.Omega0 if scene.builtin else scene.system.drives[0].Omega0
 
 
 def _legend(ax):
@@ -185,7 +182,7 @@ def test_campbell_command_writes_the_plot(tmp_path, capsys):
 def _general_locus_fig(name):
     from gyro_rotor.linear.general import check_claims, linearize_scene
     from gyro_rotor.linear.locus_plot import general_locus_figure
-    lin = linearize_scene(load_general_scene(name))
+    lin = linearize_scene(load_scene(name))
     claims = check_claims(lin)
     scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max()))
     K_ref = scale / float(lin.fast_rates.min())
@@ -193,7 +190,7 @@ def _general_locus_fig(name):
                                         title=name)
 
 
-@pytest.mark.parametrize('name', list_general_scenes())
+@pytest.mark.parametrize('name', list_scenes(builtin=False))
 def test_general_locus_plot_shows_every_meeting(name):
     claims, fig = _general_locus_fig(name)
     try:
@@ -243,7 +240,7 @@ def test_general_locus_plot_magnifies_the_slow_branches():
 def test_general_locus_plot_of_a_part_of_the_range_says_where_it_starts():
     from gyro_rotor.linear.general import check_claims, linearize_scene
     from gyro_rotor.linear.locus_plot import general_locus_figure
-    lin = linearize_scene(load_general_scene('twin_gimbal'))
+    lin = linearize_scene(load_scene('twin_gimbal'))
     fig = general_locus_figure(lin, check_claims(lin), K_lo=0.1, K_hi=0.5)
     try:
         texts = _legend(fig.axes[0])
@@ -275,7 +272,7 @@ def test_centrifuge_locus_plot_marks_every_meeting(name):
         plt.close(fig)
 
 
-@pytest.mark.parametrize('name', list_general_scenes())
+@pytest.mark.parametrize('name', list_scenes(builtin=False))
 def test_locus_command_writes_the_plot(name, tmp_path, capsys):
     out = tmp_path / 'l.png'
     assert main(['locus', name, '--points', '40', '--out', str(out)]) == 0

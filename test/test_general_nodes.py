@@ -14,9 +14,7 @@ import sys
 from gyro_rotor.analysis.offline import analyze_bag
 from gyro_rotor.analysis.prediction import predict_general
 from gyro_rotor.bag.bagio import open_bag
-from gyro_rotor.core.scene import NODE_KEYS
-from gyro_rotor.core.system.scene import (general_scene_from_flat, general_scene_to_flat,
-                                          list_general_scenes, load_general_scene)
+from gyro_rotor.core.scene import list_scenes, load_scene, NODE_KEYS, scene_from_flat
 from gyro_rotor.errors import GyroRotorError
 from gyro_rotor.numerics.live_general import (GENERAL_ENERGY_FIELDS, general_joint_names,
                                               GeneralLiveSimulation)
@@ -30,7 +28,7 @@ SHIPPED = ('centrifuge_euler', 'elastic_frame', 'twin_gimbal')
 def _sim(name='twin_gimbal', **kick):
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
     cfg['real_time_factor'] = 0.0
-    return GeneralLiveSimulation(load_general_scene(name), cfg, kick, budget=None)
+    return GeneralLiveSimulation(load_scene(name), cfg, kick, budget=None)
 
 
 def _run_to(sim, t):
@@ -43,7 +41,7 @@ def _run_to(sim, t):
 
 
 def test_the_shipped_general_scenes_are_the_ones_tested():
-    assert tuple(list_general_scenes()) == SHIPPED
+    assert tuple(list_scenes(builtin=False)) == SHIPPED
 
 
 def test_outputs_name_coordinates_and_rotor_lags():
@@ -123,10 +121,10 @@ def test_a_kick_adds_to_the_state_and_moves_the_baseline():
 
 def test_the_scene_document_rebuilds_the_scene_without_the_system_file():
     for name in SHIPPED:
-        scene = load_general_scene(name)
-        flat = yaml.safe_load(yaml.safe_dump(general_scene_to_flat(scene)))
+        scene = load_scene(name)
+        flat = yaml.safe_load(yaml.safe_dump(scene.to_flat()))
         flat['system'] = 'a/file/that/does/not/exist.yaml'
-        again = general_scene_from_flat(flat)
+        again = scene_from_flat(flat)
         assert again.system.constants == scene.system.constants
         assert again.system.drives == scene.system.drives
         np.testing.assert_array_equal(again.initial_state(), scene.initial_state())
@@ -160,7 +158,7 @@ def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_pat
                         '--rtf', '0', '--quiet', '--out', str(out)], capture_output=True,
                        text=True, timeout=300)
     assert 'Traceback' not in r.stderr, r.stderr[-3000:]
-    scene = load_general_scene(name)
+    scene = load_scene(name)
     expected = predict_general(scene).verdict
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert f'RESULT: CONFIRMED: {expected}' in r.stdout
@@ -257,9 +255,9 @@ def test_the_committed_general_bag_gives_the_live_verdict_offline():
 def test_a_scene_document_of_the_same_scene_changes_nothing_in_the_analysis():
     """The scene from a file and the same scene from rotor_sim's document (no file path)."""
     from gyro_rotor.analysis.analyzer import RotorAnalyzer
-    scene = load_general_scene('twin_gimbal')
-    again = general_scene_from_flat(yaml.safe_load(yaml.safe_dump(
-        general_scene_to_flat(scene))))
+    scene = load_scene('twin_gimbal')
+    again = scene_from_flat(yaml.safe_load(yaml.safe_dump(
+        scene.to_flat())))
     assert again.system.path is None and scene.system.path is not None
     a = RotorAnalyzer(scene)
     assert not a.set_scene(again) and a.param_changes == 0
@@ -272,7 +270,7 @@ def test_the_scene_list_names_the_general_scenes(capsys):
     lines = capsys.readouterr().out.splitlines()
     for name in SHIPPED:
         line = next(ln for ln in lines if ln.startswith(name + ' '))
-        assert f'system {load_general_scene(name).system.name}' in line
+        assert f'system {load_scene(name).system.name}' in line
 
 
 # -- found in review: each of these failed before its fix ---------------------------------
@@ -298,7 +296,7 @@ def test_a_ros_double_array_kick_is_taken_and_a_bad_one_refused():
 
 def test_a_scene_with_a_locked_coordinate_runs_and_kicks_the_free_ones(tmp_path):
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
-    scene = load_general_scene(_locked_scene(tmp_path))
+    scene = load_scene(_locked_scene(tmp_path))
     assert scene.system.coordinates == ('alpha', 'beta1')
     sim = GeneralLiveSimulation(scene, cfg, {'qdot': [0.0, 0.01, 0.0]}, budget=None)
     assert sim.joint_names == ('alpha', 'beta1', 'z_R1', 'z_R2')
@@ -317,7 +315,7 @@ def test_a_live_t_end_survives_a_later_change_of_the_drives():
 
 
 def test_a_common_drive_key_sets_every_drive_after_a_per_rotor_one():
-    scene = load_general_scene('twin_gimbal').with_changes({'drive.R1.K_D': 0.05})
+    scene = load_scene('twin_gimbal').with_changes({'drive.R1.K_D': 0.05})
     assert [d.K_D for d in scene.with_changes({'K_D': 0.5}).system.drives] == [0.5, 0.5]
 
 
@@ -325,7 +323,7 @@ def test_a_sine_law_run_ending_on_an_unpaired_sample_is_judged():
     from gyro_rotor.analysis.analyzer import RotorAnalyzer
     from gyro_rotor.analysis.samples import samples_from_general_run, SamplePairer
     from gyro_rotor.numerics.general import integrate
-    scene = load_general_scene('twin_gimbal', {'drive.R2.pole_pairs': 1})
+    scene = load_scene('twin_gimbal', {'drive.R2.pole_pairs': 1})
     model = scene.make_model()
     run = integrate(model, scene.initial_state(model), np.linspace(0.0, 3.0, 751))
     samples = samples_from_general_run(model, run)
@@ -341,7 +339,7 @@ def test_a_sine_law_run_ending_on_an_unpaired_sample_is_judged():
 
 
 def test_the_deviation_channels_keep_theta_and_drop_only_the_cyclic_direction():
-    pred = predict_general(load_general_scene('centrifuge_euler'))
+    pred = predict_general(load_scene('centrifuge_euler'))
     P = np.array(pred.active_q)
     assert P.shape == (2, 3)
     assert np.linalg.norm(P @ [1.0, 0.0, 0.0]) == pytest.approx(1.0)   # theta is seen

@@ -1,6 +1,6 @@
 """Stiff drives on generated systems (issue 25, item 4): the exact Jacobian and its method."""
 
-from gyro_rotor.core.system.scene import load_general_scene
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.numerics.general import integrate
 from gyro_rotor.numerics.integrators import radau_jac
 import numpy as np
@@ -36,7 +36,7 @@ def _relative_error(J, Jfd):
 @pytest.mark.parametrize('drive', [{}, {'K_D': 50.0}, {'pole_pairs': 2, 'K_D': 0.3}])
 def test_generated_jacobian_matches_finite_differences(name, drive):
     """jac(y, P, J) is d(rhs)/dy to 1e-7 at random states, for both drive laws."""
-    scene = load_general_scene(name)
+    scene = load_scene(name)
     if drive:
         scene = scene.with_drives(**drive)
     model = scene.make_model()
@@ -56,7 +56,7 @@ def test_generated_jacobian_matches_finite_differences(name, drive):
 
 def test_jacobian_check_detects_a_wrong_entry():
     """The comparison above fails for a Jacobian wrong in one coupling entry by 1e-5."""
-    model = load_general_scene('twin_gimbal').make_model()
+    model = load_scene('twin_gimbal').make_model()
     y = np.linspace(0.1, 0.9, model.size)
     J = np.empty((model.size, model.size))
     model.compiled.jac(y, model.P, J)
@@ -86,7 +86,7 @@ def test_transformation_block_diagonalizes_A_inverse_and_matches_scipy_for_3_sta
 
 
 def _twin(K_D=None):
-    scene = load_general_scene('twin_gimbal')
+    scene = load_scene('twin_gimbal')
     if K_D is not None:
         scene = scene.with_drives(K_D=K_D)
     model = scene.make_model()
@@ -148,7 +148,7 @@ def test_live_general_simulation_runs_a_stiff_drive_with_radau9():
     from gyro_rotor.numerics.live_general import GeneralLiveSimulation
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
     cfg['real_time_factor'] = 0.0
-    scene = load_general_scene('twin_gimbal', {'K_D': 1e4})
+    scene = load_scene('twin_gimbal', {'K_D': 1e4})
     sim = GeneralLiveSimulation(scene, cfg, {}, budget=None)
     assert sim.stepper.method == 'radau9'
     blocks = []

@@ -6,11 +6,11 @@ import random
 from gyro_rotor.cli.main import main
 from gyro_rotor.core.model import FullModel
 from gyro_rotor.core.params import RotorParams
+from gyro_rotor.core.scene import list_scenes, load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.core.system.codegen import compile_system
 from gyro_rotor.core.system.expression import parse_expression
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.core.system.scene import list_general_scenes, load_general_scene
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
 from gyro_rotor.errors import ParameterError, SystemFileError
 from gyro_rotor.linear.general import check_claims, linearize_scene, modes
@@ -179,9 +179,9 @@ def test_missing_key_is_named(tmp_path, capsys, key):
 
 def test_shipped_systems_and_scenes_load():
     assert set(SHIPPED) <= set(list_systems())
-    assert set(SHIPPED) <= set(list_general_scenes())
+    assert set(SHIPPED) <= set(list_scenes(builtin=False))
     for name in SHIPPED:
-        assert load_general_scene(name).system.name == name
+        assert load_scene(name).system.name == name
 
 
 # -- generated equations vs Lagrange by finite differences (eq. 4) ----------------------------
@@ -243,7 +243,7 @@ def test_generated_equations_match_finite_difference_lagrange(name):
 
 @pytest.mark.parametrize('name', SHIPPED)
 def test_residual_and_conservation(name):
-    scene = load_general_scene(name)
+    scene = load_scene(name)
     model = scene.make_model()
     te = np.linspace(0.0, 2.0, 201)
     y0 = scene.initial_state(model)
@@ -277,7 +277,7 @@ def test_centrifuge_euler_agrees_with_quaternion_model():
 
 
 def test_centrifuge_euler_eigenvalues_and_K_D_star_match_quaternion_checker():
-    scene = load_general_scene('centrifuge_euler')
+    scene = load_scene('centrifuge_euler')
     lin = linearize_scene(scene)
     p = RotorParams()
     ref = linearize(p, steady_motion(p, 0.1, 1))
@@ -297,7 +297,7 @@ def test_centrifuge_euler_eigenvalues_and_K_D_star_match_quaternion_checker():
 # -- the claims -------------------------------------------------------------------------------
 @pytest.mark.parametrize('name', SHIPPED)
 def test_claims_hold_on_every_shipped_system(name):
-    lin = linearize_scene(load_general_scene(name))
+    lin = linearize_scene(load_scene(name))
     claims = check_claims(lin)
     assert claims.all_hold, {k: c.detail for k, c in claims.claims.items()}
     assert claims.claims['d'].data['net_meetings'] == lin.m
@@ -307,7 +307,7 @@ def test_claims_hold_on_every_shipped_system(name):
 def test_claims_fail_on_a_statically_unstable_system(tmp_path):
     """A check that can fail: V = -k x^2/2 has a real root pair at K_D = 0."""
     path = _write_scene(tmp_path, _doc(potential='-k*x**2/2'), {})
-    claims = check_claims(linearize_scene(load_general_scene(path)))
+    claims = check_claims(linearize_scene(load_scene(path)))
     assert not claims.claims['a'].holds and not claims.claims['b'].holds
 
 
@@ -324,7 +324,7 @@ def test_unreachable_mode_is_reported_marginal_and_named(tmp_path, capsys):
                mass_matrix=[['1.0', '0'], ['0', '0.5']], guidance=[['1', '0']],
                potential='k*x**2/2 + c_w*w**2/2')
     path = _write_scene(tmp_path, doc, {})
-    lin = linearize_scene(load_general_scene(path))
+    lin = linearize_scene(load_scene(path))
     un = [x for x in modes(lin) if not x.reached]
     assert len(un) == 2 and all('unreached mode (w)' == x.name for x in un)
     assert all(abs(x.value.real) < 1e-12 and abs(abs(x.value.imag) - math.sqrt(6.0)) < 1e-9
@@ -339,7 +339,7 @@ def test_unreachable_mode_is_reported_marginal_and_named(tmp_path, capsys):
 
 def test_locked_scene_is_the_rotor_on_its_drive(tmp_path):
     path = _write_scene(tmp_path, _doc(), {'locked': ['x']})
-    scene = load_general_scene(path)
+    scene = load_scene(path)
     assert scene.system.n == 0
     lam = np.sort_complex(np.linalg.eigvals(linearize_scene(scene).A_scene()))
     C, K_S, K_D = 0.01, 1.0, 0.1
@@ -365,8 +365,10 @@ def test_simulate_writes_the_csv_columns(tmp_path, capsys):
     assert main(['simulate', 'twin_gimbal', '--t-end', '0.5', '--rate', '20', '--out',
                  str(out), '--set', 'drive.R1.K_D=0.1']) == 0
     head = out.read_text().splitlines()
-    assert head[0] == ('t,alpha,alpha_dot,beta1,beta1_dot,beta2,beta2_dot,z_R1,zdot_R1,'
-                       'z_R2,zdot_R2,E_star,residual')
+    # one CSV format for every system (the centrifuge's: name [unit], a rate is NAME_dot)
+    assert head[0] == ('t [s],alpha [SI],beta1 [SI],beta2 [SI],alpha_dot [SI/s],'
+                       'beta1_dot [SI/s],beta2_dot [SI/s],z_R1 [rad],z_R2 [rad],'
+                       'z_R1_dot [rad/s],z_R2_dot [rad/s],E_star [J],dE_dt [W],residual [J]')
     assert len(head) == 12
     assert 'max |residual|' in capsys.readouterr().out
 
@@ -376,7 +378,8 @@ def test_locus_json_has_K_D_star_and_claims(tmp_path):
     out = tmp_path / 'l.json'
     assert main(['locus', 'twin_gimbal', '--json', str(out), '--points', '20']) == 0
     doc = json.loads(out.read_text())
-    assert len(doc['K_D_star']) == 2 and doc['claims'] == dict.fromkeys('abcd', True)
+    assert len(doc['K_D_star']) == 2
+    assert {k: c['holds'] for k, c in doc['claims'].items()} == dict.fromkeys('abcd', True)
 
 
 @pytest.mark.parametrize('params, match', [
@@ -454,7 +457,7 @@ def test_scene_overrides_reach_the_system(tmp_path):
     path = tmp_path / 'scene.yaml'
     path.write_text(yaml.safe_dump({'rotor_sim': {'ros__parameters': {
         'system': 'twin_gimbal', **params}}}))
-    scene = load_general_scene(str(path), overrides={'drive.R1.K_D': 0.4})
+    scene = load_scene(str(path), overrides={'drive.R1.K_D': 0.4})
     d1, d2 = scene.system.drives
     assert (d1.K_S, d1.K_D, d1.Omega0, d1.pole_pairs) == (3.0, 0.4, 200.0, 2)
     assert (d2.K_S, d2.K_D, d2.Omega0, d2.pole_pairs) == (3.0, 0.7, 150.0, 2)
@@ -469,7 +472,7 @@ def test_scene_overrides_reach_the_system(tmp_path):
 
 
 def test_initial_state_is_taken_from_the_scene():
-    scene = load_general_scene('twin_gimbal')
+    scene = load_scene('twin_gimbal')
     y0 = scene.initial_state()
     assert y0.tolist() == [0.006, 0.015, -0.009, 0.0, 0.06, 0.0, 0.003, 0.0, 0.15, -0.09, 0.0]
 
@@ -499,14 +502,14 @@ def test_eig_json_has_eigenvalues_and_reached(tmp_path):
     assert main(['eig', 'twin_gimbal', '--json', str(out)]) == 0
     doc = json.loads(out.read_text())
     lam = np.array([complex(*x) for x in doc['eigenvalues']])
-    ref = np.linalg.eigvals(linearize_scene(load_general_scene('twin_gimbal')).A_scene())
+    ref = np.linalg.eigvals(linearize_scene(load_scene('twin_gimbal')).A_scene())
     assert len(lam) == 10 and np.abs(np.sort_complex(lam) - np.sort_complex(ref)).max() < 1e-9
     assert len(doc['modes']) == 10 and all(isinstance(x['reached'], bool) for x in doc['modes'])
     assert all(x['reached'] for x in doc['modes'])   # twin_gimbal: every mode damped
 
 
 def test_zero_roots_of_cyclic_coordinates_are_named():
-    ms = modes(linearize_scene(load_general_scene('centrifuge_euler')))
+    ms = modes(linearize_scene(load_scene('centrifuge_euler')))
     zeros = sorted(x.name for x in ms if x.structural_zero)
     assert zeros == ['zero root (cyclic phi_M)', 'zero root (cyclic psi)']
     assert not any(x.reached for x in ms if x.structural_zero)
@@ -529,8 +532,9 @@ def test_locus_K_D_star_is_a_double_root_to_1e_8(tmp_path, drive):
     args = ['locus', 'twin_gimbal', '--json', str(out), '--points', '10']
     assert main(args + (['--drive', drive] if drive else [])) == 0
     doc = json.loads(out.read_text())
-    lin = linearize_scene(load_general_scene('twin_gimbal'), drive=drive)
-    assert doc['drive'] == drive and doc['claims'] == dict.fromkeys('abcd', True)
+    lin = linearize_scene(load_scene('twin_gimbal'), drive=drive)
+    assert doc['drive'] == drive
+    assert {k: c['holds'] for k, c in doc['claims'].items()} == dict.fromkeys('abcd', True)
     assert len(doc['K_D_star']) == (2 if drive is None else 1)
     scale = float(np.abs(lin.eig(0.0)).max())
     for K, point in zip(doc['K_D_star'], doc['meeting_points']):
@@ -561,7 +565,7 @@ def test_campbell_critical_speeds_are_crossings(tmp_path):
     F = np.array(doc['frequencies_hz'])
     assert F.shape == np.array(doc['decay_rates']).shape == (80, 5)
     assert doc['critical_speeds']
-    scene = load_general_scene('twin_gimbal')
+    scene = load_scene('twin_gimbal')
     ref = scene.system.drives[0].Omega0
     for c in doc['critical_speeds']:
         f = c['Omega0'] / ref
@@ -586,7 +590,7 @@ GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),
 def test_every_general_method_runs_every_shipped_system(name):
     from gyro_rotor.numerics.general import METHODS
     assert set(METHODS) == set(GENERAL_RUNS)
-    scene = load_general_scene(name)
+    scene = load_scene(name)
     model = scene.make_model()
     y0 = scene.initial_state(model)
     te = np.linspace(0.0, 0.5, 6)
@@ -607,7 +611,7 @@ def test_general_kernels_are_compiled_for_the_function_type_only():
     from gyro_rotor.core.system.codegen import RHS_TYPE
     from gyro_rotor.numerics.integrators import kernels
     for name in SHIPPED:
-        scene = load_general_scene(name)
+        scene = load_scene(name)
         model = scene.make_model()
         assert not hasattr(model.compiled.module, 'run')    # no integrator is generated
         integrate_general(model, scene.initial_state(model), [0.0, 0.01], method='dop853')
@@ -619,7 +623,7 @@ def test_general_kernels_are_compiled_for_the_function_type_only():
 
 
 def test_ensemble_runs_a_general_system_with_its_own_numbers_per_trajectory():
-    scene = load_general_scene('twin_gimbal')
+    scene = load_scene('twin_gimbal')
     model = scene.make_model()
     y0 = scene.initial_state(model)
     systems = [scene.system, scene.with_drives(K_D=0.3).system,
@@ -643,12 +647,12 @@ def test_simulate_general_scene_with_each_method(tmp_path, capsys):
         assert f'{method}: steps' in capsys.readouterr().out
     assert main(['simulate', 'twin_gimbal', '--t-end', '0.2', '--method', 'split8']) == 1
     err = capsys.readouterr().err
-    assert err.count('\n') == 1 and 'general scenes integrate with auto, dop853' in err
+    assert err.count('\n') == 1 and "unknown integrator 'split8' for system twin_gimbal" in err
 
 
 def test_auto_picks_radau9_for_a_stiff_drive():
     from gyro_rotor.numerics.general import choose_method
-    scene = load_general_scene('twin_gimbal')
+    scene = load_scene('twin_gimbal')
     model = scene.make_model()
     y0 = scene.initial_state(model)
     assert choose_method(model, y0)[0] == 'dop853'

@@ -73,7 +73,7 @@ def test_empirical_order(method, order, h, extra, monkeypatch):
 
 # -- invariants on every scene -----------------------------------------------------------------
 def _cases():
-    for name in list_scenes():
+    for name in list_scenes(builtin=True):
         stiff = name in STIFF
         full = load_scene(name).model == 'full'
         for method in METHODS:

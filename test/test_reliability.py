@@ -27,8 +27,7 @@ from gyro_rotor.core.params import PARAM_FIELDS
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 from gyro_rotor.ros.messages import ENERGY_FIELDS
-from gyro_rotor.tools.launch import NodeProcess
-from gyro_rotor.tools.soak import energy_seq_from_cdr
+from gyro_rotor.tools.launch import energy_seq_from_cdr, NodeProcess
 from hypothesis import given, HealthCheck, settings, strategies as st
 import node_helpers
 from node_helpers import wait_for_log

@@ -260,9 +260,9 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     """A general scene's sweep point equals the scene loaded with the point's values, run alone.
 
     Reference: the project's dop853 at rtol 1e-11 (not the sweep's RK4 ensemble) on
-    ``load_general_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
+    ``load_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
     """
-    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.core.scene import load_scene
     from gyro_rotor.numerics.general import integrate
     spec = _general_spec()
     assert spec.general and spec.n_points == 4 and spec.n_blocks == 2
@@ -272,7 +272,7 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     np.testing.assert_array_equal(got['point'], np.arange(4))
     assert np.all(got['status'] == PointStatus.OK)
     j = int(np.nonzero((got['constants.c_a'] == 40.0) & np.isclose(got['K_D'], 0.2))[0][0])
-    scene = load_general_scene('twin_gimbal', {'constants.c_a': 40.0, 'K_D': 0.2})
+    scene = load_scene('twin_gimbal', {'constants.c_a': 40.0, 'K_D': 0.2})
     model = scene.make_model()
     run = integrate(model, scene.initial_state(model), spec.t_eval, method='dop853',
                     rtol=1e-11, atol=1e-13)
@@ -329,3 +329,40 @@ def test_progress_bar_counts_points():
     assert len(lines) == 8, lines                     # 5, 10, ..., 40 of 40: each a new tenth
     assert lines[0].startswith('[#.........] 5/40 points  12.5%'), lines[0]
     assert lines[-1].startswith('[##########] 40/40 points 100.0%'), lines[-1]
+
+
+@pytest.mark.parametrize('scene, grid, target', [
+    ('pole_slip', ['K_D=0.5:2:3'], 'gyro_rotor.analysis.sweep.task.run_ensemble'),
+    ('twin_gimbal', ['K_D=0.01:0.1:3'], 'gyro_rotor.numerics.general.run_ensemble'),
+])
+def test_a_block_that_fails_falls_back_to_its_points(scene, grid, target, monkeypatch):
+    """Every kind of scene: the block's ensemble raises, its points are run one by one.
+
+    The fake ensemble refuses the block and the third point, and returns the second's
+    samples non-finite from the fourth on: rows OK, DIVERGED, FAILED, with their messages;
+    the first point's numbers are those of the whole block run at once.
+    """
+    import importlib
+    spec = make_spec(scene, grid, t_end=0.2, rate=100.0, metrics=['peak', 'energy'])
+    ref = run_block(spec, 0).columns
+    module, _, name = target.rpartition('.')
+    real = getattr(importlib.import_module(module), name)
+    calls = []
+
+    def fake(model, Y, t_eval, **kw):
+        calls.append(len(Y))
+        if len(Y) > 1 or len(calls) == 4:
+            raise ArithmeticError('refused by the test')
+        res = real(model, Y, t_eval, **kw)
+        if len(calls) == 3:
+            res.y[3:] = np.nan
+        return res
+    monkeypatch.setattr(target, fake)
+    got = run_block(spec, 0).columns
+    assert calls == [3, 1, 1, 1]
+    assert list(got['status']) == [PointStatus.OK, PointStatus.DIVERGED, PointStatus.FAILED]
+    assert list(got['message']) == ['', 'non-finite state at t = 0.03 s',
+                                    'integration: ArithmeticError: refused by the test']
+    for c in ('peak_deviation', 'final_E_star'):
+        assert got[c][0] == ref[c][0] and np.all(np.isnan(got[c][1:])), c
+        assert np.all(np.isfinite(ref[c])), c

@@ -44,14 +44,13 @@ from gyro_rotor.analysis.sweep.metrics import decay_interval, fit_decay
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decide,
                                          fmt_interval, Measured, over_run, Status)
 import gyro_rotor.cli.main as cli
-from gyro_rotor.core.scene import list_scenes
-from gyro_rotor.core.system.scene import list_general_scenes, load_any_scene
+from gyro_rotor.core.scene import list_scenes, load_scene
 import numpy as np
 import pytest
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-SCENES = tuple(list_scenes()) + tuple(list_general_scenes())
+SCENES = tuple(list_scenes())
 DURATIONS = (10.0, 20.0, 60.0)
 #: scenes whose decay no 8 s window can resolve: 'insufficient data' is their honest verdict
 UNRESOLVABLE = {'stiff_drive'}
@@ -257,14 +256,14 @@ def _verdict(scene, samples, **kw):
 
 
 def _mutations(scene) -> dict:
-    if hasattr(scene, 'params'):
+    if scene.builtin:
         p = scene.params
         return {'K_D x0.5': dataclasses.replace(scene, params=p.replace(K_D=0.5 * p.K_D)),
                 'K_D x2': dataclasses.replace(scene, params=p.replace(K_D=2.0 * p.K_D)),
                 'c_psi x1.2': dataclasses.replace(scene, params=p.replace(c_psi=1.2 * p.c_psi)),
                 'G x1.2': dataclasses.replace(scene, params=p.replace(G=1.2 * p.G)),
-                'scene nutation': load_any_scene('nutation'),
-                'scene upright': load_any_scene('upright')}
+                'scene nutation': load_scene('nutation'),
+                'scene upright': load_scene('upright')}
     kd = scene.system.drives[0].K_D
     first = next(iter(scene.system.constants))
     return {'K_D x0.5': scene.with_changes({'K_D': 0.5 * kd}),
@@ -419,15 +418,24 @@ def test_sweep_decay_rate_is_a_decay_or_not_resolved():
 
 
 def test_sweep_of_twin_gimbal_gives_no_growth_at_stable_points():
-    from gyro_rotor.analysis.sweep.general import _metrics
-    from gyro_rotor.analysis.sweep.metrics import Metric
+    from gyro_rotor.analysis.sweep.metrics import Metric, system_metrics
     from gyro_rotor.numerics.general import integrate
     for k_d in (0.01, 0.0316):
-        scene = load_any_scene('twin_gimbal').with_changes({'K_D': k_d})
+        scene = load_scene('twin_gimbal').with_changes({'K_D': k_d})
         model = scene.make_model()
         t = np.linspace(0.0, 10.0, 1001)
         run = integrate(model, scene.initial_state(model), t)
-        rate = _metrics(model, np.asarray(scene.steady_q), t, run.y, {Metric.DECAY},
-                        1e-3)['decay_rate']
+        rate = system_metrics(model, np.asarray(scene.steady_q), t, run.y, {Metric.DECAY},
+                              tol=1e-3)['decay_rate']
         # every root is stable (eig): a rate is positive or not resolved, never negative
         assert math.isnan(rate) or rate > 0, (k_d, rate)
+
+
+def test_codes_on_the_topics_are_the_positions():
+    """The numbers the analysis sends for its closed choices (the topics' contract)."""
+    from gyro_rotor.analysis.verdict import ModeStatus, SyncState, Verdict
+    assert [s.code for s in Status] == [0, 1, 2] and Status.NOT_YET.code == 2
+    assert Verdict.INSUFFICIENT_DATA.code == 0 and Verdict.NOT_CONFIRMED.code == 5
+    assert ModeStatus.NOT_IDENTIFIED.code == 0 and ModeStatus.UNOBSERVABLE.code == 8
+    assert (SyncState.SYNCHRONOUS.code, SyncState.RESYNCHRONIZED.code) == (0, 2)
+    assert not hasattr(CriterionName.DECAY, 'code')

@@ -31,7 +31,6 @@ from gyro_rotor.analysis.samples import Sample
 from gyro_rotor.analysis.verdict import (combine, CriterionName, ModeStatus, Status, SyncState,
                                          Verdict)
 from gyro_rotor.core.scene import Scene
-from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import AnalysisError, ParameterError
 import numpy as np
 
@@ -159,8 +158,8 @@ class RotorAnalyzer:
                  min_fit_s: float = 2.0, max_window_samples: int = 20000,
                  blas_threads: int = 1, checkpoint_s: float = 1.0,
                  combination_tones: bool = True):
-        if not isinstance(scene, (Scene, GeneralScene)):
-            raise AnalysisError('RotorAnalyzer needs a Scene or a GeneralScene')
+        if not isinstance(scene, Scene):
+            raise AnalysisError('RotorAnalyzer needs a Scene')
         self.window_s = check_window(window_s)
         self.lyapunov_tol = float(lyapunov_tol)
         self.lyapunov_rtol = float(lyapunov_rtol)
@@ -582,10 +581,10 @@ def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:
 
 def _same_physics(a, b) -> bool:
     """Return True if two scenes differ in nothing the analysis depends on."""
-    if isinstance(a, GeneralScene) or isinstance(b, GeneralScene):
+    if not (a.builtin and b.builtin):
         # the systems by content: a system rebuilt from a bag's document has no file path,
         # and its constants may come in another order (a YAML dump sorted by key)
-        return (isinstance(a, GeneralScene) and isinstance(b, GeneralScene)
+        return (not a.builtin and not b.builtin
                 and _content(a.system) == _content(b.system) and a.steady_q == b.steady_q
                 and a.steady_qdot == b.steady_qdot and a.steady_z == b.steady_z)
     return a.params == b.params and a.model == b.model and a.initial == b.initial

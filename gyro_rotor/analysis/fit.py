@@ -33,8 +33,7 @@ SIN_THETA_MIN = 1e-3
 
 
 def _general(scene) -> bool:
-    from gyro_rotor.core.system.scene import GeneralScene
-    return isinstance(scene, GeneralScene)
+    return not scene.builtin
 
 
 def joint_names(scene) -> tuple:

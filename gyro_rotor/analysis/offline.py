@@ -226,15 +226,13 @@ def _json_record(reader, name: str, key: str, default):
 
 def _scene_source(path, reader, scene, scene_topic) -> tuple:
     """Return (fixed scene, base scene, where from) for :func:`analyze_bag`."""
-    from gyro_rotor.core.scene import scene_from_mapping
-    from gyro_rotor.core.system.scene import (general_scene_from_flat, GeneralScene,
-                                              is_general_flat, load_any_scene)
+    from gyro_rotor.core.scene import load_scene, scene_from_flat
     from gyro_rotor.core.yamlio import load_yaml
     from gyro_rotor.errors import GyroRotorError
-    if isinstance(scene, (Scene, GeneralScene)):
+    if isinstance(scene, Scene):
         return scene, None, 'given'
     if scene:
-        return load_any_scene(scene), None, f'given ({scene})'
+        return load_scene(scene), None, f'given ({scene})'
     problem = ''
     if 'gyro_rotor.scene' in reader.metadata:
         rec = reader.metadata['gyro_rotor.scene']
@@ -242,10 +240,7 @@ def _scene_source(path, reader, scene, scene_topic) -> tuple:
             flat = load_yaml(rec.get('flat', ''), 'the gyro_rotor.scene record', AnalysisError)
             if not isinstance(flat, dict):
                 raise AnalysisError('the gyro_rotor.scene record holds no parameters')
-            if is_general_flat(flat):
-                base = general_scene_from_flat(flat, check=False)
-            else:
-                base = scene_from_mapping(flat, strict_float=False)
+            base = scene_from_flat(flat, check=False)
             return None, base, f"bag metadata (scene '{base.name}')"
         except GyroRotorError as err:
             if scene_topic is None or not reader.topics[scene_topic].count:

@@ -95,8 +95,7 @@ def predict(scene) -> Prediction:
     :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
     modal energy at K_D = 0, followed by continuity).
     """
-    from gyro_rotor.core.system.scene import GeneralScene
-    if isinstance(scene, GeneralScene):
+    if not scene.builtin:
         return predict_general(scene)
     model = scene.make_model()
     E_inf = float(model.energy(_steady_state(scene)))

@@ -36,28 +36,20 @@ def default_kick_at(scene, duration: float) -> float:
     None for a sine law (pole_slip: its start far off synchronism is the kick) and for a
     general scene without a ``perturbation`` (its initial condition is the kick).
     """
-    from gyro_rotor.core.system.scene import GeneralScene
-    if isinstance(scene, GeneralScene):
-        kicked = any(v for k, vals in scene.flat.items() if k.startswith('perturbation.')
-                     for v in vals)
-    else:
-        kicked = not scene.params.pole_pairs
+    kicked = scene.kicked if not scene.builtin else not scene.params.pole_pairs
     return min(2.0, duration / 4) if kicked else -1.0
 
 
 def _live(scene, rate: float):
     from gyro_rotor.core.scene import NODE_KEYS
-    from gyro_rotor.core.system.scene import GeneralScene
     cfg = {k: spec[1] for k, spec in NODE_KEYS.items() if k != 'use_sim_time'}
     node = getattr(scene, 'node', None) or {}
     cfg.update({k: v for k, v in node.items() if k in cfg})
     cfg.update({'publish_rate': float(rate), 'real_time_factor': 0.0,
                 'stop_at_t_end': False})
-    if isinstance(scene, GeneralScene):
+    if not scene.builtin:
         from gyro_rotor.numerics.live_general import GeneralLiveSimulation
-        kick = {k.split('.', 1)[1]: v for k, v in scene.flat.items()
-                if k.startswith('perturbation.')}
-        return GeneralLiveSimulation(scene, cfg, kick, budget=None)
+        return GeneralLiveSimulation(scene, cfg, scene.perturbation, budget=None)
     from gyro_rotor.numerics.live import LiveSimulation
     return LiveSimulation(scene, cfg, scene.perturbation, budget=None)
 
@@ -86,12 +78,12 @@ def run_like_demo(scene, duration: float, *, rate: float = 250.0,
     demo's simulation holds at that time until it is kicked. Samples at t = k / rate for
     k = 0 .. round(duration * rate).
     """
-    from gyro_rotor.core.system.scene import GeneralScene, load_any_scene
+    from gyro_rotor.core.scene import load_scene
     if isinstance(scene, str):
-        scene = load_any_scene(scene)
+        scene = load_scene(scene)
     if kick_at is None:
         kick_at = default_kick_at(scene, duration)
-    general = isinstance(scene, GeneralScene)
+    general = not scene.builtin
     sim = _live(scene, rate)
     n_end = int(round(duration * rate))
     samples: list = []

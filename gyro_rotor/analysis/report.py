@@ -248,10 +248,10 @@ def _first_coordinate(scene: str) -> str:
     The system file names its coordinates but gives no units (angles in rad, lengths in m,
     as its constants make them); a scene that cannot be found by name keeps 'q_1'.
     """
-    from gyro_rotor.core.system.scene import load_general_scene
+    from gyro_rotor.core.scene import load_scene
     from gyro_rotor.errors import GyroRotorError
     try:
-        name = load_general_scene(scene, check=False).system.coordinates[0]
+        name = load_scene(scene, check=False).system.coordinates[0]
     except (GyroRotorError, OSError):
         return 'first coordinate q_1 (SI: rad or m)'
     return f'{name} = q_1 (SI: rad or m)'

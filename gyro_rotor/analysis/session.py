@@ -14,8 +14,6 @@ from gyro_rotor.analysis.fit import joint_names
 from gyro_rotor.analysis.results import AnalysisResult
 from gyro_rotor.analysis.samples import energy_sample_fields, Sample, SamplePairer
 from gyro_rotor.core.scene import Scene
-from gyro_rotor.core.system.scene import (general_scene_from_flat, general_scene_to_flat,
-                                          GeneralScene, is_general_flat)
 from gyro_rotor.errors import AnalysisError
 
 __all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc', 'OtherSystemError']
@@ -32,29 +30,9 @@ def scene_to_flat(scene) -> dict[str, Any]:
     """Return the flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it.
 
     A general scene: its keys with the system document embedded
-    (:func:`~gyro_rotor.core.system.scene.general_scene_to_flat`).
+    (:meth:`~gyro_rotor.core.scene.Scene.to_flat`).
     """
-    if isinstance(scene, GeneralScene):
-        return general_scene_to_flat(scene)
-    flat: dict[str, Any] = {'scene': scene.name, 'model': scene.model, 't_end': scene.t_end}
-    if scene.description:
-        flat['description'] = scene.description
-    flat.update(scene.params.to_mapping())
-    ic = scene.initial
-    flat['initial.mode'] = ic.mode
-    if ic.mode == 'steady':
-        for k in ('theta0', 'branch', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz',
-                  'dzdot'):
-            flat[f'initial.{k}'] = getattr(ic, k)
-    else:
-        flat['initial.quaternion'] = list(ic.quaternion)
-        flat['initial.omega_body'] = list(ic.omega_body)
-        flat['initial.z'], flat['initial.zdot'] = ic.z, ic.zdot
-        if ic.chi is not None:
-            flat['initial.chi'] = ic.chi
-    for k, v in scene.perturbation.items():
-        flat[f'perturbation.{k}'] = v
-    return flat
+    return scene.to_flat()
 
 
 def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] | None = None
@@ -71,11 +49,11 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
     SceneError, ParameterError
         For an unknown scene without a base, or invalid values.
     """
-    from gyro_rotor.core.scene import load_scene, scene_from_mapping
+    from gyro_rotor.core.scene import load_scene, scene_from_flat, scene_from_mapping
     if isinstance(doc, Mapping) and isinstance(doc.get('flat'), Mapping) and \
-            is_general_flat(doc['flat']):
-        # a general system's document carries its whole scene (live changes included)
-        return general_scene_from_flat(doc['flat'], check=False)
+            'params' not in doc:
+        # a system file's document carries its whole scene (live changes included)
+        return scene_from_flat(doc['flat'], check=False)
     if not isinstance(doc, Mapping) or 'params' not in doc:
         raise AnalysisError(f'not a scene document of rotor_sim: {str(doc)[:80]!r}')
     if isinstance(base, Scene):

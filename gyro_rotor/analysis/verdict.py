@@ -35,7 +35,16 @@ __all__ = ['Verdict', 'Status', 'CriterionName', 'ModeStatus', 'SyncState', 'Cri
            'needs_window']
 
 
-class Verdict(enum.StrEnum):
+class _Coded(enum.StrEnum):
+    """A closed choice sent on a topic as a number: its position in the class."""
+
+    @property
+    def code(self) -> int:
+        """Numeric code on the topic (the member's position, from 0)."""
+        return list(type(self)).index(self)
+
+
+class Verdict(_Coded):
     """The analysis' verdict; the numeric code on the ``analysis`` topic is its position."""
 
     INSUFFICIENT_DATA = 'insufficient data'
@@ -46,27 +55,17 @@ class Verdict(enum.StrEnum):
     NOT_CONFIRMED = 'not confirmed'
 
     @property
-    def code(self) -> int:
-        """Numeric code on the ``analysis`` topic."""
-        return list(Verdict).index(self)
-
-    @property
     def confirmed(self) -> bool:
         """Every applicable criterion passed (stable or, as predicted, marginal)."""
         return self in (Verdict.ASYMPTOTICALLY_STABLE, Verdict.MARGINAL)
 
 
-class Status(enum.StrEnum):
-    """The outcome of one criterion."""
+class Status(_Coded):
+    """The outcome of one criterion; code on the ``analysis`` topic: 0 PASS, 1 FAIL, 2 NOT YET."""
 
     PASS = 'PASS'
     FAIL = 'FAIL'
     NOT_YET = 'NOT YET'
-
-    @property
-    def code(self) -> int:
-        """Numeric code on the ``analysis`` topic (0 PASS, 1 FAIL, 2 NOT YET)."""
-        return list(Status).index(self)
 
 
 class CriterionName(enum.StrEnum):
@@ -81,7 +80,7 @@ class CriterionName(enum.StrEnum):
     SCENE = 'scene'
 
 
-class ModeStatus(enum.StrEnum):
+class ModeStatus(_Coded):
     """A predicted mode against the data; the code on ``analysis_modes`` is its position."""
 
     NOT_IDENTIFIED = 'not identified'
@@ -97,23 +96,13 @@ class ModeStatus(enum.StrEnum):
     #: faster than the sample grid can show (decays within a sample, or above Nyquist)
     UNOBSERVABLE = 'not observable at this sample rate'
 
-    @property
-    def code(self) -> int:
-        """Numeric code on ``analysis_modes``."""
-        return list(ModeStatus).index(self)
 
-
-class SyncState(enum.StrEnum):
+class SyncState(_Coded):
     """Synchronism of a drive with poles; the numeric code is its position."""
 
     SYNCHRONOUS = 'synchronous'
     LOST = 'lost synchronism'
     RESYNCHRONIZED = 'resynchronized'
-
-    @property
-    def code(self) -> int:
-        """Numeric code on the ``analysis`` topic."""
-        return list(SyncState).index(self)
 
 
 @dataclasses.dataclass(frozen=True)

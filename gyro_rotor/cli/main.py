@@ -12,7 +12,6 @@ import importlib
 import os
 import sys
 
-from gyro_rotor.cli.commands import general
 from gyro_rotor.errors import GyroRotorError
 
 #: subcommand name -> module in gyro_rotor.cli.commands (listed in the order of --help)
@@ -54,7 +53,6 @@ def build_parser() -> argparse.ArgumentParser:
         mod = _load(name)
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
-        general.extend_parser(name, p)
         p.set_defaults(_run=mod.run)
     return parser
 
@@ -64,9 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        status = general.dispatch(args)   # a general scene (with a system key)?
-        if status is None:
-            status = int(args._run(args) or 0)
+        status = int(args._run(args) or 0)
         sys.stdout.flush()      # inside the try: a closed pipe is handled below
         return status
     except GyroRotorError as err:

@@ -30,19 +30,21 @@ def parse_sets(items: list[str]) -> dict[str, Any]:
     return out
 
 
-def load_scene_with_sets(scene: str, sets: list[str]):
+def load_scene_with_sets(scene: str, sets: list[str], *, check: bool = True):
     """Load a scene, then apply ``--set`` overrides; an error names its real source.
 
     The file is loaded alone first, so that a fault of the file names the file; a value
     refused only with the overrides names ``--set`` (not the scene file it was applied to).
+    ``check=False``: a system file's steady motion is not checked (``steady`` solves for
+    one).
     """
     from gyro_rotor.core.scene import load_scene
     overrides = parse_sets(sets)
-    base = load_scene(scene)
+    base = load_scene(scene, check=check)
     if not overrides:
         return base
     try:
-        return load_scene(scene, overrides=overrides)
+        return load_scene(scene, overrides=overrides, check=check)
     except (SceneError, ParameterError) as err:
         text = str(err)
         prefix = f'scene file {base.path}: '

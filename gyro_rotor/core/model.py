@@ -333,6 +333,30 @@ class Model:
             'qnorm_error': self.quaternion_norm_error(Y),
         }
 
+    #: the CSV columns of a trajectory: (name [one naming for every system: a rate is
+    #: NAME_dot], unit, key of :meth:`outputs`, component of a vector output or None)
+    CSV_COLUMNS = (('t', 's', 't', None), ('theta', 'rad', 'theta', None),
+                   ('psi', 'rad', 'psi', None), ('phi_R', 'rad', 'phi_R', None),
+                   ('phi_M', 'rad', 'phi_M', None), ('theta_dot', 'rad/s', 'thetadot', None),
+                   ('psi_dot', 'rad/s', 'psidot', None),
+                   ('phi_R_dot', 'rad/s', 'phi_R_dot', None),
+                   ('phi_M_dot', 'rad/s', 'phi_M_dot', None), ('axis_x', '1', 'axis', 0),
+                   ('axis_y', '1', 'axis', 1), ('axis_z', '1', 'axis', 2),
+                   ('chi', 'rad', 'chi', None), ('z', 'rad', 'z', None),
+                   ('z_dot', 'rad/s', 'zdot', None), ('Q', 'N m', 'Q', None),
+                   ('E_star', 'J', 'E_star', None), ('dE_dt', 'W', 'dE_dt', None),
+                   ('residual', 'J', 'residual', None), ('qnorm_error', '1', 'qnorm_error', None))
+    #: the columns a printed summary gives at the end of a run
+    FINAL_STATE = ('theta', 'psi_dot', 'chi', 'z', 'z_dot')
+
+    def csv_columns(self) -> tuple:
+        """Return the CSV columns (name, unit, output key, component): :data:`CSV_COLUMNS`."""
+        return self.CSV_COLUMNS
+
+    def final_state(self) -> tuple:
+        """Return the names of the CSV columns a summary prints at the end of a run."""
+        return self.FINAL_STATE
+
     def chi(self, Y) -> np.ndarray:
         """Twist chi = phi_M + psi of the housing (continuous along a trajectory)."""
         return twist(self.quaternion(Y))

@@ -1,13 +1,23 @@
 """Scenes: a YAML file that is at once a ROS 2 parameter file for ``rotor_sim``.
 
-A scene names the parameters (:mod:`gyro_rotor.core.params`), the model it needs, the
-duration and the initial condition. The shipped scenes are keyed ``/**`` (any node name,
-so that a renamed or namespaced rotor_sim reads them too); ``rotor_sim`` and
-``/rotor_sim`` are read as well::
+Every scene names its system (Magnus 1980: the theorem of sections 2-3 holds for any of
+them): ``system: centrifuge`` is the built-in elastically restrained centrifuge of section 4
+(hand-written quaternion model, regular at theta = 0, with its reduced models), any other
+name or path is a system file (:mod:`gyro_rotor.core.system.system_file`). A scene without
+a ``system`` key is a centrifuge scene, so older files keep working. One type
+(:class:`Scene`), one reader, one validator of keys (unknown keys are refused with the
+nearest valid name), one name-or-path resolver (:func:`scene_path`: config/ first, then
+config/systems/scenes/).
+
+The shipped scenes are keyed ``/**`` (any node name, so that a renamed or namespaced
+rotor_sim reads them too); ``rotor_sim`` and ``/rotor_sim`` are read as well.
+
+The centrifuge::
 
     /**:
       ros__parameters:
         scene: precession
+        system: centrifuge
         model: full                 # full | locked_housing | upright_axis
         t_end: 10.0                 # s
         A_R: 0.05                   # ... every RotorParams field (floats written as floats)
@@ -26,9 +36,28 @@ phi_M_dot = -psidot0, z = dz, zdot = dzdot (field angle Omega0 t). With ``body``
 ``initial.z``, ``initial.zdot`` and ``initial.chi`` (the twist for the upright_axis model;
 for the full model it must agree with the quaternion's).
 
+A system file's scene::
+
+    /**:
+      ros__parameters:
+        scene: twin_gimbal
+        system: twin_gimbal          # a shipped system name or a path (relative to the scene)
+        t_end: 10.0
+        initial: {q: [...], qdot: [...], z: [...], zdot: [...]}   # lengths n, n, m, m
+        steady: {q: [...], qdot: [...], z: [...]}    # the steady motion (zeros by default)
+        locked: [beta2]              # coordinates held at their steady.q value
+        constants: {c_a: 40.0}       # overrides of the system's constants
+        K_D: 0.1                     # a drive value for every rotor (K_S, K_D, Omega0, pole_pairs)
+        drive: {R1: {K_D: 0.2}}      # or for one rotor
+        perturbation: {qdot: [...]}  # the kick of rotor_sim's ~/perturb (q, qdot, z, zdot)
+
+A steady motion is one where the accelerations vanish (z = steady.z, zdot = 0); the
+coordinates that move (steady.qdot != 0) must be cyclic up to that motion, so that the
+linearization does not change along it. :func:`check_steady` says by how much a guess
+misses; ``gyro-rotor steady SCENE`` solves for one from the guess.
+
 ROS 2 parameter files are typed: a float parameter written as ``98`` is an integer there
 and the node could not take it, so the loader refuses it with a hint to write ``98.0``.
-Unknown keys are refused with the nearest valid name.
 """
 
 from __future__ import annotations
@@ -38,20 +67,29 @@ import math
 import os
 from pathlib import Path
 import re
-import sys
 from typing import Any, Mapping
 
 from gyro_rotor.core.model import make_model, Model, MODELS
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
-from gyro_rotor.errors import did_you_mean, ParameterError, SceneError
+from gyro_rotor.core.system.model import GeneralModel
+from gyro_rotor.core.system.system_file import (config_dirs, DRIVE_KEYS, load_system,
+                                                RotorSystem, system_from_mapping, systems_dirs)
+from gyro_rotor.core.yamlio import SCENE_NAME, short
+from gyro_rotor.errors import did_you_mean, ParameterError, SceneError, SystemFileError
 import numpy as np
+import sympy
 
-__all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'find_scene',
-           'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS', 'NODE_KEYS',
-           'SCENE_KEYS', 'DEFAULT_SCENE']
+__all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'scene_from_flat',
+           'find_scene', 'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
+           'NODE_KEYS', 'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE',
+           'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs']
 
 DEFAULT_SCENE = 'precession'
+#: the built-in system: the elastically restrained centrifuge (section 4)
+CENTRIFUGE = 'centrifuge'
+#: key of the embedded system document in :meth:`Scene.to_flat`
+SYSTEM_DOC = 'system_doc'
 NODE_NAMES = ('rotor_sim', '/rotor_sim', '/**')
 
 #: ranges of the simulation node's numeric keys, the same in a scene file, --set, a
@@ -95,13 +133,25 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
 
 _FLOAT_INITIAL = ('theta0', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot', 'z',
                   'zdot', 'chi')
+#: keys of a centrifuge scene
 SCENE_KEYS: dict[str, type] = {
-    'scene': str, 'description': str, 'model': str, 't_end': float,
+    'scene': str, 'description': str, 'system': str, 'model': str, 't_end': float,
     **{name: (int if name == 'pole_pairs' else float) for name in PARAM_FIELDS},
     'initial.mode': str, 'initial.branch': int, 'initial.quaternion': list,
     'initial.omega_body': list,
     **{f'initial.{k}': float for k in _FLOAT_INITIAL},
     **{f'perturbation.{k}': float for k in PERTURBATION_KEYS},
+    **{name: spec[0] for name, spec in NODE_KEYS.items()},
+}
+
+#: fixed keys of a system file's scene (constants.NAME and drive.ROTOR.KEY come on top)
+SYSTEM_SCENE_KEYS: dict[str, type] = {
+    'scene': str, 'description': str, 'system': str, 't_end': float,
+    'initial.q': list, 'initial.qdot': list, 'initial.z': list, 'initial.zdot': list,
+    'steady.q': list, 'steady.qdot': list, 'steady.z': list, 'locked': list,
+    'perturbation.q': list, 'perturbation.qdot': list, 'perturbation.z': list,
+    'perturbation.zdot': list,
+    'K_S': float, 'K_D': float, 'Omega0': float, 'pole_pairs': int,
     **{name: spec[0] for name, spec in NODE_KEYS.items()},
 }
 
@@ -128,73 +178,192 @@ class InitialCondition:
 
 @dataclasses.dataclass(frozen=True)
 class Scene:
-    """A loaded, validated scene."""
+    """A loaded, validated scene of any system (module doc).
+
+    Common to every system: the name, ``t_end``, the description, the file, the node's
+    keys (``node``), the kick (``perturbation``) and the typed flat keys it was built from
+    (``flat``). The built-in centrifuge (``system_name == 'centrifuge'``) carries its
+    parameters (``params``), its model and its initial condition (``initial``); a system
+    file's scene carries the system (``system``, overrides applied, locked coordinates
+    removed; ``full_system`` before the lock; ``base_system`` as the file defines it), the
+    initial and the steady state and the locked coordinates.
+    """
 
     name: str
-    params: RotorParams
+    params: RotorParams | None = None
     model: str = 'full'
     t_end: float = 10.0
     initial: InitialCondition = InitialCondition()
-    perturbation: Mapping[str, float] = dataclasses.field(default_factory=dict)
+    perturbation: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     node: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     description: str = ''
     path: str | None = None
+    system: RotorSystem | None = None
+    full_system: RotorSystem | None = None
+    q0: tuple = ()
+    qdot0: tuple = ()
+    z0: tuple = ()
+    zdot0: tuple = ()
+    steady_q: tuple = ()
+    steady_qdot: tuple = ()
+    steady_z: tuple = ()
+    locked: tuple = ()
+    #: the typed flat keys the scene was built from (overrides included)
+    flat: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
+    #: the system as its file defines it (before the scene's constants and drives)
+    base_system: RotorSystem | None = dataclasses.field(default=None, compare=False,
+                                                        repr=False)
 
-    def make_model(self) -> Model:
+    @property
+    def builtin(self) -> bool:
+        """Return True for the built-in centrifuge (its hand-written models)."""
+        return self.system is None
+
+    @property
+    def system_name(self) -> str:
+        """Return the name of the scene's system (``centrifuge`` for the built-in one)."""
+        return CENTRIFUGE if self.system is None else self.system.name
+
+    @property
+    def pole_pairs(self) -> tuple:
+        """Pole pairs of each rotor's drive (0: linear law)."""
+        if self.system is None:
+            return (int(self.params.pole_pairs),)
+        return tuple(int(d.pole_pairs) for d in self.system.drives)
+
+    @property
+    def kicked(self) -> bool:
+        """Return True if the scene's perturbation moves the state."""
+        return any(v for vals in self.perturbation.values()
+                   for v in (vals if isinstance(vals, (list, tuple)) else [vals]))
+
+    def make_model(self) -> Model | GeneralModel:
         """Return the model this scene needs."""
-        return make_model(self.model, self.params)
+        if self.system is None:
+            return make_model(self.model, self.params)
+        return GeneralModel(self.system)
 
     def steady(self) -> SteadyMotion:
-        """Return the steady motion the initial condition refers to (solution I for body mode)."""
+        """Return the centrifuge's steady motion the initial condition refers to."""
         ic = self.initial
         if ic.mode != 'steady':
             return steady_motion(self.params, 0.0, 0)
         return steady_motion(self.params, ic.theta0, ic.branch)
 
-    def initial_state(self, model: Model | None = None) -> np.ndarray:
+    def initial_state(self, model=None) -> np.ndarray:
         """State vector at t = 0 for this scene's model."""
         model = model or self.make_model()
-        ic = self.initial
-        if ic.mode == 'steady':
-            sm = self.steady()
-            if model.name != 'full' and (ic.dtheta or ic.dthetadot or sm.theta0):
-                raise SceneError(f"scene '{self.name}': model {model.name} holds the axis "
-                                 'vertical; theta0, dtheta and dthetadot must be 0')
-            return model.state_from_euler(
-                theta=sm.theta0 + ic.dtheta, thetadot=ic.dthetadot, psi=0.0,
-                psidot=sm.psidot0 + ic.dpsidot, phi_M=ic.dchi, phi_M_dot=-sm.psidot0,
-                z=ic.dz, zdot=ic.dzdot)
-        # body mode
-        q = np.asarray(ic.quaternion, dtype=float)
-        W = np.asarray(ic.omega_body, dtype=float)
-        if model.name == 'full':
-            # q and -q are one orientation, but the sign carries the twist chi (|chi| < 2 pi):
-            # without initial.chi take the smaller twist (q_w >= 0); with it, the sign that
-            # gives that twist
-            if q[0] < 0 or (q[0] == 0 and q[3] < 0):
-                q = -q
-            if ic.chi is not None and abs(2.0 * math.atan2(-q[3], -q[0]) - ic.chi) < abs(
-                    2.0 * math.atan2(q[3], q[0]) - ic.chi):
-                q = -q
-            y = model.state_from_body(q, W, ic.z, ic.zdot)
-            if ic.chi is not None:
-                chi_q = 2.0 * math.atan2(y[3], y[0])
-                if abs(chi_q - ic.chi) > 1e-9:
-                    raise SceneError(
-                        f"scene '{self.name}': initial.chi = {ic.chi} disagrees with the "
-                        f"quaternion's twist 2 atan2(q_z, q_w) = {chi_q:.12g}")
-            return y
-        if model.name == 'upright_axis':
-            if abs(W[0]) > 0 or abs(W[1]) > 0 or abs(q[1]) > 0 or abs(q[2]) > 0:
-                raise SceneError(f"scene '{self.name}': model upright_axis needs the axis "
-                                 'vertical: quaternion x, y and omega_body 1, 2 must be 0')
-            chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
-            return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
-        return np.array([ic.z, ic.zdot, 0.0])
+        if self.system is not None:
+            return model.state(self.q0, self.qdot0, self.z0, self.zdot0)
+        return _centrifuge_state(self, model)
+
+    def steady_state(self, model: GeneralModel | None = None) -> np.ndarray:
+        """State on a system file's steady motion at t = 0 (zdot = 0, D = 0)."""
+        model = model or self.make_model()
+        return model.state(self.steady_q, self.steady_qdot, self.steady_z,
+                           np.zeros(self.system.m))
 
     def with_params(self, **changes: Any) -> 'Scene':
-        """Copy with some parameters changed (validated)."""
+        """Copy with some centrifuge parameters changed (validated)."""
         return dataclasses.replace(self, params=self.params.replace(**changes))
+
+    def with_changes(self, changes: Mapping[str, Any]) -> 'Scene':
+        """Copy with flat keys changed (constants.NAME, drive.ROTOR.KEY, K_D, ..., t_end).
+
+        Validated as in a scene file (SceneError names the problem); the steady motion
+        is checked again, since constants move it.
+        """
+        flat = dict(self.flat)
+        for key in changes:      # a common drive key sets every drive: per-rotor ones go
+            if key in DRIVE_KEYS:
+                flat = {k: v for k, v in flat.items()
+                        if not (k.startswith('drive.') and k.endswith(f'.{key}'))}
+        flat.update(changes)
+        return _system_scene(flat, path=self.path, system=self.base_system,
+                             where=f'scene {self.name}')
+
+    def with_drives(self, **values: float) -> 'Scene':
+        """Copy with a drive value (K_S, K_D, Omega0, pole_pairs) set for every rotor."""
+        drives = [d.replace(**values) for d in self.system.drives]
+        return dataclasses.replace(self, system=self.system.with_drives(drives))
+
+    def with_t_end(self, t_end: float) -> 'Scene':
+        """Copy with another duration."""
+        return dataclasses.replace(self, t_end=t_end, flat={**self.flat, 't_end': t_end})
+
+    def to_flat(self) -> dict[str, Any]:
+        """Return the flat dotted keys that :func:`scene_from_flat` rebuilds the scene from.
+
+        A system file's scene carries the system's document (``system_doc``), so that a
+        reader rebuilds it on a machine without the file.
+        """
+        if self.system is not None:
+            flat = dict(self.flat)
+            doc = self.base_system.document if self.base_system is not None else None
+            if doc is not None:
+                flat[SYSTEM_DOC] = doc
+            return flat
+        flat: dict[str, Any] = {'scene': self.name, 'system': CENTRIFUGE, 'model': self.model,
+                                't_end': self.t_end}
+        if self.description:
+            flat['description'] = self.description
+        flat.update(self.params.to_mapping())
+        ic = self.initial
+        flat['initial.mode'] = ic.mode
+        if ic.mode == 'steady':
+            for k in ('theta0', 'branch', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz',
+                      'dzdot'):
+                flat[f'initial.{k}'] = getattr(ic, k)
+        else:
+            flat['initial.quaternion'] = list(ic.quaternion)
+            flat['initial.omega_body'] = list(ic.omega_body)
+            flat['initial.z'], flat['initial.zdot'] = ic.z, ic.zdot
+            if ic.chi is not None:
+                flat['initial.chi'] = ic.chi
+        for k, v in self.perturbation.items():
+            flat[f'perturbation.{k}'] = v
+        return flat
+
+
+def _centrifuge_state(scene: Scene, model: Model) -> np.ndarray:
+    """Return the centrifuge's state at t = 0 from its initial condition (module doc)."""
+    ic = scene.initial
+    if ic.mode == 'steady':
+        sm = scene.steady()
+        if model.name != 'full' and (ic.dtheta or ic.dthetadot or sm.theta0):
+            raise SceneError(f"scene '{scene.name}': model {model.name} holds the axis "
+                             'vertical; theta0, dtheta and dthetadot must be 0')
+        return model.state_from_euler(
+            theta=sm.theta0 + ic.dtheta, thetadot=ic.dthetadot, psi=0.0,
+            psidot=sm.psidot0 + ic.dpsidot, phi_M=ic.dchi, phi_M_dot=-sm.psidot0,
+            z=ic.dz, zdot=ic.dzdot)
+    # body mode
+    q = np.asarray(ic.quaternion, dtype=float)
+    W = np.asarray(ic.omega_body, dtype=float)
+    if model.name == 'full':
+        # q and -q are one orientation, but the sign carries the twist chi (|chi| < 2 pi):
+        # without initial.chi take the smaller twist (q_w >= 0); with it, the sign that
+        # gives that twist
+        if q[0] < 0 or (q[0] == 0 and q[3] < 0):
+            q = -q
+        if ic.chi is not None and abs(2.0 * math.atan2(-q[3], -q[0]) - ic.chi) < abs(
+                2.0 * math.atan2(q[3], q[0]) - ic.chi):
+            q = -q
+        y = model.state_from_body(q, W, ic.z, ic.zdot)
+        if ic.chi is not None:
+            chi_q = 2.0 * math.atan2(y[3], y[0])
+            if abs(chi_q - ic.chi) > 1e-9:
+                raise SceneError(
+                    f"scene '{scene.name}': initial.chi = {ic.chi} disagrees with the "
+                    f"quaternion's twist 2 atan2(q_z, q_w) = {chi_q:.12g}")
+        return y
+    if model.name == 'upright_axis':
+        if abs(W[0]) > 0 or abs(W[1]) > 0 or abs(q[1]) > 0 or abs(q[2]) > 0:
+            raise SceneError(f"scene '{scene.name}': model upright_axis needs the axis "
+                             'vertical: quaternion x, y and omega_body 1, 2 must be 0')
+        chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
+        return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
+    return np.array([ic.z, ic.zdot, 0.0])
 
 
 def perturb_state(model: Model, y: np.ndarray, perturbation: Mapping[str, float]) -> np.ndarray:
@@ -246,63 +415,47 @@ def perturb_state(model: Model, y: np.ndarray, perturbation: Mapping[str, float]
 
 
 # -- loading ---------------------------------------------------------------------------------
-def config_dirs() -> list[Path]:
-    """Where scene files are searched: the source tree, then installed share directories."""
-    dirs = [Path(__file__).resolve().parents[2] / 'config']
-    prefixes = [sys.prefix] + [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
-                               if p]
-    dirs += [Path(p) / 'share' / 'gyro_rotor' / 'config' for p in prefixes]
-    return [d for d in dirs if d.is_dir()]
+def _scene_dirs() -> list[Path]:
+    """Where shipped scenes are: config/ (the centrifuge's), then config/systems/scenes."""
+    return config_dirs() + [d / 'scenes' for d in systems_dirs() if (d / 'scenes').is_dir()]
 
 
-def list_scenes() -> list[str]:
-    """Names of the shipped scenes."""
-    names = set()
-    for d in config_dirs():
-        for f in d.glob('*.yaml'):
-            if f.stem not in ('analysis',):
-                names.add(f.stem)
-    return sorted(names)
+def list_scenes(builtin: bool | None = None) -> list[str]:
+    """Names of the shipped scenes: of every system, or the centrifuge's (``builtin``) or not."""
+    names = sorted({f.stem for d in _scene_dirs() for f in d.glob('*.yaml')} - {'analysis'})
+    if builtin is None:
+        return names
+    return [n for n in names
+            if (_read(scene_path(n)).get('system', CENTRIFUGE) == CENTRIFUGE) == builtin]
 
 
 def scene_path(name_or_path: str | os.PathLike) -> Path:
-    """Resolve a scene name ('precession') or a path to a scene file."""
+    """Resolve a scene name ('precession', 'twin_gimbal') or a path to a scene file."""
     s = str(name_or_path)
     p = Path(s)
     if s.endswith(('.yaml', '.yml')) or os.sep in s or p.is_file():
         if not p.is_file():
             raise SceneError(f'scene file {s} does not exist')
         return p
-    for d in config_dirs():
+    for d in _scene_dirs():
         f = d / f'{s}.yaml'
-        if f.is_file():
+        if f.is_file() and s != 'analysis':
             return f
     raise SceneError(unknown_scene_message(s))
 
 
 def unknown_scene_message(name: str) -> str:
-    """``unknown scene 'X'; did you mean 'Y'? (scenes: ...)``: every shipped scene listed.
-
-    The centrifuge's scenes and the general systems' (config/systems/scenes) both, so that
-    every command that takes a scene name says the same thing.
-    """
-    from gyro_rotor.core.system.scene import list_general_scenes
-    from gyro_rotor.errors import did_you_mean
+    """``unknown scene 'X'; did you mean 'Y'? (scenes: ...)``: every shipped scene listed."""
     names = list_scenes()
-    general = [g for g in list_general_scenes() if g not in names]
-    hint = did_you_mean(name, names + general)
-    listed = ', '.join(names) + (f'; general systems: {", ".join(general)}' if general else '')
-    return f"unknown scene '{name}'{hint} (scenes: {listed})"
+    return f"unknown scene '{name}'{did_you_mean(name, names)} (scenes: {', '.join(names)})"
 
 
 find_scene = scene_path
 
 
-def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
-               overrides: Mapping[str, Any] | None = None) -> Scene:
-    """Load and validate a scene by name or path; ``overrides`` use the flat dotted keys."""
+def _read(path: Path) -> dict[str, Any]:
+    """Return the flat keys of a scene file's ``ros__parameters`` (the one reader)."""
     from gyro_rotor.core.yamlio import load_yaml
-    path = scene_path(name_or_path)
     try:
         text = path.read_text(encoding='utf-8')
     except (OSError, UnicodeDecodeError) as err:
@@ -322,21 +475,40 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
     if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
         raise SceneError(f'scene file {path}: its /** (rotor_sim) section needs a '
                          'ros__parameters mapping')
-    flat = flatten(section['ros__parameters'])
     for key in section:
         if key != 'ros__parameters':
             raise SceneError(f"scene file {path}: unexpected key '{key}' beside "
                              'ros__parameters')
-    if overrides:
-        for key, value in overrides.items():
-            if key not in SCENE_KEYS:
-                raise SceneError(_unknown(key, SCENE_KEYS))
-            if (SCENE_KEYS[key] is float and isinstance(value, int)
-                    and not isinstance(value, bool)):
-                value = float(value)   # overrides are not typed ROS files
-            flat[key] = value
+    return flatten(section['ros__parameters'])
+
+
+def _key_type(key: str, centrifuge: bool) -> type | None:
+    """Return the type of a scene key (None: unknown)."""
+    if centrifuge:
+        return SCENE_KEYS.get(key)
+    if key.startswith(('constants.', 'drive.')):
+        return int if key.endswith('.pole_pairs') and key.startswith('drive.') else float
+    return SYSTEM_SCENE_KEYS.get(key)
+
+
+def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
+               overrides: Mapping[str, Any] | None = None, *, check: bool = True) -> Scene:
+    """Load and validate a scene of any system by name or path (module doc).
+
+    ``overrides`` use the flat dotted keys (an integer is taken for a float: overrides are
+    not typed ROS files). ``check=False`` skips the steadiness check of a system file's
+    steady motion (for the command that solves for one).
+    """
+    path = scene_path(name_or_path)
+    flat = _read(path)
+    centrifuge = flat.get('system', CENTRIFUGE) == CENTRIFUGE
+    for key, value in (overrides or {}).items():
+        if _key_type(key, centrifuge) is float and isinstance(value, int) \
+                and not isinstance(value, bool):
+            value = float(value)
+        flat[key] = value
     flat.setdefault('scene', re.sub(r'[^A-Za-z0-9_.-]', '_', path.stem, flags=re.ASCII))
-    return scene_from_mapping(flat, path=str(path))
+    return scene_from_mapping(flat, path=str(path), check=check)
 
 
 def flatten(d: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
@@ -355,9 +527,8 @@ def _unknown(key: str, valid) -> str:
     return f"unknown key '{key}'{did_you_mean(key, valid)}"
 
 
-def _typed(key: str, value: Any, where: str, *, strict_float: bool) -> Any:
-    from gyro_rotor.core.yamlio import SCENE_NAME, short
-    want = SCENE_KEYS[key]
+def _typed(key: str, want: type, value: Any, where: str, *, strict_float: bool) -> Any:
+    """Check one key's value against its type ``want`` (ROS 2 parameter files are typed)."""
     if key == 'scene' and not (isinstance(value, str) and SCENE_NAME.match(value)):
         raise SceneError(f'{where}: scene must be a name of ASCII letters, digits, _ . - '
                          f'(at most 100), got {short(value)}')
@@ -386,6 +557,11 @@ def _typed(key: str, value: Any, where: str, *, strict_float: bool) -> Any:
         if not isinstance(value, str):
             raise SceneError(f'{where}: {key} must be a string, got {short(value)}')
         return value
+    if key == 'locked':
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise SceneError(f'{where}: locked must be a list of coordinate names, got '
+                             f'{short(value)}')
+        return tuple(value)
     if want is list:
         if not isinstance(value, (list, tuple)) or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
@@ -403,15 +579,46 @@ def check_node_ranges(vals: Mapping[str, Any], where: str) -> None:
 
 
 def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
-                       strict_float: bool | None = None) -> Scene:
-    """Build a Scene from flat dotted keys (as in a parameter file or ROS parameters)."""
+                       strict_float: bool | None = None, *, check: bool = True,
+                       system: RotorSystem | None = None, where: str | None = None) -> Scene:
+    """Build a Scene of any system from flat dotted keys (a parameter file's, a document's).
+
+    The ``system`` key picks the system: ``centrifuge`` (or none) the built-in one, any
+    other name or path (relative to ``path``) a system file; ``system`` (a RotorSystem)
+    gives that file's system already loaded. ``strict_float`` (default: for a file) refuses
+    an integer for a float, as ROS 2 does; a system file's scene is always strict.
+    """
+    if system is None and flat.get('system', CENTRIFUGE) == CENTRIFUGE:
+        return _centrifuge_scene(flat, path, path is not None if strict_float is None
+                                 else strict_float)
+    return _system_scene(flat, path=path, system=system, check=check, where=where)
+
+
+def scene_from_flat(flat: Mapping[str, Any], *, check: bool = True) -> Scene:
+    """Rebuild a scene from :meth:`Scene.to_flat`'s keys (a bag's record, a document).
+
+    A system file's scene is rebuilt from its embedded document (the file is not needed).
+    """
+    flat = dict(flat)
+    doc = flat.pop(SYSTEM_DOC, None)
+    system = None
+    if doc is not None:
+        try:
+            system = system_from_mapping(doc)
+        except SystemFileError as err:
+            raise SceneError(f'the embedded system document: {err}') from None
+    return scene_from_mapping(flat, strict_float=False, system=system, check=check,
+                              where=f"scene '{flat.get('scene', '?')}'")
+
+
+def _centrifuge_scene(flat: Mapping[str, Any], path: str | None, strict: bool) -> Scene:
+    """Build a centrifuge scene from its flat keys (module doc)."""
     where = f'scene file {path}' if path else 'scene'
-    strict = path is not None if strict_float is None else strict_float
     vals: dict[str, Any] = {}
     for key, value in flat.items():
         if key not in SCENE_KEYS:
             raise SceneError(f'{where}: ' + _unknown(key, SCENE_KEYS))
-        vals[key] = _typed(key, value, where, strict_float=strict)
+        vals[key] = _typed(key, SCENE_KEYS[key], value, where, strict_float=strict)
     name = vals.get('scene', Path(path).stem if path else 'custom')
     model = vals.get('model', 'full')
     if model not in MODELS:
@@ -456,7 +663,201 @@ def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
     check_node_ranges(vals, where)
     scene = Scene(name=name, params=params, model=model, t_end=t_end, initial=initial,
                   perturbation=pert, node=node, description=vals.get('description', ''),
-                  path=path)
+                  path=path, flat=dict(vals))
     # validate the initial condition now (steady motion exists, model fits)
     scene.initial_state()
     return scene
+
+
+def _vector(vals: dict, key: str, size: int, what: str, where: str) -> tuple:
+    v = vals.get(key, (0.0,) * size)
+    if len(v) != size:
+        raise SceneError(f'{where}: {key} must have {size} entries ({what}), got {len(v)}')
+    return v
+
+
+def _drives(system: RotorSystem, vals: dict, where: str) -> RotorSystem:
+    common = {k: vals[k] for k in DRIVE_KEYS if k in vals}
+    drives = [d.replace(**common) for d in system.drives] if common else list(system.drives)
+    for key, value in vals.items():
+        if not key.startswith('drive.'):
+            continue
+        parts = key.split('.')
+        if len(parts) != 3 or parts[1] not in system.rotors or parts[2] not in DRIVE_KEYS:
+            valid = [f'drive.{r}.{k}' for r in system.rotors for k in DRIVE_KEYS]
+            raise SceneError(f"{where}: unknown key '{key}'{did_you_mean(key, valid)}")
+        k = system.rotors.index(parts[1])
+        drives[k] = drives[k].replace(**{parts[2]: value})
+    return system.with_drives(drives)
+
+
+def lock(system: RotorSystem, names, values) -> RotorSystem:
+    """Hold the coordinates ``names`` at ``values``: the reduced system (rows/columns dropped)."""
+    if not names:
+        return system
+    keep = [i for i, c in enumerate(system.coordinates) if c not in names]
+    syms = system.q_symbols()
+    subs = {syms[i]: sympy.Float(values[i]) for i, c in enumerate(system.coordinates)
+            if c in names}
+    M = sympy.ImmutableMatrix([[system.mass_matrix[i, j].xreplace(subs) for j in keep]
+                               for i in keep]) if keep else sympy.ImmutableMatrix(0, 0, [])
+    B = sympy.ImmutableMatrix(system.m, len(keep), [system.guidance[k, j].xreplace(subs)
+                                                    for k in range(system.m) for j in keep])
+    return dataclasses.replace(
+        system, name=f'{system.name}_locked', coordinates=tuple(system.coordinates[i]
+                                                                for i in keep),
+        mass_matrix=M, guidance=B, potential=system.potential.xreplace(subs))
+
+
+def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
+                  system: RotorSystem | None = None, check: bool = True,
+                  where: str | None = None) -> Scene:
+    """Build a system file's scene from its flat dotted keys (a scene file's, a document's).
+
+    ``system``: the system as its file defines it (before the scene's constants and
+    drives); default: loaded from the ``system`` key (a name, or a path relative to
+    ``path``). The scene keeps the typed keys as :attr:`Scene.flat`.
+    """
+    where = where or (f'scene file {path}' if path else 'scene')
+    if system is None:      # the system first: the other keys are read as its keys
+        if 'system' not in flat:
+            raise SceneError(f'{where}: the key system is missing')
+        try:
+            system = load_system(_typed('system', str, flat['system'], where,
+                                        strict_float=True), relative_to=path)
+        except SystemFileError as err:
+            raise SceneError(f'{where}: {err}') from None
+    vals = {}
+    for key, value in flat.items():
+        want = _key_type(key, False)
+        if want is None:
+            raise SceneError(f'{where}: ' + _unknown(key, SYSTEM_SCENE_KEYS))
+        vals[key] = _typed(key, want, value, where, strict_float=True)
+        v = vals[key]
+        if not all(math.isfinite(x) for x in (v if isinstance(v, tuple) and key != 'locked'
+                                              else [v] if isinstance(v, float) else [])):
+            raise SceneError(f'{where}: {key} must be finite, got {short(value)}')
+    check_node_ranges(vals, where)
+    try:
+        base = system
+        system = system.with_constants({k.split('.', 1)[1]: v for k, v in vals.items()
+                                        if k.startswith('constants.')},
+                                       where=f'{where}: constants')
+        system = _drives(system, vals, where)
+    except SystemFileError as err:
+        raise SceneError(f'{where}: {err}') from None
+    scene = _build(vals, system, where, path)
+    scene = dataclasses.replace(scene, base_system=base, flat={
+        k: list(v) if isinstance(v, tuple) else v for k, v in vals.items()})
+    model = scene.make_model()
+    _check_mass(scene, model, scene.initial_state(model), 'initial', where)
+    _check_energy(scene, model, where)
+    if any(k.startswith('steady.') for k in vals):
+        _check_mass(scene, model, scene.steady_state(model), 'steady', where)
+        if check:
+            check_steady(scene, model, where)
+    return scene
+
+
+def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> Scene:
+    """Return the scene of typed keys ``vals`` on ``system`` (constants, drives applied)."""
+    n, m = system.n, system.m
+    coords = ', '.join(system.coordinates) or 'none'
+    per_q, per_r = f'one per coordinate: {coords}', f'one per rotor: {", ".join(system.rotors)}'
+    q0 = _vector(vals, 'initial.q', n, per_q, where)
+    qd0 = _vector(vals, 'initial.qdot', n, per_q, where)
+    z0 = _vector(vals, 'initial.z', m, per_r, where)
+    zd0 = _vector(vals, 'initial.zdot', m, per_r, where)
+    sq = _vector(vals, 'steady.q', n, per_q, where)
+    sqd = _vector(vals, 'steady.qdot', n, per_q, where)
+    sz = _vector(vals, 'steady.z', m, per_r, where)
+    locked = vals.get('locked', ())
+    for i, name in enumerate(locked):
+        if name not in system.coordinates:
+            raise SceneError(f"{where}: locked[{i}] = '{name}' is not a coordinate of system "
+                             f'{system.name}{did_you_mean(name, system.coordinates)} '
+                             f'(coordinates: {coords})')
+    keep = [i for i, c in enumerate(system.coordinates) if c not in locked]
+    for i, c in enumerate(system.coordinates):
+        if c in locked and (q0[i] != sq[i] or qd0[i] != 0.0 or sqd[i] != 0.0):
+            raise SceneError(f'{where}: the locked coordinate {c} is held at steady.q = '
+                             f'{sq[i]}: initial.q must equal it and initial.qdot, steady.qdot '
+                             f'be 0 there')
+    t_end = vals.get('t_end', 10.0)
+    if not t_end > 0:
+        raise SceneError(f'{where}: t_end must be positive, got {t_end!r}')
+    for k, size, what in (('q', n, per_q), ('qdot', n, per_q), ('z', m, per_r),
+                          ('zdot', m, per_r)):
+        _vector(vals, f'perturbation.{k}', size, what, where)
+
+    def pick(v):
+        return tuple(v[i] for i in keep)
+    return Scene(
+        name=vals.get('scene', Path(path).stem if path else system.name),
+        system=lock(system, locked, sq), full_system=system, t_end=t_end, q0=pick(q0),
+        qdot0=pick(qd0), z0=z0, zdot0=zd0, steady_q=pick(sq), steady_qdot=pick(sqd),
+        steady_z=sz, locked=tuple(locked), description=vals.get('description', ''),
+        path=path, node={k: v for k, v in vals.items() if k in NODE_KEYS},
+        perturbation={k: _vector(vals, f'perturbation.{k}', size, what, where)
+                      for k, size, what in (('q', n, per_q), ('qdot', n, per_q),
+                                            ('z', m, per_r), ('zdot', m, per_r))
+                      if f'perturbation.{k}' in vals})
+
+
+def _check_mass(scene: Scene, model: GeneralModel, y: np.ndarray, what: str,
+                where: str) -> None:
+    Mbar = model.lin(y)[0]
+    w = np.linalg.eigvalsh(Mbar) if Mbar.size else np.ones(1)
+    if not (np.all(np.isfinite(w)) and w.min() > 1e-12 * max(1.0, abs(w).max())):
+        raise SceneError(f'{where}: the mass matrix of system {scene.system.name} (with the '
+                         f'rotors) is not positive definite at the {what} state q = '
+                         f'{y[:model.n].tolist()} (eigenvalues {w.tolist()}): a singular point '
+                         f'of the coordinates or a bad constant')
+
+
+def _check_energy(scene: Scene, model: GeneralModel, where: str) -> None:
+    """Refuse a scene whose E* (eq. 13) or accelerations are not finite where it starts.
+
+    Checked on the steady motion and the initial state before anything runs (issue 24: a
+    potential infinite everywhere, ``1/(sin(x)**2 + cos(x)**2 - 1)``, gave E*(0) = inf and
+    a residual of nan, exit 0).
+    """
+    for what, y in (('steady', scene.steady_state(model)),
+                    ('initial', scene.initial_state(model))):
+        with np.errstate(all='ignore'):
+            E = float(model.energy(y))
+            f = model.rhs(0.0, y)
+        if not math.isfinite(E):
+            raise SceneError(f'{where}: E* of system {scene.system.name} is {E} at the {what} '
+                             f'state q = {y[:model.n].tolist()}: the potential or a constant '
+                             'is not finite there')
+        if not np.all(np.isfinite(f)):
+            raise SceneError(f'{where}: the equations of motion of system '
+                             f'{scene.system.name} are not finite at the {what} state q = '
+                             f'{y[:model.n].tolist()}')
+
+
+def steady_residual(scene: Scene, model: GeneralModel | None = None) -> np.ndarray:
+    """Accelerations (qddot, zddot) on the steady motion (zero if it is steady)."""
+    model = model or scene.make_model()
+    f = model.rhs(0.0, scene.steady_state(model))
+    n, m = model.n, model.m
+    return np.concatenate([f[n:2 * n], f[2 * n + m:2 * n + 2 * m]])
+
+
+def check_steady(scene: Scene, model: GeneralModel | None = None,
+                 where: str | None = None) -> None:
+    """Raise SceneError if the accelerations on the steady motion do not vanish."""
+    model = model or scene.make_model()
+    acc = steady_residual(scene, model)
+    v = np.abs(np.concatenate([scene.steady_qdot, [1.0]])).max()
+    tol = 1e-9 * max(1.0, v * v, model.rate())
+    worst = int(np.argmax(np.abs(acc))) if acc.size else 0
+    if acc.size and abs(acc[worst]) > tol:
+        names = [f'{c}_ddot' for c in scene.system.coordinates] + [
+            f'zddot_{r}' for r in scene.system.rotors]
+        raise SceneError(
+            f'{where or "scene " + scene.name}: steady.q/steady.qdot is not a steady motion: '
+            f'the accelerations do not vanish there ({names[worst]} = {acc[worst]:.6g}, '
+            f'largest of {np.abs(acc).max():.3g} > {tol:.3g}); `gyro-rotor steady '
+            f'{scene.path or scene.name}` solves for one from this guess')

@@ -85,8 +85,7 @@ def _check_values(values) -> np.ndarray:
 
 def campbell(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
     """Campbell diagram of a general or a centrifuge scene (module doc)."""
-    from gyro_rotor.core.system.scene import GeneralScene
-    if isinstance(scene, GeneralScene):
+    if not scene.builtin:
         return campbell_general(scene, Omega0_values, orders=orders)
     return campbell_centrifuge(scene, Omega0_values, orders=orders)
 

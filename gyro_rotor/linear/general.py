@@ -32,14 +32,13 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from gyro_rotor.core.scene import check_steady, Scene
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.core.system.scene import check_steady, GeneralScene
 from gyro_rotor.errors import ParameterError, SceneError
-from gyro_rotor.linear.campbell import Campbell  # noqa: F401 -- the result of campbell()
 import numpy as np
 
 __all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims',
-           'campbell', 'Campbell', 'solve_steady', 'REL_AXIS']
+           'solve_steady', 'REL_AXIS']
 
 #: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
 #: labels and the predicted verdict; the claims use each root's own resolution)
@@ -127,7 +126,7 @@ def _A0(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:
     return A0, b, c, A_locked, fast, A_cons
 
 
-def linearize_scene(scene: GeneralScene, *, drive: str | None = None,
+def linearize_scene(scene: Scene, *, drive: str | None = None,
                     model: GeneralModel | None = None) -> GeneralLinear:
     """Linearize a general scene about its steady motion (checked steady and stationary).
 
@@ -229,17 +228,7 @@ def check_claims(lin: GeneralLinear):
     return check(lin.drive_system())
 
 
-def campbell(scene: GeneralScene, Omega0_values, *, orders=(1, 2)):
-    """Campbell diagram over Omega0 with tracked modes: :mod:`gyro_rotor.linear.campbell`.
-
-    Every drive's Omega0 is scaled by the same factor; critical speeds: a mode frequency
-    crosses k times the rotor speed Omega0/2 pi.
-    """
-    from gyro_rotor.linear.campbell import campbell_general
-    return campbell_general(scene, Omega0_values, orders=orders)
-
-
-def solve_steady(scene: GeneralScene, *, max_iter: int = 50) -> tuple:
+def solve_steady(scene: Scene, *, max_iter: int = 50) -> tuple:
     """Newton for (q, z) with qdot = steady.qdot held: the accelerations vanish.
 
     Returns (q, z, largest |acceleration|) from the scene's steady guess.

@@ -35,9 +35,9 @@ import sys
 import tempfile
 import time
 
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.system.codegen import pack
 from gyro_rotor.core.system.equations import derive
-from gyro_rotor.core.system.scene import load_general_scene
 from gyro_rotor.numerics import general
 from gyro_rotor.numerics.integrators import kernels
 import numpy as np
@@ -81,7 +81,7 @@ def rhs_cost(count: int = 2_000_000, repeats: int = 5) -> dict:
     """Nanoseconds per evaluation: generated centrifuge_euler vs the hand-written kernel."""
     from gyro_rotor.core.model import FullModel
     from gyro_rotor.core.params import RotorParams
-    scene = load_general_scene('centrifuge_euler')
+    scene = load_scene('centrifuge_euler')
     model = scene.make_model()
     e = {'theta': 0.4, 'thetadot': 0.3, 'psi': 0.1, 'psidot': 1.5, 'phi_M': 0.2,
          'phi_M_dot': -0.7, 'z': 0.05, 'zdot': 0.4}
@@ -197,7 +197,7 @@ def work_precision(names=('centrifuge_euler', 'twin_gimbal', 'elastic_frame'),
     from scipy.integrate import solve_ivp
     rows = []
     for name in names:
-        scene = load_general_scene(name)
+        scene = load_scene(name)
         model = scene.make_model()
         te = np.arange(int(round(t_end * SAMPLE_RATE)) + 1) / SAMPLE_RATE
         y0 = scene.initial_state(model)
@@ -352,7 +352,7 @@ def stiff_table(K_Ds=STIFF_K_D, name: str = 'twin_gimbal', t_end: float = 2.0,
     from scipy.integrate import solve_ivp
     rows, checks = [], {}
     for K_D in K_Ds:
-        scene = load_general_scene(name, {'K_D': K_D})
+        scene = load_scene(name, {'K_D': K_D})
         model = scene.make_model()
         te = np.arange(int(round(t_end * SAMPLE_RATE)) + 1) / SAMPLE_RATE
         y0 = scene.initial_state(model)

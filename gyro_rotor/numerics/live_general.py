@@ -28,12 +28,11 @@ pacer, the work budget, the divergence guard, the services' actions, the diagnos
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, Mapping
 
+from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.core.system.system_file import DRIVE_KEYS
 from gyro_rotor.errors import ParameterError, SceneError
 from gyro_rotor.numerics.general import choose_method, KernelSystem, METHODS
@@ -66,7 +65,7 @@ class GeneralLiveSimulation(LiveSimulation):
 
     energy_fields = GENERAL_ENERGY_FIELDS
 
-    def __init__(self, scene: GeneralScene, cfg: Mapping[str, Any],
+    def __init__(self, scene: Scene, cfg: Mapping[str, Any],
                  perturbation: Mapping[str, Any] | None = None, **kwargs: Any):
         # kicks of q and qdot name every coordinate of the system file, as initial.q does;
         # a locked coordinate's entry must be 0
@@ -97,7 +96,7 @@ class GeneralLiveSimulation(LiveSimulation):
         return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
                             step_size=cfg['step_size'], model=KernelSystem(model))
 
-    def _changed_scene(self, changes: Mapping[str, Any]) -> GeneralScene | None:
+    def _changed_scene(self, changes: Mapping[str, Any]) -> Scene | None:
         phys = {k: v for k, v in changes.items() if is_physical_key(k)}
         if not phys:
             return None
@@ -106,7 +105,7 @@ class GeneralLiveSimulation(LiveSimulation):
         except SceneError as err:
             raise ParameterError(str(err)) from None
 
-    def _model_of(self, scene: GeneralScene) -> GeneralModel:
+    def _model_of(self, scene: Scene) -> GeneralModel:
         return scene.make_model()
 
     def _jump(self, model: GeneralModel, t: float, y: np.ndarray) -> np.ndarray:
@@ -156,8 +155,8 @@ class GeneralLiveSimulation(LiveSimulation):
             y[sl] += kick[self._free] if k in ('q', 'qdot') else kick
         return y
 
-    def _with_t_end(self, scene: GeneralScene, t_end: float) -> GeneralScene:
-        return dataclasses.replace(scene, t_end=t_end, flat={**scene.flat, 't_end': t_end})
+    def _with_t_end(self, scene: Scene, t_end: float) -> Scene:
+        return scene.with_t_end(t_end)
 
     def _norm_error(self, y: np.ndarray) -> float:
         return 0.0
@@ -188,10 +187,9 @@ class GeneralLiveSimulation(LiveSimulation):
         """Return the current scene as a document (the node's ``~/scene``).
 
         ``flat`` holds the scene's keys with the system file's document embedded
-        (:func:`~gyro_rotor.core.system.scene.general_scene_to_flat`): a reader rebuilds
+        (:func:`~gyro_rotor.core.scene.Scene.to_flat`): a reader rebuilds
         the scene without the file.
         """
-        from gyro_rotor.core.system.scene import general_scene_to_flat
         sc = self.scene
         return {'scene': sc.name, 'system': sc.system.name, 't_end': sc.t_end,
                 'constants': dict(sc.full_system.constants),
@@ -200,4 +198,4 @@ class GeneralLiveSimulation(LiveSimulation):
                 'joint_names': list(self.joint_names), 'initial': self._initial_doc(),
                 'perturbation': self._kick_values, 'node': self.cfg,
                 'integrator': self.stepper.method, 't_sim': self.stepper.t,
-                'path': sc.path, 'flat': general_scene_to_flat(sc)}
+                'path': sc.path, 'flat': sc.to_flat()}

@@ -1,13 +1,22 @@
-"""Simulation driver: a scene in, a :class:`Trajectory` out (pure Python, no rclpy).
+"""Simulation driver: a scene of any system in, a :class:`Trajectory` out (no rclpy).
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`,
-Radau9 where the drive damping makes the scene stiff, Split8 for long conservative runs), at
+(:func:`auto_method`; for the centrifuge the compiled DOP853 of
+:mod:`gyro_rotor.numerics.integrators`, Radau9 where the drive damping makes the scene
+stiff, Split8 for long conservative runs; for a system file
+:func:`gyro_rotor.numerics.general.choose_method`), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
 override, and scipy's ``solve_ivp`` methods stay selectable by their names.
+
+One CSV format for every system (:meth:`Trajectory.save`): a header row of ``name [unit]``,
+then one row per sample; the columns are the model's (``model.csv_columns()``): ``t``, the
+coordinates by name and their rates ``NAME_dot``, then the rotor lags (``z``, or
+``z_ROTOR`` for each rotor of a system file) and their rates, E*, dE*/dt and the
+energy-balance residual (the centrifuge adds its axis, twist chi, drive torque Q and the
+quaternion's norm error).
 """
 
 from __future__ import annotations
@@ -19,23 +28,19 @@ from typing import Any, Mapping
 from gyro_rotor.core.model import Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
+from gyro_rotor.numerics import general
 from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
                                              make_integrator, METHODS)
 import numpy as np
 
 __all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
-           'CSV_COLUMNS', 'check_tolerances', 'auto_method',
-           'SCIPY_METHODS']
+           'check_tolerances', 'auto_method', 'SCIPY_METHODS', 'methods_of']
 
 DEFAULT_METHOD = 'auto'
 DEFAULT_RATE = 100.0
 #: most output samples of one simulate() call (t_end x rate)
 MAX_SAMPLES = 5e7
-
-CSV_COLUMNS = ('t', 'theta', 'psi', 'phi_R', 'phi_M', 'thetadot', 'psidot', 'phi_R_dot',
-               'phi_M_dot', 'axis_x', 'axis_y', 'axis_z', 'chi', 'z', 'zdot', 'Q', 'E_star',
-               'dE_dt', 'residual', 'qnorm_error')
 
 
 @dataclasses.dataclass
@@ -84,40 +89,44 @@ class Trajectory:
 
     @property
     def max_qnorm_drift(self) -> float:
-        """Return max ||q| - 1| over the samples."""
-        return float(np.max(np.abs(self.out['qnorm_error'])))
+        """Return max ||q| - 1| over the samples (0 for a model without a quaternion)."""
+        q = self.out.get('qnorm_error')
+        return 0.0 if q is None else float(np.max(np.abs(q)))
 
     def columns(self) -> dict:
-        """Return the CSV columns as arrays (see CSV_COLUMNS)."""
+        """Return the CSV columns as arrays, by name (those the model lists)."""
         o = self.out
-        cols = {k: o[k] for k in CSV_COLUMNS if k in o}
-        cols['axis_x'], cols['axis_y'], cols['axis_z'] = o['axis'].T
-        return {k: np.asarray(cols[k]) for k in CSV_COLUMNS}
+        return {name: np.asarray(o[key] if comp is None else o[key][:, comp])
+                for name, _, key, comp in self.model.csv_columns()}
+
+    def units(self) -> dict:
+        """Return the unit of each CSV column, by name."""
+        return {name: unit for name, unit, *_ in self.model.csv_columns()}
 
     def save(self, path: str) -> None:
-        """Write a CSV (header row) or NPZ file, by the suffix of ``path``."""
+        """Write a CSV (a header row of name [unit]) or NPZ file, by the suffix of ``path``."""
         cols = self.columns()
         if str(path).endswith('.npz'):
             np.savez_compressed(path, y=self.y, state_names=np.array(self.model.state_names),
                                 **cols)
         elif str(path).endswith('.csv'):
-            data = np.column_stack([cols[k] for k in CSV_COLUMNS])
-            np.savetxt(path, data, delimiter=',', header=','.join(CSV_COLUMNS), comments='',
+            units = self.units()
+            np.savetxt(path, np.column_stack(list(cols.values())), delimiter=',',
+                       header=','.join(f'{k} [{units[k]}]' for k in cols), comments='',
                        fmt='%.17g')
         else:
             raise ParameterError(f'--out must end in .csv or .npz, got {path}')
 
     def summary(self) -> dict:
-        """Numbers for a printed summary."""
-        o = self.out
+        """Numbers for a printed summary; ``final``: (name, value, unit) at the end."""
+        cols, units = self.columns(), self.units()
         return {
             'scene': self.scene.name, 'model': self.model.name, 'method': self.method,
             'rtol': self.rtol, 'atol': self.atol, 'step': self.step, 'setting': self.setting,
-            't_end': float(self.t[-1]),
-            'samples': len(self.t), 'theta_end': float(o['theta'][-1]),
-            'psidot_end': float(o['psidot'][-1]), 'chi_end': float(o['chi'][-1]),
-            'z_end': float(o['z'][-1]), 'zdot_end': float(o['zdot'][-1]),
-            'E_star_first': float(o['E_star'][0]), 'E_star_last': float(o['E_star'][-1]),
+            't_end': float(self.t[-1]), 'samples': len(self.t),
+            'final': [(k, float(cols[k][-1]), units[k]) for k in self.model.final_state()],
+            'E_star_first': float(self.out['E_star'][0]),
+            'E_star_last': float(self.out['E_star'][-1]),
             'max_abs_residual': self.max_abs_residual,
             'max_qnorm_drift': self.max_qnorm_drift, 'nfev': self.nfev,
             'nsteps': self.nsteps, 'wall_time': self.wall_time,
@@ -125,14 +134,25 @@ class Trajectory:
         }
 
 
-def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
+def auto_method(scene: Scene, t_end: float | None = None, model=None,
+                y0: np.ndarray | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    See :func:`gyro_rotor.numerics.integrators.choose_method`: Radau9 where the drive
-    damping makes the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
+    The centrifuge: :func:`gyro_rotor.numerics.integrators.choose_method` (Radau9 where
+    the drive damping makes the scene stiff, Split8 for long conservative runs, DOP853
+    otherwise); a system file: :func:`gyro_rotor.numerics.general.choose_method` at
+    ``y0`` (default: the scene's initial state).
     """
+    if not scene.builtin:
+        model = model or scene.make_model()
+        return general.choose_method(model, scene.initial_state(model) if y0 is None else y0)
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
                              scene.model)
+
+
+def methods_of(scene: Scene) -> tuple:
+    """Return the project's integration methods that apply to the scene's system."""
+    return tuple(METHODS) if scene.builtin else general.METHODS
 
 
 def check_tolerances(rtol: float, atol: float) -> None:
@@ -183,18 +203,21 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     atol = DEFAULT_ATOL if atol is None else float(atol)
     check_tolerances(rtol, atol)
     reason = ''
-    if method == 'auto':
-        method, reason = auto_method(scene, t_end)
-    if method not in METHODS and method not in SCIPY_METHODS:
-        raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
-                             f"{', '.join(METHODS)}, {', '.join(SCIPY_METHODS)}")
+    own = methods_of(scene)
+    if method not in ('auto',) + own and method not in SCIPY_METHODS:
+        raise ParameterError(f"unknown integrator '{method}' for system {scene.system_name}; "
+                             f"valid: auto, {', '.join(own)}, {', '.join(SCIPY_METHODS)}")
     model = scene.make_model()
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
-    if y_init.shape != (model.n,) or not np.all(np.isfinite(y_init)):
-        raise ParameterError(f'the initial state must be {model.n} finite numbers')
+    size = len(model.state_names)
+    if y_init.shape != (size,) or not np.all(np.isfinite(y_init)):
+        raise ParameterError(f'the initial state must be {size} finite numbers')
+    if method == 'auto':
+        method, reason = auto_method(scene, t_end, model, y_init)
     t_eval = _sample_times(t_end, rate)
-    if method in METHODS:
-        run = _run_own(model, y_init, t_eval, method, rtol, atol, step)
+    if method in own:
+        kernel_model = model if scene.builtin else general.KernelSystem(model)
+        run = _run_own(kernel_model, y_init, t_eval, method, rtol, atol, step)
     else:
         run = _run_scipy(scene, model, y_init, t_eval, method, rtol, atol)
     if run.status < 0 or not np.all(np.isfinite(run.y)):
@@ -285,7 +308,7 @@ def _failure(scene: Scene, model: Model, method: str, run: _Run) -> str:
     good = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
     t_fail = run.t[-1] if run.t.size else 0.0
     text = f'integration of scene {scene.name} with {method} failed at t = {t_fail}'
-    if np.any(good):
+    if np.any(good) and scene.builtin:
         k = int(np.flatnonzero(good)[-1])
         theta = model.outputs(run.t[k:k + 1], run.y[k:k + 1])['theta'][0]
         if np.pi - abs(theta) < 1e-6:

@@ -34,7 +34,7 @@ from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FI
 from gyro_rotor.analysis.session import AnalysisSession, scene_to_flat
 from gyro_rotor.bag.wire import (energy_from_cdr, joints_from_cdr,
                                  scene_doc_for_bag, scene_ref)
-from gyro_rotor.core.system.scene import load_any_scene
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.ros.messages as ros_msgs
 from gyro_rotor.ros.qos import profile
@@ -106,7 +106,7 @@ class RotorAnalysisNode(Node):
             description='period of the published results [s]',
             floating_point_range=_float_range(0.05, 3600.0), read_only=True)).value
         self.options = {'window_s': float(window), 'min_fit_s': float(min_fit)}
-        scene = load_any_scene(scene_name) if scene_name else None
+        scene = load_scene(scene_name) if scene_name else None
         self.session = AnalysisSession(scene, **self.options)
         self.errors: list[str] = []
         self.last_result = None

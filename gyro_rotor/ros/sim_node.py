@@ -51,7 +51,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from gyro_rotor.core.rotations import axis_from_quaternion
-from gyro_rotor.core.system.scene import GeneralScene
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.numerics.live import Level, LiveSimulation
 from gyro_rotor.numerics.live_general import GeneralLiveSimulation
@@ -194,7 +193,7 @@ class RotorSimNode(Node):
             '(0: normal scheduling)', read_only=True)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         #: the simulation (everything but ROS)
-        kind = GeneralLiveSimulation if isinstance(scene, GeneralScene) else LiveSimulation
+        kind = LiveSimulation if scene.builtin else GeneralLiveSimulation
         self.sim = kind(scene, cfg, perturbation, log=self._log)
         #: held by the loop thread while it ticks and publishes, and by every service,
         #: parameter change and diagnostics call on the executor

@@ -16,8 +16,8 @@ import dataclasses
 import warnings
 
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import (DEFAULT_SCENE, load_scene, NODE_KEYS, PERTURBATION_KEYS,
-                                   scene_from_mapping, SCENE_KEYS)
+from gyro_rotor.core.scene import (CENTRIFUGE, DEFAULT_SCENE, load_scene, NODE_KEYS,
+                                   PERTURBATION_KEYS, scene_from_mapping, SCENE_KEYS)
 from gyro_rotor.core.scene import NODE_RANGES as _SCENE_NODE_RANGES
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -129,18 +129,21 @@ def declare_node_parameter(node: Node, name: str, default, doc: str,
 def declare_parameters(node: Node) -> tuple:
     """Declare every parameter; return (scene, node keys, perturbation) as given at start.
 
-    The scene is a centrifuge :class:`Scene`, or a
-    :class:`~gyro_rotor.core.system.scene.GeneralScene` for a scene file with a ``system``
-    key (its parameters: :func:`_declare_general`).
+    The parameters of the built-in centrifuge are its RotorParams and initial condition;
+    a system file's scene has its own (:func:`_declare_system`).
     """
     name = _declare(node, 'scene', DEFAULT_SCENE, 'scene name (config/<name>.yaml), a general '
                     "scene's name (config/systems/scenes) or a path to a scene file; loaded "
                     'at start, the other parameters override it', True)
-    from gyro_rotor.core.system.scene import is_general_scene
-    if is_general_scene(name):
-        return _declare_general(node, name)
     base = load_scene(name)
+    if not base.builtin:
+        return _declare_system(node, base)
     flat: dict = {'scene': base.name}
+    flat['system'] = _declare(node, 'system', CENTRIFUGE, 'the rotor system: the built-in '
+                              'centrifuge (that of the scene file)', True)
+    if flat['system'] != CENTRIFUGE:
+        raise ParameterError(f"parameter system: '{flat['system']}' is not the system of "
+                             f"scene '{base.name}' ('{CENTRIFUGE}'); give a scene of that system")
     flat['description'] = _declare(node, 'description', base.description,
                                    'what the scene shows', True)
     flat['model'] = _declare(node, 'model', base.model, 'full | locked_housing | upright_axis',
@@ -187,17 +190,15 @@ def _node_keys(node: Node, base_node: dict) -> dict:
             for k, (typ, default, doc) in NODE_KEYS.items() if k != 'use_sim_time'}
 
 
-def _declare_general(node: Node, name: str) -> tuple:
-    """Declare the parameters of a general scene; return (scene, node keys, perturbation).
+def _declare_system(node: Node, base) -> tuple:
+    """Declare the parameters of a system file's scene; return (scene, keys, perturbation).
 
     ``system`` (read only), ``t_end``, ``constants.NAME`` and ``drive.ROTOR.KEY`` (live),
     ``initial.q``/``qdot``/``z``/``zdot`` and ``steady.*`` (read at start),
     ``perturbation.q``/``qdot``/``z``/``zdot`` (the kick of ~/perturb, live) and the node
     keys.
     """
-    from gyro_rotor.core.system.scene import load_general_scene
     from gyro_rotor.core.system.system_file import DRIVE_KEYS
-    base = load_general_scene(name)
     system, flat = base.full_system, dict(base.flat)
     decl, overrides = {}, {}
 

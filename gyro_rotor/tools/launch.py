@@ -18,12 +18,16 @@ from __future__ import annotations
 import fcntl
 import os
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
 from typing import Any, IO, Mapping
 
-__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param']
+from gyro_rotor.errors import GyroRotorError
+
+__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param',
+           'energy_seq_from_cdr']
 
 
 class DomainClaim:
@@ -146,16 +150,16 @@ _TRUE = ('true', '1', 'yes', 'on')
 def scene_urdf(scene: str, share: str) -> str | None:
     """Return the URDF of a scene's system, or None if it has none (or is not found).
 
-    The centrifuge scenes (``config/<scene>.yaml``) have ``urdf/centrifuge.urdf``; a general
-    scene (a ``system`` key; ``config/systems/scenes/<scene>.yaml`` first, as rotor_sim
-    looks it up) has none. Light: reads the YAML file only, for launch files.
+    The centrifuge's scenes (``system: centrifuge``, or no ``system`` key) have
+    ``urdf/centrifuge.urdf``; a system file's scene has none. Light: reads the YAML file
+    only, for launch files.
     """
     import yaml
     if scene.endswith(('.yaml', '.yml')) or os.sep in scene or os.path.isfile(scene):
         candidates = [scene]
     else:
-        candidates = [os.path.join(share, 'config', 'systems', 'scenes', f'{scene}.yaml'),
-                      os.path.join(share, 'config', f'{scene}.yaml')]
+        candidates = [os.path.join(share, 'config', f'{scene}.yaml'),     # as scene_path
+                      os.path.join(share, 'config', 'systems', 'scenes', f'{scene}.yaml')]
     for path in candidates:
         if not os.path.isfile(path):
             continue
@@ -167,7 +171,8 @@ def scene_urdf(scene: str, share: str) -> str | None:
         params = next((v['ros__parameters'] for v in (doc or {}).values()
                        if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)),
                       {})
-        return None if 'system' in params else os.path.join(share, 'urdf', 'centrifuge.urdf')
+        return (os.path.join(share, 'urdf', 'centrifuge.urdf')
+                if params.get('system', 'centrifuge') == 'centrifuge' else None)
     return None
 
 
@@ -320,6 +325,16 @@ def _running(pid: int) -> bool:
         return False
 
 
+def energy_seq_from_cdr(data: bytes) -> int:
+    """Return the ``seq`` of a serialized ``energy`` message (its data array ends the CDR)."""
+    from gyro_rotor.bag.wire import ENERGY_FIELDS
+    n = len(ENERGY_FIELDS)
+    off = len(data) - 8 * n + 8 * ENERGY_FIELDS.index('seq')
+    if off < 4:
+        raise GyroRotorError(f'energy message of {len(data)} bytes is too short')
+    return int(struct.unpack_from('<d', data, off)[0])
+
+
 def check_bag(path: str, sim_log_text: str = '') -> list[str]:
     """Return what is wrong with a bag recorded under launch (empty: finalized, whole).
 
@@ -330,8 +345,6 @@ def check_bag(path: str, sim_log_text: str = '') -> list[str]:
     import re
     import warnings
     from gyro_rotor.bag.bagio import open_bag
-    from gyro_rotor.errors import GyroRotorError
-    from gyro_rotor.tools.soak import energy_seq_from_cdr
     found = []
     if not os.path.isfile(os.path.join(path, 'metadata.yaml')):
         found.append(f'{path}: no metadata.yaml')

@@ -24,14 +24,13 @@ import math
 import os
 from pathlib import Path
 import re
-import struct
 import time
 from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
 
 __all__ = ['SoakResult', 'run_soak', 'find_max_rate', 'read_rss_kb', 'read_cpu_s', 'CpuLoad',
-           'energy_seq_from_cdr', 'SIM_TOPICS']
+           'SIM_TOPICS']
 
 #: topics whose published count the simulator reports, and their names in the bag
 SIM_TOPICS = {'joint_states': '/joint_states', 'energy': '/energy', 'axis': '/axis',
@@ -55,16 +54,6 @@ def read_rss_kb(pid: int) -> int | None:
     except OSError:
         return None
     return None
-
-
-def energy_seq_from_cdr(data: bytes) -> int:
-    """Return the ``seq`` of a serialized ``energy`` message (its data array ends the CDR)."""
-    from gyro_rotor.bag.wire import ENERGY_FIELDS
-    n = len(ENERGY_FIELDS)
-    off = len(data) - 8 * n + 8 * ENERGY_FIELDS.index('seq')
-    if off < 4:
-        raise GyroRotorError(f'energy message of {len(data)} bytes is too short')
-    return int(struct.unpack_from('<d', data, off)[0])
 
 
 @dataclasses.dataclass
@@ -278,6 +267,7 @@ def _published_from_log(log: Path) -> dict:
 
 def _count_bag(bag: Path, res: SoakResult) -> None:
     from gyro_rotor.bag.bagio import open_bag
+    from gyro_rotor.tools.launch import energy_seq_from_cdr
     reader = open_bag(bag)
     for k, topic in SIM_TOPICS.items():
         info = reader.topics.get(topic)

@@ -11,8 +11,8 @@ module         concept
 =============  ==================================================================
 ``grid``       ``--grid KEY=START:STOP:COUNT[:log]`` axes, their product, checks
 ``metrics``    per-trajectory metrics (final well, pole slips, settling, ...)
-``task``       the sweep specification and one block of points = one ensemble run
-``general``    the same for general scenes (constants and drive values of a system)
+``task``       the sweep specification and one block of points = one ensemble run,
+               for the centrifuge and for any system file's scene alike
 ``store``      incremental Parquet output, the manifest, ``--resume``
 ``runner``     serial in-process or on Dask (local process cluster or by address)
 ``maps``       heatmap PNGs of a metric over two grid axes

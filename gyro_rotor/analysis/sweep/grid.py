@@ -8,6 +8,11 @@ axes in the order given, the first axis varying slowest (C order); point ``i`` h
 multi-index ``numpy.unravel_index(i, shape)``. Every value of every axis is checked
 against the scene (with the other keys at the scene's values) before any work starts, so
 a value the parameters refuse is an error up front, not a column of failed points.
+
+A scene with a ``system`` key sweeps ``constants.NAME`` (a constant of the system),
+``K_S``, ``K_D``, ``Omega0`` (every rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's);
+:meth:`SweepGrid.check_system` loads each value of each axis with
+:func:`~gyro_rotor.core.scene.load_scene` (the loader's own checks) before any work.
 """
 
 from __future__ import annotations
@@ -18,12 +23,12 @@ import math
 from typing import Any, Mapping, Sequence
 
 from gyro_rotor.core.params import PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import scene_from_mapping, SCENE_KEYS
+from gyro_rotor.core.scene import load_scene, scene_from_mapping, SCENE_KEYS
 from gyro_rotor.errors import did_you_mean, GyroRotorError, ParameterError
 import numpy as np
 
 __all__ = ['Spacing', 'GridAxis', 'SweepGrid', 'parse_axis', 'SWEEP_KEYS', 'key_unit',
-           'MAX_POINTS']
+           'MAX_POINTS', 'SYSTEM_DRIVE_KEYS']
 
 #: most points of one sweep (the grid product)
 MAX_POINTS = 100_000_000
@@ -34,6 +39,8 @@ _INITIAL_UNITS = {'theta0': 'rad', 'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsid
                   'chi': 'rad', 'branch': '-'}
 #: the scene keys a grid may run over: parameters and numeric initial conditions
 SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in _INITIAL_UNITS)
+#: the drive keys a system's grid may run over, for every rotor or as drive.ROTOR.KEY
+SYSTEM_DRIVE_KEYS = ('K_S', 'K_D', 'Omega0')
 
 
 def key_unit(key: str) -> str:
@@ -212,3 +219,27 @@ class SweepGrid:
                 except GyroRotorError as err:
                     raise ParameterError(f'--grid {a.spec}: the value {a.key} = {v:g} is '
                                          f'refused: {err}') from None
+
+    def check_system(self, scene: str) -> list:
+        """Refuse keys a system's scene cannot sweep and any value its loader refuses.
+
+        ``scene`` names the scene file. Return the loaded scenes: the scene itself, then
+        one per distinct value of each axis (the other keys at the scene's values).
+        """
+        scenes = [load_scene(scene)]
+        for a in self.axes:
+            parts = a.key.split('.')
+            ok = (a.key in SYSTEM_DRIVE_KEYS or (parts[0] == 'constants' and len(parts) == 2)
+                  or (parts[0] == 'drive' and len(parts) == 3
+                      and parts[2] in SYSTEM_DRIVE_KEYS))
+            if not ok:
+                raise ParameterError(f"--grid: key '{a.key}' cannot be swept in a general "
+                                     'scene; sweepable: constants.NAME, K_S, K_D, Omega0, '
+                                     'drive.ROTOR.{K_S,K_D,Omega0}')
+            for v in np.unique(a.values):
+                try:
+                    scenes.append(load_scene(scene, overrides={a.key: float(v)}))
+                except GyroRotorError as err:
+                    raise ParameterError(f'--grid {a.spec}: the value {a.key} = {v:g} is '
+                                         f'refused: {err}') from None
+        return scenes

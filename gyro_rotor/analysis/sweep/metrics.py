@@ -26,6 +26,13 @@ column                 definition                                               
 ``spectral_abscissa``  max Re of the linearization's roots at the point (judged modes,      1/s
                        :func:`gyro_rotor.linear.stability.analyze`)
 =====================  ===============================================================  =====
+
+A scene with a ``system`` key (eqs. 1-17 of any rotor system) has no single drive lag:
+its metrics (:data:`SYSTEM_METRICS`, :func:`system_metrics`) are taken of the deviation
+amplitude a = max_i |q_i - steady.q_i| over the coordinates that move: ``peak`` (max a),
+``settling`` (first time after which a stays <= tol), ``decay`` (the decay rate of a over
+the run, :func:`fit_decay`), ``energy`` (E* at t_end, eq. 13). ``well`` and ``abscissa``
+are not computed for them (refused up front).
 """
 
 from __future__ import annotations
@@ -38,7 +45,7 @@ import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
            'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay',
-           'decay_interval']
+           'decay_interval', 'SYSTEM_METRICS', 'system_metrics']
 
 #: default settling tolerance of the drive amplitude a [rad]
 DEFAULT_TOL = 1e-3
@@ -73,6 +80,8 @@ METRIC_COLUMNS = {
     Metric.ENERGY: ('final_E_star',),
     Metric.ABSCISSA: ('spectral_abscissa',),
 }
+#: the metric groups computed for a scene with a ``system`` key
+SYSTEM_METRICS = (Metric.SETTLING, Metric.PEAK, Metric.DECAY, Metric.ENERGY)
 #: columns stored as (nullable) integers
 INT_COLUMNS = ('final_well', 'pole_slips')
 COLUMN_UNITS = {'final_well': '-', 'pole_slips': '-', 'settling_time': 's',
@@ -191,4 +200,25 @@ def trajectory_metrics(model: Model, t: np.ndarray, y: np.ndarray, metrics, *,
             out['decay_rate'] = fit_decay(t[start:], a[start:])
     if Metric.ENERGY in metrics:
         out['final_E_star'] = float(model.energy(y[-1]))
+    return out
+
+
+def system_metrics(model, steady_q: np.ndarray, t: np.ndarray, y: np.ndarray, metrics, *,
+                   tol: float = DEFAULT_TOL) -> dict:
+    """Column -> value for one trajectory of a rotor system (samples ``y`` (m, n), finite).
+
+    ``model`` is the point's :class:`~gyro_rotor.core.system.model.GeneralModel`,
+    ``steady_q`` its steady coordinates; ``metrics`` a set of :data:`SYSTEM_METRICS`.
+    """
+    q = y[:, model.slices()[0]]
+    a = np.max(np.abs(q - steady_q), axis=1) if q.shape[1] else np.zeros(t.size)
+    out: dict = {}
+    if Metric.PEAK in metrics:
+        out['peak_deviation'] = float(np.max(a))
+    if Metric.SETTLING in metrics:
+        out['settling_time'] = settle_time(t, a, tol)
+    if Metric.DECAY in metrics:
+        out['decay_rate'] = fit_decay(t, a)
+    if Metric.ENERGY in metrics:
+        out['final_E_star'] = float(model.energy(y[-1:])[0])
     return out

@@ -7,6 +7,16 @@ specification, never on the scheduler, and each block is integrated by one call 
 ``h`` common to the whole sweep. The ensemble integrates each trajectory independently
 with that step, so a point's numbers do not depend on its block either: serial, on a
 local cluster or on a remote one, the results are the same to the last bit.
+
+Every scene takes the same path: :func:`make_spec` checks the grid and the metrics and fixes
+the step, :func:`run_block` sets up the block's points, integrates them in one ensemble and
+measures each. What differs by the scene's kind is only what a point is: the built-in
+centrifuge's points change its parameters and initial condition and are integrated by
+:func:`gyro_rotor.numerics.ensemble.run_ensemble` (metrics
+:func:`~gyro_rotor.analysis.sweep.metrics.trajectory_metrics`); a system file's points are
+its scene loaded with their values (:func:`~gyro_rotor.core.scene.load_scene`), one
+:class:`RotorSystem` per trajectory of :func:`gyro_rotor.numerics.general.run_ensemble`
+(metrics :func:`~gyro_rotor.analysis.sweep.metrics.system_metrics`).
 """
 
 from __future__ import annotations
@@ -15,15 +25,17 @@ import dataclasses
 import json
 import math
 import time
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 import warnings
 
 from gyro_rotor.analysis.sweep.grid import SweepGrid
 from gyro_rotor.analysis.sweep.metrics import (Metric, METRIC_COLUMNS, PointStatus,
+                                               SYSTEM_METRICS, system_metrics,
                                                trajectory_metrics)
 from gyro_rotor.core.model import make_model
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.core.scene import flatten, NODE_NAMES, Scene, scene_from_mapping, scene_path
+from gyro_rotor.core.scene import (flatten, load_scene, NODE_NAMES, Scene,
+                                   scene_from_mapping, scene_path)
 from gyro_rotor.errors import GyroRotorError, ParameterError, SceneError
 from gyro_rotor.numerics.ensemble import run_ensemble
 from gyro_rotor.numerics.integrators.base import model_rate
@@ -120,8 +132,8 @@ class SweepSpec:
         return cls(**{**d, 'grid': tuple(d['grid']), 'metrics': tuple(d['metrics'])})
 
 
-def _sweep_step(base: Mapping[str, Any], grid: SweepGrid) -> float:
-    """STEP_FACTOR / max model rate over the parameter axes (initial axes do not change it)."""
+def _fastest_rate(base: Mapping[str, Any], grid: SweepGrid) -> float:
+    """Max model rate over the parameter axes (initial axes do not change it)."""
     param_axes = [a for a in grid.axes if a.key in PARAM_FIELDS]
     fixed = {k: base[k] for k in PARAM_FIELDS if k in base}
     shape = tuple(a.count for a in param_axes)
@@ -134,14 +146,19 @@ def _sweep_step(base: Mapping[str, Any], grid: SweepGrid) -> float:
                 fastest = max(fastest, model_rate(RotorParams(**{**fixed, **ch})))
             except GyroRotorError:
                 continue                  # such a point is recorded as failed
-    return STEP_FACTOR / max(fastest, 1.0)
+    return fastest
 
 
-def _check_metrics(wanted) -> None:
+def _check_metrics(wanted, done: Sequence[Metric]) -> None:
+    """Refuse an unknown metric, then one not computed for the scene's kind (``done``)."""
     for m in wanted:
         if m not in tuple(Metric):
             raise ParameterError(f"unknown metric '{m}'; valid: "
                                  f"{', '.join(x.value for x in Metric)}")
+    for m in wanted:
+        if Metric(m) not in done:
+            raise ParameterError(f"metric '{m}' is not computed for general scenes; valid: "
+                                 f"{', '.join(x.value for x in done)}")
 
 
 def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = None,
@@ -152,22 +169,21 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
 
     Raises :class:`~gyro_rotor.errors.ParameterError` or ``SceneError`` naming the problem.
     """
-    from gyro_rotor.core.system.scene import general_scene_path, is_general_scene
-    general = is_general_scene(scene)
     grid = SweepGrid.parse(grid_specs)
+    loaded = load_scene(scene)
+    general = not loaded.builtin
+    done = tuple(Metric) if loaded.builtin else SYSTEM_METRICS
+    wanted = done if metrics is None else tuple(metrics)
+    _check_metrics(wanted, done)
     if general:
-        from gyro_rotor.analysis.sweep.general import check_general_grid, GENERAL_METRICS
-        from gyro_rotor.core.system.scene import load_general_scene
-        path = str(general_scene_path(scene))
-        base = {'t_end': load_general_scene(path).t_end}
-        wanted = GENERAL_METRICS if metrics is None else tuple(metrics)
-        _check_metrics(wanted)
-        fastest = check_general_grid(path, grid, wanted)
+        from gyro_rotor.core.system.model import system_rate
+        path = str(loaded.path)
+        base = {'t_end': loaded.t_end}
+        fastest = max(system_rate(sc.system) for sc in grid.check_system(path))
     else:
         base, path = scene_flat(scene)
         grid.check(base)
-        wanted = tuple(Metric) if metrics is None else tuple(metrics)
-        _check_metrics(wanted)
+        fastest = None if step is not None else _fastest_rate(base, grid)
     t_end = float(base.get('t_end', 10.0)) if t_end is None else float(t_end)
     for name, v in (('--t-end', t_end), ('--rate', rate), ('--tol', tol)):
         if not (math.isfinite(v) and v > 0):
@@ -175,10 +191,7 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
     if t_end * rate < 1:
         raise ParameterError(f'--t-end x --rate = {t_end * rate:g}: at least one sample '
                              'interval is needed')
-    if step is not None:
-        h = float(step)
-    else:
-        h = STEP_FACTOR / max(fastest, 1.0) if general else _sweep_step(base, grid)
+    h = float(step) if step is not None else STEP_FACTOR / max(fastest, 1.0)
     if not (math.isfinite(h) and h > 0):
         raise ParameterError(f'--step must be positive and finite, got {step!r}')
     spec = SweepSpec(scene=path, base=base, grid=tuple(a.spec for a in grid.axes), t_end=t_end,
@@ -203,8 +216,25 @@ class BlockResult:
     steps: int
 
 
-def _setup_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int):
-    """Scenes, initial states and set-up errors of the points of a block.
+@dataclasses.dataclass
+class _Points:
+    """A block's points as set up: what the kinds of scene differ in (module doc).
+
+    ``idx``: the points set up (indices into the block), ``msg``: a set-up error per point,
+    ``Y0``: the initial states of ``idx`` (len(idx), n); ``run(sel)`` integrates the rows
+    ``sel`` of ``Y0`` in one ensemble; ``measure(j, y)`` gives point j's metric columns.
+    """
+
+    idx: list
+    msg: list
+    Y0: np.ndarray | None = None
+    run: Callable | None = None
+    measure: Callable | None = None
+
+
+def _centrifuge_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
+                       metrics: set) -> _Points:
+    """Points of the built-in centrifuge: its parameters and initial condition changed.
 
     The scene's other keys were checked with :meth:`SweepGrid.check`; a point changes
     only its parameters (validated by :class:`RotorParams`, one object per distinct set)
@@ -229,31 +259,78 @@ def _setup_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int):
                 scenes[j], Y0[j] = sc, sc.initial_state()
             except (GyroRotorError, ZeroDivisionError, ValueError) as err:
                 msg[j] = f'set-up: {err}'
-    return scenes, Y0, msg
-
-
-def _integrate(model_name: str, scenes: list, Y0: list, t_eval: np.ndarray, h: float):
-    """Integrate the set-up points: samples (m, N, n); on an exception point by point."""
-    idx = [j for j, s in enumerate(scenes) if s is not None]
+    idx = [j for j in range(n) if scenes[j] is not None]
     if not idx:
-        return idx, None, 0, {}
+        return _Points(idx, msg)
+    model_name = str(spec.base.get('model', 'full'))
     model = make_model(model_name, scenes[idx[0]].params)
     plist = [scenes[j].params for j in idx]
+    cache: dict = {}
+
+    def run(sel: slice):
+        return run_ensemble(model, Y[sel], spec.t_eval, method='rk4', step=spec.step,
+                            params=plist[sel])
+
+    def measure(j: int, y: np.ndarray) -> dict:
+        out = trajectory_metrics(make_model(model_name, scenes[j].params), spec.t_eval, y,
+                                 metrics, tol=spec.tol)
+        if Metric.ABSCISSA in metrics:
+            out['spectral_abscissa'] = _abscissa(scenes[j], cache)
+        return out
+
     Y = np.array([Y0[j] for j in idx])
+    return _Points(idx, msg, Y, run, measure)
+
+
+def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
+                   metrics: set) -> _Points:
+    """Points of a system file's scene: the scene loaded with each point's values."""
+    from gyro_rotor.core.system.model import GeneralModel
+    from gyro_rotor.numerics import general
+    msg = [''] * n
+    scenes: list = [None] * n
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        for j in range(n):
+            try:
+                scenes[j] = load_scene(spec.scene, overrides=grid.overrides(coords, j))
+            except (GyroRotorError, ArithmeticError, ValueError) as err:
+                msg[j] = f'set-up: {err}'
+    idx = [j for j in range(n) if scenes[j] is not None]
+    if not idx:
+        return _Points(idx, msg)
+    model = scenes[idx[0]].make_model()
+    systems = [scenes[j].system for j in idx]
+
+    def run(sel: slice):
+        return general.run_ensemble(model, Y[sel], spec.t_eval, systems=systems[sel],
+                                    method='rk4', step=spec.step)
+
+    def measure(j: int, y: np.ndarray) -> dict:
+        bound = GeneralModel(scenes[j].system, compiled=model.compiled)
+        steady_q = np.asarray(scenes[j].steady_q, dtype=float)
+        return system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
+
+    Y = np.array([scenes[j].initial_state(model) for j in idx])
+    return _Points(idx, msg, Y, run, measure)
+
+
+def _integrate(pts: _Points, m: int):
+    """Integrate the set-up points: samples (m, N, n); on an exception point by point."""
     try:
-        res = run_ensemble(model, Y, t_eval, method='rk4', step=h, params=plist)
-        return idx, res.y, res.nsteps, {}
+        res = pts.run(slice(None))
+        return res.y, int(res.nsteps), {}
     except (ArithmeticError, ValueError, GyroRotorError):
         pass
-    out = np.full((t_eval.size, len(idx), model.n), np.nan)
+    out = np.full((m, *pts.Y0.shape), np.nan)
     errors, nsteps = {}, 0
-    for c, j in enumerate(idx):
+    for c in range(len(pts.idx)):
         try:
-            r = run_ensemble(model, Y[c:c + 1], t_eval, method='rk4', step=h, params=[plist[c]])
-            out[:, c, :], nsteps = r.y[:, 0, :], r.nsteps
+            r = pts.run(slice(c, c + 1))
+            out[:, c, :], nsteps = r.y[:, 0, :], int(r.nsteps)
         except (ArithmeticError, ValueError, GyroRotorError) as err:
-            errors[j] = f'integration: {type(err).__name__}: {err}'
-    return idx, out, nsteps, errors
+            errors[c] = f'integration: {type(err).__name__}: {err}'
+    return out, nsteps, errors
 
 
 def _abscissa(scene: Scene, cache: dict) -> float:
@@ -270,42 +347,36 @@ def _abscissa(scene: Scene, cache: dict) -> float:
 
 def run_block(spec: SweepSpec, b: int) -> BlockResult:
     """Integrate block ``b`` of the sweep and return its columns (a row per point, always)."""
-    if spec.general:
-        from gyro_rotor.analysis.sweep.general import general_block
-        return general_block(spec, b)
     t0 = time.perf_counter()
     grid = spec.sweep_grid
     points = spec.block_points(b)
     n = points.size
     coords = grid.coordinates(points)
-    scenes, Y0, msg = _setup_points(spec, grid, coords, n)
-    t_eval = spec.t_eval
-    model_name = str(spec.base.get('model', 'full'))
-    idx, Y, nsteps, errors = _integrate(model_name, scenes, Y0, t_eval, spec.step)
     metrics = {Metric(m) for m in spec.metrics}
+    setup = _system_points if spec.general else _centrifuge_points
+    pts = setup(spec, grid, coords, n, metrics)
+    t_eval = spec.t_eval
+    msg = pts.msg
     names = [c for m in Metric if m in metrics for c in METRIC_COLUMNS[m]]
     cols = {c: np.full(n, np.nan) for c in names}
     status = np.full(n, int(PointStatus.FAILED), dtype=np.int8)
-    cache: dict = {}
-    for c, j in enumerate(idx):
-        if j in errors:
-            msg[j] = errors[j]
-            continue
-        y = Y[:, c, :]
-        fin = np.all(np.isfinite(y), axis=1)
-        if not np.all(fin):
-            status[j] = PointStatus.DIVERGED
-            msg[j] = f'non-finite state at t = {t_eval[np.argmin(fin)]:.6g} s'
-            continue
-        model = make_model(model_name, scenes[j].params)
-        for k, v in trajectory_metrics(model, t_eval, y, metrics, tol=spec.tol).items():
-            cols[k][j] = v
-        if Metric.ABSCISSA in metrics:
-            cols['spectral_abscissa'][j] = _abscissa(scenes[j], cache)
-        status[j] = PointStatus.OK
+    nsteps = 0
+    if pts.idx:
+        Y, nsteps, errors = _integrate(pts, t_eval.size)
+        for c, j in enumerate(pts.idx):
+            if c in errors:
+                msg[j] = errors[c]
+                continue
+            y = Y[:, c, :]
+            fin = np.all(np.isfinite(y), axis=1)
+            if not np.all(fin):
+                status[j] = PointStatus.DIVERGED
+                msg[j] = f'non-finite state at t = {t_eval[np.argmin(fin)]:.6g} s'
+                continue
+            for k, v in pts.measure(j, y).items():
+                cols[k][j] = v
+            status[j] = PointStatus.OK
     columns = {'point': points.astype(np.int64), 'block': np.full(n, b, dtype=np.int32),
-               **coords, 'status': status, 'message': np.array(msg, dtype=object)}
-    for k, v in cols.items():
-        columns[k] = v
+               **coords, 'status': status, 'message': np.array(msg, dtype=object), **cols}
     return BlockResult(block=b, columns=columns, work_s=time.perf_counter() - t0,
-                       steps=int(nsteps) * len(idx))
+                       steps=nsteps * len(pts.idx))

@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, parse_sets
+from gyro_rotor.cli.util import check_output_file
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
@@ -28,16 +28,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _load(args):
-    """Return the scene (general or centrifuge) and its nominal field speed."""
-    from gyro_rotor.core.system.scene import general_scene_path, is_general_scene
-    general_scene_path(args.scene)      # an unknown name: the error with did you mean
-    if is_general_scene(args.scene):
-        from gyro_rotor.core.system.scene import load_general_scene
-        scene = load_general_scene(args.scene, overrides=parse_sets(args.set))
-        return scene, scene.system.drives[0].Omega0
+    """Return the scene and its nominal field speed (the first rotor's)."""
     from gyro_rotor.cli.util import load_scene_with_sets
     scene = load_scene_with_sets(args.scene, args.set)
-    return scene, scene.params.Omega0
+    return scene, scene.params.Omega0 if scene.builtin else scene.system.drives[0].Omega0
 
 
 def run(args: argparse.Namespace) -> int:

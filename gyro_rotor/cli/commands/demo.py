@@ -30,7 +30,7 @@ import sys
 import time
 
 from gyro_rotor.core.scene import DEFAULT_SCENE
-from gyro_rotor.core.system.scene import GeneralScene, load_any_scene
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError, ParameterError
 
 HELP = ('live demo: simulation + analysis nodes, a kick, a live table, an MCAP bag, the '
@@ -240,10 +240,10 @@ HEADER = ('  t [s]       E* [J]  residual  E* decay   >= bound  slips  LEDMdSF  
 def expected_outcome(scene, duration: float) -> dict:
     """Return what linear theory (and, for a sine law, a reference simulation) expects.
 
-    A general scene: the verdict of its linearization
+    A system file's scene: the verdict of its linearization
     (:func:`gyro_rotor.analysis.prediction.predict_general`); no slip reference.
     """
-    if isinstance(scene, GeneralScene):
+    if not scene.builtin:
         from gyro_rotor.analysis.prediction import predict_general
         return {'verdict': predict_general(scene).verdict, 'pole_slips': None}
     from gyro_rotor.linear.stability import analyze_scene
@@ -448,7 +448,7 @@ def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False) -> b
 def run(args: argparse.Namespace) -> int:
     """Run the demo; 0 if confirmed, 1 if not, 130 if interrupted (module doc)."""
     _check(args)
-    scene = load_any_scene(args.scene)
+    scene = load_scene(args.scene)
     kick_at = args.kick_at
     if kick_at is None:
         from gyro_rotor.analysis.replay import default_kick_at

@@ -6,12 +6,12 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, parse_sets
-from gyro_rotor.core.scene import load_scene
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.roundoff import floor, fmt_re
 from gyro_rotor.linear.stability import analyze, scene_operating_point
+import numpy as np
 
 HELP = 'eigenvalues, named modes, drive penetration and the stability verdict of a scene'
 
@@ -24,11 +24,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--json', default=None, metavar='FILE', help='also write the modes as JSON')
 
 
-def run(args: argparse.Namespace) -> int:
+def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Print the mode table and the verdict."""
     if args.json:
         check_output_file(args.json)
-    scene = load_scene(args.scene, overrides=parse_sets(args.set))
     p, sm, model = scene_operating_point(scene)
     if p.K_D < 0:   # pragma: no cover -- RotorParams refuses it already
         raise ParameterError(f'K_D must not be negative, got {p.K_D}')
@@ -58,12 +57,72 @@ def run(args: argparse.Namespace) -> int:
     print(f'  verdict: {r.verdict}: {r.reason}')
     if args.json:
         with open(args.json, 'w') as f:
-            json.dump({'scene': scene.name, 'model': model, 'branch': sm.branch,
-                       'theta0': sm.theta0, 'psidot0': sm.psidot0, 'K_D': r.K_D,
-                       'state_names': list(r.state_names),
-                       'modes': [m.as_dict() for m in r.modes],
+            json.dump({'scene': scene.name, 'system': scene.system_name, 'model': model,
+                       'branch': sm.branch, 'theta0': sm.theta0, 'psidot0': sm.psidot0,
+                       'K_D': r.K_D, 'state_names': list(r.state_names),
+                       'modes': [{**m.as_dict(), 're': m.eigenvalue.real,
+                                  'im': m.eigenvalue.imag, 'reached': m.reached_by_drive}
+                                 for m in r.modes],
                        'spectral_abscissa': r.spectral_abscissa, 'verdict': r.verdict,
                        'marginal_modes': r.marginal_modes, 'reason': r.reason}, f, indent=1,
                       default=str)
         print(f'  wrote {args.json}')
     return 0
+
+
+def _run_system(args, scene) -> int:
+    """Eigenvalues and modes (PBH reach, names) about the scene's steady motion.
+
+    One line per mode (a complex pair once, Im >= 0). A real part within the root's
+    resolution (:mod:`gyro_rotor.linear.roundoff`, the rule of every system) prints as 0
+    and the mode as undamped: no decay time from round-off.
+    """
+    from gyro_rotor.linear.general import linearize_scene, modes
+    from gyro_rotor.linear.roundoff import decay_text, fmt_re, resolutions
+    if args.json:
+        check_output_file(args.json, ('.json',))
+    lin = linearize_scene(scene)
+    ms = sorted(modes(lin), key=lambda x: (-x.value.real, x.value.imag))
+    lam_r, res_r = resolutions(lin.A_scene(), lin.A_cons)
+    res = [float(res_r[int(np.argmin(np.abs(lam_r - x.value)))]) for x in ms]
+    shown = [(x, r) for x, r in zip(ms, res) if x.value.imag >= -r]
+    print(f'scene {scene.name}: {len(ms)} roots of system {scene.system.name} about its steady '
+          f'motion, K_D = {lin.K_each.tolist()} (one line per complex pair)')
+    print(f'  {"mode":36s} {"Re [1/s]":>13s} {"Im [rad/s]":>13s} {"f [Hz]":>9s} '
+          f'{"decay time":>13s}  reached')
+    for x, r in shown:
+        im = abs(x.value.imag) if abs(x.value.imag) > r else 0.0
+        decay = '-' if x.structural_zero else decay_text(x.value.real, r)
+        print(f'  {x.name:36s} {fmt_re(x.value.real, r)} {im:13.6f} {im / (2 * math.pi):9.4f} '
+              f'{decay:>13s}  {"yes" if x.reached else "no"}')
+    judged = [(x, r) for x, r in zip(ms, res) if not x.structural_zero]
+    sa = 0.0
+    if judged:
+        x, r = max(judged, key=lambda t: t[0].value.real)
+        sa = x.value.real if abs(x.value.real) > r else 0.0
+        print(f'  spectral abscissa {fmt_re(sa, 0.0, 0).strip() if sa else "0"} 1/s (slowest: '
+              f'{x.name}; a |Re| within the resolution of its root, about {r:.1e} 1/s '
+              'here, prints as 0)')
+    undamped = [f'{x.name} at {abs(x.value.imag) / (2 * math.pi):.4g} Hz' for x, r in shown
+                if not x.structural_zero and abs(x.value.real) <= r]
+    if undamped:
+        print(f'  undamped (Re = 0 within round-off): {", ".join(undamped)}')
+    if args.json:
+        doc = {'scene': scene.name, 'system': scene.system_name,
+               'K_D': lin.K_each.tolist(), 'spectral_abscissa': sa,
+               'eigenvalues': [[x.value.real, x.value.imag] for x in ms],
+               'modes': [{'re': x.value.real, 'im': x.value.imag, 'reached': x.reached,
+                          'name': x.name, 'structural_zero': x.structural_zero,
+                          'resolution': r, 'undamped': abs(x.value.real) <= r}
+                         for x, r in zip(ms, res)]}
+        with open(args.json, 'w', encoding='utf-8') as f:
+            json.dump(doc, f, indent=1)
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``eig`` on the scene's system: the centrifuge's or a system file's."""
+    scene = load_scene_with_sets(args.scene, args.set)
+    if scene.builtin:
+        return _run_centrifuge(args, scene)
+    return _run_system(args, scene)

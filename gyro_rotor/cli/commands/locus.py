@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 
-from gyro_rotor.cli.util import check_output_file, parse_sets
-from gyro_rotor.core.scene import load_scene
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims, default_grid, root_locus
@@ -35,6 +35,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--kd-max', type=float, default=None, help='largest K_D of the grid')
     p.add_argument('--points', type=int, default=281,
                    help=f'points of the log grid (2 to {MAX_POINTS})')
+    p.add_argument('--drive', default=None, metavar='ROTOR',
+                   help="a system file's scene: vary only this rotor's K_D (default: all)")
+
+
+def _claims_doc(scene, cr) -> dict:
+    """Return the JSON keys every system's locus has: scene, system, claims, K_D*, meetings."""
+    return {'scene': scene.name, 'system': scene.system_name,
+            'claims': {k: {'statement': c.statement, 'holds': c.holds, 'detail': c.detail,
+                           'exception': c.exception, 'data': c.data}
+                       for k, c in cr.claims.items()},
+            'K_D_star': cr.K_D_star, 'meetings': [mt.as_dict() for mt in cr.meetings],
+            'meeting_points': [mt.lam for mt in cr.meetings]}
 
 
 def _grid(args, params) -> np.ndarray | None:
@@ -51,12 +63,11 @@ def _grid(args, params) -> np.ndarray | None:
     return np.concatenate([[0.0], np.geomspace(lo, hi, args.points)])
 
 
-def run(args: argparse.Namespace) -> int:
+def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Compute, print the claims, write the requested files; 0 if all claims hold, else 2."""
     for path in (args.csv, args.json, args.out):
         if path:
             check_output_file(path)
-    scene = load_scene(args.scene, overrides=parse_sets(args.set))
     p, sm, model = scene_operating_point(scene)
     lin = linearize(p, sm, model)
     grid = _grid(args, p)
@@ -93,12 +104,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'  wrote {args.csv}')
     if args.json:
         doc = loc.as_dict()
-        doc['claims'] = {k: {'statement': c.statement, 'holds': c.holds, 'detail': c.detail,
-                             'exception': c.exception, 'data': c.data}
-                         for k, c in cr.claims.items()}
-        doc['meetings'] = [mt.as_dict() for mt in cr.meetings]
-        doc['meeting_points'] = [mt.lam for mt in cr.meetings]
-        doc['K_D_star'] = cr.K_D_star
+        doc.update(_claims_doc(scene, cr))
         doc['breakaway'] = cr.breakaway
         doc['regimes'] = cr.regimes
         with open(args.json, 'w') as f:
@@ -110,3 +116,75 @@ def run(args: argparse.Namespace) -> int:
                         title=f'root locus over K_D: scene {scene.name}, {sm.name}')
         print(f'  wrote {args.out}')
     return 0 if cr.all_hold else CLAIM_FAILS
+
+
+def _run_system(args, scene) -> int:
+    """Root locus over K_D (all drives, or --drive), every meeting and claims (a) to (d)."""
+    from gyro_rotor.linear.general import check_claims, linearize_scene
+    for path, suf in ((args.json, ('.json',)), (args.csv, ('.csv',)), (args.out, ('.png',))):
+        if path:
+            check_output_file(path, suf)
+    if args.points < 2 or args.points > 100_000:
+        raise ParameterError(f'--points must be 2..100000, got {args.points}')
+    lin = linearize_scene(scene, drive=getattr(args, 'drive', None))
+    claims = check_claims(lin)
+    scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max()))
+    K_ref = scale / float(lin.fast_rates.min())
+    lo = args.kd_min or 1e-4 * K_ref
+    hi = args.kd_max or 1e4 * K_ref
+    if not (0 < lo < hi and math.isfinite(hi)):
+        raise ParameterError(f'need 0 < --kd-min < --kd-max, got {lo}, {hi}')
+    grid = np.geomspace(lo, hi, args.points)
+    roots = np.array([np.sort_complex(lin.eig(K)) for K in grid])
+    print(f'scene {scene.name}: root locus over K_D of '
+          f'{args.drive if getattr(args, "drive", None) else "all drives"} '
+          f'({grid[0]:.3g} .. {grid[-1]:.3g}, {len(grid)} points)')
+    for key, c in claims.claims.items():
+        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
+        if c.exception:
+            print(f'      expected exception: {c.exception}')
+    for x in claims.meetings:
+        print(f'  K_D* = {x.K_D:.10g} N m s/rad: {x.kind}, double root at {x.lam:.8g} 1/s'
+              + ('' if x.verified else ' (NOT verified)'))
+    if args.json:
+        doc = {**_claims_doc(scene, claims), 'drive': getattr(args, 'drive', None),
+               'structural_zero_roots': claims.structural_zero_roots,
+               'K_D': grid.tolist(),
+               'roots': [[[z.real, z.imag] for z in row] for row in roots]}
+        with open(args.json, 'w', encoding='utf-8') as f:
+            json.dump(doc, f, indent=1)
+    if args.csv:
+        with open(args.csv, 'w', encoding='utf-8') as f:
+            f.write('K_D,branch,re,im\n')
+            for K, row in zip(grid, roots):
+                for j, z in enumerate(row):
+                    f.write(f'{K!r},{j},{z.real!r},{z.imag!r}\n')
+    if args.out:
+        _plot_system_locus(args.out, lin, claims, scene.name, float(grid[0]), float(grid[-1]))
+    return 0 if claims.all_hold else CLAIM_FAILS
+
+
+def _plot_system_locus(path, lin, claims, name, K_lo, K_hi) -> None:
+    try:
+        import matplotlib
+        matplotlib.use('Agg')
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise ParameterError('--out needs matplotlib') from None
+    from gyro_rotor.linear.locus_plot import general_locus_figure
+    fig = general_locus_figure(lin, claims, K_lo=K_lo, K_hi=K_hi,
+                               title=f'root locus over K_D: scene {name}')
+    fig.savefig(path)
+    plt.close(fig)
+    print(f'  wrote {path}')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``locus`` on the scene's system: the centrifuge's or a system file's."""
+    scene = load_scene_with_sets(args.scene, args.set)
+    if scene.builtin:
+        if args.drive is not None:
+            raise ParameterError('--drive is for the scenes of system files; the centrifuge '
+                                 'has one drive')
+        return _run_centrifuge(args, scene)
+    return _run_system(args, scene)

@@ -14,13 +14,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print one line per scene: the centrifuge's, then those of general rotor systems."""
-    from gyro_rotor.core.system.scene import list_general_scenes, load_general_scene
+    """Print one line per scene: its system (and the centrifuge's model), t_end, what."""
     for name in list_scenes():
         s = load_scene(name)
-        print(f'{name:16s} {s.model:23s} t_end {s.t_end:6g} s  {s.description}')
-    for name in list_general_scenes():
-        s = load_general_scene(name)
-        what = f'system {s.system.name}'
-        print(f'{name:16s} {what:23s} t_end {s.t_end:6g} s  {s.description}')
+        what = f'centrifuge {s.model}' if s.builtin else f'system {s.system.name}'
+        print(f'{name:16s} {what:28s} t_end {s.t_end:6g} s  {s.description}')
     return 0

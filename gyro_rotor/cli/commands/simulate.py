@@ -25,27 +25,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--force', action='store_true', help='overwrite an existing --out file')
 
 
-#: units of the CSV columns (numerics.simulate.CSV_COLUMNS), written into the header
-CSV_UNITS = {'t': 's', 'theta': 'rad', 'psi': 'rad', 'phi_R': 'rad', 'phi_M': 'rad',
-             'thetadot': 'rad/s', 'psidot': 'rad/s', 'phi_R_dot': 'rad/s',
-             'phi_M_dot': 'rad/s', 'axis_x': '1', 'axis_y': '1', 'axis_z': '1',
-             'chi': 'rad', 'z': 'rad', 'zdot': 'rad/s', 'Q': 'N m', 'E_star': 'J',
-             'dE_dt': 'W', 'residual': 'J', 'qnorm_error': '1'}
-
-
-def write_csv(tr, path: str) -> None:
-    """Write the trajectory as CSV with a header of ``name [unit]`` per column."""
-    import numpy as np
-    from gyro_rotor.numerics.simulate import CSV_COLUMNS
-    cols = tr.columns()
-    header = ','.join(f'{k} [{CSV_UNITS[k]}]' for k in CSV_COLUMNS)
-    np.savetxt(path, np.column_stack([cols[k] for k in CSV_COLUMNS]), delimiter=',',
-               header=header, comments='', fmt='%.17g')
-
-
 def _pole_slips(tr) -> str:
     """Pole slips of a synchronous drive (z over a potential maximum), '' without poles."""
-    if not tr.scene.params.pole_pairs:
+    if not tr.scene.builtin or not tr.scene.params.pole_pairs:
         return ''
     from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
     ana = RotorAnalyzer(tr.scene, window_s=0)
@@ -61,26 +43,22 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene_with_sets(args.scene, args.set)
     tr = simulate(scene, t_end=args.t_end, rate=args.rate, method=args.method,
                   rtol=args.rtol, atol=args.atol)
-    if args.out and args.out.endswith('.csv'):
-        write_output(args.out, lambda tmp: write_csv(tr, tmp))
-    elif args.out:
+    if args.out:
         write_output(args.out, tr.save)
     s = tr.summary()
     print(f"scene {s['scene']} (model {s['model']}), {s['t_end']:g} s with {s['method']} "
           f"({s['setting']})")
     if s['method_reason']:
         print(f"  auto: {s['method']}, {s['method_reason']}")
-    print(f"  final state:  theta {s['theta_end']:.9f} rad, psidot {s['psidot_end']:.9f} "
-          f"rad/s, chi {s['chi_end']:.3e} rad, z {s['z_end']:.3e} rad, "
-          f"zdot {s['zdot_end']:.3e} rad/s")
+    print('  final state:  ' + ', '.join(f'{k} {v:.9g} {u}' for k, v, u in s['final']))
     print(f"  E*:           first {s['E_star_first']:.12g} J, last {s['E_star_last']:.12g} J")
     print(f"  max |residual| {s['max_abs_residual']:.3e} J, max ||q|-1| "
           f"{s['max_qnorm_drift']:.3e}")
     slips = _pole_slips(tr)
     if slips:
         print(slips)
-    print(f"  {s['nfev']} RHS evaluations, {s['samples']} samples, wall time "
-          f"{s['wall_time']:.3f} s")
+    print(f"  {s['method']}: steps {s['nsteps']}, {s['nfev']} RHS evaluations, "
+          f"{s['samples']} samples, wall time {s['wall_time']:.3f} s")
     if args.out:
-        print(f'  wrote {args.out}')
+        print(f'  wrote {args.out} ({s["samples"]} rows)')
     return 0

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import json
 
-from gyro_rotor.cli.util import parse_sets
-from gyro_rotor.core.scene import load_scene
+from gyro_rotor.cli.util import load_scene_with_sets
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError
 
@@ -20,9 +20,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE')
 
 
-def run(args: argparse.Namespace) -> int:
+def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Print both branches; exit 1 if solution II does not exist at theta0."""
-    scene = load_scene(args.scene, overrides=parse_sets(args.set))
     p = scene.params
     theta0 = args.theta0
     if theta0 is None:
@@ -42,3 +41,31 @@ def run(args: argparse.Namespace) -> int:
               f'(exact); eq. (22) corrected: {sm.psidot0_eq22:.12g} rad/s; relative '
               f'difference {sm.relative_difference:+.3e}')
     return status
+
+
+def _run_system(args, scene) -> int:
+    """Check the scene's steady motion and solve for one from that guess (Newton)."""
+    from gyro_rotor.core.scene import steady_residual
+    from gyro_rotor.linear.general import solve_steady
+    acc = steady_residual(scene)
+    names = [f'{c}_ddot' for c in scene.system.coordinates] + [
+        f'zddot_{r}' for r in scene.system.rotors]
+    print(f'scene {scene.name}: steady guess q = {list(scene.steady_q)}, qdot = '
+          f'{list(scene.steady_qdot)}, z = {list(scene.steady_z)}')
+    print('  accelerations there: ' + ', '.join(f'{a} = {v:.3g}' for a, v in zip(names, acc)))
+    q, z, res = solve_steady(scene)
+    ok = res <= 1e-9 * max(1.0, scene.make_model().rate())
+    print(f'  {"steady motion" if ok else "no steady motion found"} (Newton, qdot held): '
+          f'q = {q.tolist()}, z = {z.tolist()}, largest acceleration {res:.3g}')
+    if ok:
+        print('  for the scene: steady: {q: ' + json.dumps(q.tolist()) + ', z: '
+              + json.dumps(z.tolist()) + '}')
+    return 0 if ok else 1
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``steady`` on the scene's system: the centrifuge's or a system file's."""
+    scene = load_scene_with_sets(args.scene, args.set, check=False)
+    if scene.builtin:
+        return _run_centrifuge(args, scene)
+    return _run_system(args, scene)

@@ -115,3 +115,43 @@ class GeneralModel:
     def rate(self) -> float:
         """Return a typical fastest rate [1/s] of the system, for the first step size."""
         return system_rate(self.system)
+
+    # -- outputs of a trajectory (the interface the centrifuge's models present too) --------
+    def outputs(self, t, Y) -> dict:
+        """Return the outputs of a trajectory (``t`` (k,), states ``Y`` (k, 2 N + 1)).
+
+        Each coordinate NAME and its rate NAME_dot, each rotor's lag z_ROTOR (eq. 7) and
+        z_ROTOR_dot, E* (eq. 13), dE*/dt = -zdot' K_D zdot (eq. 17), the dissipation and
+        the energy-balance residual.
+        """
+        Y = np.atleast_2d(np.asarray(Y, dtype=float))
+        sq, sqd, sz, szd = self.slices()
+        s = self.system
+        out = {'t': np.asarray(t, dtype=float)}
+        for i, c in enumerate(s.coordinates):
+            out[c], out[f'{c}_dot'] = Y[:, sq][:, i], Y[:, sqd][:, i]
+        for k, r in enumerate(s.rotors):
+            out[f'z_{r}'], out[f'z_{r}_dot'] = Y[:, sz][:, k], Y[:, szd][:, k]
+        diss = self.dissipation(Y)
+        out.update({'E_star': self.energy(Y), 'dE_dt': -diss, 'dissipation': diss,
+                    'residual': self.residual(Y)})
+        return out
+
+    def csv_columns(self) -> tuple:
+        """Return the CSV columns (name, unit, output key, None), as the centrifuge's.
+
+        A system file gives no units: a coordinate is in SI units (rad or m, as its
+        constants make it), its rate in SI/s.
+        """
+        s = self.system
+        return (('t', 's', 't', None),
+                *((c, 'SI', c, None) for c in s.coordinates),
+                *((f'{c}_dot', 'SI/s', f'{c}_dot', None) for c in s.coordinates),
+                *((f'z_{r}', 'rad', f'z_{r}', None) for r in s.rotors),
+                *((f'z_{r}_dot', 'rad/s', f'z_{r}_dot', None) for r in s.rotors),
+                ('E_star', 'J', 'E_star', None), ('dE_dt', 'W', 'dE_dt', None),
+                ('residual', 'J', 'residual', None))
+
+    def final_state(self) -> tuple:
+        """Return the names of the CSV columns a summary prints at the end of a run."""
+        return tuple(n for n, *_ in self.csv_columns()[1:-3])

@@ -38,7 +38,7 @@ from gyro_rotor.errors import did_you_mean, SystemFileError
 import sympy
 
 __all__ = ['RotorSystem', 'Drive', 'load_system', 'system_from_mapping', 'system_path',
-           'list_systems', 'SYSTEM_KEYS', 'DRIVE_KEYS']
+           'list_systems', 'SYSTEM_KEYS', 'DRIVE_KEYS', 'config_dirs', 'systems_dirs']
 
 #: the keys of a system file (all required but ``description``)
 SYSTEM_KEYS = ('name', 'description', 'coordinates', 'rotors', 'constants', 'mass_matrix',
@@ -318,9 +318,18 @@ def system_from_mapping(doc: Any, path: str | None = None) -> RotorSystem:
     return system
 
 
+def config_dirs() -> list[Path]:
+    """Where scene and system files are searched: the source tree, then installed shares."""
+    import sys
+    dirs = [Path(__file__).resolve().parents[3] / 'config']
+    prefixes = [sys.prefix] + [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
+                               if p]
+    dirs += [Path(p) / 'share' / 'gyro_rotor' / 'config' for p in prefixes]
+    return [d for d in dirs if d.is_dir()]
+
+
 def systems_dirs() -> list[Path]:
     """Where system files are searched: config/systems of the source tree and installs."""
-    from gyro_rotor.core.scene import config_dirs
     return [d / 'systems' for d in config_dirs() if (d / 'systems').is_dir()]
 
 
