@@ -113,7 +113,7 @@ def _stiff_lines(args: argparse.Namespace) -> list:
              'Error: the largest |q - q_ref|, |z - z_ref| [rad] over the samples; reference: '
              'radau9 at rtol 1e-13, checked against rodas4 (forward-difference Jacobian) at '
              'rtol 1e-12. Wall: best of '
-             f'{args.repeats} for ours, one run for scipy (on a sympy-lambdified right-hand '
+             f'{args.repeats} runs for every method (scipy on a sympy-lambdified right-hand '
              'side, `+jac`: with the lambdified Jacobian). Machine: '
              f'{platform.machine()}, {os.cpu_count()} cores, shared with other jobs (load '
              'average in the table).', '',
