@@ -7,10 +7,13 @@ numba first-class function in place of a model number. :class:`KernelSystem` pre
 :class:`~gyro_rotor.core.system.model.GeneralModel` to them (state size, parameter array,
 fastest rate); :func:`integrate` and :func:`run_ensemble` are the entry points.
 
-Methods: those whose kernels need nothing but the right-hand side (:data:`METHODS`);
-``auto`` picks rodas4 when the drive damping root K_D lambda_max(Mbar^-1 on z) exceeds
+Methods (:data:`METHODS`): those whose kernels need nothing but the right-hand side, and
+radau9, which for a generated system is Radau IIA with the generated exact Jacobian
+(:mod:`~gyro_rotor.numerics.integrators.radau_jac`; ``kernel_jac`` of :class:`KernelSystem`).
+``auto`` picks radau9 when the drive damping root K_D lambda_max(Mbar^-1 on z) exceeds
 the fastest oscillation of the conservative linearization at the initial state by
-:data:`~gyro_rotor.numerics.integrators.methods.STIFF_RATIO`, dop853 otherwise.
+:data:`~gyro_rotor.numerics.integrators.methods.STIFF_RATIO` (its cost then does not
+depend on K_D: ``gyro-rotor bench-general``, stiff table), dop853 otherwise.
 """
 
 from __future__ import annotations
@@ -29,12 +32,16 @@ import numpy as np
 __all__ = ['KernelSystem', 'GeneralRun', 'integrate', 'choose_method', 'run_ensemble',
            'METHODS']
 
-#: the project's integrators that need nothing but the right-hand side
-METHODS = ('dop853', 'rodas4', 'rk4', 'rk8', 'gauss6')
+#: the project's integrators that need nothing but the right-hand side, and radau9 with the
+#: generated exact Jacobian (:mod:`~gyro_rotor.numerics.integrators.radau_jac`)
+METHODS = ('dop853', 'radau9', 'rodas4', 'rk4', 'rk8', 'gauss6')
 
 
 class KernelSystem:
-    """A general model as the kernels see it: ``kernel_rhs``, ``pack``, ``rate``, ``n``."""
+    """A general model as the kernels see it: ``kernel_rhs``, ``kernel_jac``, ``pack``, ...
+
+    (and ``rate``, ``n``).
+    """
 
     def __init__(self, model: GeneralModel):
         """Wrap ``model``; its system is the default parameter set (``params``)."""
@@ -43,6 +50,11 @@ class KernelSystem:
         self.n = model.size
         self.name = f'system {model.system.name}'
         self.kernel_rhs = model.compiled.first_class
+
+    @property
+    def kernel_jac(self):
+        """Return the generated exact Jacobian, a first-class function (compiled at first use)."""
+        return self.model.compiled.jac_first_class
 
     def pack(self, system: RotorSystem) -> np.ndarray:
         """Parameter array of ``system`` (same structure as the model's, other numbers)."""
@@ -85,7 +97,7 @@ def choose_method(model: GeneralModel, y0) -> tuple[str, str]:
     mu = float(np.linalg.eigvalsh(Minv[n:, n:]).max()) if m else 0.0
     stiff = max(d.K_D for d in model.system.drives) * mu
     if stiff > methods.STIFF_RATIO * osc:
-        return 'rodas4', (f'stiff: the drive damping root {stiff:.3g} 1/s is '
+        return 'radau9', (f'stiff: the drive damping root {stiff:.3g} 1/s is '
                           f'{stiff / osc:.3g} times the fastest rate {osc:.3g} 1/s')
     return 'dop853', (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest rate '
                       f'{osc:.3g} 1/s): adaptive explicit order 8')

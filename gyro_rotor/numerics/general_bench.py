@@ -19,6 +19,10 @@ Three measurements, each returned as data (``gyro-rotor bench-general`` prints a
   user's path: CyRK's ``nbsolve2_ivp`` (RK45, DOP853, Vern7, Vern8, LSODA) on a numba cfunc of
   the same lambdify with the constants substituted
   (:func:`gyro_rotor.numerics.bench_peers.make_general_peer`), rows ``CyRK+numba:<method>``.
+- :func:`stiff_table` (``--stiff``): a stiff drive on twin_gimbal, K_D = 1e2, 1e4, 1e6:
+  ``auto`` (radau9 with the generated Jacobian) against scipy's Radau, BDF and LSODA on the
+  lambdified right-hand side, with and without a lambdified Jacobian, in wall milliseconds
+  per simulated second at a given error (issue 25, item 4).
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ from gyro_rotor.numerics.integrators import kernels
 import numpy as np
 
 __all__ = ['rhs_cost', 'compile_times', 'work_precision', 'WPRow', 'best_at', 'SCIPY_METHODS',
-           'DEFAULT_LABEL']
+           'DEFAULT_LABEL', 'stiff_table', 'StiffRow', 'STIFF_K_D']
 
 SCIPY_METHODS = ('RK45', 'DOP853', 'Radau', 'LSODA')
 #: the label of our rows: general.integrate with method 'auto'
@@ -255,3 +259,132 @@ def best_at(rows: list[WPRow], level: float) -> dict:
         if key not in best or r.wall < best[key].wall:
             best[key] = r
     return best
+
+
+# -- stiff drives on a generated system (issue 25, item 4) ------------------------------------
+#: the drive damping of the stiff table (``K_D`` sets every rotor's)
+STIFF_K_D = (1e2, 1e4, 1e6)
+#: our tolerances in the stiff table (rtol; atol = 1e-3 rtol)
+STIFF_OUR_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
+#: scipy's stiff solvers and tolerances in the stiff table
+STIFF_SCIPY_METHODS = ('Radau', 'BDF', 'LSODA')
+STIFF_SCIPY_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
+
+
+@dataclasses.dataclass
+class StiffRow:
+    """One run of the stiff table: ``wall`` [s] for ``t_end`` simulated seconds."""
+
+    K_D: float
+    method: str
+    rtol: float
+    err: float
+    wall: float
+    t_end: float
+    nfev: int
+    load: float
+
+    @property
+    def ms_per_s(self) -> float:
+        """Wall milliseconds per simulated second."""
+        return self.wall * 1e3 / self.t_end
+
+
+def _lambdified_jac(scene):
+    """Return the user's Jacobian: lambdified Mbar, dMbar/dq, dF/dq, dF/dv, assembled with numpy.
+
+    da/dx = Mbar^-1 (dF/dx + dQ/dx - (dMbar/dx) a), da/dv = Mbar^-1 (dF/dv + dQ/dv) (the
+    derivatives of :mod:`~gyro_rotor.core.system.codegen`'s ``jac``, here from lambdify).
+    """
+    import sympy
+    eq = derive(scene.system)
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    z = sympy.symbols(f'z0:{m}', real=True)
+    args = list(eq.q) + list(z) + list(eq.v) + list(eq.consts) + list(eq.Omega0)
+    f_M = sympy.lambdify(args, eq.Mbar, 'numpy')
+    f_F = sympy.lambdify(args, eq.F, 'numpy')
+    f_dM = sympy.lambdify(args, [eq.Mbar.diff(qk) for qk in eq.q], 'numpy')
+    f_Fq = sympy.lambdify(args, eq.F_q, 'numpy')
+    f_Fv = sympy.lambdify(args, eq.F_v, 'numpy')
+    consts = list(scene.system.constants.values())
+    Om = [d.Omega0 for d in scene.system.drives]
+    KS = np.array([d.K_S for d in scene.system.drives])
+    KD = np.array([d.K_D for d in scene.system.drives])
+    ix = np.r_[0:n, 2 * n:2 * n + m]
+    iv = np.r_[n:2 * n, 2 * n + m:2 * N]
+
+    def jac(t, y):
+        q, qd, zz, zd = y[:n], y[n:2 * n], y[2 * n:2 * n + m], y[2 * n + m:2 * N]
+        a_ = [*q, *zz, *qd, *zd, *consts, *Om]
+        M = np.asarray(f_M(*a_), dtype=float)
+        F = np.asarray(f_F(*a_), dtype=float).reshape(N)
+        F[n:] += -KS * zz - KD * zd
+        acc = np.linalg.solve(M, F)
+        Gx = np.zeros((N, N))
+        if n:
+            Gx[:, :n] = np.asarray(f_Fq(*a_), dtype=float).reshape(N, n)
+            for k, dM in enumerate(f_dM(*a_)):
+                Gx[:, k] -= np.asarray(dM, dtype=float) @ acc
+        Gx[n:, n:] -= np.diag(KS)
+        Gv = np.asarray(f_Fv(*a_), dtype=float).reshape(N, N).copy()
+        Gv[n:, n:] -= np.diag(KD)
+        J = np.zeros((2 * N + 1, 2 * N + 1))
+        J[ix, iv] = 1.0
+        J[np.ix_(iv, ix)] = np.linalg.solve(M, Gx)
+        J[np.ix_(iv, iv)] = np.linalg.solve(M, Gv)
+        J[2 * N, 2 * n + m:2 * N] = 2.0 * KD * zd
+        return J
+    return jac
+
+
+def stiff_table(K_Ds=STIFF_K_D, name: str = 'twin_gimbal', t_end: float = 2.0,
+                level: float = 1e-6, repeats: int = 3) -> tuple[list, dict]:
+    """Stiff drives: ``auto`` against scipy's Radau, BDF, LSODA over K_D (module doc).
+
+    For each K_D (scene override ``K_D``: every rotor's), the error of a run is that of
+    :func:`work_precision` (largest |q - q_ref|, |z - z_ref| over the samples at 100 Hz)
+    against radau9 at rtol 1e-13, itself checked against rodas4 (forward-difference
+    Jacobian, independent code) at rtol 1e-12: ``checks[K_D]`` is their difference. scipy
+    runs on the lambdified right-hand side (:func:`_lambdified`), without and with the
+    lambdified Jacobian (:func:`_lambdified_jac`); a sweep stops once two runs met
+    ``level`` or one took longer than SLOW_RUN. Every wall time is the best of ``repeats``
+    runs. Returns (rows, checks).
+    """
+    from scipy.integrate import solve_ivp
+    rows, checks = [], {}
+    for K_D in K_Ds:
+        scene = load_scene(name, {'K_D': K_D})
+        model = scene.make_model()
+        te = np.arange(int(round(t_end * SAMPLE_RATE)) + 1) / SAMPLE_RATE
+        y0 = scene.initial_state(model)
+        n, m = model.n, model.m
+        ref = general.integrate(model, y0, te, method='radau9', rtol=1e-13, atol=1e-16).y
+        other = general.integrate(model, y0, te, method='rodas4', rtol=1e-12, atol=1e-15).y
+        checks[K_D] = _err(other, ref, n, m)
+        for rtol in STIFF_OUR_RTOLS:
+            walls = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                run = general.integrate(model, y0, te, rtol=rtol, atol=rtol * 1e-3)
+                walls.append(time.perf_counter() - t0)
+            rows.append(StiffRow(K_D, f'auto ({run.method})', rtol, _err(run.y, ref, n, m),
+                                 min(walls), t_end, run.nfev, os.getloadavg()[0]))
+        fun, jac = _lambdified(scene), _lambdified_jac(scene)
+        for method in STIFF_SCIPY_METHODS:
+            for label, kw in (('', {}), ('+jac', {'jac': jac})):
+                met = 0
+                for rtol in STIFF_SCIPY_RTOLS:
+                    walls = []
+                    for _ in range(repeats):
+                        t0 = time.perf_counter()
+                        sol = solve_ivp(fun, (0.0, te[-1]), y0, method=method, t_eval=te,
+                                        rtol=rtol, atol=rtol * 1e-3, **kw)
+                        walls.append(time.perf_counter() - t0)
+                    wall = min(walls)
+                    err = _err(sol.y.T, ref, n, m) if sol.success else math.nan
+                    rows.append(StiffRow(K_D, f'lambdify+{method}{label}', rtol, err, wall,
+                                         t_end, int(sol.nfev), os.getloadavg()[0]))
+                    met += err <= level
+                    if met >= 2 or wall > SLOW_RUN:
+                        break
+    return rows, checks

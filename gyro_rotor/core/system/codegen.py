@@ -14,12 +14,15 @@ the parameter array ``P`` of :func:`pack`:
                         LDL' factorization, Q the drive law (eq. 8 or the sine law),
                         dD/dt = zdot' K_D zdot
 ``energy(y, P)``        E* (eq. 13, numba)
+``jac(y, P, J)``        the exact Jacobian d(rhs)/dy (numba, :func:`_jac_source`): sympy
+                        derivatives of Mbar, F and the drive law, common subexpressions,
+                        and Mbar^-1 applied numerically by one LDL' factorization
 ``lin(y, P)``           (Mbar, dF/dq, dF/dv) at y, plain Python, for the linearization
 
 No integrator is generated: the project's integrators and the ensemble
 (:mod:`gyro_rotor.numerics.general`) call ``rhs`` as a numba first-class function
-(:attr:`CompiledSystem.first_class`), so their compiled loops are shared by every system
-and cached once.
+(:attr:`CompiledSystem.first_class`, and ``jac`` as :attr:`CompiledSystem.jac_first_class`),
+so their compiled loops are shared by every system and cached once.
 """
 
 from __future__ import annotations
@@ -40,10 +43,10 @@ import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
 __all__ = ['CompiledSystem', 'compile_system', 'pack', 'cache_dir', 'GENERATOR_VERSION',
-           'RHS_TYPE']
+           'RHS_TYPE', 'JAC_TYPE']
 
 #: bump when the generated code changes, so that old cache entries are not reused
-GENERATOR_VERSION = 4
+GENERATOR_VERSION = 5
 #: parameters per drive in P: K_S, K_D, Omega0, pole_pairs
 DRIVE_SLOTS = 4
 
@@ -161,6 +164,143 @@ NY = {ny}
 '''
 
 
+_LDL_HELPERS = '''
+
+@njit(cache=True, error_model='numpy')
+def _ldl_factor(M, d):
+    """LDL' factorization of the symmetric M in place (L below the diagonal), D in d."""
+    n = M.shape[0]
+    for j in range(n):
+        s = M[j, j]
+        for k in range(j):
+            s -= M[j, k] * M[j, k] * d[k]
+        d[j] = s
+        for i in range(j + 1, n):
+            s = M[i, j]
+            for k in range(j):
+                s -= M[i, k] * M[j, k] * d[k]
+            M[i, j] = s / d[j]
+
+
+@njit(cache=True, error_model='numpy')
+def _ldl_solve(M, d, B):
+    """Solve M X = B in place on the columns of B (M, d from _ldl_factor)."""
+    n = M.shape[0]
+    for c in range(B.shape[1]):
+        for i in range(n):
+            s = B[i, c]
+            for k in range(i):
+                s -= M[i, k] * B[k, c]
+            B[i, c] = s
+        for i in range(n - 1, -1, -1):
+            s = B[i, c] / d[i]
+            for k in range(i + 1, n):
+                s -= M[k, i] * B[k, c]
+            B[i, c] = s
+'''
+
+
+def _jac_symbols(eq: Equations) -> tuple:
+    """Names and sympy expressions of jac's pieces: Mbar, F, dMbar/dq, dF/dq, dF/dv.
+
+    Returns (names, exprs, dM, Fq, Fv); the dicts map the index tuples of the non-zero
+    derivatives to their names (dM[k, i, j], i >= j: dMbar_ij / dq_k; Fq[i, j]; Fv[i, j]).
+    """
+    n, N = eq.n, eq.n + eq.m
+    zero = sympy.Integer(0)
+    names = [f'M{i}_{j}' for i in range(N) for j in range(i + 1)] + [f'F{i}' for i in range(N)]
+    exprs = [eq.Mbar[i, j] for i in range(N) for j in range(i + 1)] + list(eq.F)
+    dM = {}
+    for k in range(n):
+        for i in range(N):
+            for j in range(i + 1):
+                e = sympy.diff(eq.Mbar[i, j], eq.q[k])
+                if e != zero:
+                    dM[k, i, j] = f'dM{k}_{i}_{j}'
+                    names.append(dM[k, i, j])
+                    exprs.append(e)
+    Fq = {(i, j): f'Fq{i}_{j}' for i in range(N) for j in range(n) if eq.F_q[i, j] != zero}
+    Fv = {(i, j): f'Fv{i}_{j}' for i in range(N) for j in range(N) if eq.F_v[i, j] != zero}
+    names += list(Fq.values()) + list(Fv.values())
+    exprs += [eq.F_q[i, j] for i, j in Fq] + [eq.F_v[i, j] for i, j in Fv]
+    return names, exprs, dM, Fq, Fv
+
+
+def _jac_columns(eq: Equations, dM: dict, Fq: dict, Fv: dict, ind: str) -> list[str]:
+    """Lines filling G (N x 2 N): [dG/dx | dG/dv] with G = F + [0; Q] - Mbar a at fixed a."""
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    lines = []
+    for j in range(n):                  # columns x_j = q_j: dF/dq_j - (dMbar/dq_j) a
+        for i in range(N):
+            terms = [Fq[i, j]] if (i, j) in Fq else []
+            terms += [f'{dM[j, max(i, c), min(i, c)]} * a[{c}, 0]' for c in range(N)
+                      if (j, max(i, c), min(i, c)) in dM]
+            if terms:
+                first, rest = terms[0], terms[1:]
+                line = (first if (i, j) in Fq else f'-{first}') + ''.join(
+                    f' - {t}' for t in rest)
+                lines.append(f'{ind}G[{i}, {j}] = {line}')
+    for k in range(m):                  # columns x_{n+k} = z_k: the drive law only
+        lines.append(f'{ind}G[{n + k}, {n + k}] = Qz{k}')
+    for (i, j), name in Fv.items():     # columns v_j
+        lines.append(f'{ind}G[{i}, {N + j}] = {name}')
+    for k in range(m):
+        lines.append(f'{ind}G[{n + k}, {N + n + k}] -= KD{k}')
+    return lines
+
+
+def _jac_source(system: RotorSystem, eq: Equations, pr: _Printer) -> str:
+    """Source of ``jac(y, P, J)``: the exact Jacobian of ``rhs`` (y = (q, qdot, z, zdot, D)).
+
+    With x = (q, z), v = (qdot, zdot) and a = Mbar^-1 (F + [0; Q]) (eqs. 5, 6, 8):
+
+        da/dx_j = Mbar^-1 (dF/dx_j + [0; dQ/dx_j] - (dMbar/dx_j) a),
+        da/dv_j = Mbar^-1 (dF/dv_j + [0; dQ/dv_j]),
+
+    dx/dt = v, and d(dD/dt)/dzdot_k = 2 K_D,k zdot_k. Mbar depends on q only, F on (q, v),
+    Q_k on (z_k, zdot_k); the derivatives are sympy's (common subexpressions), the 2 N
+    solves share one LDL' factorization of Mbar.
+    """
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    nc = len(system.constants)
+    names, exprs, dM, Fq, Fv = _jac_symbols(eq)
+    ind = '    '
+    body = _unpack_lines(eq, nc, ind) + _cse_lines(names, exprs, ind, pr)
+    for k in range(m):
+        base = nc + DRIVE_SLOTS * k
+        body += [f'{ind}KS{k} = P[{base}]', f'{ind}KD{k} = P[{base + 1}]',
+                 f'{ind}pp{k} = P[{base + 3}]',
+                 f'{ind}if pp{k} != 0.0:',
+                 f'{ind}    Q{k} = -(KS{k} / pp{k}) * math.sin(pp{k} * z{k}) - KD{k} * v{n + k}',
+                 f'{ind}    Qz{k} = -KS{k} * math.cos(pp{k} * z{k})',
+                 f'{ind}else:',
+                 f'{ind}    Q{k} = -KS{k} * z{k} - KD{k} * v{n + k}',
+                 f'{ind}    Qz{k} = -KS{k}']
+    body += [f'{ind}Mb = np.empty(({N}, {N}))', f'{ind}dg = np.empty({N})',
+             f'{ind}a = np.empty(({N}, 1))', f'{ind}G = np.zeros(({N}, {2 * N}))']
+    body += [f'{ind}Mb[{i}, {j}] = M{i}_{j}' for i in range(N) for j in range(i + 1)]
+    body += [f'{ind}a[{i}, 0] = F{i}' + (f' + Q{i - n}' if i >= n else '') for i in range(N)]
+    body += [f'{ind}_ldl_factor(Mb, dg)', f'{ind}_ldl_solve(Mb, dg, a)']
+    body += _jac_columns(eq, dM, Fq, Fv, ind)
+    body += [f'{ind}_ldl_solve(Mb, dg, G)',
+             f'{ind}for r in range({2 * N + 1}):',
+             f'{ind}    for c in range({2 * N + 1}):',
+             f'{ind}        J[r, c] = 0.0',
+             f'{ind}for i in range({N}):',
+             f'{ind}    J[IX[i], IV[i]] = 1.0',
+             f'{ind}    for c in range({N}):',
+             f'{ind}        J[IV[i], IX[c]] = G[i, c]',
+             f'{ind}        J[IV[i], IV[c]] = G[i, {N} + c]']
+    body += [f'{ind}J[{2 * N}, {2 * n + m + k}] = 2.0 * KD{k} * v{n + k}' for k in range(m)]
+    ix = list(range(n)) + [2 * n + k for k in range(m)]
+    iv = [n + i for i in range(n)] + [2 * n + m + k for k in range(m)]
+    head = (f'\n\n#: state indices of x = (q, z) and of v = (qdot, zdot)\n'
+            f'IX = np.array({ix}, dtype=np.int64)\nIV = np.array({iv}, dtype=np.int64)\n')
+    return (head + _LDL_HELPERS + "\n\n@njit(cache=True, error_model='numpy')\n"
+            'def jac(y, P, J):\n    """Exact Jacobian d(rhs)/dy at y into J (NY x NY)."""\n'
+            + '\n'.join(body) + '\n')
+
+
 def _source(system: RotorSystem, eq: Equations) -> str:
     n, m, N = eq.n, eq.m, eq.n + eq.m
     nc = len(system.constants)
@@ -193,6 +333,7 @@ def _source(system: RotorSystem, eq: Equations) -> str:
     body += ['    return kin + pot + U']
     out.append("\n\n@njit(cache=True, error_model='numpy')\ndef energy(y, P):\n"
                '    """E* (eq. 13) at y."""\n' + '\n'.join(body) + '\n')
+    out.append(_jac_source(system, eq, pr))
     # linearization pieces
     Mn = [f'M{i}_{j}' for i in range(N) for j in range(N)]
     Fqn = [f'Fq{i}_{j}' for i in range(N) for j in range(n)]
@@ -241,7 +382,19 @@ class CompiledSystem:
         """
         if not hasattr(self.module.rhs, 'get_compile_result'):   # no numba: plain Python
             return self.module.rhs
-        return _FirstClass(self.module.rhs)
+        return _FirstClass(self.module.rhs, RHS_TYPE)
+
+    @property
+    def jac(self):
+        """Return the compiled exact Jacobian (arguments y, P, J)."""
+        return self.module.jac
+
+    @functools.cached_property
+    def jac_first_class(self):
+        """Return ``jac`` as a numba first-class function of type JAC_TYPE (or ``jac``)."""
+        if not hasattr(self.module.jac, 'get_compile_result'):   # no numba: plain Python
+            return self.module.jac
+        return _FirstClass(self.module.jac, JAC_TYPE)
 
 
 _LOADED: dict[str, CompiledSystem] = {}
@@ -252,30 +405,33 @@ try:
     _ARRAY = _nbtypes.float64[::1]
     #: the type of a generated right-hand side rhs(y, P, out) as a first-class function
     RHS_TYPE = _nbtypes.void(_ARRAY, _ARRAY, _ARRAY)
+    #: the type of a generated Jacobian jac(y, P, J) as a first-class function
+    JAC_TYPE = _nbtypes.void(_ARRAY, _ARRAY, _nbtypes.float64[:, ::1])
 except ImportError:  # pragma: no cover - without numba nothing is compiled
-    WrapperAddressProtocol, RHS_TYPE = object, None
+    WrapperAddressProtocol, RHS_TYPE, JAC_TYPE = object, None, None
 
 
 class _FirstClass(WrapperAddressProtocol):
-    """A compiled rhs as numba's wrapper-address protocol: typed FunctionType(RHS_TYPE)."""
+    """A compiled function as numba's wrapper-address protocol: typed FunctionType(sig)."""
 
-    def __init__(self, dispatcher):
-        dispatcher.compile(RHS_TYPE)
-        cres = dispatcher.get_compile_result(RHS_TYPE)
+    def __init__(self, dispatcher, sig):
+        dispatcher.compile(sig)
+        cres = dispatcher.get_compile_result(sig)
         self.dispatcher = dispatcher       # keeps the machine code alive
+        self.sig = sig
         self.address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
 
     def __call__(self, y, P, out):
-        """Call ``rhs`` from Python."""
+        """Call the function from Python."""
         self.dispatcher(y, P, out)
 
     def __wrapper_address__(self):
-        """Return the address of the compiled C wrapper of ``rhs``."""
+        """Return the address of the compiled C wrapper of the function."""
         return self.address
 
     def signature(self):
-        """Return the numba signature RHS_TYPE."""
-        return RHS_TYPE
+        """Return the numba type of the function: RHS_TYPE or JAC_TYPE."""
+        return self.sig
 
 
 def _import(path: Path, key: str):
@@ -296,10 +452,12 @@ def compile_system(system: RotorSystem, *, warm: bool = True,
                    progress=_stderr_progress) -> CompiledSystem:
     """Return the compiled equations of ``system``, generating them only if not cached.
 
-    ``warm`` runs each compiled function once, so that numba compiles (or loads from its
-    cache) now and not at the first use. When the code is generated (first use of a
-    structure: minutes for tens of rotors), ``progress(text)`` gets one line per stage with
-    its time (default: to stderr; None: silent).
+    ``warm`` runs ``rhs`` and ``energy`` once, so that numba compiles (or loads from its
+    cache) now and not at the first use; ``jac`` compiles at its first use (a stiff run,
+    :attr:`CompiledSystem.jac_first_class`), so that other runs do not wait for it. When
+    the code is generated (first use of a structure: minutes for tens of rotors),
+    ``progress(text)`` gets one line per stage with its time (default: to stderr; None:
+    silent).
     """
     key = f'{system.structure_key()}_v{GENERATOR_VERSION}'
     if key in _LOADED:
@@ -327,7 +485,7 @@ def compile_system(system: RotorSystem, *, warm: bool = True,
         y = np.zeros(ny)
         P = pack(system)
         module.rhs(y, P, np.empty(ny))
-        module.energy(y, P)
+        module.energy(y, P)      # jac: compiled (or loaded) at its first use, a stiff run
     compiled = CompiledSystem(key=key, module=module, path=path, from_cache=from_cache,
                               seconds=time.perf_counter() - start)
     say(f'  ready in {compiled.seconds:.1f} s')

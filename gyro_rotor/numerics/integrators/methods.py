@@ -22,6 +22,9 @@ split8      8      explicit  splitting into exact flows (free gyrostat; torques)
 
 Every method runs on the singularity-free state of :mod:`gyro_rotor.core.model`; the inner
 loops are the compiled kernels of :mod:`gyro_rotor.numerics.integrators.kernels`.
+On a generated rotor system (a model with ``kernel_jac``, :mod:`gyro_rotor.numerics.general`)
+radau9 is :class:`~.radau_jac.Radau9Jac`: the same method with the generated exact Jacobian
+(:data:`GENERATED_METHODS`).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
                                              splitting as split, tableaux as tb)
 from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
+from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
 import numpy as np
 
 __all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'Radau9', 'Split8', 'METHODS', 'integrate',
@@ -400,6 +404,9 @@ class Split8(Integrator):
 
 METHODS: dict[str, type[Integrator]] = {
     cls.name: cls for cls in (RK4, RK8, DOP853, Gauss6, Rodas4, Radau9, Split8)}
+#: a generated rotor system (a model with ``kernel_jac``) runs these classes under the same
+#: names: radau9 with its exact generated Jacobian (:mod:`~.radau_jac`)
+GENERATED_METHODS: dict[str, type[Integrator]] = {Radau9Jac.name: Radau9Jac}
 
 
 def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str, str]:
@@ -454,6 +461,8 @@ def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
     except KeyError:
         raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
                              f"{', '.join(METHODS)}") from None
+    if hasattr(type(model), 'kernel_jac'):       # a generated system (not evaluated here)
+        cls = GENERATED_METHODS.get(method, cls)
     return cls(model, y0, t0, t_bound, **kwargs)
 
 
