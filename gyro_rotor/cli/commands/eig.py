@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
+from gyro_rotor.cli.util import check_output_file, on_system
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.roundoff import floor, fmt_re
@@ -122,7 +122,4 @@ def _run_system(args, scene) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``eig`` on the scene's system: the centrifuge's or a system file's."""
-    scene = load_scene_with_sets(args.scene, args.set)
-    if scene.builtin:
-        return _run_centrifuge(args, scene)
-    return _run_system(args, scene)
+    return on_system(args, _run_centrifuge, _run_system)

@@ -7,7 +7,7 @@ import csv
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
+from gyro_rotor.cli.util import check_output_file, on_system
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims, default_grid, root_locus
@@ -49,6 +49,17 @@ def _claims_doc(scene, cr) -> dict:
             'meeting_points': [mt.lam for mt in cr.meetings]}
 
 
+def _print_claims(cr) -> None:
+    """Print claims (a) to (d) and every meeting K_D* (every system the same way)."""
+    for key, c in cr.claims.items():
+        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
+        if c.exception:
+            print(f'      expected exception: {c.exception}')
+    for mt in cr.meetings:
+        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {mt.kind}, double root at {mt.lam:.8g} 1/s'
+              + ('' if mt.verified else ' (NOT verified)'))
+
+
 def _grid(args, params) -> np.ndarray | None:
     d = default_grid(params)
     lo = d[1] if args.kd_min is None else args.kd_min
@@ -65,6 +76,9 @@ def _grid(args, params) -> np.ndarray | None:
 
 def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Compute, print the claims, write the requested files; 0 if all claims hold, else 2."""
+    if args.drive is not None:
+        raise ParameterError('--drive is for the scenes of system files; the centrifuge '
+                             'has one drive')
     for path in (args.csv, args.json, args.out):
         if path:
             check_output_file(path)
@@ -81,13 +95,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
         loc = root_locus(lin, grid)
     print(f'scene {scene.name} (model {model}) about {sm.name}; K_D from 0 to '
           f'{loc.K_D[-1]:.4g} N m s/rad ({len(loc.K_D)} values)')
-    for key, c in cr.claims.items():
-        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
-        if c.exception:
-            print(f'      expected exception: {c.exception}')
-    for mt in cr.meetings:
-        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {mt.kind}, double root at {mt.lam:.8g} 1/s'
-              + ('' if mt.verified else ' (NOT verified)'))
+    _print_claims(cr)
     for r in cr.regimes:
         print(f"  regime: {r['regime']}: K_D in [{r['K_D_from']:.4g}, {r['K_D_to']:.4g}]")
     tol = _tol_re(lin)
@@ -139,13 +147,7 @@ def _run_system(args, scene) -> int:
     print(f'scene {scene.name}: root locus over K_D of '
           f'{args.drive if getattr(args, "drive", None) else "all drives"} '
           f'({grid[0]:.3g} .. {grid[-1]:.3g}, {len(grid)} points)')
-    for key, c in claims.claims.items():
-        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
-        if c.exception:
-            print(f'      expected exception: {c.exception}')
-    for x in claims.meetings:
-        print(f'  K_D* = {x.K_D:.10g} N m s/rad: {x.kind}, double root at {x.lam:.8g} 1/s'
-              + ('' if x.verified else ' (NOT verified)'))
+    _print_claims(claims)
     if args.json:
         doc = {**_claims_doc(scene, claims), 'drive': getattr(args, 'drive', None),
                'structural_zero_roots': claims.structural_zero_roots,
@@ -181,10 +183,4 @@ def _plot_system_locus(path, lin, claims, name, K_lo, K_hi) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``locus`` on the scene's system: the centrifuge's or a system file's."""
-    scene = load_scene_with_sets(args.scene, args.set)
-    if scene.builtin:
-        if args.drive is not None:
-            raise ParameterError('--drive is for the scenes of system files; the centrifuge '
-                                 'has one drive')
-        return _run_centrifuge(args, scene)
-    return _run_system(args, scene)
+    return on_system(args, _run_centrifuge, _run_system)

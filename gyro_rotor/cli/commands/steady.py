@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from gyro_rotor.cli.util import load_scene_with_sets
+from gyro_rotor.cli.util import on_system
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError
 
@@ -65,7 +65,4 @@ def _run_system(args, scene) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``steady`` on the scene's system: the centrifuge's or a system file's."""
-    scene = load_scene_with_sets(args.scene, args.set, check=False)
-    if scene.builtin:
-        return _run_centrifuge(args, scene)
-    return _run_system(args, scene)
+    return on_system(args, _run_centrifuge, _run_system, check=False)

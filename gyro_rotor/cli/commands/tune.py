@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from gyro_rotor.cli.util import load_scene_with_sets
+from gyro_rotor.cli.util import on_system
 from gyro_rotor.linear.stability import scene_operating_point
 from gyro_rotor.linear.tune import best_K_D
 import numpy as np
@@ -78,7 +78,4 @@ def _run_system(args, scene) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``tune`` on the scene's system: the centrifuge's or a system file's."""
-    scene = load_scene_with_sets(args.scene, args.set)
-    if scene.builtin:
-        return _run_centrifuge(args, scene)
-    return _run_system(args, scene)
+    return on_system(args, _run_centrifuge, _run_system)
