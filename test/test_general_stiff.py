@@ -145,11 +145,11 @@ def test_auto_and_the_stepper_use_radau9_with_the_generated_jacobian():
 def test_live_general_simulation_runs_a_stiff_drive_with_radau9():
     """The live path (rotor_sim's stepper): auto is radau9 at K_D = 1e4, the residual small."""
     from gyro_rotor.core.scene import NODE_KEYS
-    from gyro_rotor.numerics.live_general import GeneralLiveSimulation
+    from gyro_rotor.numerics.live import LiveSimulation
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
     cfg['real_time_factor'] = 0.0
     scene = load_scene('twin_gimbal', {'K_D': 1e4})
-    sim = GeneralLiveSimulation(scene, cfg, {}, budget=None)
+    sim = LiveSimulation(scene, cfg, {}, budget=None)
     assert sim.stepper.method == 'radau9'
     blocks = []
     while sim.stepper.t < 0.3 and not sim.diverged:
