@@ -15,6 +15,9 @@ radau9      9      implicit  Radau IIA collocation (5 stages), L-stable, stiffly
                              adaptive; Newton matrix = exact Jacobian of the drive damping
                              only (rank one, closed-form inverse): cost independent of K_D;
                              the default for the stiff drive
+vern7       7(6)   explicit  Verner's most efficient pair, adaptive, order-7 interpolant
+vern8       8(7)   explicit  Verner's most efficient pair, adaptive, order-8 interpolant
+vern9       9(8)   explicit  Verner's most efficient pair, adaptive, order-9 interpolant
 split8      8      explicit  splitting into exact flows (free gyrostat; torques), composed to
                              order 8, fixed step: symplectic for K_D = 0, |q| = 1 by
                              construction; E* error bounded over long conservative runs
@@ -35,8 +38,9 @@ from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
 from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
 import numpy as np
 
-__all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'Radau9', 'Split8', 'METHODS', 'integrate',
-           'choose_method', 'STIFF_RATIO', 'CONSERVATIVE_DRIFT_LIMIT', 'DRIFT_PER_PERIOD']
+__all__ = ['RK4', 'RK8', 'DOP853', 'Vern7', 'Vern8', 'Vern9', 'Gauss6', 'Rodas4', 'Radau9',
+           'Split8', 'METHODS', 'integrate', 'choose_method', 'STIFF_RATIO',
+           'CONSERVATIVE_DRIFT_LIMIT', 'DRIFT_PER_PERIOD']
 
 #: 'auto' takes the stiff method when the drive's damping rate exceeds the fastest
 #: oscillation rate by this factor (explicit steps would be bounded by stability, not error)
@@ -188,6 +192,113 @@ class DOP853(Integrator):
         return kernels.dop853_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
                                   self.atol, self.h_max, self._h_next, self.renormalize,
                                   self.max_steps - self.nsteps, Y, counts)
+
+
+class Verner(Integrator):
+    """Verner's most efficient pair p(p-1) with its order-p interpolant (tableaux.VERNER).
+
+    Adaptive, error control in the RMS norm as dop853 (the p-1 formula's estimate, step
+    exponent 1/p), the derivative at the end of a step is the next step's first stage; a
+    sample inside a step costs the interpolant's extra stages, so steps land on samples when
+    that is cheaper (``kernels.land_step``). The kernels are generated straight-line code
+    (:mod:`~.rk_codegen`). Reference: Verner, Numer. Algorithms 53 (2010) 383-396.
+    """
+
+    adaptive = True
+    default_rtol = 1e-10
+    default_atol = 1e-12
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        pair = tb.VERNER[self.name]
+        n = self.model.n
+        self._kstep = getattr(rk_generated, f'{self.name}_step')
+        self._kdense = getattr(rk_generated, f'{self.name}_dense')
+        self._keval = getattr(rk_generated, f'{self.name}_eval')
+        self._krun = getattr(rk_generated, f'{self.name}_run')
+        self._s = pair.n_stages
+        self._n_extra = pair.A.shape[0] - pair.n_stages - 1
+        self._K = np.empty((pair.A.shape[0], n))
+        self._F = np.empty((pair.order, n))
+        self._ytmp = np.empty(n)
+        self._ynew = np.empty(n)
+        self._fnew = np.empty(n)
+        self._y_old = None
+        self._h_next = 0.0
+
+    def _step_impl(self, t_limit):
+        expo = -1.0 / self.order
+        if self._h_next <= 0.0:
+            self._h_next = kernels.initial_step(self.kind, self.P, self.y, self.f, self.rtol,
+                                                self.atol, self.order - 1, self.h_max,
+                                                self._ytmp, self._fnew)
+            self.nfev += 1
+        h = min(self._h_next, self.h_max)
+        while True:
+            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
+                return False, STATUS_MESSAGES[-1]
+            clipped = self.t + h >= t_limit
+            if clipped:
+                h = t_limit - self.t
+            err = self._kstep(self.kind, self.P, self.y, self.f, h, self.rtol, self.atol,
+                              self._K, self._ytmp, self._ynew, self._fnew)
+            self.nfev += self._s
+            if math.isfinite(err) and err <= 1.0:
+                break
+            self.nrejected += 1
+            h *= (max(kernels.MIN_FACTOR, kernels.SAFETY * err ** expo)
+                  if math.isfinite(err) else kernels.MIN_FACTOR)
+        y, f = self._ynew.copy(), self._fnew.copy()
+        self.project(y, f)
+        self._y_old, self._h_old, self._t_old_step = self.y, h, self.t
+        self._dense_ready = False
+        self.y, self.f = y, f
+        self.t = t_limit if clipped else self.t + h
+        fac = (kernels.MAX_FACTOR if err == 0.0
+               else min(kernels.MAX_FACTOR, kernels.SAFETY * err ** expo))
+        self._h_next = max(h * fac, self._h_next if clipped else 0.0)
+        return True, None
+
+    def dense_output(self, t: float) -> np.ndarray:
+        """State at ``t`` inside the last step (the order-p interpolant, its extra stages)."""
+        if self._y_old is None:
+            raise RuntimeError('Dense output is available only after a step.')
+        t0, h = self._t_old_step, self._h_old
+        if not (t0 <= t <= self.t):
+            raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
+        if not self._dense_ready:
+            self._kdense(self.kind, self.P, self._y_old, h, self._K, self._ytmp, self._F)
+            self.nfev += self._n_extra
+            self._dense_ready = True
+        out = np.empty(self.model.n)
+        self._keval(self.kind, self._F, self._y_old, (t - t0) / h, out)
+        return out
+
+    def _run(self, t_eval, Y, counts):
+        return self._krun(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol,
+                          self.h_max, self._h_next, self.renormalize,
+                          self.max_steps - self.nsteps, Y, counts)
+
+
+class Vern7(Verner):
+    """Verner 7(6), 10 stages a step, order-7 interpolant (5 extra stages)."""
+
+    name = 'vern7'
+    order = 7
+
+
+class Vern8(Verner):
+    """Verner 8(7), 13 stages a step, order-8 interpolant (7 extra stages)."""
+
+    name = 'vern8'
+    order = 8
+
+
+class Vern9(Verner):
+    """Verner 9(8), 16 stages a step, order-9 interpolant (9 extra stages)."""
+
+    name = 'vern9'
+    order = 9
 
 
 class Gauss6(Integrator):
@@ -399,7 +510,8 @@ class Split8(Integrator):
 
 
 METHODS: dict[str, type[Integrator]] = {
-    cls.name: cls for cls in (RK4, RK8, DOP853, Gauss6, Rodas4, Radau9, Split8)}
+    cls.name: cls for cls in (RK4, RK8, DOP853, Vern7, Vern8, Vern9, Gauss6, Rodas4, Radau9,
+                              Split8)}
 
 
 def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str, str]:
