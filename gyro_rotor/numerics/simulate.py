@@ -2,8 +2,10 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`: the compiled DOP853 of :mod:`gyro_rotor.numerics.integrators`,
-Radau9 where the drive damping makes the scene stiff, Split8 for long conservative runs), at
+(:func:`auto_method`: the cheapest compiled explicit pair of
+:mod:`gyro_rotor.numerics.integrators` for the tolerance and sample rate by its measured
+cost model, Radau9 where the drive damping makes the scene stiff, Split8 for long
+conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -125,14 +127,17 @@ class Trajectory:
         }
 
 
-def auto_method(scene: Scene, t_end: float | None = None) -> tuple[str, str]:
+def auto_method(scene: Scene, t_end: float | None = None, rtol: float | None = None,
+                rate: float = 0.0) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
     See :func:`gyro_rotor.numerics.integrators.choose_method`: Radau9 where the drive
-    damping makes the scene stiff, Split8 for long conservative runs, DOP853 otherwise.
+    damping makes the scene stiff, Split8 for long conservative runs, otherwise the cheapest
+    of dop853, vern7, vern8, vern9 for ``rtol`` (default DEFAULT_RTOL) with samples at
+    ``rate`` Hz by the measured cost model.
     """
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
-                             scene.model)
+                             scene.model, DEFAULT_RTOL if rtol is None else rtol, rate)
 
 
 def check_tolerances(rtol: float, atol: float) -> None:
@@ -159,8 +164,8 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4,
-        radau9, split8) or a
+        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, vern7, vern8,
+        vern9, gauss6, rodas4, radau9, split8) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
         Tolerances of adaptive methods (split8 derives its step from rtol); a fixed-step
@@ -184,7 +189,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     check_tolerances(rtol, atol)
     reason = ''
     if method == 'auto':
-        method, reason = auto_method(scene, t_end)
+        method, reason = auto_method(scene, t_end, rtol, rate)
     if method not in METHODS and method not in SCIPY_METHODS:
         raise ParameterError(f"unknown integrator '{method}'; valid: auto, "
                              f"{', '.join(METHODS)}, {', '.join(SCIPY_METHODS)}")
