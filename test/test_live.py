@@ -192,7 +192,8 @@ def test_work_budget_switches_to_autos_method_and_says_so():
 
 def test_reset_forgets_the_previous_runs_cannot_keep_up():
     """Issue 24, finding 15: after ~/reset the diagnostics showed the old run's message."""
-    sim, _ = make_sim(time.monotonic, budget=-1.0, integrator='dop853', real_time_factor=0.0)
+    first = resolve_method('auto', load_scene('precession').params)[0]
+    sim, _ = make_sim(time.monotonic, budget=-1.0, integrator=first, real_time_factor=0.0)
     sim.tick()
     sim.tick()
     assert "auto's choice already" in sim.switch

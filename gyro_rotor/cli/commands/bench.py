@@ -1,14 +1,15 @@
 """``gyro-rotor bench``: work-precision benchmark of the integrators against scipy and peers.
 
-Writes ``work_precision.csv`` (every run), ``work_precision.md`` (the default method against
-the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where they are
-installed; best milliseconds per simulated second at errors 1e-3, 1e-6, 1e-9 per scene and
-method; E* drift; pole counts)
+Writes ``work_precision.csv`` (every run, with the 1-minute load average at its end),
+``work_precision.md`` (the default method, run as its own row ``auto`` since it chooses per
+tolerance, against the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where
+they are installed, with what auto chose and the load average; best milliseconds per
+simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
 and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
 by default a new directory ``bench_out/bench-YYYYmmdd-HHMMSS`` (ignored by git; a suffix -2,
 -3 if two runs start in the same second): the committed results in ``bench/`` are replaced
 only when ``--out bench`` is given. ``--quick`` is a smoke run of under a minute (3 scenes,
-2 tolerances, the methods auto picks and dop853, scipy's LSODA, CyRK's DOP853 where
+2 tolerances, auto, dop853, vern8, radau9 and split8, scipy's LSODA, CyRK's DOP853 where
 installed, 1 repeat, 100-s drift study, no pole counts).
 """
 
