@@ -4,8 +4,9 @@ import math
 
 from gyro_rotor.core.scene import list_scenes, load_scene
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.numerics.integrators import (choose_method, integrate, make_integrator, METHODS,
-                                             tableaux)
+from gyro_rotor.numerics.integrators import (cheapest_explicit, choose_method, COST_METHODS,
+                                             integrate, make_integrator, method_cost, METHODS,
+                                             model_rate, tableaux)
 import numpy as np
 import pytest
 
@@ -187,7 +188,8 @@ def test_stiff_method_completes_kd_1e6_within_step_budget():
 
 
 def test_auto_choice():
-    assert choose_method(load_scene('precession').params)[0] == 'dop853'
+    assert choose_method(load_scene('precession').params, rtol=1e-6,
+                         sample_rate=100.0)[0] == 'dop853'
     assert choose_method(load_scene('stiff_drive').params)[0] == 'radau9'
     assert choose_method(load_scene('conservative').params, 1000.0)[0] == 'split8'
     assert choose_method(load_scene('conservative').params, 1000.0, 'upright_axis')[0] == \
@@ -201,21 +203,55 @@ def test_auto_conservative_threshold_counts_periods_of_the_fastest_oscillation()
     # trajectory error (bench), so auto keeps dop853; over 1000 s it takes split8
     p = load_scene('conservative').params
     method, reason = choose_method(p, 100.0)
-    assert method == 'dop853' and 'periods' in reason and 'conservative' in reason
+    assert method in COST_METHODS and 'periods' in reason and 'conservative' in reason
     assert choose_method(p, 1000.0)[0] == 'split8'
     # the threshold is a number of periods, not of seconds: ten times the spin makes the
     # nutation (C_R Omega0 / I = 483 rad/s) the fastest oscillation, and 100 s long
     fast = load_scene('conservative', overrides={'Omega0': 3141.6}).params
     assert choose_method(fast, 100.0)[0] == 'split8'
-    assert choose_method(fast, 10.0)[0] == 'dop853'
+    assert choose_method(fast, 10.0)[0] in COST_METHODS
 
 
-def test_auto_keeps_dop853_on_fast_spin():
-    # fast_spin (nutation 483 rad/s, 9 times the other rates) is not stiff and not
-    # conservative: dop853, which the benchmark (rk8 swept from 3.2 / rate) finds as fast as
-    # rk8 at error 1e-6 and within 1.2x at 1e-9; a fixed step has no error control
-    method, reason = choose_method(load_scene('fast_spin').params, 2.0)
-    assert method == 'dop853' and 'non-stiff' in reason and '483 rad/s' in reason
+def test_auto_takes_the_cheapest_explicit_pair_by_the_cost_model():
+    # fast_spin (nutation 483 rad/s, 9 times the other rates): steps are much shorter than
+    # the 10-ms samples, the interpolant is rarely needed, and the 8(7) pair needs fewer
+    # evaluations than dop853 for the same error; at slow rates (precession, 54.8 rad/s) every
+    # step holds samples and dop853's 3-stage interpolant wins at loose tolerances
+    method, reason = choose_method(load_scene('fast_spin').params, 2.0, rtol=1e-6,
+                                   sample_rate=100.0)
+    assert method == 'vern8' and 'non-stiff' in reason and '483 rad/s' in reason
+    assert 'cost model' in reason and 'dop853' in reason       # the candidates' costs
+    p = load_scene('precession').params
+    rate = model_rate(p)
+    assert choose_method(p, 10.0, rtol=1e-5, sample_rate=100.0)[0] == 'dop853'
+    # the choice is the minimum of the predicted costs
+    for tol in (1e-4, 1e-6, 1e-9, 1e-12):
+        for fs in (0.0, 100.0, 1000.0):
+            best, costs = cheapest_explicit(rate, tol, fs)
+            assert costs[best] == min(costs.values())
+            assert choose_method(p, 10.0, rtol=tol, sample_rate=fs)[0] == best
+    # more samples never make the interpolant-heavy pairs cheaper
+    for m in COST_METHODS:
+        assert method_cost(m, rate, 1e-8, 1000.0) >= method_cost(m, rate, 1e-8, 0.0)
+    # tighter tolerances cost more steps, by the measured table
+    for m in COST_METHODS:
+        c = [method_cost(m, rate, t) for t in (1e-3, 1e-6, 1e-9, 1e-12, 1e-14)]
+        assert all(a < b for a, b in zip(c, c[1:]))
+
+
+def test_auto_never_takes_a_method_with_an_error_floor_above_the_tolerance(monkeypatch):
+    from gyro_rotor.numerics.integrators import methods
+    monkeypatch.setitem(methods.ERROR_FLOOR, 'vern8', 1e-9)
+    p = load_scene('fast_spin').params
+    assert choose_method(p, 2.0, rtol=1e-8, sample_rate=100.0)[0] == 'vern8'
+    assert choose_method(p, 2.0, rtol=1e-10, sample_rate=100.0)[0] != 'vern8'
+
+
+def test_integrate_auto_runs_the_chosen_method():
+    sc, m, y0 = _setup('fast_spin')
+    te = np.linspace(0.0, 0.2, 21)
+    res = integrate(m, y0, (0.0, 0.2), te, 'auto', rtol=1e-6, atol=1e-8)
+    assert res.success and res.method == choose_method(sc.params, 0.2, 'full', 1e-6, 100.0)[0]
 
 
 def test_drift_per_period_matches_dop853():

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from typing import Callable
 
@@ -67,8 +68,11 @@ STEP_FACTORS = {'rk4': (0.2, 0.1, 0.05, 0.02, 0.01, 0.005),
                 'rk8': (3.2, 1.6, 0.8, 0.4, 0.2, 0.1, 0.05),
                 'gauss6': (0.4, 0.2, 0.1, 0.05, 0.025),
                 'split8': (0.6, 0.45, 0.33, 0.25, 0.18, 0.13, 0.1)}
-#: the quick sweep runs only these of our methods (the ones auto picks, and dop853)
-QUICK_METHODS = ('dop853', 'radau9', 'split8')
+#: the default method, run as its own row over the tolerance sweep: it chooses by the scene,
+#: the requested rtol and the sample rate (methods.choose_method), so per setting
+AUTO = 'auto'
+#: the quick sweep runs only these of our methods (auto, the ones it picks, and dop853)
+QUICK_METHODS = (AUTO, 'dop853', 'vern8', 'radau9', 'split8')
 ATOL_RATIO = 1e-2
 #: budgets: our compiled methods stop after this many steps, scipy after this many RHS calls
 MAX_STEPS = 3_000_000
@@ -95,6 +99,7 @@ class BenchRow:
     nfev: int
     nsteps: int
     status: int
+    load: float = math.nan   # 1-minute load average when the run ended
 
 
 def parse_scene_spec(spec: str) -> tuple[Scene, str]:
@@ -118,10 +123,13 @@ def _t_eval(t_end: float) -> np.ndarray:
     return np.linspace(0.0, t_end, n + 1)
 
 
-def auto_choice(scene: Scene) -> str:
-    """Return the method 'auto' picks for the scene over its duration."""
+def auto_choice(scene: Scene, rtol: float | None = None) -> str:
+    """Return the method 'auto' picks for the scene over its duration at ``rtol``.
+
+    With the benchmark's samples (SAMPLE_RATE); rtol None: the default tolerance.
+    """
     from gyro_rotor.numerics.integrators import choose_method
-    return choose_method(scene.params, scene.t_end, scene.model)[0]
+    return choose_method(scene.params, scene.t_end, scene.model, rtol, SAMPLE_RATE)[0]
 
 
 def _is_stiff(scene: Scene) -> bool:
@@ -218,6 +226,13 @@ def _peer_run(peer, package, model, y0, t_eval, method, rtol, atol):
     return Y, wall, -1, steps, 0, t_eval[-1]
 
 
+def _load() -> float:
+    try:
+        return os.getloadavg()[0]
+    except OSError:  # pragma: no cover - platforms without it
+        return math.nan
+
+
 def _repeat(fn: Callable, repeats: int):
     walls = []
     out = None
@@ -243,8 +258,8 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
     stiff = _is_stiff(scene)
     rtols = RTOLS['quick' if quick else 'full']
     jobs = []
-    for name in (methods or (QUICK_METHODS if quick else METHODS)):
-        if METHODS[name].adaptive:
+    for name in (methods or (QUICK_METHODS if quick else (AUTO,) + tuple(METHODS))):
+        if name == AUTO or METHODS[name].adaptive:
             for r in rtols:
                 jobs.append(('gyro_rotor', name, f'rtol={r:.0e}',
                              {'rtol': r, 'atol': r * ATOL_RATIO}))
@@ -298,7 +313,7 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         e = errors(model, Y, R) if Y is not None else errors(model, np.empty((0, model.n)), R)
         rows.append(BenchRow(scene=label, method=name, family=family, setting=setting,
                              wall_per_sim=wall / t_done, nfev=nfev, nsteps=nsteps,
-                             status=status, **e))
+                             status=status, load=_load(), **e))
         if status == -3 or wall > SLOW_RUN:
             over_budget.add(name)
         if progress:

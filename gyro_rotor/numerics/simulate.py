@@ -2,10 +2,10 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`; for the centrifuge the compiled DOP853 of
-:mod:`gyro_rotor.numerics.integrators`, Radau9 where the drive damping makes the scene
-stiff, Split8 for long conservative runs; for a system file
-:func:`gyro_rotor.numerics.general.choose_method`), at
+(:func:`auto_method`; for the centrifuge the cheapest compiled explicit pair of
+:mod:`gyro_rotor.numerics.integrators` for the tolerance and sample rate by its measured
+cost model, Radau9 where the drive damping makes the scene stiff, Split8 for long
+conservative runs; for a system file :func:`gyro_rotor.numerics.general.choose_method`), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -134,20 +134,22 @@ class Trajectory:
         }
 
 
-def auto_method(scene: Scene, t_end: float | None = None, model=None,
-                y0: np.ndarray | None = None) -> tuple[str, str]:
+def auto_method(scene: Scene, t_end: float | None = None, rtol: float | None = None,
+                rate: float = 0.0, model=None, y0: np.ndarray | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
     The centrifuge: :func:`gyro_rotor.numerics.integrators.choose_method` (Radau9 where
-    the drive damping makes the scene stiff, Split8 for long conservative runs, DOP853
-    otherwise); a system file: :func:`gyro_rotor.numerics.general.choose_method` at
-    ``y0`` (default: the scene's initial state).
+    the drive damping makes the scene stiff, Split8 for long conservative runs, otherwise
+    the cheapest of dop853, vern7, vern8, vern9 for ``rtol`` (default DEFAULT_RTOL) with
+    samples at ``rate`` Hz by the measured cost model); a system file:
+    :func:`gyro_rotor.numerics.general.choose_method` at ``y0`` (default: the scene's
+    initial state).
     """
     if not scene.builtin:
         model = model or scene.make_model()
         return general.choose_method(model, scene.initial_state(model) if y0 is None else y0)
     return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
-                             scene.model)
+                             scene.model, DEFAULT_RTOL if rtol is None else rtol, rate)
 
 
 def methods_of(scene: Scene) -> tuple:
@@ -179,8 +181,8 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Sample rate of the output [Hz] (the integrator's steps are independent of it).
     method : str
         'auto' (:func:`auto_method`, the reason lands in ``Trajectory.method_reason``), a
-        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, gauss6, rodas4,
-        radau9, split8) or a
+        method of :mod:`gyro_rotor.numerics.integrators` (rk4, rk8, dop853, vern7, vern8,
+        vern9, gauss6, rodas4, radau9, split8) or a
         scipy ``solve_ivp`` name (DOP853, RK45, RK23, Radau, BDF, LSODA) as a baseline.
     rtol, atol : float, optional
         Tolerances of adaptive methods (split8 derives its step from rtol); a fixed-step
@@ -213,7 +215,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     if y_init.shape != (size,) or not np.all(np.isfinite(y_init)):
         raise ParameterError(f'the initial state must be {size} finite numbers')
     if method == 'auto':
-        method, reason = auto_method(scene, t_end, model, y_init)
+        method, reason = auto_method(scene, t_end, rtol, rate, model, y_init)
     t_eval = _sample_times(t_end, rate)
     if method in own:
         kernel_model = model if scene.builtin else general.KernelSystem(model)

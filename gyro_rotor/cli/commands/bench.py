@@ -1,14 +1,15 @@
 """``gyro-rotor bench``: work-precision benchmark of the integrators against scipy and peers.
 
-Writes ``work_precision.csv`` (every run), ``work_precision.md`` (the default method against
-the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where they are
-installed; best milliseconds per simulated second at errors 1e-3, 1e-6, 1e-9 per scene and
-method; E* drift; pole counts)
+Writes ``work_precision.csv`` (every run, with the 1-minute load average at its end),
+``work_precision.md`` (the default method, run as its own row ``auto`` since it chooses per
+tolerance, against the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where
+they are installed, with what auto chose and the load average; best milliseconds per
+simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
 and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
 by default a new directory ``bench_out/bench-YYYYmmdd-HHMMSS`` (ignored by git; a suffix -2,
 -3 if two runs start in the same second): the committed results in ``bench/`` are replaced
 only when ``--out bench`` is given. ``--quick`` is a smoke run of under a minute (3 scenes,
-2 tolerances, the methods auto picks and dop853, scipy's LSODA, CyRK's DOP853 where
+2 tolerances, auto, dop853, vern8, radau9 and split8, scipy's LSODA, CyRK's DOP853 where
 installed, 1 repeat, 100-s drift study, no pole counts).
 """
 
@@ -71,6 +72,24 @@ def _best(table, scene, methods, i):
     return m, v
 
 
+def _auto_best(rows, scene, level):
+    """Return (cost, label, load) of auto's cheapest run at error <= level, or (None, '-', nan).
+
+    The label names the method auto chose at that setting (it chooses per tolerance).
+    """
+    best = None
+    for r in rows:
+        if (r.scene == scene and r.method == bench.AUTO and r.status == 0
+                and math.isfinite(r.err) and r.err <= level
+                and (best is None or r.wall_per_sim < best.wall_per_sim)):
+            best = r
+    if best is None:
+        return None, '-', math.nan
+    rtol = float(best.setting.partition('=')[2])
+    chosen = bench.auto_choice(bench.parse_scene_spec(scene)[0], rtol)
+    return best.wall_per_sim, f'{chosen} ({best.setting})', best.load
+
+
 def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
     """Markdown lines: the default method (auto) against the best compiled peer, per scene.
 
@@ -82,16 +101,15 @@ def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
     idx = [bench.ERROR_LEVELS.index(lev) for lev in levels]
     table = bench.best_table(rows)
     fam = _families(rows)
-    own = [m for m, f in fam.items() if f == 'gyro_rotor']
+    own = [m for m, f in fam.items() if f == 'gyro_rotor' and m != bench.AUTO]
     peers = [m for m, f in fam.items() if f == 'peer']
     scenes = list(dict.fromkeys(r.scene for r in rows))
-    lines = ['| scene | error | auto | auto [ms/s] | best compiled peer [ms/s] | '
-             'peer / auto | best own [ms/s] | auto / own best |',
-             '|---|---|---|---|---|---|---|---|']
+    lines = ['| scene | error | auto chose (at rtol) | auto [ms/s] | best compiled peer [ms/s] | '
+             'peer / auto | best own [ms/s] | auto / own best | load |',
+             '|---|---|---|---|---|---|---|---|---|']
     for s in scenes:
-        auto = bench.auto_choice(bench.parse_scene_spec(s)[0])
         for lev, i in zip(levels, idx):
-            ours = (table.get((s, auto)) or [None] * len(bench.ERROR_LEVELS))[i]
+            ours, auto, load = _auto_best(rows, s, lev)
             pm, pv = _best(table, s, peers, i)
             om, ov = _best(table, s, own, i)
             ratio = '-' if ours is None or pv is None else f'{pv / ours:.2f}x'
@@ -100,7 +118,7 @@ def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
                          + ('-' if pm is None else f'{_fmt(pv)} ({pm})')
                          + f' | {ratio} | '
                          + ('-' if om is None else f'{_fmt(ov)} ({om})')
-                         + f' | {own_ratio} |')
+                         + f' | {own_ratio} | {load:.1f} |')
     return lines
 
 
@@ -146,13 +164,14 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
               '| scene | auto | vs scipy at 1e-6 | at 1e-9 | vs own best at 1e-6 | at 1e-9 |',
               '|---|---|---|---|---|---|']
     for s in scenes:
-        auto = bench.auto_choice(bench.parse_scene_spec(s)[0])
+        chosen = (_auto_best(rows, s, bench.ERROR_LEVELS[i])[1] for i in (1, 2))
+        auto = '/'.join(dict.fromkeys(c.split(' ')[0] for c in chosen))
         cells = []
         for family in ('scipy', 'gyro_rotor'):
             for i in (1, 2):
-                ours = (table.get((s, auto)) or [None] * 3)[i]
+                ours = _auto_best(rows, s, bench.ERROR_LEVELS[i])[0]
                 other = [table[(s, m)][i] for m in methods
-                         if fam[m] == family and (s, m) in table
+                         if fam[m] == family and (s, m) in table and m != bench.AUTO
                          and table[(s, m)][i] is not None]
                 if ours is None or not other:
                     cells.append('-')

@@ -47,7 +47,7 @@ except ImportError:  # pragma: no cover
 __all__ = ['HAVE_NUMBA', 'KIND', 'FullKind', 'UprightKind', 'LockedKind', 'Status',
            'pack_params', 'rhs', 'state_size', 'rk_run', 'dop853_run', 'gauss_run',
            'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense', 'gauss_step', 'rodas_step',
-           'fd_jacobian', 'normalize_quaternion']
+           'fd_jacobian', 'normalize_quaternion', 'land_step', 'all_finite']
 
 
 class FullKind(enum.IntEnum):
@@ -233,6 +233,9 @@ def _all_finite(y):
         if not math.isfinite(y[i]):
             return False
     return True
+
+
+all_finite = _all_finite
 
 
 # -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
@@ -447,6 +450,36 @@ def _land_on_sample(t_eval, k, t, h, h_max):
     if not (LAND_SHRINK * h <= d <= LAND_STRETCH * h and d <= h_max and d > 0.0):
         return False
     return k + 1 >= nt or t_eval[k + 1] > t + h
+
+
+@njit(cache=True, error_model='numpy')
+def land_step(t_eval, k, t, h, h_max, dense_cost):
+    """Return the step that lands on the sample t_eval[k] in m equal steps, or 0.0 (no landing).
+
+    A sample inside a step costs the interpolant, ``dense_cost`` steps' worth of evaluations.
+    Reaching the next sample from t in m = ceil(d / (LAND_STRETCH h)) equal steps of d / m
+    instead of steps h costs m - d / h more steps; landing is chosen when that is at most
+    ``dense_cost``, only when the step h would reach no sample beyond this one (that would need
+    the interpolant anyway), and never beyond h_max. Decided again at every step.
+    """
+    nt = t_eval.shape[0]
+    if k >= nt:
+        return 0.0
+    d = t_eval[k] - t
+    if not (d > 0.0 and h > 0.0):
+        return 0.0
+    if k + 1 < nt and t_eval[k + 1] <= t + h:
+        return 0.0
+    r = d / h
+    m = math.ceil(r / LAND_STRETCH)
+    if m < 1:
+        m = 1
+    if m - r > dense_cost:
+        return 0.0
+    h_land = d / m
+    if h_land > h_max:
+        return 0.0
+    return h_land
 
 
 @njit(cache=True, error_model='numpy')

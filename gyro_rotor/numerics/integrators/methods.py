@@ -15,6 +15,9 @@ radau9      9      implicit  Radau IIA collocation (5 stages), L-stable, stiffly
                              adaptive; Newton matrix = exact Jacobian of the drive damping
                              only (rank one, closed-form inverse): cost independent of K_D;
                              the default for the stiff drive
+vern7       7(6)   explicit  Verner's most efficient pair, adaptive, order-7 interpolant
+vern8       8(7)   explicit  Verner's most efficient pair, adaptive, order-8 interpolant
+vern9       9(8)   explicit  Verner's most efficient pair, adaptive, order-9 interpolant
 split8      8      explicit  splitting into exact flows (free gyrostat; torques), composed to
                              order 8, fixed step: symplectic for K_D = 0, |q| = 1 by
                              construction; E* error bounded over long conservative runs
@@ -35,12 +38,15 @@ from gyro_rotor.core.model import Model
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
                                              splitting as split, tableaux as tb)
-from gyro_rotor.numerics.integrators.base import IntegrationResult, Integrator, STATUS_MESSAGES
+from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator, model_rate,
+                                                  STATUS_MESSAGES)
 from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
 import numpy as np
 
-__all__ = ['RK4', 'RK8', 'DOP853', 'Gauss6', 'Rodas4', 'Radau9', 'Split8', 'METHODS', 'integrate',
-           'choose_method', 'STIFF_RATIO', 'CONSERVATIVE_DRIFT_LIMIT', 'DRIFT_PER_PERIOD']
+__all__ = ['RK4', 'RK8', 'DOP853', 'Vern7', 'Vern8', 'Vern9', 'Gauss6', 'Rodas4', 'Radau9',
+           'Split8', 'METHODS', 'integrate', 'choose_method', 'STIFF_RATIO',
+           'CONSERVATIVE_DRIFT_LIMIT', 'DRIFT_PER_PERIOD', 'method_cost', 'cheapest_explicit',
+           'COST_METHODS', 'STEPS_PER_RADIAN', 'COST_ERRORS', 'ERROR_FLOOR']
 
 #: 'auto' takes the stiff method when the drive's damping rate exceeds the fastest
 #: oscillation rate by this factor (explicit steps would be bounded by stability, not error)
@@ -192,6 +198,113 @@ class DOP853(Integrator):
         return kernels.dop853_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
                                   self.atol, self.h_max, self._h_next, self.renormalize,
                                   self.max_steps - self.nsteps, Y, counts)
+
+
+class Verner(Integrator):
+    """Verner's most efficient pair p(p-1) with its order-p interpolant (tableaux.VERNER).
+
+    Adaptive, error control in the RMS norm as dop853 (the p-1 formula's estimate, step
+    exponent 1/p), the derivative at the end of a step is the next step's first stage; a
+    sample inside a step costs the interpolant's extra stages, so steps land on samples when
+    that is cheaper (``kernels.land_step``). The kernels are generated straight-line code
+    (:mod:`~.rk_codegen`). Reference: Verner, Numer. Algorithms 53 (2010) 383-396.
+    """
+
+    adaptive = True
+    default_rtol = 1e-10
+    default_atol = 1e-12
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        pair = tb.VERNER[self.name]
+        n = self.model.n
+        self._kstep = getattr(rk_generated, f'{self.name}_step')
+        self._kdense = getattr(rk_generated, f'{self.name}_dense')
+        self._keval = getattr(rk_generated, f'{self.name}_eval')
+        self._krun = getattr(rk_generated, f'{self.name}_run')
+        self._s = pair.n_stages
+        self._n_extra = pair.A.shape[0] - pair.n_stages - 1
+        self._K = np.empty((pair.A.shape[0], n))
+        self._F = np.empty((pair.order, n))
+        self._ytmp = np.empty(n)
+        self._ynew = np.empty(n)
+        self._fnew = np.empty(n)
+        self._y_old = None
+        self._h_next = 0.0
+
+    def _step_impl(self, t_limit):
+        expo = -1.0 / self.order
+        if self._h_next <= 0.0:
+            self._h_next = kernels.initial_step(self.kind, self.P, self.y, self.f, self.rtol,
+                                                self.atol, self.order - 1, self.h_max,
+                                                self._ytmp, self._fnew)
+            self.nfev += 1
+        h = min(self._h_next, self.h_max)
+        while True:
+            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
+                return False, STATUS_MESSAGES[-1]
+            clipped = self.t + h >= t_limit
+            if clipped:
+                h = t_limit - self.t
+            err = self._kstep(self.kind, self.P, self.y, self.f, h, self.rtol, self.atol,
+                              self._K, self._ytmp, self._ynew, self._fnew)
+            self.nfev += self._s
+            if math.isfinite(err) and err <= 1.0:
+                break
+            self.nrejected += 1
+            h *= (max(kernels.MIN_FACTOR, kernels.SAFETY * err ** expo)
+                  if math.isfinite(err) else kernels.MIN_FACTOR)
+        y, f = self._ynew.copy(), self._fnew.copy()
+        self.project(y, f)
+        self._y_old, self._h_old, self._t_old_step = self.y, h, self.t
+        self._dense_ready = False
+        self.y, self.f = y, f
+        self.t = t_limit if clipped else self.t + h
+        fac = (kernels.MAX_FACTOR if err == 0.0
+               else min(kernels.MAX_FACTOR, kernels.SAFETY * err ** expo))
+        self._h_next = max(h * fac, self._h_next if clipped else 0.0)
+        return True, None
+
+    def dense_output(self, t: float) -> np.ndarray:
+        """State at ``t`` inside the last step (the order-p interpolant, its extra stages)."""
+        if self._y_old is None:
+            raise RuntimeError('Dense output is available only after a step.')
+        t0, h = self._t_old_step, self._h_old
+        if not (t0 <= t <= self.t):
+            raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
+        if not self._dense_ready:
+            self._kdense(self.kind, self.P, self._y_old, h, self._K, self._ytmp, self._F)
+            self.nfev += self._n_extra
+            self._dense_ready = True
+        out = np.empty(self.model.n)
+        self._keval(self.kind, self._F, self._y_old, (t - t0) / h, out)
+        return out
+
+    def _run(self, t_eval, Y, counts):
+        return self._krun(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol,
+                          self.h_max, self._h_next, self.renormalize,
+                          self.max_steps - self.nsteps, Y, counts)
+
+
+class Vern7(Verner):
+    """Verner 7(6), 10 stages a step, order-7 interpolant (5 extra stages)."""
+
+    name = 'vern7'
+    order = 7
+
+
+class Vern8(Verner):
+    """Verner 8(7), 13 stages a step, order-8 interpolant (7 extra stages)."""
+
+    name = 'vern8'
+    order = 8
+
+
+class Vern9(Verner):
+    """Verner 9(8), 16 stages a step, order-9 interpolant (9 extra stages)."""
+
+    name = 'vern9'
+    order = 9
 
 
 class Gauss6(Integrator):
@@ -403,13 +516,79 @@ class Split8(Integrator):
 
 
 METHODS: dict[str, type[Integrator]] = {
-    cls.name: cls for cls in (RK4, RK8, DOP853, Gauss6, Rodas4, Radau9, Split8)}
+    cls.name: cls for cls in (RK4, RK8, DOP853, Vern7, Vern8, Vern9, Gauss6, Rodas4, Radau9,
+                              Split8)}
 #: a generated rotor system (a model with ``kernel_jac``) runs these classes under the same
 #: names: radau9 with its exact generated Jacobian (:mod:`~.radau_jac`)
 GENERATED_METHODS: dict[str, type[Integrator]] = {Radau9Jac.name: Radau9Jac}
 
 
-def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str, str]:
+#: the explicit adaptive methods that 'auto' chooses among by cost (a non-stiff scene)
+COST_METHODS = ('dop853', 'vern7', 'vern8', 'vern9')
+#: benchmark error levels of :data:`STEPS_PER_RADIAN` (max over 100-Hz samples of the axis
+#: angle and |z| error against a reference, ``gyro-rotor bench``)
+COST_ERRORS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
+#: measured work-precision: the steps per radian of the fastest rate (``model_rate``) that
+#: each method needs to reach each error of COST_ERRORS, at the cheapest tolerance of the
+#: benchmark's sweep (rtol 1e-3 ... 1e-12, atol = rtol / 100), geometric mean over
+#: precession, nutation, upright, fast_spin, conservative and pole_slip: the nsteps and err
+#: columns of bench/work_precision.csv (step counts do not depend on the machine's load)
+STEPS_PER_RADIAN = {
+    'dop853': (0.457, 0.58, 0.785, 1.11, 1.34, 1.89, 2.45, 3.19, 4.33),
+    'vern7': (0.594, 0.902, 1.16, 1.52, 1.96, 2.57, 3.36, 4.83, 6.44),
+    'vern8': (0.427, 0.521, 0.636, 0.899, 1.16, 1.43, 2.11, 2.5, 3.36),
+    'vern9': (0.506, 0.589, 0.732, 1.06, 1.29, 1.51, 1.98, 2.39, 2.78),
+}
+#: the smallest benchmark error each method reached in that sweep (its floor: 'auto' never
+#: takes a method whose floor is above the requested tolerance; dop853 is the fallback)
+ERROR_FLOOR = {'dop853': 2e-14, 'vern7': 6e-15, 'vern8': 7e-15, 'vern9': 5e-15}
+#: a step's bookkeeping (error norm, landing, projection, copies; about 130 ns against
+#: 60 ns an evaluation with its stage sums) in evaluations
+STEP_OVERHEAD = 2.0
+#: with several steps per sample interval, steps land on the samples (kernels.land_step):
+#: the interpolant is then needed for about this fraction of the samples
+LANDED_DENSE = 0.25
+
+
+def method_cost(name: str, rate: float, tol: float, sample_rate: float = 0.0) -> float:
+    """Return the predicted evaluations per simulated second of ``name`` at error ``tol``.
+
+    N = rate * STEPS_PER_RADIAN[name](tol) steps a second (interpolated in log-log between
+    the COST_ERRORS, extrapolated by the end segments) of s evaluations plus STEP_OVERHEAD,
+    and the interpolant's extra stages x for the samples inside steps: on every step when
+    steps are longer than the sample spacing (N < sample_rate), else on LANDED_DENSE of the
+    samples.
+    """
+    lev = np.log(COST_ERRORS)
+    val = np.log(STEPS_PER_RADIAN[name])
+    x = math.log(tol)
+    if x > lev[0]:
+        i = 0
+    elif x < lev[-1]:
+        i = len(lev) - 2
+    else:
+        i = min(int(np.searchsorted(-lev, -x)) - 1, len(lev) - 2)
+        i = max(i, 0)
+    w = (x - lev[i]) / (lev[i + 1] - lev[i])
+    steps = rate * math.exp(val[i] + w * (val[i + 1] - val[i]))
+    if name == 'dop853':
+        s, extra = 12, 3
+    else:
+        pair = tb.VERNER[name]
+        s, extra = pair.n_stages, pair.A.shape[0] - pair.n_stages - 1
+    dense = steps if steps < sample_rate else LANDED_DENSE * sample_rate
+    return steps * (s + STEP_OVERHEAD) + dense * extra
+
+
+def cheapest_explicit(rate: float, tol: float, sample_rate: float = 0.0) -> tuple[str, dict]:
+    """Return the cheapest of COST_METHODS at ``tol`` and every candidate's predicted cost."""
+    costs = {m: method_cost(m, rate, tol, sample_rate) for m in COST_METHODS
+             if ERROR_FLOOR[m] <= tol or m == 'dop853'}
+    return min(costs, key=costs.get), costs
+
+
+def choose_method(params, t_end: float = 0.0, model: str = 'full', rtol: float | None = None,
+                  sample_rate: float = 0.0) -> tuple[str, str]:
     """Return the automatic choice for a scene: ``(method name, reason)``.
 
     - radau9 when the drive's damping rate K_D (1/C_R + 1/C_M) (a real root of the
@@ -423,7 +602,10 @@ def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str,
       given trajectory error at about half split8's cost (over 100 s at one step per 10-ms
       sample: split8's error 3.4e-6, that of DOP853's formula at a fixed step 1.7e-7, and
       split8's step costs 1.5 times as much);
-    - dop853 otherwise: the cheapest per accuracy on the non-stiff scenes.
+    - otherwise the cheapest of the explicit adaptive methods (dop853, vern7, vern8, vern9)
+      by the measured cost model (:func:`method_cost`) at an error equal to the requested
+      ``rtol`` (default: dop853's default tolerance), with the samples at ``sample_rate`` Hz
+      (0: no samples inside the steps, the stepping API).
     """
     inv_c = 1.0 / params.C_R + 1.0 / params.C_M
     stiff = params.K_D * inv_c
@@ -443,19 +625,30 @@ def choose_method(params, t_end: float = 0.0, model: str = 'full') -> tuple[str,
             f'conservative (K_D = 0) over {t_end:g} s = {periods:.3g} periods of the fastest '
             f'oscillation ({osc:.3g} rad/s), where dop853 would drift E* by about '
             f'{drift:.2g} rtol: {what}')
+    tol = DOP853.default_rtol if rtol is None else float(rtol)
+    rate = model_rate(params)
+    best, costs = cheapest_explicit(rate, tol, sample_rate)
+    table = ', '.join(f'{m} {c:.3g}' for m, c in sorted(costs.items(), key=lambda kv: kv[1]))
+    cost = (f'the cheapest explicit pair at error {tol:.0e} by the measured cost model '
+            f'(evaluations per simulated second at {sample_rate:g}-Hz samples: {table})')
     if params.K_D == 0.0:
-        return 'dop853', (f'conservative (K_D = 0) but short: {periods:.3g} periods of the '
-                          f'fastest oscillation ({osc:.3g} rad/s), dop853 drifts E* by about '
-                          f'{drift:.2g} rtol only; adaptive explicit order 8 is the cheapest')
-    return 'dop853', (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest oscillation '
-                      f'{osc:.3g} rad/s): adaptive explicit order 8 is the cheapest')
+        return best, (f'conservative (K_D = 0) but short: {periods:.3g} periods of the '
+                      f'fastest oscillation ({osc:.3g} rad/s), dop853 drifts E* by about '
+                      f'{drift:.2g} rtol only; {cost}')
+    return best, (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest oscillation '
+                  f'{osc:.3g} rad/s): {cost}')
 
 
 def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
-                    t_bound: float = math.inf, **kwargs) -> Integrator:
-    """Make an integrator from the registry by name ('auto' uses :func:`choose_method`)."""
+                    t_bound: float = math.inf, sample_rate: float = 0.0,
+                    **kwargs) -> Integrator:
+    """Make an integrator from the registry by name ('auto' uses :func:`choose_method`).
+
+    ``sample_rate`` [Hz]: the samples 'auto' plans for (:func:`integrate` passes its own).
+    """
     if method == 'auto':
-        method = choose_method(model.params, t_bound - t0, model.name)[0]
+        method = choose_method(model.params, t_bound - t0, model.name, kwargs.get('rtol'),
+                               sample_rate)[0]
     try:
         cls = METHODS[method]
     except KeyError:
@@ -477,7 +670,8 @@ def integrate(model: Model, y0, t_span, t_eval=None, method: str = 'auto', *,
     t0, t1 = (float(v) for v in t_span)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ParameterError(f't_span must be two finite times with t1 > t0, got {t_span!r}')
-    solver = make_integrator(method, model, y0, t0, t1, rtol=rtol, atol=atol, step=step,
-                             max_steps=max_steps)
     te = np.array([t0, t1]) if t_eval is None else np.asarray(t_eval, dtype=float)
+    samples = (te.size - 1) / (t1 - t0) if te.size > 2 else 0.0
+    solver = make_integrator(method, model, y0, t0, t1, samples, rtol=rtol, atol=atol,
+                             step=step, max_steps=max_steps)
     return solver.run(te)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 import sys
+import textwrap
 
 from gyro_rotor.numerics.integrators import tableaux as tb
 
@@ -29,7 +30,11 @@ coefficients folded in as constants (the numbers are those of :mod:`~.tableaux`)
 argument conventions are those of the generic kernels (see :mod:`~.rk_codegen`).
 """
 
-from gyro_rotor.numerics.integrators.kernels import njit, rhs, state_size
+from gyro_rotor.numerics.integrators.kernels import (all_finite, BUDGET, initial_step, land_step,
+                                                     MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
+                                                     normalize_quaternion, OK, rhs, SAFETY,
+                                                     state_size, UNDERFLOW)
+import numpy as np
 
 __all__ = [{names}]
 '''
@@ -149,11 +154,196 @@ def _dop853() -> tuple[list[str], list[str]]:
     return f, consts
 
 
+_RUN = '''
+
+@njit(cache=True, error_model='numpy')
+def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps, Y_out,
+{pad}counts):
+    """Adaptive {title} from t0 to t_eval[-1], sampling ``t_eval`` (as kernels.dop853_run).
+
+    {s} evaluations a step ({s1} stages and f(y_new), the next step's first), {nx} more for the
+    order-{p} interpolant of a step with a sample inside it; steps land on samples by the rule
+    of kernels.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
+    """
+    n = state_size(kind, y0)
+    y = y0.copy()
+    y_new = np.empty(n)
+    f = np.empty(n)
+    f_new = np.empty(n)
+    ytmp = np.empty(n)
+    ftmp = np.empty(n)
+    K = np.empty(({tot}, n))
+    F = np.empty(({p}, n))
+    t = t0
+    t_end = t_eval[t_eval.shape[0] - 1]
+    rhs(kind, y, P, f)
+    nfev = 1
+    nsteps = 0
+    nrej = 0
+    k = 0
+    while k < t_eval.shape[0] and t_eval[k] <= t:
+        for j in range(n):
+            Y_out[k, j] = y[j]
+        k += 1
+    if h_init > 0.0:
+        h = h_init
+    else:
+        h = initial_step(kind, P, y, f, rtol, atol, {p1}, h_max, ytmp, ftmp)
+        nfev += 1
+    status = OK if all_finite(f) else NONFINITE
+    just_rejected = False
+    while status == OK and t < t_end:
+        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
+        if not h >= min_step:           # also a NaN step (never compares)
+            status = UNDERFLOW
+            break
+        if h > h_max:
+            h = h_max
+        if t + h > t_end:
+            h = t_end - t
+        h_land = land_step(t_eval, k, t, h, h_max, {land})
+        landed = h_land > 0.0
+        if landed:
+            h = h_land
+        err = {name}_step(kind, P, y, f, h, rtol, atol, K, ytmp, y_new, f_new)
+        nfev += {s}
+        if not math.isfinite(err):
+            h *= MIN_FACTOR
+            nrej += 1
+            just_rejected = True
+            continue
+        if err > 1.0:
+            h *= max(MIN_FACTOR, SAFETY * err ** {expo})
+            nrej += 1
+            just_rejected = True
+            continue
+        t_new = t_eval[k] if landed and h_land == t_eval[k] - t else t + h
+        if renorm:
+            normalize_quaternion(kind, y_new, f_new)
+        if k < t_eval.shape[0] and t_eval[k] <= t_new:
+            if t_eval[k] < t_new:       # a sample inside the step: the interpolant
+                {name}_dense(kind, P, y, h, K, ytmp, F)
+                nfev += {nx}
+            while k < t_eval.shape[0] and t_eval[k] <= t_new:
+                if t_eval[k] == t_new:
+                    for j in range(n):
+                        Y_out[k, j] = y_new[j]
+                else:
+                    {name}_eval(kind, F, y, (t_eval[k] - t) / h, Y_out[k])
+                k += 1
+        for j in range(n):
+            y[j] = y_new[j]
+            f[j] = f_new[j]
+        t = t_new
+        nsteps += 1
+        if not all_finite(y):
+            status = NONFINITE
+            break
+        if nsteps >= max_steps:
+            status = BUDGET
+            break
+        if err == 0.0:
+            fac = MAX_FACTOR
+        else:
+            fac = min(MAX_FACTOR, SAFETY * err ** {expo})
+        if just_rejected:           # no growth right after a rejection
+            fac = min(fac, 1.0)
+            just_rejected = False
+        h *= fac
+    counts[0] = nfev
+    counts[1] = nsteps
+    counts[2] = nrej
+    counts[3] = h
+    return status
+'''
+
+
+def _verner(name: str) -> tuple[list[str], list[str]]:
+    """Return (functions, constants) source lines of a Verner pair's step, interpolant, run."""
+    pair = tb.VERNER[name]
+    A, B, E, R, s, p = pair.A, pair.B, pair.E, pair.R, pair.n_stages, pair.order
+    tot = A.shape[0]
+    pre = 'v' + name[-1]
+    consts: list[str] = []
+    f = ['', '', _JIT,
+         f'def {name}_step(kind, P, y, f, h, rtol, atol, K, ytmp, y_new, f_new):',
+         f'    """Take one trial step of {name} ({s} stages); return the error norm.',
+         '',
+         f'    ``K`` ({tot}, n): rows 0-{s - 1} the stages (row 0 a copy of ``f``), row {s} '
+         'f(y_new), also',
+         '    copied to ``f_new``.',
+         '    """',
+         '    n = state_size(kind, y)']
+    f += [f'    k{j} = K[{j}]' for j in range(s + 1)]
+    f += ['    for m in range(n):', '        k0[m] = f[m]']
+    for i in range(1, s):
+        f += _stage_lines(A, i, consts, pre + 'a', 'y', 'ytmp')
+        f += [f'    rhs(kind, ytmp, P, k{i})']
+    terms = [f'{_const(pre + "b", (j,), B[j], consts)} * k{j}[m]'
+             for j in range(s) if B[j] != 0.0]
+    f += ['    for m in range(n):']
+    f += _sum(terms, '        ', 'y_new[m] = y[m] + h * ')
+    f += [f'    rhs(kind, y_new, P, k{s})',
+          '    acc = 0.0',
+          '    for m in range(n):',
+          f'        f_new[m] = k{s}[m]',
+          '        inv = 1.0 / (atol + rtol * max(abs(y[m]), abs(y_new[m])))']
+    terms = [f'{_const(pre + "e", (j,), E[j], consts)} * k{j}[m]'
+             for j in range(s) if E[j] != 0.0]
+    f += _sum(terms, '        ', 'e = inv * ')
+    f += ['        acc += e * e',
+          '    return abs(h) * math.sqrt(acc / n)']
+    used = sorted({j for j in range(tot) if A[s + 1:, j].any() or R[j].any()}
+                  | set(range(s + 1, tot)))
+    f += ['', '', _JIT,
+          f'def {name}_dense(kind, P, y_old, h, K, ytmp, F):',
+          f'    """Coefficients ``F`` ({p}, n) of the order-{p} interpolant over the last step.',
+          '',
+          f'    Computes the {tot - s - 1} extra stages (rows {s + 1}-{tot - 1} of ``K``; '
+          f'row {s} is f(y_new)).',
+          '    """',
+          '    n = state_size(kind, y_old)']
+    f += [f'    k{j} = K[{j}]' for j in used]
+    for i in range(s + 1, tot):
+        f += _stage_lines(A, i, consts, pre + 'a', 'y_old', 'ytmp')
+        f += [f'    rhs(kind, ytmp, P, k{i})']
+    f += ['    for m in range(n):']
+    for q in range(p):
+        terms = [f'{_const(pre + "r", (i, q), R[i, q], consts)} * k{i}[m]'
+                 for i in range(tot) if R[i, q] != 0.0]
+        f += _sum(terms, '        ', f'F[{q}, m] = h * ')
+    # Horner's scheme, one coefficient a line
+    horner = [f'v = F[{p - 1}, m]'] + [f'v = F[{q}, m] + x * v' for q in range(p - 2, -1, -1)]
+    f += ['', '', _JIT,
+          f'def {name}_eval(kind, F, y_old, x, out):',
+          f'    """Evaluate the {name} interpolant at fraction ``x`` of the step into ``out``."""',
+          '    n = state_size(kind, y_old)',
+          '    for m in range(n):']
+    f += ['        ' + h for h in horner] + ['        out[m] = y_old[m] + x * v']
+    # the dense output costs this many steps' evaluations: landing on a sample is worth up to
+    # that much shortening of the steps before it
+    run = _RUN.format(name=name, title=name.capitalize() + f' {p}({p - 1})',
+                      pad=' ' * (len(name) + 9), s=s, s1=s - 1, nx=tot - s - 1, p=p,
+                      p1=p - 1, tot=tot, expo=f'(-1.0 / {p}.0)',
+                      land=f'{(tot - s - 1) / s:.4g}')
+    f += run.split('\n')[:-1]
+    return f, consts
+
+
+VERNER_NAMES = ('vern7', 'vern8', 'vern9')
+
+
 def generate() -> str:
     """Return the text of rk_generated.py."""
     funcs, consts = _dop853()
     names = ['dop853_step', 'dop853_dense', 'dop853_eval']
-    head = _HEADER.format(names=', '.join(repr(n) for n in names))
+    for v in VERNER_NAMES:
+        fv, cv = _verner(v)
+        funcs += fv
+        consts += cv
+        names += [f'{v}_step', f'{v}_dense', f'{v}_eval', f'{v}_run']
+    head = _HEADER.format(names=textwrap.fill(', '.join(repr(n) for n in names), width=87,
+                                              subsequent_indent=' ' * 11))
     head = head.replace('from gyro_rotor', 'import math\n\nfrom gyro_rotor', 1)
     return head + '\n' + '\n'.join(dict.fromkeys(consts)) + '\n' + '\n'.join(funcs) + '\n'
 
