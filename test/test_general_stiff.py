@@ -130,10 +130,11 @@ def test_radau9_cost_does_not_grow_with_K_D():
 
 
 def test_auto_and_the_stepper_use_radau9_with_the_generated_jacobian():
-    from gyro_rotor.numerics.general import choose_method, KernelSystem
+    from gyro_rotor.numerics.general import KernelSystem
+    from gyro_rotor.numerics.integrators import choose_method
     from gyro_rotor.numerics.integrators.methods import make_integrator
     model, y0 = _twin(1e4)
-    assert choose_method(model, y0)[0] == 'radau9'
+    assert choose_method(model, y0=y0)[0] == 'radau9'
     stepper = make_integrator('radau9', KernelSystem(model), y0, 0.0, 1.0, rtol=1e-8,
                               atol=1e-11)
     assert isinstance(stepper, radau_jac.Radau9Jac)

@@ -2,6 +2,7 @@
 
 import math
 
+from gyro_rotor.core.model import make_model
 from gyro_rotor.core.scene import list_scenes, load_scene
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import (cheapest_explicit, choose_method, COST_METHODS,
@@ -177,7 +178,7 @@ def test_radau9_accurate_on_stiff_drive_at_every_kd():
 
 def test_stiff_method_completes_kd_1e6_within_step_budget():
     sc, m, y0 = _setup('stiff_drive', K_D=1e6)
-    assert choose_method(sc.params)[0] == 'radau9'
+    assert choose_method(m)[0] == 'radau9'
     r = integrate(m, y0, (0, sc.t_end), None, 'radau9', max_steps=5000)
     assert r.success, r.message
     scale = float(np.max(np.abs(m.energy(r.y))))
@@ -188,26 +189,26 @@ def test_stiff_method_completes_kd_1e6_within_step_budget():
 
 
 def test_auto_choice():
-    assert choose_method(load_scene('precession').params, rtol=1e-6,
+    assert choose_method(load_scene('precession').make_model(), rtol=1e-6,
                          sample_rate=100.0)[0] == 'dop853'
-    assert choose_method(load_scene('stiff_drive').params)[0] == 'radau9'
-    assert choose_method(load_scene('conservative').params, 1000.0)[0] == 'split8'
-    assert choose_method(load_scene('conservative').params, 1000.0, 'upright_axis')[0] == \
-        'gauss6'           # split8's sub-flows are the full model's
-    assert 'stiff' in choose_method(load_scene('stiff_drive').params)[1]
+    assert choose_method(load_scene('stiff_drive').make_model())[0] == 'radau9'
+    assert choose_method(load_scene('conservative').make_model(), 1000.0)[0] == 'split8'
+    assert choose_method(make_model('upright_axis', load_scene('conservative').params),
+                         1000.0)[0] == 'gauss6'    # split8's sub-flows are the full model's
+    assert 'stiff' in choose_method(load_scene('stiff_drive').make_model())[1]
 
 
 def test_auto_conservative_threshold_counts_periods_of_the_fastest_oscillation():
     # 100 s of conservative is 870 periods of its fastest oscillation (54.8 rad/s): dop853's
     # E* drift stays below a tenth of rtol there, and split8 is about twice as costly per
     # trajectory error (bench), so auto keeps dop853; over 1000 s it takes split8
-    p = load_scene('conservative').params
+    p = load_scene('conservative').make_model()
     method, reason = choose_method(p, 100.0)
     assert method in COST_METHODS and 'periods' in reason and 'conservative' in reason
     assert choose_method(p, 1000.0)[0] == 'split8'
     # the threshold is a number of periods, not of seconds: ten times the spin makes the
     # nutation (C_R Omega0 / I = 483 rad/s) the fastest oscillation, and 100 s long
-    fast = load_scene('conservative', overrides={'Omega0': 3141.6}).params
+    fast = load_scene('conservative', overrides={'Omega0': 3141.6}).make_model()
     assert choose_method(fast, 100.0)[0] == 'split8'
     assert choose_method(fast, 10.0)[0] in COST_METHODS
 
@@ -217,12 +218,12 @@ def test_auto_takes_the_cheapest_explicit_pair_by_the_cost_model():
     # the 10-ms samples, the interpolant is rarely needed, and the 8(7) pair needs fewer
     # evaluations than dop853 for the same error; at slow rates (precession, 54.8 rad/s) every
     # step holds samples and dop853's 3-stage interpolant wins at loose tolerances
-    method, reason = choose_method(load_scene('fast_spin').params, 2.0, rtol=1e-6,
+    method, reason = choose_method(load_scene('fast_spin').make_model(), 2.0, rtol=1e-6,
                                    sample_rate=100.0)
     assert method == 'vern8' and 'non-stiff' in reason and '483 rad/s' in reason
     assert 'cost model' in reason and 'dop853' in reason       # the candidates' costs
-    p = load_scene('precession').params
-    rate = model_rate(p)
+    p = load_scene('precession').make_model()
+    rate = model_rate(p.params)
     assert choose_method(p, 10.0, rtol=1e-5, sample_rate=100.0)[0] == 'dop853'
     # the choice is the minimum of the predicted costs
     for tol in (1e-4, 1e-6, 1e-9, 1e-12):
@@ -242,7 +243,7 @@ def test_auto_takes_the_cheapest_explicit_pair_by_the_cost_model():
 def test_auto_never_takes_a_method_with_an_error_floor_above_the_tolerance(monkeypatch):
     from gyro_rotor.numerics.integrators import methods
     monkeypatch.setitem(methods.ERROR_FLOOR, 'vern8', 1e-9)
-    p = load_scene('fast_spin').params
+    p = load_scene('fast_spin').make_model()
     assert choose_method(p, 2.0, rtol=1e-8, sample_rate=100.0)[0] == 'vern8'
     assert choose_method(p, 2.0, rtol=1e-10, sample_rate=100.0)[0] != 'vern8'
 
@@ -251,7 +252,7 @@ def test_integrate_auto_runs_the_chosen_method():
     sc, m, y0 = _setup('fast_spin')
     te = np.linspace(0.0, 0.2, 21)
     res = integrate(m, y0, (0.0, 0.2), te, 'auto', rtol=1e-6, atol=1e-8)
-    assert res.success and res.method == choose_method(sc.params, 0.2, 'full', 1e-6, 100.0)[0]
+    assert res.success and res.method == choose_method(m, 0.2, 1e-6, 100.0)[0]
 
 
 def test_drift_per_period_matches_dop853():

@@ -197,7 +197,7 @@ def test_a_real_blow_up_is_a_divergence_not_an_exception():
 def test_work_budget_switches_to_autos_method_and_says_so():
     # a deadline already past: every tick is cut after its first step (as fast as possible:
     # each tick has a chunk of work whatever the clock)
-    first = resolve_method('auto', load_scene('precession').params)[0]   # an explicit pair
+    first = resolve_method('auto', load_scene('precession').make_model())[0]   # an explicit pair
     sim, events = make_sim(time.monotonic, budget=-1.0, integrator=first,
                            real_time_factor=0.0)
     sim.tick()
@@ -212,7 +212,7 @@ def test_work_budget_switches_to_autos_method_and_says_so():
     sim.tick()
     assert sim.stepper.method == first
     sim.tick()
-    auto, reason = resolve_method('auto', sim.model.params)
+    auto, reason = resolve_method('auto', sim.model, y=sim.stepper.y)
     assert auto != first and sim.stepper.method == auto         # radau9 today
     assert sim.stepper.t > t0                       # the cut tick made progress
     assert f'switched to {auto} ({reason})' in sim.switch
@@ -231,7 +231,7 @@ def test_work_budget_switches_to_autos_method_and_says_so():
 
 def test_reset_forgets_the_previous_runs_cannot_keep_up():
     """Issue 24, finding 15: after ~/reset the diagnostics showed the old run's message."""
-    first = resolve_method('auto', load_scene('precession').params)[0]
+    first = resolve_method('auto', load_scene('precession').make_model())[0]
     sim, _ = make_sim(time.monotonic, budget=-1.0, integrator=first, real_time_factor=0.0)
     sim.tick()
     sim.tick()

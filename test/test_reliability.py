@@ -358,7 +358,7 @@ def test_live_stiff_change_keeps_services_answering_and_switches_the_method():
         n_diag = len(rig.diags)
         (res,) = node.set_parameters([Parameter('K_D', value=1e5)])
         assert res.successful, res.reason
-        auto, reason = resolve_method('auto', node.sim.model.params)
+        auto, reason = resolve_method('auto', node.sim.model)
         assert auto != 'dop853'                              # stiff: radau9 today
         answer, took = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
         assert answer.success and took < 2.0, took

@@ -154,7 +154,7 @@ def test_diagnostics_carry_byte_levels_and_pacing_figures(rig):
         assert key in values
     from gyro_rotor.core.scene import load_scene
     from gyro_rotor.numerics.realtime import resolve_method
-    auto = resolve_method('auto', load_scene('precession').params)[0]   # the scene's choice
+    auto = resolve_method('auto', load_scene('precession').make_model())[0]   # the scene's choice
     assert values['scene'] == 'precession' and values['integrator'] == auto
     assert 'rotor_sim' in st.name
     # the real-time loop's timing against its deadlines, and the scheduling it got

@@ -50,8 +50,8 @@ import numpy as np
 
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
            'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
-           'pack_params', 'tilt_twist_torque', 'full_rhs', 'upright_rhs', 'locked_rhs',
-           'numba_able', 'perturb_state', 'PERTURBATION_KEYS']
+           'pack_params', 'tilt_twist_torque', 'drive_rates', 'full_rhs', 'upright_rhs',
+           'locked_rhs', 'numba_able', 'perturb_state', 'PERTURBATION_KEYS']
 
 try:  # pragma: no cover - exercised by whichever branch the install has
     from numba.extending import register_jitable
@@ -226,10 +226,26 @@ def _list_rhs(fn, params: RotorParams, n: int):
     return f
 
 
+def drive_rates(p: RotorParams) -> tuple[float, float]:
+    """Return (the drive damping root, the fastest oscillation) of the centrifuge [1/s].
+
+    The root K_D (1/C_R + 1/C_M) (real, docs/model.md section 7) and the largest of the
+    nutation rate C_R Omega0 / I (eq. 18), the drive's frequency sqrt(K_S (1/C_R + 1/C_M)),
+    the tilt frequency sqrt(|c_theta - G s| / I), the twist frequency sqrt(c_psi / C_M) and
+    1 1/s as a floor: what auto weighs (stiff, conservative, the cost of an explicit pair).
+    """
+    inv_c = 1.0 / p.C_R + 1.0 / p.C_M
+    osc = max(p.C_R * abs(p.Omega0) / p.I, math.sqrt(p.K_S * inv_c),
+              math.sqrt(abs(p.c_theta - p.Gs) / p.I), math.sqrt(p.c_psi / p.C_M), 1.0)
+    return p.K_D * inv_c, osc
+
+
 class Model:
     """Common interface of the models (see module doc); subclasses fill in the physics."""
 
     name = ''
+    #: the symplectic method of long conservative runs (auto): gauss6 for the reduced models
+    symplectic_method = 'gauss6'
     state_names: tuple = ()
     #: the model's right-hand side ``f(y, P, out)`` (one of the numba-able functions above)
     rhs_function = None
@@ -246,6 +262,15 @@ class Model:
     def n(self) -> int:
         """Size of the state vector."""
         return len(self.state_names)
+
+    def drive_rates(self, y=None) -> tuple[float, float]:
+        """Return (drive damping root, fastest oscillation) [1/s] (:func:`drive_rates`)."""
+        return drive_rates(self.params)
+
+    @property
+    def conservative(self) -> bool:
+        """Return True without drive damping (K_D = 0): E* is conserved (eq. 17)."""
+        return self.params.K_D == 0.0
 
     def make_rhs(self) -> Callable[[float, np.ndarray], np.ndarray]:
         """Return ``f(t, y) -> dy/dt`` (ndarray), compiled by numba where it is installed."""
@@ -446,6 +471,8 @@ class FullModel(Model):
     """The full nonlinear 4-DOF gyrostat with the drive (quaternion form, see module doc)."""
 
     name = 'full'
+    #: split8: exact flows of the free gyrostat and the torques, composed to order 8
+    symplectic_method = 'split8'
     state_names = ('q_w', 'q_x', 'q_y', 'q_z', 'W_1', 'W_2', 'W_3', 'z', 'zdot', 'D')
     iz, izd, idiss = 7, 8, 9
 

@@ -129,12 +129,12 @@ def auto_choice(scene: Scene, rtol: float | None = None) -> str:
     With the benchmark's samples (SAMPLE_RATE); rtol None: the default tolerance.
     """
     from gyro_rotor.numerics.integrators import choose_method
-    return choose_method(scene.params, scene.t_end, scene.model, rtol, SAMPLE_RATE)[0]
+    return choose_method(scene.make_model(), scene.t_end, rtol, SAMPLE_RATE)[0]
 
 
 def _is_stiff(scene: Scene) -> bool:
     from gyro_rotor.numerics.integrators import choose_method
-    return choose_method(scene.params)[0] == 'radau9'
+    return choose_method(scene.make_model())[0] == 'radau9'
 
 
 def reference(scene: Scene, t_eval: np.ndarray) -> np.ndarray:

@@ -10,10 +10,13 @@ fastest rate); :func:`integrate` and :func:`run_ensemble` are the entry points.
 Methods (:data:`METHODS`): those whose kernels need nothing but the right-hand side, and
 radau9, which for a generated system is Radau IIA with the generated exact Jacobian
 (:mod:`~gyro_rotor.numerics.integrators.radau_jac`; ``kernel_jac`` of :class:`KernelSystem`).
-``auto`` picks radau9 when the drive damping root K_D lambda_max(Mbar^-1 on z) exceeds
-the fastest oscillation of the conservative linearization at the initial state by
+``auto`` is the one rule of every system
+(:func:`gyro_rotor.numerics.integrators.methods.choose_method`): radau9 when the drive
+damping root K_D lambda_max(Mbar^-1 on z) exceeds the fastest oscillation of the
+conservative linearization at the initial state by
 :data:`~gyro_rotor.numerics.integrators.methods.STIFF_RATIO` (its cost then does not
-depend on K_D: ``gyro-rotor bench-general``, stiff table), dop853 otherwise.
+depend on K_D: ``gyro-rotor bench-general``, stiff table), else the cheapest explicit pair
+by the measured cost model.
 """
 
 from __future__ import annotations
@@ -29,12 +32,11 @@ from gyro_rotor.numerics import ensemble
 from gyro_rotor.numerics.integrators import methods
 import numpy as np
 
-__all__ = ['KernelSystem', 'GeneralRun', 'integrate', 'choose_method', 'run_ensemble',
-           'METHODS']
+__all__ = ['KernelSystem', 'GeneralRun', 'integrate', 'run_ensemble', 'METHODS']
 
 #: the project's integrators that need nothing but the right-hand side, and radau9 with the
 #: generated exact Jacobian (:mod:`~gyro_rotor.numerics.integrators.radau_jac`)
-METHODS = ('dop853', 'radau9', 'rodas4', 'rk4', 'rk8', 'gauss6')
+METHODS = ('dop853', 'vern7', 'vern8', 'vern9', 'radau9', 'rodas4', 'rk4', 'rk8', 'gauss6')
 
 
 class KernelSystem:
@@ -83,26 +85,6 @@ class GeneralRun:
     nrejected: int
 
 
-def choose_method(model: GeneralModel, y0) -> tuple[str, str]:
-    """Return ``(method, reason)`` for a run from ``y0`` (module doc)."""
-    n, m, N = model.n, model.m, model.N
-    Mbar, Fq, Fv = model.lin(y0)
-    Minv = np.linalg.inv(Mbar)
-    Gx = np.zeros((N, N))
-    Gx[:, :n] = Fq
-    for k, d in enumerate(model.system.drives):
-        Gx[n + k, n + k] = -d.K_S
-    A = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Fv]])
-    osc = max(1.0, float(np.abs(np.linalg.eigvals(A)).max()))
-    mu = float(np.linalg.eigvalsh(Minv[n:, n:]).max()) if m else 0.0
-    stiff = max(d.K_D for d in model.system.drives) * mu
-    if stiff > methods.STIFF_RATIO * osc:
-        return 'radau9', (f'stiff: the drive damping root {stiff:.3g} 1/s is '
-                          f'{stiff / osc:.3g} times the fastest rate {osc:.3g} 1/s')
-    return 'dop853', (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest rate '
-                      f'{osc:.3g} 1/s): adaptive explicit order 8')
-
-
 def integrate(model: GeneralModel, y0, t_eval, *, method: str = 'auto', rtol: float = 1e-9,
               atol: float = 1e-12, step: float | None = None,
               max_steps: int = 50_000_000) -> GeneralRun:
@@ -118,7 +100,7 @@ def integrate(model: GeneralModel, y0, t_eval, *, method: str = 'auto', rtol: fl
     if te.size < 2 or not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
         raise ParameterError('t_eval must be a finite, increasing array of 2 or more times')
     if method == 'auto':
-        method = choose_method(model, y0)[0]
+        method = methods.choose_method(model, te[-1] - te[0], rtol, 0.0, y0)[0]
     if method not in METHODS:
         raise ParameterError(f"general systems integrate with auto, {', '.join(METHODS)}; "
                              f'got {method!r}')

@@ -37,12 +37,12 @@ messages. It holds the scene, its model, a stepper driven by a
   scene document (:meth:`scene_doc`).
 
 What the integrators need of a model lives here, since the models sit in the layer below
-(gyro_rotor.core may not import gyro_rotor.numerics): :func:`auto_method` (the centrifuge:
-:func:`~gyro_rotor.numerics.realtime.resolve_method`; a system file:
-:func:`~gyro_rotor.numerics.general.choose_method`, rodas4 for a stiff drive, dop853
-otherwise, from the linearization at the current state) and :func:`live_stepper` (a
-system file integrates with the methods of :mod:`gyro_rotor.numerics.general` through its
-kernel handle), each a single-dispatch function over the model's class.
+(gyro_rotor.core may not import gyro_rotor.numerics): :func:`auto_method` (auto's one
+rule for every system, :func:`~gyro_rotor.numerics.integrators.methods.choose_method`, on
+what the model gives: its drive damping root and fastest oscillation at the current
+state) and :func:`live_stepper` (a system file integrates with the methods of
+:mod:`gyro_rotor.numerics.general` through its kernel handle, a single-dispatch function
+over the model's class).
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ from gyro_rotor.core.rotations import axis_from_quaternion, wrap_angles
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import GyroRotorError, IntegrationError, ParameterError
-from gyro_rotor.numerics.general import choose_method, KernelSystem, METHODS
+from gyro_rotor.numerics.general import KernelSystem, METHODS
 from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
                                           Stepper)
 import numpy as np
@@ -122,20 +122,12 @@ def _describe(err: BaseException) -> str:
 
 
 # -- what the integrators need of a model (module doc) ---------------------------------------
-@functools.singledispatch
 def auto_method(model, y: np.ndarray, t_end: float) -> tuple[str, str]:
-    """Return ``(method, reason)``: auto's choice for ``model`` at the state y, up to t_end."""
-    raise TypeError(f'no automatic integrator for {type(model).__name__}')
+    """Return ``(method, reason)``: auto's choice for ``model`` at the state y, up to t_end.
 
-
-@auto_method.register
-def _auto_centrifuge(model: Model, y: np.ndarray, t_end: float) -> tuple[str, str]:
-    return resolve_method('auto', model.params, t_end)
-
-
-@auto_method.register
-def _auto_system(model: GeneralModel, y: np.ndarray, t_end: float) -> tuple[str, str]:
-    return choose_method(model, y)
+    The one rule of every system (:func:`~gyro_rotor.numerics.realtime.resolve_method`).
+    """
+    return resolve_method('auto', model, t_end, y)
 
 
 @functools.singledispatch

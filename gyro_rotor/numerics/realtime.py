@@ -288,15 +288,19 @@ def _integrators():
     return METHODS, make_integrator
 
 
-def resolve_method(method: str, params, t_end: float = math.inf) -> tuple[str, str]:
-    """'auto' -> (method, reason): the integrators' choice, else scipy's DOP853/Radau."""
+def resolve_method(method: str, model, t_end: float = math.inf, y=None) -> tuple[str, str]:
+    """'auto' -> (method, reason) for ``model`` at the state y: the integrators' choice.
+
+    Without the compiled integrators (numba missing), scipy's Radau for a stiff drive
+    (the model's drive damping root above 1e4 1/s), DOP853 otherwise.
+    """
     if method != 'auto':
         return method, 'requested'
     methods, _ = _integrators()
     if methods is not None:
         from gyro_rotor.numerics.integrators import choose_method
-        return choose_method(params, t_end)
-    stiff = params.K_D * (1.0 / params.C_R + 1.0 / params.C_M)
+        return choose_method(model, t_end, y0=y)
+    stiff = model.drive_rates(y)[0]
     return ('Radau', 'stiff drive') if stiff > 1e4 else ('DOP853', 'non-stiff')
 
 

@@ -2,10 +2,10 @@
 
 ``simulate(scene)`` integrates the scene's model from its initial condition and samples
 the solution at ``rate`` Hz. The integrator is chosen per scene by default
-(:func:`auto_method`; for the centrifuge the cheapest compiled explicit pair of
+(:func:`auto_method`, one rule for every system: the cheapest compiled explicit pair of
 :mod:`gyro_rotor.numerics.integrators` for the tolerance and sample rate by its measured
-cost model, Radau9 where the drive damping makes the scene stiff, Split8 for long
-conservative runs; for a system file :func:`gyro_rotor.numerics.general.choose_method`), at
+cost model, Radau9 where the drive damping makes the scene stiff, the symplectic method
+for long conservative runs), at
 tolerances tight enough that every shipped scene is accurate to 1e-8 or better in the
 symmetry-axis direction over its duration (``test/test_accuracy.py`` checks it against a
 run at 100 times tighter tolerances); ``method``, ``rtol``, ``atol`` and ``step``
@@ -138,18 +138,16 @@ def auto_method(scene: Scene, t_end: float | None = None, rtol: float | None = N
                 rate: float = 0.0, model=None, y0: np.ndarray | None = None) -> tuple[str, str]:
     """Return the integrator for this scene and the reason (method 'auto').
 
-    The centrifuge: :func:`gyro_rotor.numerics.integrators.choose_method` (Radau9 where
-    the drive damping makes the scene stiff, Split8 for long conservative runs, otherwise
-    the cheapest of dop853, vern7, vern8, vern9 for ``rtol`` (default DEFAULT_RTOL) with
-    samples at ``rate`` Hz by the measured cost model); a system file:
-    :func:`gyro_rotor.numerics.general.choose_method` at ``y0`` (default: the scene's
-    initial state).
+    :func:`gyro_rotor.numerics.integrators.choose_method`, one rule for every system:
+    radau9 where the drive damping makes the run stiff, the symplectic method for long
+    conservative runs, otherwise the cheapest of dop853, vern7, vern8, vern9 for ``rtol``
+    (default DEFAULT_RTOL) with samples at ``rate`` Hz by the measured cost model; a system
+    file's model is judged at ``y0`` (default: the scene's initial state).
     """
-    if not scene.builtin:
-        model = model or scene.make_model()
-        return general.choose_method(model, scene.initial_state(model) if y0 is None else y0)
-    return choose_integrator(scene.params, scene.t_end if t_end is None else t_end,
-                             scene.model, DEFAULT_RTOL if rtol is None else rtol, rate)
+    model = model or scene.make_model()
+    return choose_integrator(model, scene.t_end if t_end is None else t_end,
+                             DEFAULT_RTOL if rtol is None else rtol, rate,
+                             scene.initial_state(model) if y0 is None else y0)
 
 
 def methods_of(scene: Scene) -> tuple:

@@ -78,6 +78,33 @@ class GeneralModel:
                                np.asarray(z, float).reshape(self.m),
                                np.asarray(zdot, float).reshape(self.m), [D]])
 
+    #: the symplectic method of long conservative runs (auto)
+    symplectic_method = 'gauss6'
+
+    def drive_rates(self, y) -> tuple[float, float]:
+        """Return (drive damping root, fastest oscillation) [1/s] of the linearization at y.
+
+        The root K_D lambda_max(Mbar^-1 on z) (the largest rate of the drive damping, eq. 8,
+        through the mass matrix) and the largest |eigenvalue| of the conservative
+        linearization at y (at least 1): what auto weighs.
+        """
+        n, m, N = self.n, self.m, self.N
+        Mbar, Fq, Fv = self.lin(y)
+        Minv = np.linalg.inv(Mbar)
+        Gx = np.zeros((N, N))
+        Gx[:, :n] = Fq
+        for k, d in enumerate(self.system.drives):
+            Gx[n + k, n + k] = -d.K_S
+        A = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Fv]])
+        osc = max(1.0, float(np.abs(np.linalg.eigvals(A)).max()))
+        mu = float(np.linalg.eigvalsh(Minv[n:, n:]).max()) if m else 0.0
+        return max(d.K_D for d in self.system.drives) * mu, osc
+
+    @property
+    def conservative(self) -> bool:
+        """Return True without drive damping (every K_D = 0): E* is conserved (eq. 17)."""
+        return all(d.K_D == 0.0 for d in self.system.drives)
+
     # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
     #: fields of the ``energy`` array (z and zdot of each rotor are joints)
     energy_fields = ('t_sim', 'E_star', 'dE_dt', 'dissipation', 'residual', 'seq', 'D', 'k')

@@ -26,7 +26,7 @@ import dataclasses
 import math
 from typing import Any
 
-from gyro_rotor.core.model import Model
+from gyro_rotor.core.model import drive_rates, Model
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import kernels
 import numpy as np
@@ -276,15 +276,10 @@ def kernel_args(model, params) -> tuple:
 
 
 def model_rate(p) -> float:
-    """Return the fastest rate of the model [1/s], for the default steps of fixed-step methods.
+    """Return the centrifuge's fastest rate [1/s], for the default steps of fixed-step methods.
 
-    The largest of: the nutation rate C_R Omega0 / I (about H_3 / I, eq. 18), the drive's
-    frequency sqrt(K_S (1/C_R + 1/C_M)), its damping rate K_D (1/C_R + 1/C_M) (the stiff
-    real root, docs/model.md section 7), the tilt frequency sqrt(|c_theta - G s| / I), the
-    twist frequency sqrt(c_psi / C_M), and 1 1/s as a floor.
+    The larger of its drive damping root and its fastest oscillation
+    (:func:`gyro_rotor.core.model.drive_rates`: the nutation rate C_R Omega0 / I, eq. 18, the
+    drive's frequency, the tilt and twist frequencies, 1 1/s as a floor).
     """
-    inv_c = 1.0 / p.C_R + 1.0 / p.C_M
-    rates = (p.C_R * abs(p.Omega0) / p.I,
-             math.sqrt(p.K_S * inv_c), p.K_D * inv_c,
-             math.sqrt(abs(p.c_theta - p.Gs) / p.I), math.sqrt(p.c_psi / p.C_M), 1.0)
-    return max(rates)
+    return max(drive_rates(p))

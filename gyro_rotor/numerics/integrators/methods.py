@@ -38,7 +38,7 @@ from gyro_rotor.core.model import Model
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
                                              splitting as split, tableaux as tb)
-from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator, model_rate,
+from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator,
                                                   STATUS_MESSAGES)
 from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
 import numpy as np
@@ -587,51 +587,52 @@ def cheapest_explicit(rate: float, tol: float, sample_rate: float = 0.0) -> tupl
     return min(costs, key=costs.get), costs
 
 
-def choose_method(params, t_end: float = 0.0, model: str = 'full', rtol: float | None = None,
-                  sample_rate: float = 0.0) -> tuple[str, str]:
-    """Return the automatic choice for a scene: ``(method name, reason)``.
+def choose_method(model, t_end: float = 0.0, rtol: float | None = None,
+                  sample_rate: float = 0.0, y0=None) -> tuple[str, str]:
+    """Return auto's choice for a run of ``model`` from ``y0``: ``(method name, reason)``.
 
-    - radau9 when the drive's damping rate K_D (1/C_R + 1/C_M) (a real root of the
-      linearization, docs/model.md section 7) exceeds the fastest oscillation by STIFF_RATIO:
-      an explicit method would need steps near its inverse;
-    - split8 for conservative runs (K_D = 0) of the full model (gauss6 for the reduced
-      ones) long enough that dop853's secular E* drift, DRIFT_PER_PERIOD rtol per period
-      of the fastest oscillation, would reach CONSERVATIVE_DRIFT_LIMIT rtol (1,250 periods:
-      143 s on the conservative scene): the symplectic method keeps the E* error bounded.
-      On shorter runs the drift stays below a tenth of the tolerance, and dop853 reaches a
-      given trajectory error at about half split8's cost (over 100 s at one step per 10-ms
-      sample: split8's error 3.4e-6, that of DOP853's formula at a fixed step 1.7e-7, and
-      split8's step costs 1.5 times as much);
+    One rule for every system: ``model`` is a centrifuge model, a system file's
+    (:class:`~gyro_rotor.core.system.model.GeneralModel`, linearized at ``y0``) or the
+    kernels' view of one; it gives its drive damping root and fastest oscillation
+    (``drive_rates``), whether it is conservative and its symplectic method.
+
+    - radau9 when the drive's damping root (K_D (1/C_R + 1/C_M) for the centrifuge, a real
+      root of the linearization, docs/model.md section 7) exceeds the fastest oscillation by
+      STIFF_RATIO: an explicit method would need steps near its inverse;
+    - the model's symplectic method (split8 for the full centrifuge, gauss6 otherwise) for
+      conservative runs (K_D = 0) long enough that dop853's secular E* drift,
+      DRIFT_PER_PERIOD rtol per period of the fastest oscillation, would reach
+      CONSERVATIVE_DRIFT_LIMIT rtol (1,250 periods: 143 s on the conservative scene): the
+      symplectic method keeps the E* error bounded. On shorter runs the drift stays below a
+      tenth of the tolerance, and dop853 reaches a given trajectory error at about half
+      split8's cost (over 100 s at one step per 10-ms sample: split8's error 3.4e-6, that
+      of DOP853's formula at a fixed step 1.7e-7, and split8's step costs 1.5 times as much);
     - otherwise the cheapest of the explicit adaptive methods (dop853, vern7, vern8, vern9)
       by the measured cost model (:func:`method_cost`) at an error equal to the requested
       ``rtol`` (default: dop853's default tolerance), with the samples at ``sample_rate`` Hz
-      (0: no samples inside the steps, the stepping API).
+      (0: no samples inside the steps, the stepping API), at the rate max(root, oscillation).
     """
-    inv_c = 1.0 / params.C_R + 1.0 / params.C_M
-    stiff = params.K_D * inv_c
-    osc = max(params.C_R * abs(params.Omega0) / params.I, math.sqrt(params.K_S * inv_c),
-              math.sqrt(abs(params.c_theta - params.Gs) / params.I),
-              math.sqrt(params.c_psi / params.C_M), 1.0)
+    model = getattr(model, 'model', model)          # the kernels' view of a system file
+    stiff, osc = model.drive_rates(y0)
     if stiff > STIFF_RATIO * osc:
-        return 'radau9', (f'stiff: the drive damping root K_D (1/C_R + 1/C_M) = {stiff:.3g} '
-                          f'1/s is {stiff / osc:.3g} times the fastest oscillation '
-                          f'({osc:.3g} rad/s); an L-stable implicit method steps by accuracy')
+        return 'radau9', (f'stiff: the drive damping root {stiff:.3g} 1/s is '
+                          f'{stiff / osc:.3g} times the fastest oscillation ({osc:.3g} rad/s); '
+                          'an L-stable implicit method steps by accuracy')
     periods = t_end * osc / (2.0 * math.pi)
     drift = DRIFT_PER_PERIOD * periods      # dop853's E* drift over the run, in units of rtol
-    if params.K_D == 0.0 and drift >= CONSERVATIVE_DRIFT_LIMIT:
+    if model.conservative and drift >= CONSERVATIVE_DRIFT_LIMIT:
+        sym = model.symplectic_method
         what = ('a symplectic splitting keeps the E* error bounded at explicit cost'
-                if model == 'full' else 'a symplectic method keeps the E* error bounded')
-        return ('split8' if model == 'full' else 'gauss6'), (
-            f'conservative (K_D = 0) over {t_end:g} s = {periods:.3g} periods of the fastest '
-            f'oscillation ({osc:.3g} rad/s), where dop853 would drift E* by about '
-            f'{drift:.2g} rtol: {what}')
+                if sym == 'split8' else 'a symplectic method keeps the E* error bounded')
+        return sym, (f'conservative (K_D = 0) over {t_end:g} s = {periods:.3g} periods of the '
+                     f'fastest oscillation ({osc:.3g} rad/s), where dop853 would drift E* by '
+                     f'about {drift:.2g} rtol: {what}')
     tol = DOP853.default_rtol if rtol is None else float(rtol)
-    rate = model_rate(params)
-    best, costs = cheapest_explicit(rate, tol, sample_rate)
+    best, costs = cheapest_explicit(max(stiff, osc), tol, sample_rate)
     table = ', '.join(f'{m} {c:.3g}' for m, c in sorted(costs.items(), key=lambda kv: kv[1]))
     cost = (f'the cheapest explicit pair at error {tol:.0e} by the measured cost model '
             f'(evaluations per simulated second at {sample_rate:g}-Hz samples: {table})')
-    if params.K_D == 0.0:
+    if model.conservative:
         return best, (f'conservative (K_D = 0) but short: {periods:.3g} periods of the '
                       f'fastest oscillation ({osc:.3g} rad/s), dop853 drifts E* by about '
                       f'{drift:.2g} rtol only; {cost}')
@@ -647,8 +648,7 @@ def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
     ``sample_rate`` [Hz]: the samples 'auto' plans for (:func:`integrate` passes its own).
     """
     if method == 'auto':
-        method = choose_method(model.params, t_bound - t0, model.name, kwargs.get('rtol'),
-                               sample_rate)[0]
+        method = choose_method(model, t_bound - t0, kwargs.get('rtol'), sample_rate, y0)[0]
     try:
         cls = METHODS[method]
     except KeyError:
