@@ -26,6 +26,7 @@ import dataclasses
 import math
 
 from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.linear.general import damped_newton
 import numpy as np
 
 __all__ = ['Campbell', 'campbell', 'campbell_general', 'campbell_centrifuge']
@@ -134,25 +135,7 @@ class _GeneralPath:
         u = np.concatenate([z, [s]]) if self.moving else z.copy()
         tol = 1e-11 * max(1.0, float(np.abs(self.qdot).max()) ** 2 * max(s, 1.0) ** 2,
                           mdl.rate())
-        r = acc(u)
-        for _ in range(60):
-            if np.all(np.isfinite(r)) and np.abs(r).max() <= tol:
-                break
-            J = np.empty((len(r), len(u)))
-            for j in range(len(u)):
-                h = 1e-7 * max(1.0, abs(u[j]))
-                e = np.zeros(len(u))
-                e[j] = h
-                J[:, j] = (acc(u + e) - acc(u - e)) / (2 * h)
-            du = np.linalg.lstsq(J, -r, rcond=None)[0]
-            step = 1.0
-            while step > 1e-6:
-                r_new = acc(u + step * du)
-                if np.all(np.isfinite(r_new)) and np.abs(r_new).max() < np.abs(r).max():
-                    break
-                step *= 0.5
-            u = u + step * du
-            r = acc(u)
+        u, r = damped_newton(acc, u, tol)
         if not (np.all(np.isfinite(r)) and np.abs(r).max() <= 1e3 * tol):
             raise SceneError(
                 f'scene {self.scene.name}: no steady motion of its family at Omega0 = {W:.6g} '

@@ -37,7 +37,7 @@ from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import ParameterError, SceneError
 import numpy as np
 
-__all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims',
+__all__ = ['GeneralLinear', 'linearize_scene', 'modes', 'Mode', 'check_claims', 'damped_newton',
            'solve_steady', 'REL_AXIS']
 
 #: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
@@ -228,37 +228,52 @@ def check_claims(lin: GeneralLinear):
     return check(lin.drive_system())
 
 
+def damped_newton(acc, u, tol: float, *, max_iter: int = 60,
+                  min_step: float = 1e-6) -> tuple:
+    """Solve acc(u) = 0 for u by damped Newton; return (u, acc(u)).
+
+    The Jacobian by central differences (steps 1e-7 max(1, |u_j|)), the Newton step by
+    least squares (a rank-deficient Jacobian: a cyclic coordinate), halved down to
+    ``min_step`` until |acc| falls; stops at |acc| <= tol, at a non-finite acc or after
+    ``max_iter`` steps. The steady motions of a system file (:func:`solve_steady`) and of
+    a Campbell diagram's family (:mod:`gyro_rotor.linear.campbell`) are solved by it.
+    """
+    u = np.array(u, dtype=float)
+    r = acc(u)
+    for _ in range(max_iter):
+        if not np.all(np.isfinite(r)) or np.abs(r).max() <= tol:
+            break
+        J = np.empty((len(r), len(u)))
+        for j in range(len(u)):
+            h = 1e-7 * max(1.0, abs(u[j]))
+            e = np.zeros(len(u))
+            e[j] = h
+            J[:, j] = (acc(u + e) - acc(u - e)) / (2 * h)
+        du = np.linalg.lstsq(J, -r, rcond=None)[0]
+        step = 1.0
+        while step > min_step:
+            r_new = acc(u + step * du)
+            if np.all(np.isfinite(r_new)) and np.abs(r_new).max() < np.abs(r).max():
+                break
+            step *= 0.5
+        u = u + step * du
+        r = acc(u)
+    return u, r
+
+
 def solve_steady(scene: Scene, *, max_iter: int = 50) -> tuple:
     """Newton for (q, z) with qdot = steady.qdot held: the accelerations vanish.
 
     Returns (q, z, largest |acceleration|) from the scene's steady guess.
     """
     model = scene.make_model()
-    n, m, N = model.n, model.m, model.N
+    n, m = model.n, model.m
     x = np.concatenate([scene.steady_q, scene.steady_z]).astype(float)
 
     def acc(x):
         y = model.state(x[:n], scene.steady_qdot, x[n:], np.zeros(m))
         f = model.rhs(0.0, y)
         return np.concatenate([f[n:2 * n], f[2 * n + m:2 * n + 2 * m]])
-    r = acc(x)
-    for _ in range(max_iter):
-        if not np.all(np.isfinite(r)):
-            break
-        J = np.empty((N, N))
-        for j in range(N):
-            h = 1e-7 * max(1.0, abs(x[j]))
-            e = np.zeros(N)
-            e[j] = h
-            J[:, j] = (acc(x + e) - acc(x - e)) / (2 * h)
-        dx = np.linalg.lstsq(J, -r, rcond=None)[0]
-        step = 1.0
-        while step > 1e-4:
-            r_new = acc(x + step * dx)
-            if np.all(np.isfinite(r_new)) and np.abs(r_new).max() < np.abs(r).max():
-                break
-            step *= 0.5
-        x, r = x + step * dx, acc(x + step * dx)
-        if np.abs(r).max() <= 1e-13 * max(1.0, model.rate()):
-            break
+    x, r = damped_newton(acc, x, 1e-13 * max(1.0, model.rate()), max_iter=max_iter,
+                         min_step=1e-4)
     return x[:n], x[n:], float(np.abs(r).max())
