@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.numerics.integrators.kernels import (_all_finite, BUDGET, initial_step,
-                                                     MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
-                                                     normalize_quaternion, OK, rhs, SAFETY,
-                                                     state_size, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+                                                        MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
+                                                        normalize_quaternion, OK, rhs, SAFETY,
+                                                        state_size, UNDERFLOW)
 import numpy as np
 
 __all__ = ['stiff_direction', 'radau_run', 'MAX_ITER']
@@ -209,7 +209,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         nfev += 1
     h_old = 0.0
     # a non-finite derivative at the start (a singular state) ends the run at once
-    status = OK if _all_finite(f) else NONFINITE
+    status = OK if all_finite(f) else NONFINITE
     while status == OK and t < t_end:
         if not h >= 10.0 * abs(math.nextafter(t, math.inf) - t):   # NaN too
             status = UNDERFLOW
@@ -270,7 +270,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
                 Zp[i, j] = Z[i, j]
         h_old = h
         nsteps += 1
-        if not _all_finite(y):
+        if not all_finite(y):
             status = NONFINITE
             break
         while kk < t_eval.shape[0] and t_eval[kk] <= t:

@@ -33,9 +33,9 @@ import math
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import tableaux as tb
 from gyro_rotor.numerics.integrators.base import Integrator, STATUS_MESSAGES
-from gyro_rotor.numerics.integrators.kernels import (_all_finite, BUDGET, initial_step,
-                                                     lu_factor, lu_solve, MIN_FACTOR, njit,
-                                                     NONFINITE, OK, rhs, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+                                                        lu_factor, lu_solve, MIN_FACTOR, njit,
+                                                        NONFINITE, OK, rhs, UNDERFLOW)
 import numpy as np
 
 __all__ = ['Radau9Jac', 'transformation', 'radau_jac_run', 'STAGES', 'tableau']
@@ -158,7 +158,7 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
             for m in range(n):
                 ytmp[m] = y[m] + Z[i, m]
             rhs(f, ytmp, P, F[i])
-        if not _all_finite(F[s - 1]):
+        if not all_finite(F[s - 1]):
             return -(it + 1), rate
         # right-hand sides of the transformed equations, then their solutions dW
         for m in range(n):
@@ -258,7 +258,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
         h = initial_step(f, P, y, fy, rtol, atol, s, h_max, ytmp, ftmp)
         nfev += 1
     tol = max(10.0 * 2.220446049250313e-16 / rtol, min(0.03, math.sqrt(rtol)))
-    status = OK if _all_finite(fy) else NONFINITE
+    status = OK if all_finite(fy) else NONFINITE
     jac(y, P, J)
     njev += 1
     jac_current = True
@@ -353,7 +353,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
             for m in range(n):
                 Zp[i, m] = Z[i, m]
         nsteps += 1
-        if not (_all_finite(y) and _all_finite(fy)):
+        if not (all_finite(y) and all_finite(fy)):
             status = NONFINITE
             break
         while kk < t_eval.shape[0] and t_eval[kk] <= t:

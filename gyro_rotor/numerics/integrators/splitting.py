@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.core.model import drive_law, tilt_twist_torque
-from gyro_rotor.numerics.integrators.kernels import _all_finite, BUDGET, njit, NONFINITE, OK
+from gyro_rotor.numerics.integrators.primitives import all_finite, BUDGET, njit, NONFINITE, OK
 
 __all__ = ['kick', 'drift', 'composed_step', 'split_run']
 
@@ -161,7 +161,7 @@ def split_run(P, y0, t0, t_eval, h_max, W, max_steps, Y_out, counts):
             for i in range(m):
                 composed_step(P, y, h, W)
                 nsteps += 1
-                if not _all_finite(y):
+                if not all_finite(y):
                     counts[0] = nsteps * (2 * W.shape[0] + 1)
                     counts[1] = nsteps
                     return NONFINITE
