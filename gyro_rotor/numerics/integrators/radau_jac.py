@@ -36,6 +36,7 @@ from gyro_rotor.numerics.integrators.base import Integrator, STATUS_MESSAGES
 from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
                                                         lu_factor, lu_solve, MIN_FACTOR, njit,
                                                         NONFINITE, OK, rhs, UNDERFLOW)
+from gyro_rotor.numerics.integrators.radau import extrapolate
 import numpy as np
 
 __all__ = ['Radau9Jac', 'transformation', 'radau_jac_run', 'STAGES', 'tableau']
@@ -106,31 +107,6 @@ def _factor(J, h, mu_r, mu_c, LR, LC, pr, pc):
         if not lu_factor(LC[p], pc[p]):
             return False
     return True
-
-
-@njit(cache=True, error_model='numpy')
-def _extrapolate(C, Zp, ratio, Z):
-    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio)."""
-    s = C.shape[0]
-    n = Z.shape[1]
-    w = np.empty(s)
-    for j in range(s):
-        den = C[j]                    # the node 0 of the basis (value 0 there)
-        for q in range(s):
-            if q != j:
-                den *= C[j] - C[q]
-        w[j] = 1.0 / den
-    for i in range(s):
-        th = 1.0 + C[i] * ratio
-        for m in range(n):
-            Z[i, m] = -Zp[s - 1, m]
-        for j in range(s):
-            lj = th * w[j]
-            for q in range(s):
-                if q != j:
-                    lj *= th - C[q]
-            for m in range(n):
-                Z[i, m] += lj * Zp[j, m]
 
 
 @njit(cache=True, error_model='numpy')
@@ -287,7 +263,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
                 continue
             h_lu = h
         if h_old > 0.0:
-            _extrapolate(C, Zp, h / h_old, Z)
+            extrapolate(C, Zp, h / h_old, Z)
         else:
             for i in range(s):
                 for m in range(n):
