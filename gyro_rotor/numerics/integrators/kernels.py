@@ -35,9 +35,9 @@ import math
 
 from gyro_rotor.numerics.integrators import rk_generated
 from gyro_rotor.numerics.integrators.primitives import (
-    all_finite, BUDGET, FullKind, HAVE_NUMBA, initial_step, KIND, LAND_SHRINK, land_step,
-    LAND_STRETCH, LockedKind, lu_factor, lu_solve, MAX_FACTOR, MIN_FACTOR, njit, NOCONV,
-    NONFINITE, normalize_quaternion, OK, pack_params, rhs, SAFETY, state_size, Status,
+    all_finite, BUDGET, equal_steps, FullKind, HAVE_NUMBA, initial_step, KIND, LAND_SHRINK,
+    land_step, LAND_STRETCH, LockedKind, lu_factor, lu_solve, MAX_FACTOR, MIN_FACTOR, njit,
+    NOCONV, NONFINITE, normalize_quaternion, OK, pack_params, rhs, SAFETY, state_size, Status,
     UNDERFLOW, UprightKind)
 import numpy as np
 
@@ -106,9 +106,7 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
     for k in range(t_eval.shape[0]):
         span = t_eval[k] - t
         if span > 0.0:
-            m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
-            if m < 1:
-                m = 1
+            m = equal_steps(span, h_max)
             h = span / m
             for i in range(m):
                 rhs(kind, y, P, f)
@@ -402,9 +400,7 @@ def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, 
     for k in range(t_eval.shape[0]):
         span = t_eval[k] - t
         if span > 0.0:
-            m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
-            if m < 1:
-                m = 1
+            m = equal_steps(span, h_max)
             h = span / m
             for i in range(m):
                 rhs(kind, y, P, f)

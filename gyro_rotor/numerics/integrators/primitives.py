@@ -38,7 +38,7 @@ __all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind'
            'Status', 'OK', 'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY',
            'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'pack_params',
            'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'initial_step',
-           'land_step', 'lu_factor', 'lu_solve']
+           'land_step', 'equal_steps', 'lu_factor', 'lu_solve']
 
 
 class FullKind(enum.IntEnum):
@@ -279,6 +279,20 @@ def land_step(t_eval, k, t, h, h_max, dense_cost):
     if h_land > h_max:
         return 0.0
     return h_land
+
+
+@njit(cache=True, error_model='numpy')
+def equal_steps(span, h_max):
+    """Return the fewest equal steps no longer than ``h_max`` that cover ``span`` (at least 1).
+
+    The fixed-step runs cut the interval between consecutive samples into these, so every
+    sample is hit exactly; a span a hair (relative 1e-12) over a multiple of h_max does not
+    cost one more step.
+    """
+    m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
+    if m < 1:
+        m = 1
+    return m
 
 
 @njit(cache=True, error_model='numpy')
