@@ -187,6 +187,27 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
 
 
 @njit(cache=True, error_model='numpy')
+def _error_norm(fy, E, Z, h, LR, pr, y, rtol, atol, err):
+    """Return the RMS norm of the error estimate (module doc) from ``fy``; estimate in ``err``.
+
+    ``fy`` is f at the step's start (or, to refine a rejected step, f at y + err).
+    """
+    s = Z.shape[0]
+    n = y.shape[0]
+    for m in range(n):
+        acc = 0.0
+        for j in range(s):
+            acc += E[j] * Z[j, m]
+        err[m] = fy[m] + acc / h
+    lu_solve(LR, pr, err)
+    e = 0.0
+    for m in range(n):
+        scm = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
+        e += (err[m] / scm) ** 2
+    return math.sqrt(e / n)
+
+
+@njit(cache=True, error_model='numpy')
 def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_steps, A, C, T,
                   TI, mu_r, mu_c, E, Y_out, counts, y_last):
     """Adaptive Radau IIA with the exact Jacobian through the sample times (module doc).
@@ -285,33 +306,13 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
             rejected = True
             continue
         # error estimate (module doc)
-        for m in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += E[j] * Z[j, m]
-            err[m] = fy[m] + acc / h
-        lu_solve(LR, pr, err)
-        e = 0.0
-        for m in range(n):
-            scm = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
-            e += (err[m] / scm) ** 2
-        e = math.sqrt(e / n)
+        e = _error_norm(fy, E, Z, h, LR, pr, y, rtol, atol, err)
         if rejected and e > 1.0:            # refined once (Hairer): f at y + err
             for m in range(n):
                 ytmp[m] = y[m] + err[m]
             rhs(f, ytmp, P, ftmp)
             nfev += 1
-            for m in range(n):
-                acc = 0.0
-                for j in range(s):
-                    acc += E[j] * Z[j, m]
-                err[m] = ftmp[m] + acc / h
-            lu_solve(LR, pr, err)
-            e = 0.0
-            for m in range(n):
-                scm = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
-                e += (err[m] / scm) ** 2
-            e = math.sqrt(e / n)
+            e = _error_norm(ftmp, E, Z, h, LR, pr, y, rtol, atol, err)
         safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + it)
         if not math.isfinite(e) or e > 1.0:
             nrej += 1
