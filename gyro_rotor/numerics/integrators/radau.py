@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.numerics.integrators.kernels import (_all_finite, BUDGET, initial_step,
-                                                     MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
-                                                     normalize_quaternion, OK, rhs, SAFETY,
-                                                     state_size, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+                                                        MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
+                                                        normalize_quaternion, OK, rhs, SAFETY,
+                                                        state_size, UNDERFLOW)
 import numpy as np
 
-__all__ = ['stiff_direction', 'radau_run', 'MAX_ITER']
+__all__ = ['stiff_direction', 'radau_run', 'extrapolate', 'MAX_ITER']
 
 #: the number of stages of the kernels (the tableau RADAU5_*: a compile-time constant, so
 #: that LLVM unrolls the loops over the stages)
@@ -95,13 +95,16 @@ def _inverse(M, out):
 
 
 @njit(cache=True, error_model='numpy')
-def _extrapolate(C, Zp, ratio, Z):
-    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio)."""
-    s = STAGES
+def extrapolate(C, Zp, ratio, Z):
+    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio).
+
+    For any number of stages s = C.shape[0] (radau9's and :mod:`~.radau_jac`'s kernels).
+    """
+    s = C.shape[0]
     n = Z.shape[1]
-    w = np.empty(STAGES)          # 1 / (the basis polynomials' denominators)
+    w = np.empty(s)               # 1 / (the basis polynomials' denominators)
     for j in range(s):
-        den = C[j]                    # the node 0 of the basis
+        den = C[j]                    # the node 0 of the basis (value 0 there)
         for q in range(s):
             if q != j:
                 den *= C[j] - C[q]
@@ -209,7 +212,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         nfev += 1
     h_old = 0.0
     # a non-finite derivative at the start (a singular state) ends the run at once
-    status = OK if _all_finite(f) else NONFINITE
+    status = OK if all_finite(f) else NONFINITE
     while status == OK and t < t_end:
         if not h >= 10.0 * abs(math.nextafter(t, math.inf) - t):   # NaN too
             status = UNDERFLOW
@@ -223,7 +226,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
             h = t_next - t
             clipped = True
         if h_old > 0.0:
-            _extrapolate(C, Zp, h / h_old, Z)
+            extrapolate(C, Zp, h / h_old, Z)
         else:
             for i in range(s):
                 for m in range(n):
@@ -270,7 +273,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
                 Zp[i, j] = Z[i, j]
         h_old = h
         nsteps += 1
-        if not _all_finite(y):
+        if not all_finite(y):
             status = NONFINITE
             break
         while kk < t_eval.shape[0] and t_eval[kk] <= t:

@@ -33,9 +33,10 @@ import math
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import tableaux as tb
 from gyro_rotor.numerics.integrators.base import Integrator, STATUS_MESSAGES
-from gyro_rotor.numerics.integrators.kernels import (_all_finite, BUDGET, initial_step,
-                                                     lu_factor, lu_solve, MIN_FACTOR, njit,
-                                                     NONFINITE, OK, rhs, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+                                                        lu_factor, lu_solve, MIN_FACTOR, njit,
+                                                        NONFINITE, OK, rhs, UNDERFLOW)
+from gyro_rotor.numerics.integrators.radau import extrapolate
 import numpy as np
 
 __all__ = ['Radau9Jac', 'transformation', 'radau_jac_run', 'STAGES', 'tableau']
@@ -109,31 +110,6 @@ def _factor(J, h, mu_r, mu_c, LR, LC, pr, pc):
 
 
 @njit(cache=True, error_model='numpy')
-def _extrapolate(C, Zp, ratio, Z):
-    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio)."""
-    s = C.shape[0]
-    n = Z.shape[1]
-    w = np.empty(s)
-    for j in range(s):
-        den = C[j]                    # the node 0 of the basis (value 0 there)
-        for q in range(s):
-            if q != j:
-                den *= C[j] - C[q]
-        w[j] = 1.0 / den
-    for i in range(s):
-        th = 1.0 + C[i] * ratio
-        for m in range(n):
-            Z[i, m] = -Zp[s - 1, m]
-        for j in range(s):
-            lj = th * w[j]
-            for q in range(s):
-                if q != j:
-                    lj *= th - C[q]
-            for m in range(n):
-                Z[i, m] += lj * Zp[j, m]
-
-
-@njit(cache=True, error_model='numpy')
 def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, ytmp, br,
             bc):
     """Simplified Newton iterations on the stages (start values in Z).
@@ -158,7 +134,7 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
             for m in range(n):
                 ytmp[m] = y[m] + Z[i, m]
             rhs(f, ytmp, P, F[i])
-        if not _all_finite(F[s - 1]):
+        if not all_finite(F[s - 1]):
             return -(it + 1), rate
         # right-hand sides of the transformed equations, then their solutions dW
         for m in range(n):
@@ -211,6 +187,27 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
 
 
 @njit(cache=True, error_model='numpy')
+def _error_norm(fy, E, Z, h, LR, pr, y, rtol, atol, err):
+    """Return the RMS norm of the error estimate (module doc) from ``fy``; estimate in ``err``.
+
+    ``fy`` is f at the step's start (or, to refine a rejected step, f at y + err).
+    """
+    s = Z.shape[0]
+    n = y.shape[0]
+    for m in range(n):
+        acc = 0.0
+        for j in range(s):
+            acc += E[j] * Z[j, m]
+        err[m] = fy[m] + acc / h
+    lu_solve(LR, pr, err)
+    e = 0.0
+    for m in range(n):
+        scm = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
+        e += (err[m] / scm) ** 2
+    return math.sqrt(e / n)
+
+
+@njit(cache=True, error_model='numpy')
 def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_steps, A, C, T,
                   TI, mu_r, mu_c, E, Y_out, counts, y_last):
     """Adaptive Radau IIA with the exact Jacobian through the sample times (module doc).
@@ -258,7 +255,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
         h = initial_step(f, P, y, fy, rtol, atol, s, h_max, ytmp, ftmp)
         nfev += 1
     tol = max(10.0 * 2.220446049250313e-16 / rtol, min(0.03, math.sqrt(rtol)))
-    status = OK if _all_finite(fy) else NONFINITE
+    status = OK if all_finite(fy) else NONFINITE
     jac(y, P, J)
     njev += 1
     jac_current = True
@@ -287,7 +284,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
                 continue
             h_lu = h
         if h_old > 0.0:
-            _extrapolate(C, Zp, h / h_old, Z)
+            extrapolate(C, Zp, h / h_old, Z)
         else:
             for i in range(s):
                 for m in range(n):
@@ -309,33 +306,13 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
             rejected = True
             continue
         # error estimate (module doc)
-        for m in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += E[j] * Z[j, m]
-            err[m] = fy[m] + acc / h
-        lu_solve(LR, pr, err)
-        e = 0.0
-        for m in range(n):
-            scm = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
-            e += (err[m] / scm) ** 2
-        e = math.sqrt(e / n)
+        e = _error_norm(fy, E, Z, h, LR, pr, y, rtol, atol, err)
         if rejected and e > 1.0:            # refined once (Hairer): f at y + err
             for m in range(n):
                 ytmp[m] = y[m] + err[m]
             rhs(f, ytmp, P, ftmp)
             nfev += 1
-            for m in range(n):
-                acc = 0.0
-                for j in range(s):
-                    acc += E[j] * Z[j, m]
-                err[m] = ftmp[m] + acc / h
-            lu_solve(LR, pr, err)
-            e = 0.0
-            for m in range(n):
-                scm = atol + rtol * max(abs(y[m]), abs(y[m] + Z[s - 1, m]))
-                e += (err[m] / scm) ** 2
-            e = math.sqrt(e / n)
+            e = _error_norm(ftmp, E, Z, h, LR, pr, y, rtol, atol, err)
         safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + it)
         if not math.isfinite(e) or e > 1.0:
             nrej += 1
@@ -353,7 +330,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
             for m in range(n):
                 Zp[i, m] = Z[i, m]
         nsteps += 1
-        if not (_all_finite(y) and _all_finite(fy)):
+        if not (all_finite(y) and all_finite(fy)):
             status = NONFINITE
             break
         while kk < t_eval.shape[0] and t_eval[kk] <= t:

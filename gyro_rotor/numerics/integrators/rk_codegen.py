@@ -30,10 +30,10 @@ coefficients folded in as constants (the numbers are those of :mod:`~.tableaux`)
 argument conventions are those of the generic kernels (see :mod:`~.rk_codegen`).
 """
 
-from gyro_rotor.numerics.integrators.kernels import (all_finite, BUDGET, initial_step, land_step,
-                                                     MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
-                                                     normalize_quaternion, OK, rhs, SAFETY,
-                                                     state_size, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+                                                        land_step, MAX_FACTOR, MIN_FACTOR, njit,
+                                                        NONFINITE, normalize_quaternion, OK, rhs,
+                                                        SAFETY, state_size, UNDERFLOW)
 import numpy as np
 
 __all__ = [{names}]
@@ -163,7 +163,7 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
 
     {s} evaluations a step ({s1} stages and f(y_new), the next step's first), {nx} more for the
     order-{p} interpolant of a step with a sample inside it; steps land on samples by the rule
-    of kernels.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
+    of primitives.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
     """
     n = state_size(kind, y0)
     y = y0.copy()

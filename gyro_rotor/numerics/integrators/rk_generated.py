@@ -7,10 +7,10 @@ argument conventions are those of the generic kernels (see :mod:`~.rk_codegen`).
 
 import math
 
-from gyro_rotor.numerics.integrators.kernels import (all_finite, BUDGET, initial_step, land_step,
-                                                     MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
-                                                     normalize_quaternion, OK, rhs, SAFETY,
-                                                     state_size, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+                                                        land_step, MAX_FACTOR, MIN_FACTOR, njit,
+                                                        NONFINITE, normalize_quaternion, OK, rhs,
+                                                        SAFETY, state_size, UNDERFLOW)
 import numpy as np
 
 __all__ = ['dop853_step', 'dop853_dense', 'dop853_eval', 'vern7_step', 'vern7_dense',
@@ -1302,7 +1302,7 @@ def vern7_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
 
     10 evaluations a step (9 stages and f(y_new), the next step's first), 5 more for the
     order-7 interpolant of a step with a sample inside it; steps land on samples by the rule
-    of kernels.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
+    of primitives.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
     """
     n = state_size(kind, y0)
     y = y0.copy()
@@ -1609,7 +1609,7 @@ def vern8_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
 
     13 evaluations a step (12 stages and f(y_new), the next step's first), 7 more for the
     order-8 interpolant of a step with a sample inside it; steps land on samples by the rule
-    of kernels.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
+    of primitives.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
     """
     n = state_size(kind, y0)
     y = y0.copy()
@@ -1968,7 +1968,7 @@ def vern9_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
 
     16 evaluations a step (15 stages and f(y_new), the next step's first), 9 more for the
     order-9 interpolant of a step with a sample inside it; steps land on samples by the rule
-    of kernels.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
+    of primitives.land_step. Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
     """
     n = state_size(kind, y0)
     y = y0.copy()

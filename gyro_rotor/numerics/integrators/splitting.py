@@ -29,7 +29,8 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.core.model import drive_law, tilt_twist_torque
-from gyro_rotor.numerics.integrators.kernels import _all_finite, BUDGET, njit, NONFINITE, OK
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, equal_steps, njit,
+                                                        NONFINITE, OK)
 
 __all__ = ['kick', 'drift', 'composed_step', 'split_run']
 
@@ -154,14 +155,12 @@ def split_run(P, y0, t0, t_eval, h_max, W, max_steps, Y_out, counts):
     for k in range(t_eval.shape[0]):
         span = t_eval[k] - t
         if span > 0.0:
-            m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
-            if m < 1:
-                m = 1
+            m = equal_steps(span, h_max)
             h = span / m
             for i in range(m):
                 composed_step(P, y, h, W)
                 nsteps += 1
-                if not _all_finite(y):
+                if not all_finite(y):
                     counts[0] = nsteps * (2 * W.shape[0] + 1)
                     counts[1] = nsteps
                     return NONFINITE

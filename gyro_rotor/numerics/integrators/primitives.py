@@ -1,0 +1,346 @@
+"""Compiled primitives: the building blocks that every kernel of the integrators uses.
+
+The lowest layer of :mod:`gyro_rotor.numerics.integrators`: ``njit`` (numba's, or a
+stand-in that runs the same functions as plain Python), the model kinds and the
+right-hand side :func:`rhs` chosen at compile time by the type of ``kind``,
+:func:`state_size`, the projection hook :func:`normalize_quaternion`, the status codes
+(:class:`Status` and its plain int constants OK, UNDERFLOW, ...), the step size control
+constants, :func:`initial_step`, :func:`land_step`, :func:`all_finite` and the small LU
+solver. The run loops (:mod:`~.kernels`, the generated :mod:`~.rk_generated`,
+:mod:`~.radau`, :mod:`~.radau_jac`, :mod:`~.splitting`) import them from here; this
+module imports none of them, so the import graph has no circle (issue 25).
+
+Every function is compiled with numpy's error model (a division by zero gives inf or NaN,
+never an exception) and cached (``cache=True``), as the kernels.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+
+from gyro_rotor.core.model import (full_rhs, FullModel, locked_rhs, LockedHousingModel,
+                                   pack_params, upright_rhs, UprightAxisModel)
+
+try:  # pragma: no cover - exercised by whichever branch the install has
+    from numba import njit
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover
+    HAVE_NUMBA = False
+
+    def njit(*args, **kwargs):
+        """Stand-in for numba.njit: return the function unchanged."""
+        if len(args) == 1 and callable(args[0]):
+            return args[0]
+        return lambda f: f
+
+__all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind',
+           'Status', 'OK', 'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY',
+           'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'pack_params',
+           'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'initial_step',
+           'land_step', 'equal_steps', 'lu_factor', 'lu_solve']
+
+
+class FullKind(enum.IntEnum):
+    """Kind of the full model (one enum class per model: numba types each class apart)."""
+
+    FULL = 0
+
+
+class UprightKind(enum.IntEnum):
+    """Kind of the upright_axis model."""
+
+    UPRIGHT_AXIS = 1
+
+
+class LockedKind(enum.IntEnum):
+    """Kind of the locked_housing model."""
+
+    LOCKED_HOUSING = 2
+
+
+#: the kinds of the hand-written models: each its own type in compiled code, so that a
+#: kernel is compiled per model with that model's right-hand side inlined (a plain int
+#: 0, 1, 2 still works, through a run-time branch that costs about 40 % of the full
+#: model's evaluation)
+KIND = {'full': FullKind.FULL, 'upright_axis': UprightKind.UPRIGHT_AXIS,
+        'locked_housing': LockedKind.LOCKED_HOUSING}
+
+# step size control (as scipy's rk.py and Hairer's codes)
+SAFETY = 0.9
+MIN_FACTOR = 0.2   # smallest decrease of the step in one go
+MAX_FACTOR = 10.0  # largest increase of the step in one go
+#: DOP853 lands a step exactly on the one sample time within it when that changes the step
+#: by a factor between LAND_SHRINK and LAND_STRETCH: the sample then needs no dense output,
+#: which costs about half a step (3 evaluations and the interpolant's coefficients). A
+#: stretched step is still accepted only if its error estimate is within the tolerance.
+LAND_SHRINK = 2.0 / 3.0
+LAND_STRETCH = 1.1
+
+
+class Status(enum.IntEnum):
+    """Status codes of the run loops and steppers (read by numba as integer constants)."""
+
+    FINISHED = 0
+    STEP_UNDERFLOW = -1
+    NON_FINITE = -2
+    BUDGET = -3
+    NO_CONVERGENCE = -4
+
+
+# numba reads module-level ints as compile-time constants (IntEnum members it does not)
+OK = int(Status.FINISHED)
+UNDERFLOW = int(Status.STEP_UNDERFLOW)
+NONFINITE = int(Status.NON_FINITE)
+BUDGET = int(Status.BUDGET)
+NOCONV = int(Status.NO_CONVERGENCE)
+
+
+def rhs(kind, y, P, out):
+    """Write dy/dt at state ``y`` into ``out``.
+
+    ``kind`` is a model number (KIND: the hand-written models, :func:`_model_rhs`) or a
+    compiled right-hand side ``f(y, P, out)`` passed as a numba first-class function (a
+    general rotor system, :mod:`gyro_rotor.core.system.codegen`). In compiled code the
+    choice is made at compile time by the type of ``kind`` (the overload below), so the
+    hand-written models run exactly their own code.
+    """
+    if callable(kind):
+        kind(y, P, out)
+    else:
+        _model_rhs(kind, y, P, out)
+
+
+def state_size(kind, y):
+    """Return the size of the state: a compile-time constant for the hand-written models.
+
+    In compiled code the models' sizes (10, 5, 3) are constants of the kernel compiled for
+    each model, so that LLVM unrolls the loops over the components; for a general system
+    (a first-class function) it is ``y.shape[0]``.
+    """
+    return y.shape[0]
+
+
+def _is_full(kind):
+    """Return True for the full (quaternion) model, False for others and for functions."""
+    return not callable(kind) and kind == 0
+
+
+if HAVE_NUMBA:  # pragma: no branch - compile-time choice on the type of kind
+    from numba import types
+    from numba.extending import overload
+
+    from numba.extending import typeof_impl
+
+    _KIND_RHS = {FullKind: full_rhs, UprightKind: upright_rhs, LockedKind: locked_rhs}
+
+    def _register_kind_type(cls):
+        # numba's generic typeof of an IntEnum member builds and interns its type on every
+        # call (about 10 us a kernel call from Python); these are fixed
+        ty = types.IntEnumMember(cls, types.int64)
+        typeof_impl.register(cls)(lambda val, c: ty)
+
+    for _cls in _KIND_RHS:
+        _register_kind_type(_cls)
+
+    @overload(rhs, jit_options={'error_model': 'numpy'}, inline='always')
+    def _rhs_typed(kind, y, P, out):
+        if isinstance(kind, types.IntEnumMember) and kind.instance_class in _KIND_RHS:
+            fn = _KIND_RHS[kind.instance_class]
+            return lambda kind, y, P, out: fn(y, P, out)
+        if isinstance(kind, types.Integer):
+            return _model_rhs.py_func
+        return lambda kind, y, P, out: kind(y, P, out)
+
+    _KIND_SIZE = {FullKind: len(FullModel.state_names),        # 10, 5, 3
+                  UprightKind: len(UprightAxisModel.state_names),
+                  LockedKind: len(LockedHousingModel.state_names)}
+
+    @overload(state_size, inline='always')
+    def _state_size_typed(kind, y):
+        if isinstance(kind, types.IntEnumMember) and kind.instance_class in _KIND_SIZE:
+            size = _KIND_SIZE[kind.instance_class]
+            return lambda kind, y: size
+        return lambda kind, y: y.shape[0]
+
+    @overload(_is_full)
+    def _is_full_typed(kind):
+        if isinstance(kind, types.IntEnumMember):
+            full = kind.instance_class is FullKind
+            return lambda kind: full
+        if isinstance(kind, types.Integer):
+            return lambda kind: kind == 0
+        return lambda kind: False
+
+
+@njit(cache=True, error_model='numpy')
+def _model_rhs(kind, y, P, out):
+    """dy/dt of model ``kind`` at state ``y`` into ``out`` (the functions of core.model).
+
+    Compiled with numpy's error model: a division by zero (a state with q = 0, or the axis
+    exactly at theta = pi) gives inf or nan, which the loops report as a non-finite state
+    (status -2) or a rejected step, never as an exception out of a run.
+    """
+    if kind == 0:
+        full_rhs(y, P, out)
+    elif kind == 1:
+        upright_rhs(y, P, out)
+    else:
+        locked_rhs(y, P, out)
+
+
+@njit(cache=True, error_model='numpy')
+def normalize_quaternion(kind, y, f):
+    """Apply the projection hook: scale q (and dq/dt, linear in q) of the full model to |q| = 1.
+
+    The other equations depend on q only through its direction, so ``f`` stays the exact
+    right-hand side at the projected state. A norm that overflowed (a diverging step) makes
+    q NaN, so that the run stops as non-finite; scaling by 1 / inf would give q = 0 exactly,
+    a finite state on which the next right-hand side divides by |q|^2 = 0.
+    """
+    if not _is_full(kind):
+        return
+    n = math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3])
+    s = 1.0 / n if 0.0 < n < math.inf else math.nan
+    for i in range(4):
+        y[i] *= s
+        f[i] *= s
+
+
+@njit(cache=True, error_model='numpy')
+def all_finite(y):
+    """Return True if every component of ``y`` is finite."""
+    for i in range(y.shape[0]):
+        if not math.isfinite(y[i]):
+            return False
+    return True
+
+
+@njit(cache=True, error_model='numpy')
+def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
+    """Return the starting step size.
+
+    Hairer, Norsett, Wanner I, sec. II.4; scipy's select_initial_step.
+    """
+    n = y.shape[0]
+    d0 = 0.0
+    d1 = 0.0
+    for m in range(n):
+        sc = atol + abs(y[m]) * rtol
+        d0 += (y[m] / sc) ** 2
+        d1 += (f[m] / sc) ** 2
+    d0 = math.sqrt(d0 / n)
+    d1 = math.sqrt(d1 / n)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, h_max)
+    for m in range(n):
+        ytmp[m] = y[m] + h0 * f[m]
+    rhs(kind, ytmp, P, ftmp)
+    d2 = 0.0
+    for m in range(n):
+        sc = atol + abs(y[m]) * rtol
+        d2 += ((ftmp[m] - f[m]) / sc) ** 2
+    d2 = math.sqrt(d2 / n) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
+    return min(100.0 * h0, h1, h_max)
+
+
+@njit(cache=True, error_model='numpy')
+def land_step(t_eval, k, t, h, h_max, dense_cost):
+    """Return the step that lands on the sample t_eval[k] in m equal steps, or 0.0 (no landing).
+
+    A sample inside a step costs the interpolant, ``dense_cost`` steps' worth of evaluations.
+    Reaching the next sample from t in m = ceil(d / (LAND_STRETCH h)) equal steps of d / m
+    instead of steps h costs m - d / h more steps; landing is chosen when that is at most
+    ``dense_cost``, only when the step h would reach no sample beyond this one (that would need
+    the interpolant anyway), and never beyond h_max. Decided again at every step.
+    """
+    nt = t_eval.shape[0]
+    if k >= nt:
+        return 0.0
+    d = t_eval[k] - t
+    if not (d > 0.0 and h > 0.0):
+        return 0.0
+    if k + 1 < nt and t_eval[k + 1] <= t + h:
+        return 0.0
+    r = d / h
+    m = math.ceil(r / LAND_STRETCH)
+    if m < 1:
+        m = 1
+    if m - r > dense_cost:
+        return 0.0
+    h_land = d / m
+    if h_land > h_max:
+        return 0.0
+    return h_land
+
+
+@njit(cache=True, error_model='numpy')
+def equal_steps(span, h_max):
+    """Return the fewest equal steps no longer than ``h_max`` that cover ``span`` (at least 1).
+
+    The fixed-step runs cut the interval between consecutive samples into these, so every
+    sample is hit exactly; a span a hair (relative 1e-12) over a multiple of h_max does not
+    cost one more step.
+    """
+    m = int(math.ceil(span / h_max * (1.0 - 1e-12)))
+    if m < 1:
+        m = 1
+    return m
+
+
+@njit(cache=True, error_model='numpy')
+def lu_factor(M, piv):
+    """In-place LU factorization with partial pivoting; False if singular."""
+    n = M.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(M[k, k])
+        for i in range(k + 1, n):
+            if abs(M[i, k]) > big:
+                big = abs(M[i, k])
+                p = i
+        if big == 0.0:
+            return False
+        piv[k] = p
+        if p != k:
+            for j in range(n):
+                tmp = M[k, j]
+                M[k, j] = M[p, j]
+                M[p, j] = tmp
+        inv = 1.0 / M[k, k]
+        for i in range(k + 1, n):
+            M[i, k] *= inv
+            lik = M[i, k]
+            if lik != 0.0:
+                for j in range(k + 1, n):
+                    M[i, j] -= lik * M[k, j]
+    return True
+
+
+@njit(cache=True, error_model='numpy')
+def lu_solve(M, piv, b):
+    """Solve with the factors of :func:`lu_factor`, in place on ``b``."""
+    n = M.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= M[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= M[i, j] * b[j]
+        b[i] = acc / M[i, i]
