@@ -489,13 +489,18 @@ def _scene_dirs() -> list[Path]:
     return config_dirs() + [d / 'scenes' for d in systems_dirs() if (d / 'scenes').is_dir()]
 
 
+def _names_centrifuge(flat: Mapping[str, Any]) -> bool:
+    """Return True if flat scene keys name the built-in centrifuge (or no system at all)."""
+    return flat.get('system', CENTRIFUGE) == CENTRIFUGE
+
+
 def list_scenes(builtin: bool | None = None) -> list[str]:
     """Names of the shipped scenes: of every system, or the centrifuge's (``builtin``) or not."""
     names = sorted({f.stem for d in _scene_dirs() for f in d.glob('*.yaml')} - {'analysis'})
     if builtin is None:
         return names
     return [n for n in names
-            if (_read(scene_path(n)).get('system', CENTRIFUGE) == CENTRIFUGE) == builtin]
+            if _names_centrifuge(_read(scene_path(n))) == builtin]
 
 
 def scene_path(name_or_path: str | os.PathLike) -> Path:
@@ -570,7 +575,7 @@ def load_scene(name_or_path: str | os.PathLike = DEFAULT_SCENE,
     """
     path = scene_path(name_or_path)
     flat = _read(path)
-    centrifuge = flat.get('system', CENTRIFUGE) == CENTRIFUGE
+    centrifuge = _names_centrifuge(flat)
     for key, value in (overrides or {}).items():
         if _key_type(key, centrifuge) is float and isinstance(value, int) \
                 and not isinstance(value, bool):
@@ -657,7 +662,7 @@ def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
     gives that file's system already loaded. ``strict_float`` (default: for a file) refuses
     an integer for a float, as ROS 2 does; a system file's scene is always strict.
     """
-    if system is None and flat.get('system', CENTRIFUGE) == CENTRIFUGE:
+    if system is None and _names_centrifuge(flat):
         return _centrifuge_scene(flat, path, path is not None if strict_float is None
                                  else strict_float)
     return _system_scene(flat, path=path, system=system, check=check, where=where)

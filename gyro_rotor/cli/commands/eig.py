@@ -9,7 +9,7 @@ import math
 from gyro_rotor.cli.util import check_output_file, on_system
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
-from gyro_rotor.linear.roundoff import floor, fmt_re
+from gyro_rotor.linear.roundoff import decay_text, floor, fmt_re, resolutions
 from gyro_rotor.linear.stability import analyze, scene_operating_point
 import numpy as np
 
@@ -78,7 +78,6 @@ def _run_system(args, scene) -> int:
     and the mode as undamped: no decay time from round-off.
     """
     from gyro_rotor.linear.general import linearize_scene, modes
-    from gyro_rotor.linear.roundoff import decay_text, fmt_re, resolutions
     if args.json:
         check_output_file(args.json, ('.json',))
     lin = linearize_scene(scene)
