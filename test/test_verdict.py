@@ -42,9 +42,10 @@ from gyro_rotor.analysis.samples import SamplePairer
 from gyro_rotor.analysis.session import scene_to_flat
 from gyro_rotor.analysis.sweep.metrics import decay_interval, fit_decay
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decide,
-                                         fmt_interval, Measured, over_run, Status)
+                                         fmt_against, fmt_interval, Measured, over_run, Status)
 import gyro_rotor.cli.main as cli
 from gyro_rotor.core.scene import list_scenes, load_scene
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 import yaml
@@ -436,3 +437,23 @@ def test_codes_on_the_topics_are_the_positions():
     assert ModeStatus.NOT_IDENTIFIED.code == 0 and ModeStatus.UNOBSERVABLE.code == 8
     assert (SyncState.SYNCHRONOUS.code, SyncState.RESYNCHRONIZED.code) == (0, 2)
     assert not hasattr(CriterionName.DECAY, 'code')
+
+
+@settings(max_examples=300, deadline=None)
+@given(lo=st.floats(1e-3, 1e3), width=st.floats(1e-9, 10.0), rel=st.floats(-0.2, 0.2),
+       near=st.floats(-1e-4, 1e-4))
+def test_printed_interval_reads_on_the_side_of_the_bound_it_is_decided_on(lo, width, rel,
+                                                                          near):
+    """The decay line prints each end of the interval on its true side of the bound.
+
+    Found on elastic_frame: 'decays at 0.462 (interval 0.412 .. 0.538), bound 0.4124' beside
+    PASS, with the true lower end 0.41246 above the bound 0.41243.
+    """
+    hi = lo + width
+    bound = lo * (1 + near) if rel == 0 else lo * (1 + near) + rel * width
+    m = Measured(0.5 * (lo + hi), lo, hi)
+    text, b = fmt_against(m, bound, '1/s')
+    shown = text.split('(interval ')[1].split(')')[0].split(' .. ')
+    for end, x in zip(shown, (lo, hi)):
+        if x != bound:
+            assert (float(end) > float(b)) == (x > bound) and float(end) != float(b), (text, b)

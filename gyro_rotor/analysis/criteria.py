@@ -18,8 +18,8 @@ from gyro_rotor.analysis.modes import FREQ_RTOL, RATE_RTOL as MODE_RATE_RTOL
 from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.results import SegmentResult
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decay_rate_bound,
-                                         DECAY_RTOL, decide, fmt_interval, fmt_pm, Measured,
-                                         ModeStatus, needs_window, Status, SyncState)
+                                         DECAY_RTOL, decide, fmt_against, fmt_interval, fmt_pm,
+                                         Measured, ModeStatus, needs_window, Status, SyncState)
 
 __all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism', 'scene',
            'FIT_RTOL', 'RATE_RTOL', 'rate_bound', 'mode_line']
@@ -146,7 +146,9 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
         else:
             st = decide(rate, bound, 'above')
             tests.append(st)
-            text = f'E* - E*_inf decays at {fmt_interval(rate, "1/s")}, {head}'
+            shown, b = fmt_against(rate, bound, '1/s')
+            text = (f'E* - E*_inf decays at {shown}, bound (1 - {RATE_RTOL:g}) x 2|alpha| = '
+                    f'{b} 1/s (2|alpha| = {full:.4g} 1/s)')
             if st is Status.FAIL:
                 text += ': slower than predicted'
             elif st is Status.NOT_YET:

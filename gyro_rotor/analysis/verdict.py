@@ -32,7 +32,7 @@ import math
 __all__ = ['Verdict', 'Status', 'CriterionName', 'ModeStatus', 'SyncState', 'Criterion',
            'Measured', 'decide', 'DECAY_RTOL', 'conjoin', 'over_run', 'combine',
            'decay_rate_bound', 'fmt_rate', 'fmt_tau', 'fmt_re', 'fmt_pm', 'fmt_interval',
-           'needs_window']
+           'fmt_against', 'needs_window']
 
 
 class _Coded(enum.StrEnum):
@@ -273,19 +273,47 @@ def _sig(value: float, u: float) -> int:
     return max(1, min(15, int(math.floor(math.log10(abs(value))) - math.floor(math.log10(u)) + 1)))
 
 
+def _interval_format(m: Measured, extra: int = 0):
+    """Return the formatter of :func:`fmt_interval` (``extra`` digits beyond its own)."""
+    width = m.hi - m.lo if math.isfinite(m.hi - m.lo) else abs(m.value)
+    if abs(m.value) >= 1e6 or (0 < abs(m.value) < 1e-4):
+        sig = min((_sig(m.value, 0.5 * width) if width > 0 else 6) + extra, 15)
+        return lambda x: f'{x:.{sig}e}' if math.isfinite(x) else ('inf' if x > 0 else '-inf')
+    d = min(_digits(0.5 * width if width > 0 else abs(m.value) * 1e-6) + extra, 15)
+    return lambda x: f'{x:.{d}f}' if math.isfinite(x) else ('inf' if x > 0 else '-inf')
+
+
 def fmt_interval(m: Measured, unit: str = '') -> str:
     """``value (interval lo .. hi) unit`` with enough digits that lo and hi differ."""
-    tail = f' {unit}' if unit else ''
     if not m.measured:
         return '-'
-    width = m.hi - m.lo if math.isfinite(m.hi - m.lo) else abs(m.value)
-    d = min(_digits(0.5 * width if width > 0 else abs(m.value) * 1e-6), 15)
-    if abs(m.value) >= 1e6 or (0 < abs(m.value) < 1e-4):
-        sig = _sig(m.value, 0.5 * width) if width > 0 else 6
-        f = (lambda x: f'{x:.{sig}e}' if math.isfinite(x) else ('inf' if x > 0 else '-inf'))
-    else:
-        f = (lambda x: f'{x:.{d}f}' if math.isfinite(x) else ('inf' if x > 0 else '-inf'))
-    return f'{f(m.value)} (interval {f(m.lo)} .. {f(m.hi)}){tail}'
+    f = _interval_format(m)
+    return f'{f(m.value)} (interval {f(m.lo)} .. {f(m.hi)}){f" {unit}" if unit else ""}'
+
+
+def fmt_against(m: Measured, bound: float, unit: str = '') -> tuple[str, str]:
+    """Return (:func:`fmt_interval` of m, the bound) printed as :func:`decide` reads them.
+
+    The interval's ends are rounded to show their own width and the bound to 4 significant
+    digits; where that rounding would make an end look equal to the bound or on its other
+    side (0.412 against 0.4124 for 0.41246 > 0.41243), both get more digits until every
+    end reads on its true side: a PASS never stands beside an interval that seems to cross
+    its bound.
+    """
+    text, shown = fmt_interval(m, unit), f'{bound:.4g}'
+    if not (m.measured and math.isfinite(bound)):
+        return text, shown
+    for extra in range(16):
+        f = _interval_format(m, extra)
+        b = shown if extra == 0 else f(bound)
+        if all(not math.isfinite(x) or x == bound
+               or (float(f(x)) > float(b)) == (x > bound) and float(f(x)) != float(b)
+               for x in (m.lo, m.hi)):
+            break
+    else:       # ends a few ulp from the bound: the shortest repr tells any two floats apart
+        f = (lambda x: repr(float(x)))
+        b = f(bound)
+    return f'{f(m.value)} (interval {f(m.lo)} .. {f(m.hi)}){f" {unit}" if unit else ""}', b
 
 
 def combine(criteria: list[Criterion], predicted: str, *, diverged: bool = False,
