@@ -231,6 +231,38 @@ class Scene:
         return tuple(int(d.pole_pairs) for d in self.system.drives)
 
     @property
+    def joint_names(self) -> tuple:
+        """Return the joint_states names rotor_sim publishes for this scene (its model's)."""
+        return Model.joint_names if self.system is None else joint_names(self.system)
+
+    def physics(self) -> tuple:
+        """Return (name, value) of everything a run's analysis depends on.
+
+        The system's name first; the centrifuge: its parameters, model and initial
+        condition; a system file's: the coordinates, rotors, constants (by name), drives,
+        equations, the steady motion and the initial state. Names, descriptions, t_end and
+        the kick do not count.
+        """
+        out = [('system', self.system_name)]
+        if self.system is None:
+            out += [(f, getattr(self.params, f)) for f in PARAM_FIELDS]
+            out.append(('model', self.model))
+            out += [(f'initial.{f.name}', getattr(self.initial, f.name))
+                    for f in dataclasses.fields(InitialCondition)]
+            return tuple(out)
+        s = self.system
+        out += [('coordinates', s.coordinates), ('rotors', s.rotors)]
+        out += sorted(s.constants.items())
+        out += [(f'drive.{r}.{f}', getattr(d, f)) for r, d in zip(s.rotors, s.drives)
+                for f in ('K_S', 'K_D', 'Omega0', 'pole_pairs')]
+        out.append(('the equations (mass matrix, guidance, potential, rotor inertia)',
+                    (s.mass_matrix, s.guidance, s.potential, tuple(s.rotor_inertia))))
+        out += [(f.replace('_', '.', 1) if f.startswith('steady') else f'initial.{f[:-1]}',
+                 getattr(self, f))
+                for f in ('steady_q', 'steady_qdot', 'steady_z', 'q0', 'qdot0', 'z0', 'zdot0')]
+        return tuple(out)
+
+    @property
     def kicked(self) -> bool:
         """Return True if the scene's perturbation moves the state."""
         return any(v for vals in self.perturbation.values()
