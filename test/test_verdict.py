@@ -416,7 +416,7 @@ def test_sweep_decay_rate_is_a_decay_or_not_resolved():
 
 def test_sweep_of_twin_gimbal_gives_no_growth_at_stable_points():
     from gyro_rotor.analysis.sweep.metrics import Metric, system_metrics
-    from gyro_rotor.numerics.general import integrate
+    from gyro_rotor.numerics.simulate import integrate
     for k_d in (0.01, 0.0316):
         scene = load_scene('twin_gimbal').with_changes({'K_D': k_d})
         model = scene.make_model()

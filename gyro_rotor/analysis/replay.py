@@ -41,7 +41,7 @@ def default_kick_at(scene, duration: float) -> float:
 
 
 def _live(scene, rate: float):
-    from gyro_rotor.core.scene import NODE_KEYS
+    from gyro_rotor.node_settings import NODE_KEYS
     cfg = {k: spec[1] for k, spec in NODE_KEYS.items() if k != 'use_sim_time'}
     node = getattr(scene, 'node', None) or {}
     cfg.update({k: v for k, v in node.items() if k in cfg})

@@ -11,7 +11,7 @@ Three measurements, each returned as data (``gyro-rotor bench-general`` prints a
   not), and the first integration there (the project's kernels for first-class right-hand
   sides: compiled once per machine, then loaded from numba's cache).
 - :func:`work_precision`: the default method of general systems (the project's integrators
-  on the generated right-hand side, :func:`gyro_rotor.numerics.general.integrate` with
+  on the generated right-hand side, :func:`gyro_rotor.numerics.simulate.integrate` with
   ``auto``) against the usual user's path, sympy ``lambdify`` to numpy plus scipy
   ``solve_ivp`` (RK45, DOP853, Radau, LSODA) on the same equations: error (max over samples
   at 100 Hz of the largest |q - q_ref|, |z - z_ref|) against wall time over a tolerance
@@ -38,8 +38,8 @@ import time
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.system.codegen import pack
 from gyro_rotor.core.system.equations import derive
-from gyro_rotor.numerics import general
 from gyro_rotor.numerics.integrators import kernels
+from gyro_rotor.numerics.simulate import integrate
 import numpy as np
 
 __all__ = ['rhs_cost', 'compile_times', 'work_precision', 'WPRow', 'best_at', 'SCIPY_METHODS',
@@ -113,7 +113,7 @@ import numba, sympy
 from gyro_rotor.core.system.system_file import load_system
 from gyro_rotor.core.system.codegen import compile_system
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.numerics.general import integrate
+from gyro_rotor.numerics.simulate import integrate
 t1 = time.perf_counter()
 s = load_system({name!r})
 t2 = time.perf_counter()
@@ -201,13 +201,13 @@ def work_precision(names=('centrifuge_euler', 'twin_gimbal', 'elastic_frame'),
         model = scene.make_model()
         te = np.arange(int(round(t_end * SAMPLE_RATE)) + 1) / SAMPLE_RATE
         y0 = scene.initial_state(model)
-        ref = general.integrate(model, y0, te, method='dop853', rtol=1e-13, atol=1e-15).y
+        ref = integrate(model, y0, te, method='dop853', rtol=1e-13, atol=1e-15).y
         n, m = model.n, model.m
         for rtol in OUR_RTOLS:
             walls = []
             for _ in range(repeats):
                 t0 = time.perf_counter()
-                run = general.integrate(model, y0, te, rtol=rtol, atol=rtol * 1e-3)
+                run = integrate(model, y0, te, rtol=rtol, atol=rtol * 1e-3)
                 walls.append(time.perf_counter() - t0)
             rows.append(WPRow(name, f'{DEFAULT_LABEL} ({run.method})', rtol,
                               _err(run.y, ref, n, m), min(walls), run.nfev))
@@ -358,14 +358,14 @@ def stiff_table(K_Ds=STIFF_K_D, name: str = 'twin_gimbal', t_end: float = 2.0,
         te = np.arange(int(round(t_end * SAMPLE_RATE)) + 1) / SAMPLE_RATE
         y0 = scene.initial_state(model)
         n, m = model.n, model.m
-        ref = general.integrate(model, y0, te, method='radau9', rtol=1e-13, atol=1e-16).y
-        other = general.integrate(model, y0, te, method='rodas4', rtol=1e-12, atol=1e-15).y
+        ref = integrate(model, y0, te, method='radau9', rtol=1e-13, atol=1e-16).y
+        other = integrate(model, y0, te, method='rodas4', rtol=1e-12, atol=1e-15).y
         checks[K_D] = _err(other, ref, n, m)
         for rtol in STIFF_OUR_RTOLS:
             walls = []
             for _ in range(repeats):
                 t0 = time.perf_counter()
-                run = general.integrate(model, y0, te, rtol=rtol, atol=rtol * 1e-3)
+                run = integrate(model, y0, te, rtol=rtol, atol=rtol * 1e-3)
                 walls.append(time.perf_counter() - t0)
             rows.append(StiffRow(K_D, f'auto ({run.method})', rtol, _err(run.y, ref, n, m),
                                  min(walls), t_end, run.nfev, os.getloadavg()[0]))
