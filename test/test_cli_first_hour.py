@@ -487,6 +487,28 @@ def test_bench_quick_plot_has_a_legend_and_every_point():
         plt.close(fig)
 
 
+def test_bench_sweeps_a_system_file_scene_through_the_same_path():
+    """One benchmark path for every scene: a system file's, its error that of q and z."""
+    from gyro_rotor.numerics import bench
+    rows = bench.run_sweep('twin_gimbal@t_end=1', quick=True, repeats=1, scipy=True,
+                           peers=False, methods=('auto', 'dop853', 'rk4', 'split8'))
+    assert {r.method for r in rows} == {'auto', 'dop853', 'rk4', 'LSODA'}   # split8: none
+    dop = {r.setting: r for r in rows if r.method == 'dop853'}
+    assert all(r.status == 0 and 0 < r.err < 1e-3 for r in dop.values()), dop
+    assert dop['rtol=1e-08'].err < dop['rtol=1e-05'].err
+    scene, _ = bench.parse_scene_spec('twin_gimbal@t_end=1')
+    model = scene.make_model()
+    R = bench.reference(scene, np.linspace(0.0, 1.0, 11))
+    q, _, z, _ = model.slices()
+    Y = R.copy()
+    Y[5, q.start + 1] += 3e-7
+    Y[7, z.start] -= 2e-7
+    e = bench.errors(model, Y, R)
+    assert e['axis_err'] == pytest.approx(3e-7, rel=1e-6)
+    assert e['z_err'] == pytest.approx(2e-7, rel=1e-6) and e['err'] == e['axis_err']
+    assert math.isnan(bench.errors(model, None, R)['err'])
+
+
 # -- the monitor: only what changed, no NaN, the topics the system publishes ----------------
 def _feed(mon, topic, msg):
     from rclpy.serialization import serialize_message
