@@ -103,6 +103,12 @@ def _fmt(v) -> str:
     return '-' if v is None else f'{v * 1e3:.3g}'
 
 
+def md_table(header, rows) -> list[str]:
+    """Return the markdown lines of a table: its header, the rule, a line per row of cells."""
+    return (['| ' + ' | '.join(header) + ' |', '|' + '---|' * len(header)]
+            + ['| ' + ' | '.join(str(c) for c in row) + ' |' for row in rows])
+
+
 def _families(rows) -> dict:
     """Map each method to its family, in the order of the rows."""
     return {r.method: r.family for r in rows}
@@ -145,32 +151,30 @@ def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
     fastest own method). Costs in ms per simulated second.
     """
     idx = [bench.ERROR_LEVELS.index(lev) for lev in levels]
-    table = bench.best_table(rows)
+    best = bench.best_table(rows)
     fam = _families(rows)
     own = [m for m, f in fam.items() if f == 'gyro_rotor' and m != bench.AUTO]
     peers = [m for m, f in fam.items() if f == 'peer']
     scenes = list(dict.fromkeys(r.scene for r in rows))
-    lines = ['| scene | error | auto chose (at rtol) | auto [ms/s] | best compiled peer [ms/s] | '
-             'peer / auto | best own [ms/s] | auto / own best | load |',
-             '|---|---|---|---|---|---|---|---|---|']
+    cells = []
     for s in scenes:
         for lev, i in zip(levels, idx):
             ours, auto, load = _auto_best(rows, s, lev)
-            pm, pv = _best(table, s, peers, i)
-            om, ov = _best(table, s, own, i)
+            pm, pv = _best(best, s, peers, i)
+            om, ov = _best(best, s, own, i)
             ratio = '-' if ours is None or pv is None else f'{pv / ours:.2f}x'
             own_ratio = '-' if ours is None or ov is None else f'{ours / ov:.2f}'
-            lines.append(f'| {s} | {lev:.0e} | {auto} | {_fmt(ours)} | '
-                         + ('-' if pm is None else f'{_fmt(pv)} ({pm})')
-                         + f' | {ratio} | '
-                         + ('-' if om is None else f'{_fmt(ov)} ({om})')
-                         + f' | {own_ratio} | {load:.1f} |')
-    return lines
+            cells.append([s, f'{lev:.0e}', auto, _fmt(ours),
+                          '-' if pm is None else f'{_fmt(pv)} ({pm})', ratio,
+                          '-' if om is None else f'{_fmt(ov)} ({om})', own_ratio, f'{load:.1f}'])
+    return md_table(['scene', 'error', 'auto chose (at rtol)', 'auto [ms/s]',
+                     'best compiled peer [ms/s]', 'peer / auto', 'best own [ms/s]',
+                     'auto / own best', 'load'], cells)
 
 
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     """Write the markdown report and return its text."""
-    table = bench.best_table(rows)
+    best = bench.best_table(rows)
     load = (getattr(args, 'load_before', math.nan), getattr(args, 'load_after', math.nan))
     scenes = list(dict.fromkeys(r.scene for r in rows))
     fam = _families(rows)
@@ -195,20 +199,15 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     lines += ['Best cost [ms per simulated second] at error <= 1e-3 / 1e-6 / 1e-9 per method '
               '(`-` = not reached within the sweep or budget). Lower case: gyro_rotor; upper '
               'case: scipy solve_ivp (numba right-hand side called from Python); '
-              '`CyRK:...`, `numbalsoda:...`: the compiled peers.', '',
-              '| scene | ' + ' | '.join(methods) + ' |',
-              '|---|' + '---|' * len(methods)]
-    for s in scenes:
-        cells = []
-        for m in methods:
-            v = table.get((s, m))
-            cells.append('' if v is None else ' / '.join(_fmt(x) for x in v))
-        lines.append(f'| {s} | ' + ' | '.join(cells) + ' |')
+              '`CyRK:...`, `numbalsoda:...`: the compiled peers.', '']
+    lines += md_table(['scene', *methods],
+                      [[s] + ['' if best.get((s, m)) is None
+                              else ' / '.join(_fmt(x) for x in best[(s, m)]) for m in methods]
+                       for s in scenes])
     lines += ['', 'The default method (auto): speed-up over the fastest scipy method at the '
               "same error, and its cost over the fastest of gyro_rotor's own methods (1.0 = "
-              'auto is the fastest):', '',
-              '| scene | auto | vs scipy at 1e-6 | at 1e-9 | vs own best at 1e-6 | at 1e-9 |',
-              '|---|---|---|---|---|---|']
+              'auto is the fastest):', '']
+    auto_rows = []
     for s in scenes:
         chosen = (_auto_best(rows, s, bench.ERROR_LEVELS[i])[1] for i in (1, 2))
         auto = '/'.join(dict.fromkeys(c.split(' ')[0] for c in chosen))
@@ -216,31 +215,33 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
         for family in ('scipy', 'gyro_rotor'):
             for i in (1, 2):
                 ours = _auto_best(rows, s, bench.ERROR_LEVELS[i])[0]
-                other = [table[(s, m)][i] for m in methods
-                         if fam[m] == family and (s, m) in table and m != bench.AUTO
-                         and table[(s, m)][i] is not None]
+                other = [best[(s, m)][i] for m in methods
+                         if fam[m] == family and (s, m) in best and m != bench.AUTO
+                         and best[(s, m)][i] is not None]
                 if ours is None or not other:
                     cells.append('-')
                 elif family == 'gyro_rotor':
                     cells.append(f'{ours / min(other):.2f}')
                 else:
                     cells.append(f'{min(other) / ours:.1f}x')
-        lines.append(f'| {s} | {auto} | ' + ' | '.join(cells) + ' |')
+        auto_rows.append([s, auto, *cells])
+    lines += md_table(['scene', 'auto', 'vs scipy at 1e-6', 'at 1e-9', 'vs own best at 1e-6',
+                       'at 1e-9'], auto_rows)
     if drift:
         cps = [c for c in (10.0, 100.0, 1000.0) if c <= args.drift_t_end] or [args.drift_t_end]
         lines += ['', f'Relative E* drift on conservative (K_D = 0) at '
                   f'{", ".join(f"{c:g}" for c in cps)} s (default settings; scipy at rtol '
-                  f'1e-10):', '', '| method | ' + ' | '.join(f'{c:g} s' for c in cps)
-                  + ' | wall s |', '|---|' + '---|' * (len(cps) + 1)]
-        for m, (d, w) in drift.items():
-            lines.append(f'| {m} | ' + ' | '.join(f'{x:.1e}' for x in d) + f' | {w:.2f} |')
+                  f'1e-10):', '']
+        lines += md_table(['method', *(f'{c:g} s' for c in cps), 'wall s'],
+                          [[m, *(f'{x:.1e}' for x in d), f'{w:.2f}']
+                           for m, (d, w) in drift.items()])
     if poles:
         ref = poles['reference']
         lines += ['', f"Slipped poles on pole_slip at each method's default tolerance "
-                  f'(reference {ref}):', '', '| method | poles | right |', '|---|---|---|']
-        for m, n in poles.items():
-            if m != 'reference':
-                lines.append(f'| {m} | {n} | {"yes" if n == ref else "NO"} |')
+                  f'(reference {ref}):', '']
+        lines += md_table(['method', 'poles', 'right'],
+                          [[m, n, 'yes' if n == ref else 'NO'] for m, n in poles.items()
+                           if m != 'reference'])
     text = '\n'.join(lines) + '\n'
     with open(path, 'w') as fh:
         fh.write(text)
@@ -420,26 +421,24 @@ def general_lines(args: argparse.Namespace, specs: list) -> list:
     lines = ['# General rotor systems: benchmark', '',
              f'Command: `{_command(args)}`', '']
     cost = bench.rhs_cost()
-    lines += ['## Right-hand side per evaluation (centrifuge_euler vs hand-written kernel)', '',
-              '| hand-written quaternion kernel [ns] | generated Euler-angle RHS [ns] | ratio |',
-              '|---|---|---|',
-              f'| {cost["hand_ns"]:.1f} | {cost["generated_ns"]:.1f} | {cost["ratio"]:.2f} |',
-              '']
+    lines += ['## Right-hand side per evaluation (centrifuge_euler vs hand-written kernel)', '']
+    lines += md_table(['hand-written quaternion kernel [ns]', 'generated Euler-angle RHS [ns]',
+                       'ratio'], [[f'{cost["hand_ns"]:.1f}', f'{cost["generated_ns"]:.1f}',
+                                   f'{cost["ratio"]:.2f}']])
     ct = bench.compile_times()
-    lines += ['## Generation and compilation (twin_gimbal: 3 coordinates, 2 rotors)', '',
-              '| run | imports [s] | read system file [s] | compile_system [s] | first '
-              'integration [s] | total [s] |', '|---|---|---|---|---|---|']
-    for label in ('first', 'cached'):
-        c = ct[label]
-        total = c['imports'] + c['load_system'] + c['compile_system'] + c['first_run']
-        lines.append(f'| {label} | {c["imports"]:.2f} | {c["load_system"]:.2f} | '
-                     f'{c["compile_system"]:.2f} | {c["first_run"]:.2f} | {total:.2f} |')
+    lines += ['', '## Generation and compilation (twin_gimbal: 3 coordinates, 2 rotors)', '']
+    parts = ('imports', 'load_system', 'compile_system', 'first_run')
+    lines += md_table(['run', 'imports [s]', 'read system file [s]', 'compile_system [s]',
+                       'first integration [s]', 'total [s]'],
+                      [[label, *(f'{ct[label][k]:.2f}' for k in parts),
+                        f'{sum(ct[label][k] for k in parts):.2f}']
+                       for label in ('first', 'cached')])
     lines += ['', f'(load average at the time: {os.getloadavg()[0]:.1f})', '']
     rows = bench.system_work_precision(specs, t_end=args.t_end, repeats=args.repeats)
     best = bench.best_at(rows, args.level)
-    lines += [f'## Work precision at error <= {args.level:g} over {args.t_end:g} s', '',
-              '| system | method | rtol | error | wall [ms] | nfev | speed-up of ours |',
-              '|---|---|---|---|---|---|---|']
+    lines += [f'## Work precision at error <= {args.level:g} over {args.t_end:g} s', '']
+    lines += md_table(['system', 'method', 'rtol', 'error', 'wall [ms]', 'nfev',
+                       'speed-up of ours'], [])
     for system in sorted({r.system for r in rows}):
         ours = next((r for (s, mth), r in best.items()
                      if s == system and mth.startswith(bench.DEFAULT_LABEL)), None)
@@ -456,10 +455,10 @@ def general_lines(args: argparse.Namespace, specs: list) -> list:
                 fastest = min(others, key=lambda r: r.wall)
                 lines.append(f'| {system} | **fastest {label}: {fastest.method}** | | | | | '
                              f'**{fastest.wall / ours.wall:.2f}x** |')
-    lines += ['', '## All runs', '', '| system | method | rtol | error | wall [ms] | nfev |',
-              '|---|---|---|---|---|---|']
-    lines += [f'| {r.system} | {r.method} | {r.rtol:g} | {r.err:.2e} | {r.wall * 1e3:.2f} | '
-              f'{r.nfev} |' for r in rows]
+    lines += ['', '## All runs', '']
+    lines += md_table(['system', 'method', 'rtol', 'error', 'wall [ms]', 'nfev'],
+                      [[r.system, r.method, f'{r.rtol:g}', f'{r.err:.2e}', f'{r.wall * 1e3:.2f}',
+                        r.nfev] for r in rows])
     return lines
 
 
@@ -486,10 +485,8 @@ def stiff_lines(args: argparse.Namespace, spec: str) -> list:
              'side, `+jac`: with the lambdified Jacobian). Machine: '
              f'{platform.machine()}, {os.cpu_count()} cores, shared with other jobs (load '
              'average in the table).', '',
-             f'## Cheapest run with error <= {args.level:g}', '',
-             '| K_D | method | rtol | error | ms per simulated s | nfev | load | scipy best / '
-             'ours |', '|---|---|---|---|---|---|---|---|']
-    ours_all = []
+             f'## Cheapest run with error <= {args.level:g}', '']
+    ours_all, cheapest = [], []
     for K_D in sorted(checks):
         best = {}
         for r in rows:
@@ -502,21 +499,24 @@ def stiff_lines(args: argparse.Namespace, spec: str) -> list:
                          key=lambda r: r.wall, default=None)
         for r in sorted(best.values(), key=lambda r: r.wall):
             gain = (f'{scipy_best.wall / r.wall:.1f}x' if r is ours and scipy_best else '')
-            lines.append(f'| {K_D:g} | {r.method} | {r.rtol:g} | {r.err:.2e} | '
-                         f'{r.ms_per_s:.2f} | {r.nfev} | {r.load:.1f} | {gain} |')
+            cheapest.append([f'{K_D:g}', r.method, f'{r.rtol:g}', f'{r.err:.2e}',
+                             f'{r.ms_per_s:.2f}', r.nfev, f'{r.load:.1f}', gain])
         if ours:
             ours_all.append(ours)
-    lines += ['', '| K_D | reference check: largest difference rodas4 - radau9 [rad] |',
-              '|---|---|']
-    lines += [f'| {K_D:g} | {checks[K_D]:.1e} |' for K_D in sorted(checks)]
+    lines += md_table(['K_D', 'method', 'rtol', 'error', 'ms per simulated s', 'nfev', 'load',
+                       'scipy best / ours'], cheapest)
+    lines += ['']
+    lines += md_table(['K_D', 'reference check: largest difference rodas4 - radau9 [rad]'],
+                      [[f'{K_D:g}', f'{checks[K_D]:.1e}'] for K_D in sorted(checks)])
     if ours_all:
         costs = [r.ms_per_s for r in ours_all]
         lines += ['', f'auto over K_D = {", ".join(f"{r.K_D:g}" for r in ours_all)}: '
                   f'{", ".join(f"{c:.2f}" for c in costs)} ms per simulated s; largest / '
                   f'smallest = {max(costs) / min(costs):.2f}.']
-    lines += ['', '## All runs', '',
-              '| K_D | method | rtol | error | wall [ms] | ms per simulated s | nfev | load |',
-              '|---|---|---|---|---|---|---|---|']
-    lines += [f'| {r.K_D:g} | {r.method} | {r.rtol:g} | {r.err:.2e} | {r.wall * 1e3:.2f} | '
-              f'{r.ms_per_s:.2f} | {r.nfev} | {r.load:.1f} |' for r in rows]
+    lines += ['', '## All runs', '']
+    lines += md_table(['K_D', 'method', 'rtol', 'error', 'wall [ms]', 'ms per simulated s',
+                       'nfev', 'load'],
+                      [[f'{r.K_D:g}', r.method, f'{r.rtol:g}', f'{r.err:.2e}',
+                        f'{r.wall * 1e3:.2f}', f'{r.ms_per_s:.2f}', r.nfev, f'{r.load:.1f}']
+                       for r in rows])
     return lines
