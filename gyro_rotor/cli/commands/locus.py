@@ -128,7 +128,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
 
 def _run_system(args, scene) -> int:
     """Root locus over K_D (all drives, or --drive), every meeting and claims (a) to (d)."""
-    from gyro_rotor.linear.general import check_claims, linearize_scene
+    from gyro_rotor.linear.system import check_claims, linearize_scene
     for path, suf in ((args.json, ('.json',)), (args.csv, ('.csv',)), (args.out, ('.png',))):
         if path:
             check_output_file(path, suf)
