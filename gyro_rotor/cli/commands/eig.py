@@ -8,9 +8,9 @@ import math
 
 from gyro_rotor.cli.util import check_output_file, on_system
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.roundoff import decay_text, floor, fmt_re, resolutions
-from gyro_rotor.linear.stability import analyze, ModeKind, scene_operating_point
+from gyro_rotor.linear.stability import analyze, ModeKind
+from gyro_rotor.linear.system import linearize_scene, modes
 import numpy as np
 
 HELP = 'eigenvalues, named modes, drive penetration and the stability verdict of a scene'
@@ -28,7 +28,8 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Print the mode table and the verdict."""
     if args.json:
         check_output_file(args.json)
-    p, sm, model = scene_operating_point(scene)
+    one = linearize_scene(scene).analytic
+    p, sm, model = one.params, one.motion, one.model
     if p.K_D < 0:   # pragma: no cover -- RotorParams refuses it already
         raise ParameterError(f'K_D must not be negative, got {p.K_D}')
     r = analyze(p, sm, model, scene=scene.name)
@@ -40,7 +41,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     # a real part below the eigensolver's resolution is 0, not a result (never 1e-102): the
     # rule of every system (linear/roundoff.py), the floor TOL_RE_REL ||A0|| to which the
     # spectrum's pencil keeps its roots at any K_D
-    res = floor(linearize(p, sm, model).A0)
+    res = floor(one.A0)
 
     def re(x: float, width: int = 13) -> str:
         return fmt_re(x, res, width)
@@ -77,7 +78,6 @@ def _run_system(args, scene) -> int:
     resolution (:mod:`gyro_rotor.linear.roundoff`, the rule of every system) prints as 0
     and the mode as undamped: no decay time from round-off.
     """
-    from gyro_rotor.linear.system import linearize_scene, modes
     if args.json:
         check_output_file(args.json, ('.json',))
     lin = linearize_scene(scene)
