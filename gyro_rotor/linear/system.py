@@ -46,7 +46,8 @@ from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.stability import analyze, Mode, ModeKind
 import numpy as np
 
-__all__ = ['Linearization', 'linearize_scene', 'modes', 'check_claims', 'dominant', 'REL_AXIS']
+__all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'check_claims',
+           'dominant', 'REL_AXIS']
 
 #: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
 #: labels and the predicted verdict; the claims use each root's own resolution)
@@ -210,11 +211,14 @@ def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
     if drive is not None:
         raise ParameterError('--drive is for the scenes of system files; the centrifuge '
                              'has one drive')
-    p, sm, model = scene_operating_point(scene)
-    ls = linearize(p, sm, model)
+    return from_analytic(linearize(*scene_operating_point(scene)))
+
+
+def from_analytic(ls: LinearSystem) -> Linearization:
+    """Return the centrifuge's analytic linearization ``ls`` as a :class:`Linearization`."""
     b, c = ls.b[:, None], ls.c[:, None]
-    K = np.array([p.K_D], dtype=float)
-    return Linearization(A0=ls.A0, b=b, c=c, K_D=p.K_D, A_locked=_locked(ls.A0, b, c),
+    K = np.array([ls.params.K_D], dtype=float)
+    return Linearization(A0=ls.A0, b=b, c=c, K_D=ls.params.K_D, A_locked=_locked(ls.A0, b, c),
                          names=ls.state_names,
                          coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
                                           for x in ls.state_names),
