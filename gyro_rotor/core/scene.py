@@ -231,6 +231,13 @@ class Scene:
         return tuple(int(d.pole_pairs) for d in self.system.drives)
 
     @property
+    def Omega0(self) -> float:
+        """Return the field speed Omega0 of the first rotor's drive [rad/s] (eq. 23)."""
+        if self.system is None:
+            return float(self.params.Omega0)
+        return float(self.system.drives[0].Omega0)
+
+    @property
     def kicked(self) -> bool:
         """Return True if the scene's perturbation moves the state."""
         return any(v for vals in self.perturbation.values()
