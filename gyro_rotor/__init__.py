@@ -7,6 +7,8 @@ own layer and from the layers listed before it, never from a layer after it:
 layer      what it holds                                                           rclpy
 =========  ======================================================================  =======
 errors     the exception types (:mod:`gyro_rotor.errors`), below every layer       no
+settings   the simulation node's settings that a scene file may carry              no
+           (:mod:`gyro_rotor.node_settings`), below every layer
 core       the physics: parameters, rotations, the models, steady motions, scenes  no
 numerics   integrators (compiled kernels), simulate, ensemble, real-time pacing,   no
            benchmarks

@@ -408,25 +408,44 @@ def test_bench_default_output_is_untracked_and_new(tmp_path, monkeypatch):
     assert not getattr(explicit, 'out_is_default', False)
 
 
-def test_bench_general_writes_bench_general_md_only_when_asked(tmp_path, monkeypatch,
-                                                               capsys):
-    from gyro_rotor.numerics import general_bench as gb
+def test_bench_table_general_writes_bench_general_md_only_when_asked(tmp_path, monkeypatch,
+                                                                     capsys):
+    """One command for every table: ``bench --table general`` writes to a new directory."""
+    from gyro_rotor.numerics import bench
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(gb, 'rhs_cost', lambda: {'hand_ns': 1.0, 'generated_ns': 2.0,
-                                                 'ratio': 2.0})
+    monkeypatch.setattr(bench, 'rhs_cost', lambda: {'hand_ns': 1.0, 'generated_ns': 2.0,
+                                                    'ratio': 2.0})
     times = {'imports': 0.1, 'load_system': 0.1, 'compile_system': 0.1, 'first_run': 0.1}
-    monkeypatch.setattr(gb, 'compile_times', lambda: {'first': times, 'cached': times})
-    monkeypatch.setattr(gb, 'work_precision', lambda **kw: [])
-    monkeypatch.setattr(gb, 'best_at', lambda rows, level: {})
-    assert main(['bench-general']) == 0
+    monkeypatch.setattr(bench, 'compile_times', lambda: {'first': times, 'cached': times})
+    monkeypatch.setattr(bench, 'system_work_precision', lambda *a, **kw: [])
+    monkeypatch.setattr(bench, 'best_at', lambda rows, level: {})
+    assert main(['bench', '--table', 'general']) == 0
     assert not (tmp_path / 'bench').exists()
-    written = list((tmp_path / 'bench_out').glob('general-*/general.md'))
-    assert len(written) == 1 and 'wrote bench_out/general-' in capsys.readouterr().out
-    assert main(['bench-general']) == 0          # a second run: a second file
-    assert len(list((tmp_path / 'bench_out').glob('general-*/general.md'))) == 2
+    written = list((tmp_path / 'bench_out').glob('bench-*/general.md'))
+    assert len(written) == 1 and 'wrote bench_out/bench-' in capsys.readouterr().out
+    assert 'Command: `gyro-rotor bench --table general --scenes centrifuge_euler,twin_gimbal,' \
+        'elastic_frame --out bench_out/bench-' in written[0].read_text()
+    assert main(['bench', '--table', 'general']) == 0          # a second run: a second file
+    assert len(list((tmp_path / 'bench_out').glob('bench-*/general.md'))) == 2
     (tmp_path / 'bench').mkdir()
-    assert main(['bench-general', '--out', 'bench/general.md']) == 0
+    assert main(['bench', '--table', 'general', '--out', 'bench']) == 0
     assert (tmp_path / 'bench' / 'general.md').is_file()
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--table', 'general', '--scenes', 'precession'], 'scene precession is the built-in'),
+    (['--table', 'stiff', '--scenes', 'twin_gimbal,elastic_frame'], 'takes one scene, got 2'),
+    (['--table', 'stiff', '--level', '0'], '--level must be positive'),
+    (['--table', 'general', '--t-end', 'nan'], '--t-end must be positive'),
+    (['--scenes', 'no_such_scene'], '--scenes: '),
+])
+def test_bench_refuses_bad_settings_with_one_error_line(argv, message, tmp_path, monkeypatch,
+                                                        capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(['bench', *argv]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('ERROR: ') and message in err[0], err
+    assert not (tmp_path / 'bench_out').exists()
 
 
 def test_gitignore_covers_the_run_outputs():
@@ -466,6 +485,28 @@ def test_bench_quick_plot_has_a_legend_and_every_point():
         assert '[s/s]' in ax.get_xlabel() and '[rad]' in ax.get_ylabel()
     finally:
         plt.close(fig)
+
+
+def test_bench_sweeps_a_system_file_scene_through_the_same_path():
+    """One benchmark path for every scene: a system file's, its error that of q and z."""
+    from gyro_rotor.numerics import bench
+    rows = bench.run_sweep('twin_gimbal@t_end=1', quick=True, repeats=1, scipy=True,
+                           peers=False, methods=('auto', 'dop853', 'rk4', 'split8'))
+    assert {r.method for r in rows} == {'auto', 'dop853', 'rk4', 'LSODA'}   # split8: none
+    dop = {r.setting: r for r in rows if r.method == 'dop853'}
+    assert all(r.status == 0 and 0 < r.err < 1e-3 for r in dop.values()), dop
+    assert dop['rtol=1e-08'].err < dop['rtol=1e-05'].err
+    scene, _ = bench.parse_scene_spec('twin_gimbal@t_end=1')
+    model = scene.make_model()
+    R = bench.reference(scene, np.linspace(0.0, 1.0, 11))
+    q, _, z, _ = model.slices()
+    Y = R.copy()
+    Y[5, q.start + 1] += 3e-7
+    Y[7, z.start] -= 2e-7
+    e = bench.errors(model, Y, R)
+    assert e['axis_err'] == pytest.approx(3e-7, rel=1e-6)
+    assert e['z_err'] == pytest.approx(2e-7, rel=1e-6) and e['err'] == e['axis_err']
+    assert math.isnan(bench.errors(model, None, R)['err'])
 
 
 # -- the monitor: only what changed, no NaN, the topics the system publishes ----------------

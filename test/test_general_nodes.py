@@ -14,9 +14,10 @@ import sys
 from gyro_rotor.analysis.offline import analyze_bag
 from gyro_rotor.analysis.prediction import predict_general
 from gyro_rotor.bag.bagio import open_bag
-from gyro_rotor.core.scene import list_scenes, load_scene, NODE_KEYS, scene_from_flat
+from gyro_rotor.core.scene import list_scenes, load_scene, scene_from_flat
 from gyro_rotor.core.system.model import GeneralModel, joint_names
 from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.node_settings import NODE_KEYS
 from gyro_rotor.numerics.live import LiveSimulation
 import numpy as np
 import pytest
@@ -325,12 +326,11 @@ def test_a_common_drive_key_sets_every_drive_after_a_per_rotor_one():
 
 def test_a_sine_law_run_ending_on_an_unpaired_sample_is_judged():
     from gyro_rotor.analysis.analyzer import RotorAnalyzer
-    from gyro_rotor.analysis.samples import samples_from_general_run, SamplePairer
-    from gyro_rotor.numerics.general import integrate
+    from gyro_rotor.analysis.samples import samples_from_trajectory, SamplePairer
+    from gyro_rotor.numerics.simulate import simulate
     scene = load_scene('twin_gimbal', {'drive.R2.pole_pairs': 1})
-    model = scene.make_model()
-    run = integrate(model, scene.initial_state(model), np.linspace(0.0, 3.0, 751))
-    samples = samples_from_general_run(model, run)
+    samples = samples_from_trajectory(simulate(scene, t_end=3.0, rate=250.0))
+    assert len(samples) == 751
     pairer = SamplePairer()
     pairer.add_energy(10 ** 10, {'t_sim': 10.0, 'E_star': samples[-1].E_star, 'seq': 751,
                                  'k': 751, 'residual': 0.0})

@@ -1,8 +1,8 @@
 """Stiff drives on generated systems (issue 25, item 4): the exact Jacobian and its method."""
 
 from gyro_rotor.core.scene import load_scene
-from gyro_rotor.numerics.general import integrate
 from gyro_rotor.numerics.integrators import radau_jac
+from gyro_rotor.numerics.simulate import integrate
 import numpy as np
 import pytest
 
@@ -130,7 +130,7 @@ def test_radau9_cost_does_not_grow_with_K_D():
 
 
 def test_auto_and_the_stepper_use_radau9_with_the_generated_jacobian():
-    from gyro_rotor.numerics.general import KernelSystem
+    from gyro_rotor.numerics.kernel_system import KernelSystem
     from gyro_rotor.numerics.integrators import choose_method
     from gyro_rotor.numerics.integrators.methods import make_integrator
     model, y0 = _twin(1e4)
@@ -145,7 +145,7 @@ def test_auto_and_the_stepper_use_radau9_with_the_generated_jacobian():
 
 def test_live_general_simulation_runs_a_stiff_drive_with_radau9():
     """The live path (rotor_sim's stepper): auto is radau9 at K_D = 1e4, the residual small."""
-    from gyro_rotor.core.scene import NODE_KEYS
+    from gyro_rotor.node_settings import NODE_KEYS
     from gyro_rotor.numerics.live import LiveSimulation
     cfg = {k: v[1] for k, v in NODE_KEYS.items()}
     cfg['real_time_factor'] = 0.0

@@ -17,8 +17,9 @@ from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims as centrifuge_claims
 from gyro_rotor.linear.stability import ModeKind
 from gyro_rotor.linear.system import check_claims, linearize_scene, modes
-from gyro_rotor.numerics.general import integrate as integrate_general, run_ensemble
+from gyro_rotor.numerics.ensemble import run_ensemble
 from gyro_rotor.numerics.integrators.methods import integrate
+from gyro_rotor.numerics.simulate import integrate as integrate_general
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
@@ -604,8 +605,8 @@ GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),
 
 @pytest.mark.parametrize('name', SHIPPED)
 def test_every_general_method_runs_every_shipped_system(name):
-    from gyro_rotor.numerics.general import METHODS
-    assert set(METHODS) == set(GENERAL_RUNS)
+    from gyro_rotor.numerics.kernel_system import SYSTEM_METHODS
+    assert set(SYSTEM_METHODS) == set(GENERAL_RUNS)
     scene = load_scene(name)
     model = scene.make_model()
     y0 = scene.initial_state(model)
@@ -646,7 +647,7 @@ def test_ensemble_runs_a_general_system_with_its_own_numbers_per_trajectory():
                scene.system.with_constants({'c_a': 60.0})]
     Y0 = np.array([y0, 0.5 * y0, y0])
     te = np.linspace(0.0, 0.5, 11)
-    res = run_ensemble(model, Y0, te, systems=systems, step=1e-4)
+    res = run_ensemble(model, Y0, te, params=systems, step=1e-4)
     assert res.y.shape == (11, 3, model.size) and res.backend == 'numba'
     for r, (system, y) in enumerate(zip(systems, Y0)):
         single = integrate_general(GeneralModel(system), y, te, method='rk4', step=1e-4)
@@ -654,7 +655,7 @@ def test_ensemble_runs_a_general_system_with_its_own_numbers_per_trajectory():
     assert np.abs(res.y[-1, 0] - res.y[-1, 1]).max() > 1e-3     # other numbers, other runs
     assert np.abs(res.y[-1, 0] - res.y[-1, 2]).max() > 1e-3
     with pytest.raises(ParameterError, match='the same system with other numbers'):
-        run_ensemble(model, Y0[:1], te, systems=[load_system('elastic_frame')])
+        run_ensemble(model, Y0[:1], te, params=[load_system('elastic_frame')])
 
 
 def test_simulate_general_scene_with_each_method(tmp_path, capsys):

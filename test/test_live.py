@@ -6,8 +6,9 @@ import sys
 import time
 
 from gyro_rotor.core.model import drive_torque
-from gyro_rotor.core.scene import load_scene, NODE_KEYS
+from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.node_settings import NODE_KEYS
 from gyro_rotor.numerics.live import ENERGY_COLUMNS, Level, LiveSimulation, wrap_angles
 from gyro_rotor.numerics.realtime import resolve_method
 import numpy as np

@@ -263,7 +263,7 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     ``load_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
     """
     from gyro_rotor.core.scene import load_scene
-    from gyro_rotor.numerics.general import integrate
+    from gyro_rotor.numerics.simulate import integrate
     spec = _general_spec()
     assert spec.general and spec.n_points == 4 and spec.n_blocks == 2
     r = run_sweep(spec, tmp_path / 'g', executor=Executor.SERIAL)
@@ -333,7 +333,7 @@ def test_progress_bar_counts_points():
 
 @pytest.mark.parametrize('scene, grid, target', [
     ('pole_slip', ['K_D=0.5:2:3'], 'gyro_rotor.analysis.sweep.task.run_ensemble'),
-    ('twin_gimbal', ['K_D=0.01:0.1:3'], 'gyro_rotor.numerics.general.run_ensemble'),
+    ('twin_gimbal', ['K_D=0.01:0.1:3'], 'gyro_rotor.analysis.sweep.task.run_ensemble'),
 ])
 def test_a_block_that_fails_falls_back_to_its_points(scene, grid, target, monkeypatch):
     """Every kind of scene: the block's ensemble raises, its points are run one by one.

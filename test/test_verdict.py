@@ -36,7 +36,6 @@ import random
 from gyro_rotor.analysis.analyzer import RotorAnalyzer
 from gyro_rotor.analysis.modes import mode_tolerances
 from gyro_rotor.analysis.offline import analyze_bag
-from gyro_rotor.analysis.prediction import PredictedMode
 from gyro_rotor.analysis.replay import run_like_demo, stream
 from gyro_rotor.analysis.samples import SamplePairer
 from gyro_rotor.analysis.session import scene_to_flat
@@ -123,7 +122,7 @@ def check_no_false_pass(res) -> None:
             assert n['rate_lo'] >= n['rate_bound'], decay.detail
     seg = res.judged
     for m in (seg.modes if seg is not None else []):
-        tol_im, tol_re = mode_tolerances(PredictedMode(m.name, m.predicted), m.window_s)
+        tol_im, tol_re = mode_tolerances(m.predicted, m.window_s)
         if m.freq_status is Status.PASS:
             d = m.freq.abs_deviation(m.predicted.imag)
             assert d.hi <= tol_im, (m.name, d, tol_im)
@@ -417,7 +416,7 @@ def test_sweep_decay_rate_is_a_decay_or_not_resolved():
 
 def test_sweep_of_twin_gimbal_gives_no_growth_at_stable_points():
     from gyro_rotor.analysis.sweep.metrics import Metric, system_metrics
-    from gyro_rotor.numerics.general import integrate
+    from gyro_rotor.numerics.simulate import integrate
     for k_d in (0.01, 0.0316):
         scene = load_scene('twin_gimbal').with_changes({'K_D': k_d})
         model = scene.make_model()

@@ -580,20 +580,12 @@ def judged_pred(analyzer: RotorAnalyzer, seg: SegmentResult) -> Prediction:
 
 
 def _same_physics(a, b) -> bool:
-    """Return True if two scenes differ in nothing the analysis depends on."""
-    if not (a.builtin and b.builtin):
-        # the systems by content: a system rebuilt from a bag's document has no file path,
-        # and its constants may come in another order (a YAML dump sorted by key)
-        return (not a.builtin and not b.builtin
-                and _content(a.system) == _content(b.system) and a.steady_q == b.steady_q
-                and a.steady_qdot == b.steady_qdot and a.steady_z == b.steady_z)
-    return a.params == b.params and a.model == b.model and a.initial == b.initial
+    """Return True if two scenes differ in nothing the analysis depends on (their physics).
 
-
-def _content(system) -> tuple:
-    """Return what a rotor system is, without its file path or the order of its constants."""
-    return (system.coordinates, system.rotors, dict(system.constants), system.mass_matrix,
-            tuple(system.rotor_inertia), system.guidance, system.potential, system.drives)
+    A system rebuilt from a bag's document has no file path and may list its constants in
+    another order: :meth:`~gyro_rotor.core.scene.Scene.physics` holds neither.
+    """
+    return a.physics() == b.physics()
 
 
 def _general_row(s: Sample, pred: Prediction) -> tuple:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.analysis.decay import NOISE_K, RESOLVABLE
-from gyro_rotor.analysis.modes import FREQ_RTOL, RATE_RTOL as MODE_RATE_RTOL
+from gyro_rotor.analysis.modes import FREQ_RTOL, mode_tolerances, RATE_RTOL as MODE_RATE_RTOL
 from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.results import SegmentResult
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decay_rate_bound,
@@ -161,13 +161,25 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
 
 
 def mode_line(c) -> str:
-    """Return a mode with its numbers: frequency, decay time (intervals), status."""
+    """Return a mode with its numbers: frequency, decay time (intervals), status.
+
+    Each measured number stands beside the prediction's band it is judged against
+    (:func:`~gyro_rotor.analysis.modes.mode_tolerances` over the window): the frequency
+    within FREQ_RTOL of |lambda|, the decay time from the rate within RATE_RTOL.
+    """
     out = c.name
+    tol_im, tol_re = mode_tolerances(c.predicted, c.window_s)
+    two_pi = 2 * math.pi
     if c.freq is not None and c.freq.bounded:
-        out += f' {fmt_pm(abs(c.freq.value) / (2 * math.pi), c.freq.u / (2 * math.pi), "Hz")}'
+        out += (f' {fmt_pm(abs(c.freq.value) / two_pi, c.freq.u / two_pi, "Hz")} against '
+                f'{fmt_pm(abs(c.predicted.imag) / two_pi, tol_im / two_pi, "Hz")}')
     tau = c.tau
     if tau is not None and c.rate_status is not None:
-        out += f', tau {fmt_interval(tau, "s")}'
+        re = c.rate_target
+        band = ' .. '.join(f'{-1.0 / r:.4g}' if r < 0 else 'inf'
+                           for r in (re - tol_re, re + tol_re))
+        pred = f'{-1.0 / re:.4g} s' if re < 0 else 'undamped'
+        out += f', tau {fmt_interval(tau, "s")} against {pred} (band {band} s)'
     return f'{out}: {c.describe()}'
 
 

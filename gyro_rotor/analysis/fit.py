@@ -27,22 +27,11 @@ __all__ = ['SceneFit', 'TOL', 'joint_names', 'start_joints', 'energy_from_joints
 #: relative (and absolute, in the units of each number) tolerance of the comparisons:
 #: rounding of the same computation, and of a quaternion rebuilt from wrapped angles
 TOL = 1e-7
-#: below this sin(theta) the 3-1-3 angles of a recorded joint state are singular: the
-#: state cannot be rebuilt from them (solution I passes through theta = 0)
-SIN_THETA_MIN = 1e-3
-
-
-def _general(scene) -> bool:
-    return not scene.builtin
 
 
 def joint_names(scene) -> tuple:
     """Return the ``joint_states`` names rotor_sim publishes for a scene."""
-    if _general(scene):
-        from gyro_rotor.core.system.model import joint_names as system_joint_names
-        return system_joint_names(scene.system)
-    from gyro_rotor.bag.wire import JOINT_NAMES
-    return JOINT_NAMES
+    return scene.joint_names
 
 
 def start_joints(scene) -> tuple[tuple, tuple, float]:
@@ -58,30 +47,10 @@ def energy_from_joints(scene, model, s: Sample) -> float:
     """E* of a recorded sample's state by the scene's model (NaN where not rebuildable)."""
     if not s.joints:
         return math.nan
-    if _general(scene):
-        sq, sqd, sz, szd = model.slices()
-        n, m = sq.stop - sq.start, sz.stop - sz.start
-        if len(s.positions) != n + m or len(s.velocities) != n + m:
-            return math.nan
-        y = np.zeros(model.size)
-        y[sq], y[sz] = s.positions[:n], s.positions[n:]
-        y[sqd], y[szd] = s.velocities[:n], s.velocities[n:]
-        return float(np.asarray(model.energy(y[None, :])).reshape(-1)[0])
-    if len(s.positions) != 4 or not (math.isfinite(s.z) and math.isfinite(s.zdot)):
+    y = model.state_from_joints(s.positions, s.velocities, s.z, s.zdot)
+    if y is None:
         return math.nan
-    theta, psi, _, phi_M = s.positions
-    thetadot, psidot, _, phi_M_dot = s.velocities
-    if scene.model == 'full' and abs(math.sin(theta)) < SIN_THETA_MIN:
-        return math.nan
-    # the twist chi = psi + phi_M of the housing is small (its spring); the wrapped angles
-    # add multiples of 2 pi to it, which would flip the quaternion's sign and its chi
-    phi_M = math.remainder(psi + phi_M, 2.0 * math.pi) - psi
-    try:
-        y = model.state_from_euler(theta=theta, thetadot=thetadot, psi=psi, psidot=psidot,
-                                   phi_M=phi_M, phi_M_dot=phi_M_dot, z=s.z, zdot=s.zdot)
-    except ValueError:
-        return math.nan
-    return float(np.asarray(model.energy(np.asarray(y)[None, :])).reshape(-1)[0])
+    return float(np.asarray(model.energy(y[None, :])).reshape(-1)[0])
 
 
 def _differs(a: float, b: float, angle: bool = False) -> bool:
@@ -114,12 +83,10 @@ def check_start(scene, s: Sample, names: tuple) -> str | None:
     if len(pos) != len(s.positions) or len(vel) != len(s.velocities):
         return None
     diffs = []
-    general = _general(scene)
-    skip = set()
-    if not general and abs(math.sin(pos[0])) < SIN_THETA_MIN:
-        skip = {1, 3}           # psi, phi_M: singular at theta = 0
+    model = scene.make_model()
+    skip = model.singular_joints(pos)
     for i, (a, b) in enumerate(zip(s.positions, pos)):
-        if i not in skip and _differs(a, b, angle=not general):
+        if i not in skip and _differs(a, b, angle=model.joint_angles):
             diffs.append(f'{names[i] if i < len(names) else i} {a:.6g} (scene {b:.6g})')
     for i, (a, b) in enumerate(zip(s.velocities, vel)):
         if i not in skip and _differs(a, b):
@@ -178,39 +145,13 @@ def _fmt(v) -> str:
 def scene_differences(given, recorded) -> list[str]:
     """Return what differs between two scenes in what the analysis depends on (empty: nothing).
 
-    Each entry names a quantity with its value in ``given`` and in ``recorded``: the
-    parameters, the model and the initial condition of a centrifuge scene; the system
-    (coordinates, rotors, constants, drives, equations), the steady motion and the
-    initial state of a general one. Names, descriptions, t_end and the kick do not count.
+    Each entry names a quantity of :meth:`~gyro_rotor.core.scene.Scene.physics` with its
+    value in ``given`` and in ``recorded`` (equal within :data:`TOL`); scenes of two
+    systems differ in their system alone.
     """
-    if _general(given) != _general(recorded):
-        kinds = ('a general system', 'the centrifuge')
-        return [f'{kinds[0] if _general(given) else kinds[1]} (recorded: '
-                f'{kinds[0] if _general(recorded) else kinds[1]})']
-    pairs = []
-    if _general(given):
-        a, b = given.system, recorded.system
-        pairs += [('system', a.name, b.name), ('coordinates', a.coordinates, b.coordinates),
-                  ('rotors', a.rotors, b.rotors)]
-        for k in sorted(set(a.constants) | set(b.constants)):
-            pairs.append((k, a.constants.get(k), b.constants.get(k)))
-        for r, da, db in zip(a.rotors, a.drives, b.drives):
-            for f in ('K_S', 'K_D', 'Omega0', 'pole_pairs'):
-                pairs.append((f'drive.{r}.{f}', getattr(da, f), getattr(db, f)))
-        pairs += [('the equations (mass matrix, guidance, potential, rotor inertia)',
-                   (a.mass_matrix, a.guidance, a.potential, tuple(a.rotor_inertia)),
-                   (b.mass_matrix, b.guidance, b.potential, tuple(b.rotor_inertia)))]
-        for f in ('steady_q', 'steady_qdot', 'steady_z', 'q0', 'qdot0', 'z0', 'zdot0'):
-            name = f.replace('_', '.', 1) if f.startswith('steady') else f'initial.{f[:-1]}'
-            pairs.append((name, getattr(given, f), getattr(recorded, f)))
-    else:
-        from gyro_rotor.core.params import PARAM_FIELDS
-        pairs += [(f, getattr(given.params, f), getattr(recorded.params, f))
-                  for f in PARAM_FIELDS]
-        pairs.append(('model', given.model, recorded.model))
-        for f in ('mode', 'theta0', 'branch', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz',
-                  'dzdot', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'):
-            pairs.append((f'initial.{f}', getattr(given.initial, f),
-                          getattr(recorded.initial, f)))
-    return [f'{name} {_fmt(x)} (recorded {_fmt(y)})' for name, x, y in pairs
-            if _num_diff(x, y)]
+    a, b = dict(given.physics()), dict(recorded.physics())
+    if a['system'] != b['system']:
+        return [f"system {a['system']} (recorded {b['system']})"]
+    return [f'{name} {_fmt(x)} (recorded {_fmt(b.get(name))})' for name, x in a.items()
+            if _num_diff(x, b.get(name))] + [
+        f'{name} {_fmt(None)} (recorded {_fmt(y)})' for name, y in b.items() if name not in a]

@@ -209,6 +209,11 @@ class ModeCheck:
             not self.reached_by_drive and not self.structural)
 
     @property
+    def rate_target(self) -> float:
+        """Return the real part the rate is judged against (0: a structural, unreached mode)."""
+        return 0.0 if (self.structural or not self.reached_by_drive) else self.predicted.real
+
+    @property
     def pred_tau(self) -> float:
         """Predicted decay time [s] (inf for a structural zero root: it does not decay)."""
         if self.structural or not self.predicted.real < 0:
@@ -282,14 +287,13 @@ class ModesFound:
     roots: list = dataclasses.field(default_factory=list)
 
 
-def mode_tolerances(m: PredictedMode, span: float) -> tuple[float, float]:
-    """(frequency, rate) tolerance of a predicted mode over a window of ``span`` s.
+def mode_tolerances(ev: complex, span: float) -> tuple[float, float]:
+    """(frequency, rate) tolerance of a predicted eigenvalue over a window of ``span`` s.
 
     Frequency: :data:`FREQ_RTOL` of |lambda|; rate: :data:`RATE_RTOL` of |Re lambda|; both
     not below the window's resolution :data:`RESOLVABLE` / span (a real or zero root has
     no frequency to scale with).
     """
-    ev = m.eigenvalue
     res = RESOLVABLE / max(span, 1e-9)
     tol_im = max(FREQ_RTOL * abs(ev), res)
     tol_re = max(RATE_RTOL * abs(ev.real), res)
@@ -394,7 +398,7 @@ def _assign(modes: list, obs: list, cand: list, span: float) -> tuple[dict, dict
     C = np.full((len(obs), len(cand)), big)
     for a, i in enumerate(obs):
         m = modes[i]
-        tol_im, tol_re = mode_tolerances(m, span)
+        tol_im, tol_re = mode_tolerances(m.eigenvalue, span)
         for b, r in enumerate(cand):
             dim = (r.value.imag - m.eigenvalue.imag) ** 2 / (tol_im ** 2 + r.im.u ** 2)
             if math.isfinite(r.re.u):
@@ -432,7 +436,7 @@ def _doublet(r: Root, parents: list, span: float) -> str | None:
     within the frequency tolerance of a mode identified within its tolerance is that.
     """
     for m, root in parents:
-        tol_im, _ = mode_tolerances(m, span)
+        tol_im, _ = mode_tolerances(m.eigenvalue, span)
         if abs(r.value.imag - root.value.imag) <= tol_im + 2.0 * math.hypot(r.im.u, root.im.u):
             return (f'second root of {m.name} (its frequency drifts with the amplitude: '
                     f'{root.freq_hz:.4g} Hz)')
@@ -502,7 +506,7 @@ def _combo_label(names: list, signs: tuple) -> str:
 def _judge(m: PredictedMode, r: Root, span: float) -> ModeCheck:
     """Judge a predicted mode against its matched root with the one rule."""
     ev = m.eigenvalue
-    tol_im, tol_re = mode_tolerances(m, span)
+    tol_im, tol_re = mode_tolerances(m.eigenvalue, span)
     notes = []
     freq_status = decide(r.im.abs_deviation(ev.imag), tol_im, 'below')
     if r.im.u >= tol_im:

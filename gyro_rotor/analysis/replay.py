@@ -33,15 +33,15 @@ class DemoRun:
 def default_kick_at(scene, duration: float) -> float:
     """Return the demo's kick time: 2 s (a quarter of a shorter run); -1 for none.
 
-    None for a sine law (pole_slip: its start far off synchronism is the kick) and for a
-    general scene without a ``perturbation`` (its initial condition is the kick).
+    None for a scene without a ``perturbation`` (its initial condition is the kick) and for
+    a sine-law drive (pole_slip: its start far off synchronism is the kick).
     """
-    kicked = scene.kicked if not scene.builtin else not scene.params.pole_pairs
+    kicked = scene.kicked and not any(scene.pole_pairs)
     return min(2.0, duration / 4) if kicked else -1.0
 
 
 def _live(scene, rate: float):
-    from gyro_rotor.core.scene import NODE_KEYS
+    from gyro_rotor.node_settings import NODE_KEYS
     cfg = {k: spec[1] for k, spec in NODE_KEYS.items() if k != 'use_sim_time'}
     node = getattr(scene, 'node', None) or {}
     cfg.update({k: v for k, v in node.items() if k in cfg})

@@ -13,8 +13,7 @@ from typing import Mapping, Sequence
 from gyro_rotor.errors import AnalysisError
 import numpy as np
 
-__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'samples_from_trajectory',
-           'samples_from_general_run']
+__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'samples_from_trajectory']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -170,39 +169,21 @@ class SamplePairer:
 
 
 def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
-    """Return samples as the simulation node would publish them, from a simulate() Trajectory."""
-    o = tr.out
-    wrap = np.vectorize(lambda a: math.remainder(a, _TWO_PI))
-    pos = np.column_stack([o['theta'], wrap(o['psi']), wrap(o['phi_R']), wrap(o['phi_M'])])
-    vel = np.column_stack([o['thetadot'], o['psidot'], o['phi_R_dot'], o['phi_M_dot']])
-    D = tr.y[:, tr.model.idiss]
-    return [Sample(t=float(t), seq=seq0 + i, k=i, E_star=float(o['E_star'][i]),
-                   dE_dt=float(o['dE_dt'][i]), residual=float(o['residual'][i]),
-                   z=float(o['z'][i]), zdot=float(o['zdot'][i]), D=float(D[i]),
-                   positions=tuple(pos[i]), velocities=tuple(vel[i]))
-            for i, t in enumerate(tr.t)]
+    """Return samples as rotor_sim publishes them, from a simulate() Trajectory of any system.
 
-
-def samples_from_general_run(model, run, y_ref=None, seq0: int = 0) -> list[Sample]:
-    """Return samples as rotor_sim publishes them for a general system, from a GeneralRun.
-
-    Positions (q, z) and rates (qdot, zdot) as integrated; the residual against the first
-    sample (or ``y_ref``).
+    The model's joints (at the field angle Omega0 t), E*, dE*/dt = -dissipation (eq. 17),
+    the residual against the first sample, the dissipated work D and the ``energy``
+    message's own fields (:meth:`state_fields`: the centrifuge's z, zdot).
     """
-    Y = run.y
-    sq, sqd, sz, szd = model.slices()
-    E = model.energy(Y)
-    y0 = Y[0] if y_ref is None else y_ref
-    E_ref = float(model.energy(y0)) + float(y0[model.iD])
-    diss = model.dissipation(Y)
-    out = []
-    for i, t in enumerate(run.t):
-        y = Y[i]
-        zd = y[szd]
-        out.append(Sample(t=float(t), seq=seq0 + i, k=i, E_star=float(E[i]),
-                          dE_dt=float(-diss[i]),
-                          residual=float(E[i] + y[model.iD] - E_ref), z=math.nan,
-                          zdot=math.nan, D=float(y[model.iD]),
-                          positions=tuple(np.concatenate([y[sq], y[sz]]).tolist()),
-                          velocities=tuple(np.concatenate([y[sqd], zd]).tolist())))
-    return out
+    model, t = tr.model, np.asarray(tr.t, dtype=float)
+    Y = np.atleast_2d(np.asarray(tr.y, dtype=float))
+    pos, vel, _, _ = model.joints(Y, t[:, None] * model.field_speeds()[None, :])
+    E, dE, r = model.energy(Y), -model.dissipation(Y), model.residual(Y)
+    fields = model.state_fields(Y)
+    nan = np.full(len(t), math.nan)
+    z, zdot = fields.get('z', nan), fields.get('zdot', nan)
+    D = Y[:, model.idiss]
+    return [Sample(t=float(t[i]), seq=seq0 + i, k=i, E_star=float(E[i]), dE_dt=float(dE[i]),
+                   residual=float(r[i]), z=float(z[i]), zdot=float(zdot[i]), D=float(D[i]),
+                   positions=tuple(pos[i].tolist()), velocities=tuple(vel[i].tolist()))
+            for i in range(len(t))]

@@ -30,7 +30,6 @@ COMMANDS = {
     'soak': 'soak',
     'rt-bench': 'rt_bench',
     'campbell': 'campbell',
-    'bench-general': 'bench_general',
     'sweep': 'sweep',
     'sweep-bench': 'sweep_bench',
 }

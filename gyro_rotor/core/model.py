@@ -240,6 +240,11 @@ def drive_rates(p: RotorParams) -> tuple[float, float]:
     return p.K_D * inv_c, osc
 
 
+#: below this |sin theta| the 3-1-3 angles of a state are singular: a state cannot be
+#: rebuilt from them (solution I passes through theta = 0)
+SIN_THETA_MIN = 1e-3
+
+
 class Model:
     """Common interface of the models (see module doc); subclasses fill in the physics."""
 
@@ -449,6 +454,41 @@ class Model:
         y = np.array(y, dtype=float)
         y[self.izd] -= self.params.Omega0 - old.params.Omega0
         return y
+
+    #: the joint positions are angles: compared modulo 2 pi
+    joint_angles = True
+
+    def singular_joints(self, positions) -> frozenset:
+        """Return the indices of the joints a state at ``positions`` does not determine.
+
+        psi and phi_M (1, 3) where the 3-1-3 angles are singular, |sin theta| below
+        :data:`SIN_THETA_MIN` (solution I passes through theta = 0).
+        """
+        return frozenset({1, 3}) if abs(math.sin(positions[0])) < SIN_THETA_MIN else frozenset()
+
+    def state_from_joints(self, positions, velocities, z: float, zdot: float):
+        """Return the state of a published joint_states message, the inverse of :meth:`joints`.
+
+        ``positions``, ``velocities``: theta, psi, phi_R, phi_M and their rates; z, zdot
+        come with E* (the field angle is not in the message). None where the message does
+        not determine a state: another layout, z or zdot not finite, the full model at a
+        singular theta (:meth:`singular_joints`), or a state this model cannot hold.
+        """
+        if len(positions) != 4 or not (math.isfinite(z) and math.isfinite(zdot)):
+            return None
+        if self.name == 'full' and self.singular_joints(positions):
+            return None
+        theta, psi, _, phi_M = positions
+        thetadot, psidot, _, phi_M_dot = velocities
+        # the twist chi = psi + phi_M of the housing is small (its spring); the wrapped angles
+        # add multiples of 2 pi to it, which would flip the quaternion's sign and its chi
+        phi_M = math.remainder(psi + phi_M, 2.0 * math.pi) - psi
+        try:
+            return np.asarray(self.state_from_euler(
+                theta=theta, thetadot=thetadot, psi=psi, psidot=psidot, phi_M=phi_M,
+                phi_M_dot=phi_M_dot, z=z, zdot=zdot), dtype=float)
+        except ValueError:
+            return None
 
     def joints(self, Y, field) -> tuple:
         """Return the joint_states of rows of states: (positions, velocities, efforts, q).

@@ -78,12 +78,13 @@ from gyro_rotor.core.system.system_file import (config_dirs, DRIVE_KEYS, load_sy
                                                 RotorSystem, system_from_mapping, systems_dirs)
 from gyro_rotor.core.yamlio import SCENE_NAME, short
 from gyro_rotor.errors import did_you_mean, ParameterError, SceneError, SystemFileError
+from gyro_rotor.node_settings import NODE_KEYS, NODE_NAMES, NODE_RANGES
 import numpy as np
 import sympy
 
 __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'scene_from_flat',
            'find_scene', 'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
-           'NODE_KEYS', 'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE',
+           'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE',
            'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs']
 
 DEFAULT_SCENE = 'precession'
@@ -91,44 +92,6 @@ DEFAULT_SCENE = 'precession'
 CENTRIFUGE = 'centrifuge'
 #: key of the embedded system document in :meth:`Scene.to_flat`
 SYSTEM_DOC = 'system_doc'
-NODE_NAMES = ('rotor_sim', '/rotor_sim', '/**')
-
-#: ranges of the simulation node's numeric keys, the same in a scene file, --set, a
-#: --params-file and a live parameter (rotor_sim declares them with these ranges)
-NODE_RANGES = {
-    'publish_rate': (1.0, 10000.0), 'real_time_factor': (0.0, 1000.0), 'rtol': (0.0, 1.0),
-    'atol': (0.0, 1.0), 'step_size': (0.0, 1.0), 'diagnostics_period': (0.05, 3600.0),
-    'max_catch_up': (0.001, 10.0), 'max_residual': (0.0, 1e9), 't_end': (1e-6, 1e9),
-    'visualization_rate': (0.0, 10000.0), 'realtime_priority': (0, 99),
-}
-
-#: keys of the simulation node that a scene file may carry as well (type, default, doc)
-NODE_KEYS: dict[str, tuple[type, Any, str]] = {
-    'publish_rate': (float, 250.0, 'publish rate of the state topics [Hz]'),
-    'real_time_factor': (float, 1.0, 'simulated seconds per wall second; 0 = as fast as '
-                                     'possible'),
-    'publish_clock': (bool, True, 'publish /clock (rosgraph_msgs/Clock) with the '
-                                  'simulation time (as Gazebo does; other nodes follow it '
-                                  'with use_sim_time)'),
-    'integrator': (str, 'auto', 'integration method (auto picks one per scene)'),
-    'rtol': (float, 0.0, 'relative tolerance of adaptive methods (0 = the method default)'),
-    'atol': (float, 0.0, 'absolute tolerance of adaptive methods (0 = the method default)'),
-    'step_size': (float, 0.0, 'step of fixed-step methods [s] (0 = the method default)'),
-    'frame_id': (str, 'world', 'frame of the published poses and markers'),
-    'diagnostics_period': (float, 1.0, 'period of /diagnostics [s]'),
-    'max_catch_up': (float, 0.25, 'most wall seconds of simulation one tick may catch up'),
-    'stop_at_t_end': (bool, False, 'stop integrating (and idle) when t reaches t_end'),
-    'max_residual': (float, 1.0, 'divergence guard: |energy-balance residual| [J] above '
-                                 'which the node stops integrating'),
-    'wait_for_subscribers': (int, 0, 'hold simulation time at 0 until joint_states and '
-                                     'energy each have this many subscribers (a recorder '
-                                     'then gets every sample from t = 0; 0 = start at once)'),
-    'wait_for_node': (str, '', "and until a subscriber of this node (its recorder's hidden "
-                               'node _<name>_recorder counts as it) is among them: another '
-                               'subscriber, such as Foxglove, cannot stand in for the '
-                               "recorder ('' = any subscribers)"),
-    'use_sim_time': (bool, False, 'ROS: must stay false for the simulator itself'),
-}
 
 _FLOAT_INITIAL = ('theta0', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot', 'z',
                   'zdot', 'chi')
@@ -236,6 +199,38 @@ class Scene:
         if self.system is None:
             return float(self.params.Omega0)
         return float(self.system.drives[0].Omega0)
+
+    @property
+    def joint_names(self) -> tuple:
+        """Return the joint_states names rotor_sim publishes for this scene (its model's)."""
+        return Model.joint_names if self.system is None else joint_names(self.system)
+
+    def physics(self) -> tuple:
+        """Return (name, value) of everything a run's analysis depends on.
+
+        The system's name first; the centrifuge: its parameters, model and initial
+        condition; a system file's: the coordinates, rotors, constants (by name), drives,
+        equations, the steady motion and the initial state. Names, descriptions, t_end and
+        the kick do not count.
+        """
+        out = [('system', self.system_name)]
+        if self.system is None:
+            out += [(f, getattr(self.params, f)) for f in PARAM_FIELDS]
+            out.append(('model', self.model))
+            out += [(f'initial.{f.name}', getattr(self.initial, f.name))
+                    for f in dataclasses.fields(InitialCondition)]
+            return tuple(out)
+        s = self.system
+        out += [('coordinates', s.coordinates), ('rotors', s.rotors)]
+        out += sorted(s.constants.items())
+        out += [(f'drive.{r}.{f}', getattr(d, f)) for r, d in zip(s.rotors, s.drives)
+                for f in ('K_S', 'K_D', 'Omega0', 'pole_pairs')]
+        out.append(('the equations (mass matrix, guidance, potential, rotor inertia)',
+                    (s.mass_matrix, s.guidance, s.potential, tuple(s.rotor_inertia))))
+        out += [(f.replace('_', '.', 1) if f.startswith('steady') else f'initial.{f[:-1]}',
+                 getattr(self, f))
+                for f in ('steady_q', 'steady_qdot', 'steady_z', 'q0', 'qdot0', 'z0', 'zdot0')]
+        return tuple(out)
 
     @property
     def kicked(self) -> bool:

@@ -18,6 +18,10 @@ drive law's branch on the pole count), as such a user writes it; one compilation
 parameter set, outside the timings. :func:`peer_rhs_python` is the same function callable
 from Python, for the test that compares it with the package's model at random states.
 
+The usual user's path on a system file is slower still, and is the baseline of the generated
+systems' tables: :func:`lambdified_rhs` (and its Jacobian :func:`lambdified_jac`), sympy's
+``lambdify`` of the derived equations to numpy, for scipy's ``solve_ivp``.
+
 Neither package is a requirement of gyro_rotor: they are the benchmark's extras
 (``requirements-bench.txt``); :func:`available` says which are installed.
 """
@@ -32,7 +36,7 @@ import numpy as np
 
 __all__ = ['available', 'PEER_METHODS', 'PeerRHS', 'make_peer_rhs', 'peer_run',
            'peer_rhs_python', 'missing_reason', 'make_general_peer', 'general_peer_rhs_python',
-           'GENERAL_PEER_METHODS']
+           'GENERAL_PEER_METHODS', 'lambdified_rhs', 'lambdified_jac']
 
 #: (package, method) pairs that the benchmark runs, per package
 PEER_METHODS = {
@@ -304,3 +308,80 @@ def general_peer_rhs_python(scene):
         body(y, dy)
         return dy
     return f
+
+
+# -- the usual user's path: sympy lambdify to numpy, for scipy -------------------------------
+def _lambdified(scene, jacobians: bool):
+    """Return sympy's lambdify to numpy of the scene's equations, as the user writes it.
+
+    (eq, lambdify of an expression in the state and constants, forces(y) -> (a, Mbar, F)
+    with the drive torques in F, KS, KD).
+    """
+    import sympy
+    from gyro_rotor.core.system.equations import derive
+    eq = derive(scene.system, jacobians=jacobians)
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    z = sympy.symbols(f'z0:{m}', real=True)
+    args = list(eq.q) + list(z) + list(eq.v) + list(eq.consts) + list(eq.Omega0)
+    f_M = sympy.lambdify(args, eq.Mbar, 'numpy')
+    f_F = sympy.lambdify(args, eq.F, 'numpy')
+    consts = list(scene.system.constants.values())
+    Om = [d.Omega0 for d in scene.system.drives]
+    KS = np.array([d.K_S for d in scene.system.drives])
+    KD = np.array([d.K_D for d in scene.system.drives])
+
+    def forces(y):
+        q, qd, zz, zd = y[:n], y[n:2 * n], y[2 * n:2 * n + m], y[2 * n + m:2 * N]
+        a = [*q, *zz, *qd, *zd, *consts, *Om]
+        F = np.asarray(f_F(*a), dtype=float).reshape(N)
+        F[n:] += -KS * zz - KD * zd
+        return a, np.asarray(f_M(*a), dtype=float), F
+    return eq, (lambda expr: sympy.lambdify(args, expr, 'numpy')), forces, KS, KD
+
+
+def lambdified_rhs(scene):
+    """Build the user's path: sympy lambdify of Mbar and F to numpy, solve per call."""
+    eq, _, forces, KS, KD = _lambdified(scene, jacobians=False)
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+
+    def rhs(t, y):
+        _, M, F = forces(y)
+        acc = np.linalg.solve(M, F)
+        zd = y[2 * n + m:2 * N]
+        return np.concatenate([y[n:2 * n], acc[:n], zd, acc[n:], [float(KD @ (zd * zd))]])
+    return rhs
+
+
+def lambdified_jac(scene):
+    """Return the user's Jacobian: lambdified Mbar, dMbar/dq, dF/dq, dF/dv, assembled with numpy.
+
+    da/dx = Mbar^-1 (dF/dx + dQ/dx - (dMbar/dx) a), da/dv = Mbar^-1 (dF/dv + dQ/dv) (the
+    derivatives of :mod:`~gyro_rotor.core.system.codegen`'s ``jac``, here from lambdify).
+    """
+    eq, lam, forces, KS, KD = _lambdified(scene, jacobians=True)
+    n, m, N = eq.n, eq.m, eq.n + eq.m
+    f_dM = lam([eq.Mbar.diff(qk) for qk in eq.q])
+    f_Fq = lam(eq.F_q)
+    f_Fv = lam(eq.F_v)
+    ix = np.r_[0:n, 2 * n:2 * n + m]
+    iv = np.r_[n:2 * n, 2 * n + m:2 * N]
+
+    def jac(t, y):
+        a_, M, F = forces(y)
+        zd = y[2 * n + m:2 * N]
+        acc = np.linalg.solve(M, F)
+        Gx = np.zeros((N, N))
+        if n:
+            Gx[:, :n] = np.asarray(f_Fq(*a_), dtype=float).reshape(N, n)
+            for k, dM in enumerate(f_dM(*a_)):
+                Gx[:, k] -= np.asarray(dM, dtype=float) @ acc
+        Gx[n:, n:] -= np.diag(KS)
+        Gv = np.asarray(f_Fv(*a_), dtype=float).reshape(N, N).copy()
+        Gv[n:, n:] -= np.diag(KD)
+        J = np.zeros((2 * N + 1, 2 * N + 1))
+        J[ix, iv] = 1.0
+        J[np.ix_(iv, ix)] = np.linalg.solve(M, Gx)
+        J[np.ix_(iv, iv)] = np.linalg.solve(M, Gv)
+        J[2 * N, 2 * n + m:2 * N] = 2.0 * KD * zd
+        return J
+    return jac

@@ -10,6 +10,10 @@ backends run the same equations:
             shape (N,), for installs without numba.
 
 The quaternion hook of the integrators (renormalization after each step) applies too.
+A system file's model runs on the numba backend through its generated right-hand side
+(:class:`~gyro_rotor.numerics.kernel_system.KernelSystem`), with one
+:class:`~gyro_rotor.core.system.system_file.RotorSystem` per trajectory (the same system with
+other constants or drives) in place of the centrifuge's parameters.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import kernels, tableaux as tb
 from gyro_rotor.numerics.integrators.base import kernel_args
 from gyro_rotor.numerics.integrators.kernels import njit
+from gyro_rotor.numerics.kernel_system import kernel_model
 import numpy as np
 
 __all__ = ['EnsembleResult', 'run_ensemble', 'BACKENDS']
@@ -142,8 +147,9 @@ def run_ensemble(model: Model, Y0, t_eval, *, method: str = 'rk4', step: float |
 
     Parameters
     ----------
-    model : Model
-        The equations (its parameters unless ``params`` gives one set per trajectory).
+    model : Model or GeneralModel
+        The equations (its parameters unless ``params`` gives one set per trajectory: a
+        RotorParams, or for a system file's model a RotorSystem, per trajectory).
     Y0 : array_like, shape (N, n)
         Initial states, all finite.
     t_eval : array_like, shape (m,)
@@ -153,6 +159,7 @@ def run_ensemble(model: Model, Y0, t_eval, *, method: str = 'rk4', step: float |
     backend : {'auto', 'numba', 'numpy'}
         'auto' = numba when installed; 'numpy' works for the full model only.
     """
+    model = kernel_model(model)
     if method not in _TABLEAUX:
         raise ParameterError(f"ensemble method must be one of {', '.join(_TABLEAUX)}, got "
                              f'{method!r}')

@@ -41,7 +41,7 @@ What the integrators need of a model lives here, since the models sit in the lay
 rule for every system, :func:`~gyro_rotor.numerics.integrators.methods.choose_method`, on
 what the model gives: its drive damping root and fastest oscillation at the current
 state) and :func:`live_stepper` (a system file integrates with the methods of
-:mod:`gyro_rotor.numerics.general` through its kernel handle, a single-dispatch function
+:mod:`gyro_rotor.numerics.kernel_system` through its kernel handle, a single-dispatch function
 over the model's class).
 """
 
@@ -59,7 +59,7 @@ from gyro_rotor.core.rotations import axis_from_quaternion, wrap_angles
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import GyroRotorError, IntegrationError, ParameterError
-from gyro_rotor.numerics.general import KernelSystem, METHODS
+from gyro_rotor.numerics.kernel_system import KernelSystem, SYSTEM_METHODS
 from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
                                           Stepper)
 import numpy as np
@@ -146,9 +146,9 @@ def _centrifuge_stepper(model: Model, method: str, t: float, y: np.ndarray,
 @live_stepper.register
 def _system_stepper(model: GeneralModel, method: str, t: float, y: np.ndarray,
                     cfg: Mapping) -> Stepper:
-    if method not in METHODS:
+    if method not in SYSTEM_METHODS:
         raise ParameterError(f"integrator '{method}': general systems integrate with "
-                             f"auto, {', '.join(METHODS)}")
+                             f"auto, {', '.join(SYSTEM_METHODS)}")
     return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
                         step_size=cfg['step_size'], model=KernelSystem(model))
 
@@ -161,7 +161,7 @@ class LiveSimulation:
     scene : Scene
         The scene (its system, parameters and initial condition; ``t_end``).
     cfg : mapping
-        The node keys of :data:`~gyro_rotor.core.scene.NODE_KEYS` (publish_rate,
+        The node keys of :data:`~gyro_rotor.node_settings.NODE_KEYS` (publish_rate,
         real_time_factor, integrator, rtol, atol, step_size, max_catch_up, stop_at_t_end,
         max_residual, ...); kept as :attr:`cfg` and updated by :meth:`apply`.
     perturbation : mapping

@@ -28,14 +28,14 @@ from typing import Any, Mapping
 from gyro_rotor.core.model import Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.numerics import general
 from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
-                                             make_integrator, METHODS)
+                                             integrate as integrate_kernels, make_integrator)
+from gyro_rotor.numerics.kernel_system import kernel_model, KernelSystem, methods_for
 import numpy as np
 
-__all__ = ['Trajectory', 'simulate', 'DEFAULT_METHOD', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
-           'check_tolerances', 'auto_method', 'SCIPY_METHODS', 'methods_of']
+__all__ = ['Trajectory', 'simulate', 'integrate', 'Run', 'DEFAULT_METHOD', 'DEFAULT_RTOL',
+           'DEFAULT_ATOL', 'check_tolerances', 'auto_method', 'SCIPY_METHODS']
 
 DEFAULT_METHOD = 'auto'
 DEFAULT_RATE = 100.0
@@ -150,11 +150,6 @@ def auto_method(scene: Scene, t_end: float | None = None, rtol: float | None = N
                              scene.initial_state(model) if y0 is None else y0)
 
 
-def methods_of(scene: Scene) -> tuple:
-    """Return the project's integration methods that apply to the scene's system."""
-    return tuple(METHODS) if scene.builtin else general.METHODS
-
-
 def check_tolerances(rtol: float, atol: float) -> None:
     """Refuse non-positive or non-finite tolerances (scipy would only warn)."""
     for name, v in (('rtol', rtol), ('atol', atol)):
@@ -203,7 +198,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     atol = DEFAULT_ATOL if atol is None else float(atol)
     check_tolerances(rtol, atol)
     reason = ''
-    own = methods_of(scene)
+    own = methods_for(scene.builtin)
     if method not in ('auto',) + own and method not in SCIPY_METHODS:
         raise ParameterError(f"unknown integrator '{method}' for system {scene.system_name}; "
                              f"valid: auto, {', '.join(own)}, {', '.join(SCIPY_METHODS)}")
@@ -216,8 +211,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         method, reason = auto_method(scene, t_end, rtol, rate, model, y_init)
     t_eval = _sample_times(t_end, rate)
     if method in own:
-        kernel_model = model if scene.builtin else general.KernelSystem(model)
-        run = _run_own(kernel_model, y_init, t_eval, method, rtol, atol, step)
+        run = _run_own(kernel_model(model), y_init, t_eval, method, rtol, atol, step)
     else:
         run = _run_scipy(scene, model, y_init, t_eval, method, rtol, atol)
     if run.status < 0 or not np.all(np.isfinite(run.y)):
@@ -227,6 +221,55 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
                       atol=run.atol, nfev=int(run.nfev), nsteps=int(run.nsteps),
                       wall_time=run.wall, success=True, message=run.message,
                       method_reason=reason, step=run.step)
+
+
+@dataclasses.dataclass
+class Run:
+    """Samples of one :func:`integrate` run: times ``t`` (k,), states ``y`` (k, n), counters."""
+
+    t: np.ndarray
+    y: np.ndarray
+    method: str
+    nfev: int
+    nsteps: int
+    nrejected: int
+
+
+def integrate(model, y0, t_eval, *, method: str = 'auto', rtol: float = 1e-9,
+              atol: float = 1e-12, step: float | None = None,
+              max_steps: int = 50_000_000) -> Run:
+    """Integrate any model from ``y0`` at ``t_eval[0]``, sampled at ``t_eval`` (2 or more times).
+
+    ``model``: a centrifuge model or a system file's
+    (:class:`~gyro_rotor.core.system.model.GeneralModel`); ``method`` 'auto' is the one rule
+    of every system (:func:`gyro_rotor.numerics.integrators.choose_method`), otherwise one
+    of :func:`~gyro_rotor.numerics.kernel_system.methods_for` the model. Raises
+    :class:`IntegrationError` if the run stops early (the message says why).
+    """
+    size = len(model.state_names)
+    y0 = np.asarray(y0, dtype=float).reshape(-1)
+    te = np.asarray(t_eval, dtype=float).reshape(-1)
+    if y0.size != size or not np.all(np.isfinite(y0)):
+        raise ParameterError(f'the initial state must be {size} finite numbers, got '
+                             f'{y0.tolist()}')
+    if te.size < 2 or not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
+        raise ParameterError('t_eval must be a finite, increasing array of 2 or more times')
+    if method == 'auto':
+        method = choose_integrator(model, te[-1] - te[0], rtol, 0.0, y0)[0]
+    view = kernel_model(model)
+    general = isinstance(view, KernelSystem)
+    own = methods_for(not general)
+    if method not in own:
+        raise ParameterError(f"{'general systems' if general else 'centrifuge models'} "
+                             f"integrate with auto, {', '.join(own)}; got {method!r}")
+    res = integrate_kernels(view, y0, (te[0], te[-1]), te, method=method, rtol=rtol,
+                            atol=atol, step=step, max_steps=max_steps)
+    if not res.success:
+        last = res.t[-1] if res.t.size else te[0]
+        raise IntegrationError(f'{view.name} ({method}): the integration stopped after '
+                               f't = {last:.6g} s: {res.message}')
+    return Run(t=res.t, y=res.y, method=method, nfev=res.nfev, nsteps=res.nsteps,
+               nrejected=res.nrejected)
 
 
 def _load(scene: Scene | str, overrides: Mapping[str, Any] | None) -> Scene:

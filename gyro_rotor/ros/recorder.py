@@ -41,6 +41,7 @@ from gyro_rotor.bag.bagio import BagWriter, normalize_qos, qos_profile_dict
 from gyro_rotor.bag.spool import BagSpool, DEFAULT_MAX_BYTES
 from gyro_rotor.bag.wire import sim_topics
 from gyro_rotor.errors import BagError
+from gyro_rotor.node_settings import recorder_node_name
 import rclpy
 from rclpy.event_handler import QoSSubscriptionEventType
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -169,7 +170,7 @@ class BagRecorder:
         self.poll_period = float(poll_period)
         self._last_log: dict[str, int] = {}
         self._rx = rclpy.create_node(
-            f'_{node.get_name()}_recorder', namespace=node.get_namespace(),
+            recorder_node_name(node.get_name()), namespace=node.get_namespace(),
             context=node.context, use_global_arguments=False, enable_rosout=False,
             start_parameter_services=False)
         self._subs: list = []

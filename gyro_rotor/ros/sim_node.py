@@ -52,6 +52,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Vector3Stamped
 from gyro_rotor.core.rotations import axis_from_quaternion
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.node_settings import recorder_node_name
 from gyro_rotor.numerics.live import Level, LiveSimulation
 from gyro_rotor.numerics.realtime import (Deadlines, set_thread_priority,
                                           set_threads_priority, set_timer_slack, sleep_until)
@@ -455,7 +456,7 @@ class RotorSimNode(Node):
             return False
         if not node:
             return True
-        names = {node, f'_{node}_recorder'}
+        names = {node, recorder_node_name(node)}
         return all(any(i.node_name in names for i in
                        self.get_subscriptions_info_by_topic(p.topic_name)) for p in pubs)
 

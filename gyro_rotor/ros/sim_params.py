@@ -16,10 +16,10 @@ import dataclasses
 import warnings
 
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import (CENTRIFUGE, DEFAULT_SCENE, load_scene, NODE_KEYS,
+from gyro_rotor.core.scene import (CENTRIFUGE, DEFAULT_SCENE, load_scene,
                                    PERTURBATION_KEYS, scene_from_mapping, SCENE_KEYS)
-from gyro_rotor.core.scene import NODE_RANGES as _SCENE_NODE_RANGES
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.node_settings import NODE_KEYS, NODE_RANGES
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.node import Node
@@ -35,8 +35,6 @@ PARAM_RANGES = {
     'G': (0.0, 1e7), 's': (-100.0, 100.0), 'c_theta': (0.0, _BIG), 'c_psi': (0.0, _BIG),
     'K_S': (0.0, _BIG), 'K_D': (0.0, _BIG), 'Omega0': (-1e5, 1e5), 'pole_pairs': (0, 64),
 }
-#: ranges of the node keys: the scene loader's (one definition, issue 24)
-NODE_RANGES = _SCENE_NODE_RANGES
 #: node keys that only take effect at start
 READ_ONLY = {'scene', 'model', 'publish_rate', 'description', 'wait_for_subscribers',
              'wait_for_node', 'realtime_priority'}

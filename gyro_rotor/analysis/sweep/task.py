@@ -15,7 +15,7 @@ centrifuge's points change its parameters and initial condition and are integrat
 :func:`gyro_rotor.numerics.ensemble.run_ensemble` (metrics
 :func:`~gyro_rotor.analysis.sweep.metrics.trajectory_metrics`); a system file's points are
 its scene loaded with their values (:func:`~gyro_rotor.core.scene.load_scene`), one
-:class:`RotorSystem` per trajectory of :func:`gyro_rotor.numerics.general.run_ensemble`
+:class:`RotorSystem` per trajectory of :func:`gyro_rotor.numerics.ensemble.run_ensemble`
 (metrics :func:`~gyro_rotor.analysis.sweep.metrics.system_metrics`).
 """
 
@@ -34,9 +34,9 @@ from gyro_rotor.analysis.sweep.metrics import (Metric, METRIC_COLUMNS, PointStat
                                                trajectory_metrics)
 from gyro_rotor.core.model import make_model
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.core.scene import (flatten, load_scene, NODE_NAMES, Scene,
-                                   scene_from_mapping, scene_path)
+from gyro_rotor.core.scene import flatten, load_scene, Scene, scene_from_mapping, scene_path
 from gyro_rotor.errors import GyroRotorError, ParameterError, SceneError
+from gyro_rotor.node_settings import NODE_NAMES
 from gyro_rotor.numerics.ensemble import run_ensemble
 from gyro_rotor.numerics.integrators.base import model_rate
 import numpy as np
@@ -286,7 +286,6 @@ def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
                    metrics: set) -> _Points:
     """Points of a system file's scene: the scene loaded with each point's values."""
     from gyro_rotor.core.system.model import GeneralModel
-    from gyro_rotor.numerics import general
     msg = [''] * n
     scenes: list = [None] * n
     with warnings.catch_warnings():
@@ -303,8 +302,8 @@ def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
     systems = [scenes[j].system for j in idx]
 
     def run(sel: slice):
-        return general.run_ensemble(model, Y[sel], spec.t_eval, systems=systems[sel],
-                                    method='rk4', step=spec.step)
+        return run_ensemble(model, Y[sel], spec.t_eval, method='rk4', step=spec.step,
+                            params=systems[sel])
 
     def measure(j: int, y: np.ndarray) -> dict:
         bound = GeneralModel(scenes[j].system, compiled=model.compiled)

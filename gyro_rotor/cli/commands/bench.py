@@ -1,16 +1,30 @@
-"""``gyro-rotor bench``: work-precision benchmark of the integrators against scipy and peers.
+"""``gyro-rotor bench``: the benchmark of every scene, centrifuge or system file, one command.
 
-Writes ``work_precision.csv`` (every run, with the 1-minute load average at its end),
-``work_precision.md`` (the default method, run as its own row ``auto`` since it chooses per
-tolerance, against the best compiled peer, CyRK or numbalsoda, at errors 1e-6 and 1e-9 where
-they are installed, with what auto chose and the load average; best milliseconds per
-simulated second at errors 1e-3, 1e-6, 1e-9 per scene and method; E* drift; pole counts)
-and ``work_precision.png`` (error against wall time, log-log; needs matplotlib) to --out,
-by default a new directory ``bench_out/bench-YYYYmmdd-HHMMSS`` (ignored by git; a suffix -2,
--3 if two runs start in the same second): the committed results in ``bench/`` are replaced
-only when ``--out bench`` is given. ``--quick`` is a smoke run of under a minute (3 scenes,
-2 tolerances, auto, dop853, vern8, radau9 and split8, scipy's LSODA, CyRK's DOP853 where
-installed, 1 repeat, 100-s drift study, no pole counts).
+``--table`` chooses what is measured (:class:`BenchTable`), ``--scenes`` on which scenes
+(any scene: a shipped name, a path, ``name@KEY=VALUE`` overrides); one output directory
+--out for every table, by default a new ``bench_out/bench-YYYYmmdd-HHMMSS`` (ignored by git;
+a suffix -2, -3 if two runs start in the same second): the committed results in ``bench/``
+are replaced only when ``--out bench`` is given.
+
+``work_precision`` (the default) writes ``work_precision.csv`` (every run, with the 1-minute
+load average at its end), ``work_precision.md`` (the default method, run as its own row
+``auto`` since it chooses per tolerance, against the best compiled peer, CyRK or numbalsoda,
+at errors 1e-6 and 1e-9 where they are installed, with what auto chose and the load
+average; best milliseconds per simulated second at errors 1e-3, 1e-6, 1e-9 per scene and
+method; E* drift; pole counts) and ``work_precision.png`` (error against wall time, log-log;
+needs matplotlib).
+``--quick`` is a smoke run of under a minute (3 scenes, 2 tolerances, auto, dop853, vern8,
+radau9 and split8, scipy's LSODA, CyRK's DOP853 where installed, 1 repeat, 100-s drift
+study, no pole counts).
+
+``general`` writes ``general.md``: the generated right-hand side of centrifuge_euler against
+the hand-written kernel, the generation and compilation times of twin_gimbal, and the
+default method against sympy lambdify + scipy and CyRK on the system files' scenes
+(default centrifuge_euler, twin_gimbal, elastic_frame) over --t-end at error --level.
+
+``stiff`` writes ``general_stiff.md``: one system file's scene (default twin_gimbal) at
+K_D = 1e2, 1e4, 1e6, auto against scipy's Radau, BDF and LSODA at error --level (default
+1e-6).
 """
 
 from __future__ import annotations
@@ -18,8 +32,10 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import enum
 import math
 import os
+from pathlib import Path
 import platform
 import sys
 import time
@@ -28,19 +44,44 @@ from gyro_rotor.cli.util import make_unique_dir, RUNS_DIR
 from gyro_rotor.errors import GyroRotorError
 import gyro_rotor.numerics.bench as bench
 
-HELP = 'work-precision benchmark of the integrators (and scipy) on the hard scenes'
+HELP = ('benchmark any scene: work precision of the integrators against scipy and the '
+        'compiled peers, the generated systems, stiff drives')
+
+
+class BenchTable(enum.StrEnum):
+    """What ``bench`` measures, and the file it writes (:attr:`file`)."""
+
+    WORK_PRECISION = 'work_precision'
+    GENERAL = 'general'
+    STIFF = 'stiff'
+
+    @property
+    def file(self) -> str:
+        """Return the markdown file of the table."""
+        return {'work_precision': 'work_precision.md', 'general': 'general.md',
+                'stiff': 'general_stiff.md'}[self.value]
+
+
+#: per table: the default scenes, repeats and error level (the full sweep's)
+_DEFAULT_SCENES = {BenchTable.WORK_PRECISION: bench.DEFAULT_SCENES,
+                   BenchTable.GENERAL: bench.SYSTEM_SCENES, BenchTable.STIFF: ('twin_gimbal',)}
+_DEFAULT_LEVEL = {BenchTable.GENERAL: 1e-9, BenchTable.STIFF: 1e-6}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Arguments of ``bench``."""
+    p.add_argument('--table', type=BenchTable, choices=list(BenchTable),
+                   default=BenchTable.WORK_PRECISION,
+                   help='what to measure (module doc): work_precision (default), general '
+                   '(generated systems), stiff (a stiff drive on a system file)')
     p.add_argument('--scenes', default=None,
-                   help='comma-separated scene specs, e.g. precession,stiff_drive@K_D=1e6 '
-                   '(default: all benchmark scenes; with --quick: '
-                   + ','.join(bench.QUICK_SCENES) + ')')
+                   help='comma-separated scene specs, centrifuge or system file, e.g. '
+                   "precession,stiff_drive@K_D=1e6,twin_gimbal (default: the table's "
+                   'scenes; with --quick: ' + ','.join(bench.QUICK_SCENES) + ')')
     p.add_argument('--quick', action='store_true',
                    help='a smoke run of well under a minute (see the module doc)')
     p.add_argument('--repeats', type=int, default=None,
-                   help='repeats per run, median wall (default 3; 1 with --quick)')
+                   help='repeats per run, best wall (default 3; 1 with --quick)')
     p.add_argument('--out', default=None,
                    help='output directory (default: a new bench_out/bench-YYYYmmdd-HHMMSS, '
                    'ignored by git; the committed results are in bench: --out bench)')
@@ -51,6 +92,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--drift-t-end', type=float, default=None,
                    help='horizon of the E* drift study on conservative [s] (0 = skip; '
                    'default 1000, 100 with --quick)')
+    p.add_argument('--t-end', type=float, default=2.0,
+                   help='tables general and stiff: simulated seconds per run (default 2)')
+    p.add_argument('--level', type=float, default=None,
+                   help='tables general and stiff: error level of the comparison (default '
+                   '1e-9 for general, 1e-6 for stiff)')
 
 
 def _fmt(v) -> str:
@@ -261,12 +307,16 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
     :func:`run`, unique): the committed ``bench/`` is written only when ``--out bench`` is
     given.
     """
+    table = args.table
     if args.repeats is None:
         args.repeats = 1 if args.quick else 3
     if args.drift_t_end is None:
         args.drift_t_end = 100.0 if args.quick else 1000.0
+    if args.level is None:
+        args.level = _DEFAULT_LEVEL.get(table, 1e-9)
     if args.scenes is None:
-        args.scenes = ','.join(bench.QUICK_SCENES if args.quick else bench.DEFAULT_SCENES)
+        quick = args.quick and table == BenchTable.WORK_PRECISION
+        args.scenes = ','.join(bench.QUICK_SCENES if quick else _DEFAULT_SCENES[table])
     if args.out is None:
         args.out = os.path.join(RUNS_DIR, bench.default_out_dir())
         args.out_is_default = True
@@ -274,17 +324,30 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
         return f'--repeats must be >= 1, got {args.repeats}'
     if not (math.isfinite(args.drift_t_end) and args.drift_t_end >= 0):
         return f'--drift-t-end must be >= 0, got {args.drift_t_end}'
+    if not (math.isfinite(args.t_end) and args.t_end > 0):
+        return f'--t-end must be positive and finite, got {args.t_end}'
+    if not (math.isfinite(args.level) and args.level > 0):
+        return f'--level must be positive and finite, got {args.level}'
+    specs = [s.strip() for s in args.scenes.split(',') if s.strip()]
     try:
-        for spec in args.scenes.split(','):
-            if spec.strip():
-                bench.parse_scene_spec(spec.strip())
+        scenes = [bench.parse_scene_spec(spec)[0] for spec in specs]
     except (GyroRotorError, ValueError) as err:
         return f'--scenes: {err}'
+    if not specs:
+        return '--scenes names no scene'
+    if table != BenchTable.WORK_PRECISION:
+        builtin = next((sc.name for sc in scenes if sc.builtin), None)
+        if builtin:
+            return (f'--table {table} measures the generated code of system files; scene '
+                    f'{builtin} is the built-in centrifuge (centrifuge_euler is its system '
+                    'file)')
+    if table == BenchTable.STIFF and len(specs) != 1:
+        return f'--table stiff takes one scene, got {len(specs)}'
     return None
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the sweep and write CSV, markdown and plot."""
+    """Run the table's measurements and write its files (module doc)."""
     err = resolve_settings(args)
     if err:
         print(f'ERROR: {err}', file=sys.stderr)
@@ -296,6 +359,30 @@ def run(args: argparse.Namespace) -> int:
     else:
         os.makedirs(args.out, exist_ok=True)
     print(f'writing to {args.out}')
+    if args.table == BenchTable.GENERAL:
+        return _write(args, general_lines(args, specs))
+    if args.table == BenchTable.STIFF:
+        return _write(args, stiff_lines(args, specs[0]))
+    return _work_precision(args, specs)
+
+
+def _command(args: argparse.Namespace) -> str:
+    """Return the command line that writes the table (its --out, --t-end, --level, ...)."""
+    return (f'gyro-rotor bench --table {args.table} --scenes {args.scenes} --out {args.out} '
+            f'--t-end {args.t_end:g} --level {args.level:g} --repeats {args.repeats}')
+
+
+def _write(args: argparse.Namespace, lines: list) -> int:
+    text = '\n'.join(lines) + '\n'
+    print(text)
+    out = Path(args.out) / args.table.file
+    out.write_text(text, encoding='utf-8')
+    print(f'wrote {out}')
+    return 0
+
+
+def _work_precision(args: argparse.Namespace, specs: list) -> int:
+    """Run the work-precision sweep and write CSV, markdown and plot."""
     t0 = time.perf_counter()
     rows = []
     for spec in specs:
@@ -326,3 +413,110 @@ def run(args: argparse.Namespace) -> int:
     if msg:
         print(msg)
     return 0
+
+
+def general_lines(args: argparse.Namespace, specs: list) -> list:
+    """Return the table ``general`` (generated systems) as markdown lines."""
+    lines = ['# General rotor systems: benchmark', '',
+             f'Command: `{_command(args)}`', '']
+    cost = bench.rhs_cost()
+    lines += ['## Right-hand side per evaluation (centrifuge_euler vs hand-written kernel)', '',
+              '| hand-written quaternion kernel [ns] | generated Euler-angle RHS [ns] | ratio |',
+              '|---|---|---|',
+              f'| {cost["hand_ns"]:.1f} | {cost["generated_ns"]:.1f} | {cost["ratio"]:.2f} |',
+              '']
+    ct = bench.compile_times()
+    lines += ['## Generation and compilation (twin_gimbal: 3 coordinates, 2 rotors)', '',
+              '| run | imports [s] | read system file [s] | compile_system [s] | first '
+              'integration [s] | total [s] |', '|---|---|---|---|---|---|']
+    for label in ('first', 'cached'):
+        c = ct[label]
+        total = c['imports'] + c['load_system'] + c['compile_system'] + c['first_run']
+        lines.append(f'| {label} | {c["imports"]:.2f} | {c["load_system"]:.2f} | '
+                     f'{c["compile_system"]:.2f} | {c["first_run"]:.2f} | {total:.2f} |')
+    lines += ['', f'(load average at the time: {os.getloadavg()[0]:.1f})', '']
+    rows = bench.system_work_precision(specs, t_end=args.t_end, repeats=args.repeats)
+    best = bench.best_at(rows, args.level)
+    lines += [f'## Work precision at error <= {args.level:g} over {args.t_end:g} s', '',
+              '| system | method | rtol | error | wall [ms] | nfev | speed-up of ours |',
+              '|---|---|---|---|---|---|---|']
+    for system in sorted({r.system for r in rows}):
+        ours = next((r for (s, mth), r in best.items()
+                     if s == system and mth.startswith(bench.DEFAULT_LABEL)), None)
+        for (s, method), r in sorted(best.items()):
+            if s != system:
+                continue
+            gain = f'{r.wall / ours.wall:.0f}x' if ours and r is not ours else '-'
+            lines.append(f'| {s} | {method} | {r.rtol:g} | {r.err:.2e} | {r.wall * 1e3:.2f} '
+                         f'| {r.nfev} | {gain} |')
+        for label, prefix in (('scipy', 'lambdify+'), ('compiled peer', bench.PEER_PREFIX)):
+            others = [r for (s, mth), r in best.items()
+                      if s == system and mth.startswith(prefix)]
+            if ours and others:
+                fastest = min(others, key=lambda r: r.wall)
+                lines.append(f'| {system} | **fastest {label}: {fastest.method}** | | | | | '
+                             f'**{fastest.wall / ours.wall:.2f}x** |')
+    lines += ['', '## All runs', '', '| system | method | rtol | error | wall [ms] | nfev |',
+              '|---|---|---|---|---|---|']
+    lines += [f'| {r.system} | {r.method} | {r.rtol:g} | {r.err:.2e} | {r.wall * 1e3:.2f} | '
+              f'{r.nfev} |' for r in rows]
+    return lines
+
+
+def _shape(spec: str) -> str:
+    """Return '3 coordinates, 2 rotors) with K_D set for both rotors' of a system file's scene."""
+    system = bench.parse_scene_spec(spec)[0].system
+    rotors = 'both rotors' if system.m == 2 else 'every rotor'
+    return f'{system.n} coordinates, {system.m} rotors) with K_D set for {rotors}'
+
+
+def stiff_lines(args: argparse.Namespace, spec: str) -> list:
+    """Return the table ``stiff`` (:func:`~gyro_rotor.numerics.bench.stiff_table`) as markdown."""
+    rows, checks = bench.stiff_table(name=spec, t_end=args.t_end, level=args.level,
+                                     repeats=args.repeats)
+    lines = ['# Stiff drive on a generated system: auto vs scipy', '',
+             f'Command: `{_command(args)}`', '',
+             f'{spec} ({_shape(spec)}, '
+             f'{args.t_end:g} s simulated, sampled at {bench.SAMPLE_RATE:g} Hz (every method '
+             'returns the same samples; ours land their steps on them, scipy interpolates). '
+             'Error: the largest |q - q_ref|, |z - z_ref| [rad] over the samples; reference: '
+             'radau9 at rtol 1e-13, checked against rodas4 (forward-difference Jacobian) at '
+             'rtol 1e-12. Wall: best of '
+             f'{args.repeats} runs for every method (scipy on a sympy-lambdified right-hand '
+             'side, `+jac`: with the lambdified Jacobian). Machine: '
+             f'{platform.machine()}, {os.cpu_count()} cores, shared with other jobs (load '
+             'average in the table).', '',
+             f'## Cheapest run with error <= {args.level:g}', '',
+             '| K_D | method | rtol | error | ms per simulated s | nfev | load | scipy best / '
+             'ours |', '|---|---|---|---|---|---|---|---|']
+    ours_all = []
+    for K_D in sorted(checks):
+        best = {}
+        for r in rows:
+            if r.K_D == K_D and r.err <= args.level and (
+                    r.method not in best or r.wall < best[r.method].wall):
+                best[r.method] = r
+        ours = min((r for m, r in best.items() if m.startswith('auto')),
+                   key=lambda r: r.wall, default=None)
+        scipy_best = min((r for m, r in best.items() if m.startswith('lambdify')),
+                         key=lambda r: r.wall, default=None)
+        for r in sorted(best.values(), key=lambda r: r.wall):
+            gain = (f'{scipy_best.wall / r.wall:.1f}x' if r is ours and scipy_best else '')
+            lines.append(f'| {K_D:g} | {r.method} | {r.rtol:g} | {r.err:.2e} | '
+                         f'{r.ms_per_s:.2f} | {r.nfev} | {r.load:.1f} | {gain} |')
+        if ours:
+            ours_all.append(ours)
+    lines += ['', '| K_D | reference check: largest difference rodas4 - radau9 [rad] |',
+              '|---|---|']
+    lines += [f'| {K_D:g} | {checks[K_D]:.1e} |' for K_D in sorted(checks)]
+    if ours_all:
+        costs = [r.ms_per_s for r in ours_all]
+        lines += ['', f'auto over K_D = {", ".join(f"{r.K_D:g}" for r in ours_all)}: '
+                  f'{", ".join(f"{c:.2f}" for c in costs)} ms per simulated s; largest / '
+                  f'smallest = {max(costs) / min(costs):.2f}.']
+    lines += ['', '## All runs', '',
+              '| K_D | method | rtol | error | wall [ms] | ms per simulated s | nfev | load |',
+              '|---|---|---|---|---|---|---|---|']
+    lines += [f'| {r.K_D:g} | {r.method} | {r.rtol:g} | {r.err:.2e} | {r.wall * 1e3:.2f} | '
+              f'{r.ms_per_s:.2f} | {r.nfev} | {r.load:.1f} |' for r in rows]
+    return lines

@@ -176,7 +176,7 @@ def table(rows: list[dict], duration: float) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     """Run every (rate, scene, rtf) triple and print a table."""
     from gyro_rotor.cli.util import check_number
-    from gyro_rotor.core.scene import NODE_RANGES
+    from gyro_rotor.node_settings import NODE_RANGES
     check_number('--duration', args.duration, low=0.0, low_open=True, what='[s]')
     for rate in args.publish_rate:
         check_number('--publish-rate', rate, low=NODE_RANGES['publish_rate'][0],

@@ -27,7 +27,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _pole_slips(tr) -> str:
     """Pole slips of a synchronous drive (z over a potential maximum), '' without poles."""
-    if not tr.scene.builtin or not tr.scene.params.pole_pairs:
+    if not any(tr.scene.pole_pairs):
         return ''
     from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
     ana = RotorAnalyzer(tr.scene, window_s=0)

@@ -20,7 +20,7 @@ the parameter array ``P`` of :func:`pack`:
 ``lin(y, P)``           (Mbar, dF/dq, dF/dv) at y, plain Python, for the linearization
 
 No integrator is generated: the project's integrators and the ensemble
-(:mod:`gyro_rotor.numerics.general`) call ``rhs`` as a numba first-class function
+(:mod:`gyro_rotor.numerics.kernel_system`) call ``rhs`` as a numba first-class function
 (:attr:`CompiledSystem.first_class`, and ``jac`` as :attr:`CompiledSystem.jac_first_class`),
 so their compiled loops are shared by every system and cached once.
 """

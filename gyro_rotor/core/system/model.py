@@ -143,6 +143,28 @@ class GeneralModel:
         """Zero: a system file's state holds no quaternion."""
         return np.zeros(np.asarray(Y, dtype=float).shape[:-1])
 
+    #: the joint positions (q, z) are compared as numbers, not modulo 2 pi
+    joint_angles = False
+
+    def singular_joints(self, positions) -> frozenset:
+        """None: the joints (q, z) always determine the state."""
+        return frozenset()
+
+    def state_from_joints(self, positions, velocities, z: float, zdot: float):
+        """Return the state of a published joint_states message, the inverse of :meth:`joints`.
+
+        ``positions``/``velocities``: (q, z) and their rates; the separate ``z``, ``zdot``
+        are not used (the lags are joints). None for another layout.
+        """
+        sq, sqd, sz, szd = self.slices()
+        n, m = sq.stop - sq.start, sz.stop - sz.start
+        if len(positions) != n + m or len(velocities) != n + m:
+            return None
+        y = np.zeros(self.size)
+        y[sq], y[sz] = positions[:n], positions[n:]
+        y[sqd], y[szd] = velocities[:n], velocities[n:]
+        return y
+
     def joints(self, Y, field) -> tuple:
         """Return the joint_states of rows of states: (positions, velocities, efforts, None).
 

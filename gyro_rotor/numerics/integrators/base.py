@@ -264,7 +264,7 @@ def kernel_args(model, params) -> tuple:
     """Return (kind, P, fastest rate) of ``model`` with ``params`` for the kernels.
 
     A hand-written :class:`Model` is a KIND number with :func:`kernels.pack_params`; a
-    general rotor system (:class:`gyro_rotor.numerics.general.KernelSystem`) passes its
+    general rotor system (:class:`gyro_rotor.numerics.kernel_system.KernelSystem`) passes its
     generated right-hand side as a first-class function with its own parameter array.
     """
     if isinstance(model, Model):
@@ -272,7 +272,7 @@ def kernel_args(model, params) -> tuple:
     if hasattr(model, 'kernel_rhs'):
         return model.kernel_rhs, model.pack(params), model.rate(params)
     raise TypeError('model must be a gyro_rotor.core.model.Model or a general system '
-                    '(gyro_rotor.numerics.general.KernelSystem)')
+                    '(gyro_rotor.numerics.kernel_system.KernelSystem)')
 
 
 def model_rate(p) -> float:

@@ -25,7 +25,7 @@ split8      8      explicit  splitting into exact flows (free gyrostat; torques)
 
 Every method runs on the singularity-free state of :mod:`gyro_rotor.core.model`; the inner
 loops are the compiled kernels of :mod:`gyro_rotor.numerics.integrators.kernels`.
-On a generated rotor system (a model with ``kernel_jac``, :mod:`gyro_rotor.numerics.general`)
+On a generated rotor system (a model with ``kernel_jac``, :mod:`gyro_rotor.numerics.kernel_system`)
 radau9 is :class:`~.radau_jac.Radau9Jac`: the same method with the generated exact Jacobian
 (:data:`GENERATED_METHODS`).
 """

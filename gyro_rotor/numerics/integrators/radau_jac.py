@@ -382,7 +382,7 @@ _A, _C, _T, _TI, _MU_R, _MU_C, _E = tableau(STAGES)
 class Radau9Jac(Integrator):
     """Radau IIA, 5 stages, order 9, with the exact generated Jacobian (module doc).
 
-    For generated systems only (:class:`gyro_rotor.numerics.general.KernelSystem`: its
+    For generated systems only (:class:`gyro_rotor.numerics.kernel_system.KernelSystem`: its
     ``kernel_rhs`` and ``kernel_jac``). Steps land on the sample times.
     References: Hairer and Wanner II, sec. IV.8; scipy's ``Radau`` (3 stages).
     """
