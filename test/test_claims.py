@@ -13,9 +13,9 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.linear import claims as cl
-from gyro_rotor.linear.general import check_claims, linearize_scene
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims as centrifuge_claims, drive_system
+from gyro_rotor.linear.system import check_claims, linearize_scene
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest

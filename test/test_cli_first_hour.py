@@ -180,7 +180,7 @@ def test_campbell_command_writes_the_plot(tmp_path, capsys):
 
 # -- root-locus plots: zoomed to where the roots meet --------------------------------------
 def _general_locus_fig(name):
-    from gyro_rotor.linear.general import check_claims, linearize_scene
+    from gyro_rotor.linear.system import check_claims, linearize_scene
     from gyro_rotor.linear.locus_plot import general_locus_figure
     lin = linearize_scene(load_scene(name))
     claims = check_claims(lin)
@@ -238,7 +238,7 @@ def test_general_locus_plot_magnifies_the_slow_branches():
 
 
 def test_general_locus_plot_of_a_part_of_the_range_says_where_it_starts():
-    from gyro_rotor.linear.general import check_claims, linearize_scene
+    from gyro_rotor.linear.system import check_claims, linearize_scene
     from gyro_rotor.linear.locus_plot import general_locus_figure
     lin = linearize_scene(load_scene('twin_gimbal'))
     fig = general_locus_figure(lin, check_claims(lin), K_lo=0.1, K_hi=0.5)

@@ -13,9 +13,10 @@ from gyro_rotor.core.system.expression import parse_expression
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
 from gyro_rotor.errors import ParameterError, SystemFileError
-from gyro_rotor.linear.general import check_claims, linearize_scene, modes
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims as centrifuge_claims
+from gyro_rotor.linear.stability import ModeKind
+from gyro_rotor.linear.system import check_claims, linearize_scene, modes
 from gyro_rotor.numerics.ensemble import run_ensemble
 from gyro_rotor.numerics.integrators.methods import integrate
 from gyro_rotor.numerics.simulate import integrate as integrate_general
@@ -294,7 +295,7 @@ def test_centrifuge_euler_eigenvalues_and_K_D_star_match_quaternion_checker():
     p = RotorParams()
     ref = linearize(p, steady_motion(p, 0.1, 1))
     lam_ref = np.linalg.eigvals(ref.with_K_D(p.K_D))
-    lam = np.array([x.value for x in modes(lin)])
+    lam = np.array([x.eigenvalue for x in modes(lin)])
     scale = np.abs(lam_ref).max()
     big = lambda v: np.sort_complex(v[np.abs(v) > 1e-6 * scale])  # noqa: E731
     assert len(big(lam)) == len(big(lam_ref)) == 6
@@ -337,9 +338,10 @@ def test_unreachable_mode_is_reported_marginal_and_named(tmp_path, capsys):
                potential='k*x**2/2 + c_w*w**2/2')
     path = _write_scene(tmp_path, doc, {})
     lin = linearize_scene(load_scene(path))
-    un = [x for x in modes(lin) if not x.reached]
+    un = [x for x in modes(lin) if not x.reached_by_drive]
     assert len(un) == 2 and all('unreached mode (w)' == x.name for x in un)
-    assert all(abs(x.value.real) < 1e-12 and abs(abs(x.value.imag) - math.sqrt(6.0)) < 1e-9
+    assert all(abs(x.eigenvalue.real) < 1e-12
+               and abs(abs(x.eigenvalue.imag) - math.sqrt(6.0)) < 1e-9
                for x in un)
     claims = check_claims(lin)
     assert claims.claims['b'].holds and claims.claims['b'].data['unreached'] == 2
@@ -522,9 +524,9 @@ def test_eig_json_has_eigenvalues_and_reached(tmp_path):
 
 def test_zero_roots_of_cyclic_coordinates_are_named():
     ms = modes(linearize_scene(load_scene('centrifuge_euler')))
-    zeros = sorted(x.name for x in ms if x.structural_zero)
+    zeros = sorted(x.name for x in ms if x.kind == ModeKind.ZERO)
     assert zeros == ['zero root (cyclic phi_M)', 'zero root (cyclic psi)']
-    assert not any(x.reached for x in ms if x.structural_zero)
+    assert not any(x.reached_by_drive for x in ms if x.kind == ModeKind.ZERO)
 
 
 def _pair_is_complex(lin, K, point, scale):

@@ -118,23 +118,23 @@ GENERAL_COORDS = 'general'
 
 
 def predict_general(scene) -> Prediction:
-    """Predict the modes and verdict of a general scene (:mod:`gyro_rotor.linear.general`).
+    """Predict the modes and verdict of a general scene (:mod:`gyro_rotor.linear.system`).
 
     Modes: the roots of A(K) at the scene's drives, one of each conjugate pair, named by
     their largest state; a zero root is structural (a cyclic coordinate), a root the
     drives do not reach (PBH) is marginal. Verdict: unstable if a root has Re > 0,
     marginal if a mode is not reached, else asymptotically stable.
     """
-    from gyro_rotor.linear.general import linearize_scene, modes, REL_AXIS
+    from gyro_rotor.linear.system import linearize_scene, modes, REL_AXIS
     from gyro_rotor.linear.stability import Stability
     model = scene.make_model()
     lin = linearize_scene(scene, model=model)
     roots = modes(lin)
-    scale = max([1.0] + [abs(r.value) for r in roots])
-    out = _unique_names(tuple(PredictedMode(r.name, r.value, r.reached,
-                                            marginal=not (r.reached or r.structural_zero),
-                                            structural=r.structural_zero)
-                              for r in roots if r.value.imag >= -1e-12 * scale))
+    scale = max([1.0] + [abs(r.eigenvalue) for r in roots])
+    out = _unique_names(tuple(PredictedMode(r.name, r.eigenvalue, r.reached_by_drive,
+                                            marginal=not (r.reached_by_drive or _zero(r)),
+                                            structural=_zero(r))
+                              for r in roots if r.eigenvalue.imag >= -1e-12 * scale))
     live = [m.eigenvalue.real for m in out if not m.structural]
     abscissa = max(live) if live else -math.inf
     if abscissa > REL_AXIS * scale:
@@ -152,9 +152,13 @@ def predict_general(scene) -> Prediction:
         verdict=str(verdict), E_inf=float(model.energy(scene.steady_state(model))),
         theta0=math.nan, psidot0=math.nan,
         pole_pairs=max(poles), K_D=max(d.K_D for d in drives),
-        source='linear.general.modes',
+        source='linear.system.modes',
         steady=(tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z)),
         rotor_pole_pairs=poles, active_q=active)
+
+
+def _zero(mode) -> bool:
+    return mode.kind == ModeKind.ZERO
 
 
 def _unique_names(modes: tuple) -> tuple:

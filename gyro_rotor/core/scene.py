@@ -194,6 +194,13 @@ class Scene:
         return tuple(int(d.pole_pairs) for d in self.system.drives)
 
     @property
+    def Omega0(self) -> float:
+        """Return the field speed Omega0 of the first rotor's drive [rad/s] (eq. 23)."""
+        if self.system is None:
+            return float(self.params.Omega0)
+        return float(self.system.drives[0].Omega0)
+
+    @property
     def joint_names(self) -> tuple:
         """Return the joint_states names rotor_sim publishes for this scene (its model's)."""
         return Model.joint_names if self.system is None else joint_names(self.system)

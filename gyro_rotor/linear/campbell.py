@@ -26,7 +26,7 @@ import dataclasses
 import math
 
 from gyro_rotor.errors import ParameterError, SceneError
-from gyro_rotor.linear.general import damped_newton
+from gyro_rotor.linear.newton import damped_newton
 import numpy as np
 
 __all__ = ['Campbell', 'campbell', 'campbell_general', 'campbell_centrifuge']
@@ -149,7 +149,7 @@ class _GeneralPath:
     def eig(self, W: float):
         """(eigenvalues, unit eigenvectors, resolutions) of A at speed W."""
         if W not in self.cache:
-            from gyro_rotor.linear.general import linearize_scene
+            from gyro_rotor.linear.system import linearize_scene
             from gyro_rotor.linear.roundoff import resolutions
             sc, mdl = self.at(W)
             lin = linearize_scene(sc, model=mdl)
@@ -164,7 +164,7 @@ class _GeneralPath:
 
 def campbell_general(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
     """Campbell diagram of a general scene (module doc)."""
-    from gyro_rotor.linear.general import _dominant
+    from gyro_rotor.linear.system import dominant
     from gyro_rotor.linear.spectrum import track
     values = _check_values(Omega0_values)
     path = _GeneralPath(scene)
@@ -183,7 +183,7 @@ def campbell_general(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
     def name(i, j):
         lam, V, _, lin = path.eig(float(values[i]))
         k = int(np.argmin(np.abs(lam - R[i, j])))
-        return _dominant(lin, V[:, k])
+        return dominant(lin, V[:, k])
     return _assemble(values, R, res, name, orders, nominal=path.ref)
 
 

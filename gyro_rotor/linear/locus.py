@@ -173,11 +173,11 @@ def root_locus(lin: LinearSystem, K_D_grid=None) -> RootLocus:
 def drive_system(lin: LinearSystem):
     """Return the centrifuge linearization as a :class:`~gyro_rotor.linear.claims.DriveSystem`.
 
-    One drive: ``B = b``, ``C = c^T``, the scene's K_D.
+    One drive: ``B = b``, ``C = c^T``, the scene's K_D
+    (:meth:`gyro_rotor.linear.system.Linearization.drive_system`).
     """
-    from gyro_rotor.linear.claims import DriveSystem
-    return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
-                       K_scene=np.array([lin.params.K_D], dtype=float))
+    from gyro_rotor.linear.system import from_analytic
+    return from_analytic(lin).drive_system()
 
 
 def check_claims(lin: LinearSystem, K_D_grid=None) -> ClaimsReport:

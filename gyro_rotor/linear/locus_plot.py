@@ -183,7 +183,7 @@ class _GeneralLocus:
     def __init__(self, lin, claims, K_lo: float, K_hi: float):
         """Collect the branches (tracked, densified), names, fixed and limit roots, scale."""
         from gyro_rotor.linear.claims import locked_spectrum
-        from gyro_rotor.linear.general import _dominant
+        from gyro_rotor.linear.system import dominant
         loc = claims.locus
         sel = (loc.K >= K_lo * (1 - 1e-12)) & (loc.K <= K_hi * (1 + 1e-12))
         if np.sum(sel) < 2:
@@ -202,7 +202,7 @@ class _GeneralLocus:
             d[list(used)] = np.inf
             k = int(np.argmin(d))
             used.add(k)
-            self.names.append(_dominant(lin, V_s[:, k] / np.linalg.norm(V_s[:, k])))
+            self.names.append(dominant(lin, V_s[:, k] / np.linalg.norm(V_s[:, k])))
         self.fixed = np.array([lam_s[i] for i in range(len(lam_s)) if i not in used],
                               dtype=complex)
         try:
@@ -239,7 +239,7 @@ class _GeneralLocus:
 def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = ''):
     """Return the root-locus figure of a general system (matplotlib), like the centrifuge's.
 
-    ``lin``: :class:`~gyro_rotor.linear.general.GeneralLinear`; ``claims``: its
+    ``lin``: :class:`~gyro_rotor.linear.system.Linearization`; ``claims``: its
     :class:`~gyro_rotor.linear.claims.ClaimsResult` (the continuation's locus, the
     meetings). The upper half plane is drawn (the lower is its mirror image), zoomed to
     where the roots meet: every K_D* meeting point, the K_D = 0 roots and the locked

@@ -35,7 +35,7 @@ from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # no
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
-__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'spectrum', 'modes', 'analyze',
+__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'spectrum', 'analyze',
            'analyze_scene',
            'track', 'sweep', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
@@ -275,12 +275,6 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
                            spectral_abscissa=float(absc), slowest_mode=slowest,
                            verdict=verdict, marginal_modes=[m.name for m in marginal],
                            reason=reason, A=lin.A)
-
-
-def modes(params: RotorParams, motion: SteadyMotion, model: str = 'full',
-          K_D: float | None = None) -> list:
-    """Return the named modes about ``motion`` (shorthand for ``analyze(...).modes``)."""
-    return analyze(params, motion, model, K_D=K_D).modes
 
 
 def scene_operating_point(scene) -> tuple:

@@ -31,7 +31,7 @@ def _load(args):
     """Return the scene and its nominal field speed (the first rotor's)."""
     from gyro_rotor.cli.util import load_scene_with_sets
     scene = load_scene_with_sets(args.scene, args.set)
-    return scene, scene.params.Omega0 if scene.builtin else scene.system.drives[0].Omega0
+    return scene, scene.Omega0
 
 
 def run(args: argparse.Namespace) -> int:

@@ -8,9 +8,9 @@ import math
 
 from gyro_rotor.cli.util import check_output_file, on_system
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.roundoff import decay_text, floor, fmt_re, resolutions
-from gyro_rotor.linear.stability import analyze, scene_operating_point
+from gyro_rotor.linear.stability import analyze, ModeKind
+from gyro_rotor.linear.system import linearize_scene, modes
 import numpy as np
 
 HELP = 'eigenvalues, named modes, drive penetration and the stability verdict of a scene'
@@ -28,7 +28,8 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Print the mode table and the verdict."""
     if args.json:
         check_output_file(args.json)
-    p, sm, model = scene_operating_point(scene)
+    one = linearize_scene(scene).analytic
+    p, sm, model = one.params, one.motion, one.model
     if p.K_D < 0:   # pragma: no cover -- RotorParams refuses it already
         raise ParameterError(f'K_D must not be negative, got {p.K_D}')
     r = analyze(p, sm, model, scene=scene.name)
@@ -40,7 +41,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     # a real part below the eigensolver's resolution is 0, not a result (never 1e-102): the
     # rule of every system (linear/roundoff.py), the floor TOL_RE_REL ||A0|| to which the
     # spectrum's pencil keeps its roots at any K_D
-    res = floor(linearize(p, sm, model).A0)
+    res = floor(one.A0)
 
     def re(x: float, width: int = 13) -> str:
         return fmt_re(x, res, width)
@@ -77,42 +78,43 @@ def _run_system(args, scene) -> int:
     resolution (:mod:`gyro_rotor.linear.roundoff`, the rule of every system) prints as 0
     and the mode as undamped: no decay time from round-off.
     """
-    from gyro_rotor.linear.general import linearize_scene, modes
     if args.json:
         check_output_file(args.json, ('.json',))
     lin = linearize_scene(scene)
-    ms = sorted(modes(lin), key=lambda x: (-x.value.real, x.value.imag))
+    ms = sorted(modes(lin), key=lambda x: (-x.eigenvalue.real, x.eigenvalue.imag))
     lam_r, res_r = resolutions(lin.A_scene(), lin.A_cons)
-    res = [float(res_r[int(np.argmin(np.abs(lam_r - x.value)))]) for x in ms]
-    shown = [(x, r) for x, r in zip(ms, res) if x.value.imag >= -r]
+    res = [float(res_r[int(np.argmin(np.abs(lam_r - x.eigenvalue)))]) for x in ms]
+    shown = [(x, r) for x, r in zip(ms, res) if x.eigenvalue.imag >= -r]
     print(f'scene {scene.name}: {len(ms)} roots of system {scene.system.name} about its steady '
           f'motion, K_D = {lin.K_each.tolist()} (one line per complex pair)')
     print(f'  {"mode":36s} {"Re [1/s]":>13s} {"Im [rad/s]":>13s} {"f [Hz]":>9s} '
           f'{"decay time":>13s}  reached')
     for x, r in shown:
-        im = abs(x.value.imag) if abs(x.value.imag) > r else 0.0
-        decay = '-' if x.structural_zero else decay_text(x.value.real, r)
-        print(f'  {x.name:36s} {fmt_re(x.value.real, r)} {im:13.6f} {im / (2 * math.pi):9.4f} '
-              f'{decay:>13s}  {"yes" if x.reached else "no"}')
-    judged = [(x, r) for x, r in zip(ms, res) if not x.structural_zero]
+        im = abs(x.eigenvalue.imag) if abs(x.eigenvalue.imag) > r else 0.0
+        decay = '-' if x.kind == ModeKind.ZERO else decay_text(x.eigenvalue.real, r)
+        print(f'  {x.name:36s} {fmt_re(x.eigenvalue.real, r)} {im:13.6f} '
+              f'{im / (2 * math.pi):9.4f} '
+              f'{decay:>13s}  {"yes" if x.reached_by_drive else "no"}')
+    judged = [(x, r) for x, r in zip(ms, res) if not x.kind == ModeKind.ZERO]
     sa = 0.0
     if judged:
-        x, r = max(judged, key=lambda t: t[0].value.real)
-        sa = x.value.real if abs(x.value.real) > r else 0.0
+        x, r = max(judged, key=lambda t: t[0].eigenvalue.real)
+        sa = x.eigenvalue.real if abs(x.eigenvalue.real) > r else 0.0
         print(f'  spectral abscissa {fmt_re(sa, 0.0, 0).strip() if sa else "0"} 1/s (slowest: '
               f'{x.name}; a |Re| within the resolution of its root, about {r:.1e} 1/s '
               'here, prints as 0)')
-    undamped = [f'{x.name} at {abs(x.value.imag) / (2 * math.pi):.4g} Hz' for x, r in shown
-                if not x.structural_zero and abs(x.value.real) <= r]
+    undamped = [f'{x.name} at {abs(x.eigenvalue.imag) / (2 * math.pi):.4g} Hz' for x, r in shown
+                if not x.kind == ModeKind.ZERO and abs(x.eigenvalue.real) <= r]
     if undamped:
         print(f'  undamped (Re = 0 within round-off): {", ".join(undamped)}')
     if args.json:
         doc = {'scene': scene.name, 'system': scene.system_name,
                'K_D': lin.K_each.tolist(), 'spectral_abscissa': sa,
-               'eigenvalues': [[x.value.real, x.value.imag] for x in ms],
-               'modes': [{'re': x.value.real, 'im': x.value.imag, 'reached': x.reached,
-                          'name': x.name, 'structural_zero': x.structural_zero,
-                          'resolution': r, 'undamped': abs(x.value.real) <= r}
+               'eigenvalues': [[x.eigenvalue.real, x.eigenvalue.imag] for x in ms],
+               'modes': [{'re': x.eigenvalue.real, 'im': x.eigenvalue.imag,
+                          'reached': x.reached_by_drive,
+                          'name': x.name, 'structural_zero': x.kind == ModeKind.ZERO,
+                          'resolution': r, 'undamped': abs(x.eigenvalue.real) <= r}
                          for x, r in zip(ms, res)]}
         with open(args.json, 'w', encoding='utf-8') as f:
             json.dump(doc, f, indent=1)

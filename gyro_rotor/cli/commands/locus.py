@@ -9,10 +9,9 @@ import math
 
 from gyro_rotor.cli.util import check_output_file, on_system
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims, default_grid, root_locus
 from gyro_rotor.linear.spectrum import _tol_re
-from gyro_rotor.linear.stability import scene_operating_point
+from gyro_rotor.linear.system import linearize_scene
 import numpy as np
 
 #: most points of the --points grid (each is an eigen-decomposition, plus tracking)
@@ -76,14 +75,12 @@ def _grid(args, params) -> np.ndarray | None:
 
 def _run_centrifuge(args: argparse.Namespace, scene) -> int:
     """Compute, print the claims, write the requested files; 0 if all claims hold, else 2."""
-    if args.drive is not None:
-        raise ParameterError('--drive is for the scenes of system files; the centrifuge '
-                             'has one drive')
+    one = linearize_scene(scene, drive=args.drive)     # refuses --drive: one drive
     for path in (args.csv, args.json, args.out):
         if path:
             check_output_file(path)
-    p, sm, model = scene_operating_point(scene)
-    lin = linearize(p, sm, model)
+    lin = one.analytic
+    p, sm, model = lin.params, lin.motion, lin.model
     grid = _grid(args, p)
     cr = check_claims(lin, grid)
     loc = cr.locus
@@ -128,7 +125,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
 
 def _run_system(args, scene) -> int:
     """Root locus over K_D (all drives, or --drive), every meeting and claims (a) to (d)."""
-    from gyro_rotor.linear.general import check_claims, linearize_scene
+    from gyro_rotor.linear.system import check_claims
     for path, suf in ((args.json, ('.json',)), (args.csv, ('.csv',)), (args.out, ('.png',))):
         if path:
             check_output_file(path, suf)

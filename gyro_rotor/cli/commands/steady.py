@@ -46,7 +46,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
 def _run_system(args, scene) -> int:
     """Check the scene's steady motion and solve for one from that guess (Newton)."""
     from gyro_rotor.core.scene import steady_residual
-    from gyro_rotor.linear.general import solve_steady
+    from gyro_rotor.linear.newton import solve_steady
     acc = steady_residual(scene)
     names = [f'{c}_ddot' for c in scene.system.coordinates] + [
         f'zddot_{r}' for r in scene.system.rotors]

@@ -41,7 +41,7 @@ def _run_centrifuge(args: argparse.Namespace, scene) -> int:
 
 def _run_system(args, scene) -> int:
     """Find the common K_D of all drives that makes the slowest reached mode decay fastest."""
-    from gyro_rotor.linear.general import _unreached, linearize_scene
+    from gyro_rotor.linear.system import _unreached, linearize_scene
     if getattr(args, 'K_S', None) is not None:
         scene = scene.with_drives(K_S=args.K_S)
     lin = linearize_scene(scene)

@@ -1,0 +1,345 @@
+"""The one linearization of every scene, and the paper's claims (a) to (d), checked by meaning.
+
+About a steady motion (q0, qdot0, z0, zdot = 0) the state x = (q, z, qdot, zdot) obeys
+
+    x' = A(K) x,   A(K) = [[0, I], [Mbar^-1 G_x, Mbar^-1 G_v]] = A_0 - K b c',
+
+with Mbar, G_x = [dF/dq | dQ/dz], G_v = dF/dv + [0; dQ/dzdot] from the generated
+equations (:mod:`gyro_rotor.core.system.codegen`), exact (symbolic) derivatives. K is the
+common drive damping of the drives varied (all, or one); c' picks their zdot, b =
+[0; Mbar^-1 e_z]. The coordinates that move on the steady motion must enter the
+equations only through combinations that stay constant, so that A does not change along
+the motion; :func:`linearize_scene` checks this.
+
+The built-in centrifuge offers the same pieces from its analytic linearization
+(:mod:`gyro_rotor.linear.linearize`: Magnus 1980, eqs. 18, 19, 23 in the coordinates of
+solution II or I, and its reduced models), one drive: b, c its torque direction and zdot.
+:func:`linearize_scene` returns one :class:`Linearization` for any scene; the centrifuge's
+carries its :class:`~gyro_rotor.linear.linearize.LinearSystem` as ``analytic`` (its modes
+are named by modal energy and tracked from K_D = 0, :mod:`gyro_rotor.linear.stability`).
+
+The claims (Magnus 1980, eqs. 13-17 and the footnote; docs MODEL.md section 8):
+
+(a) K = 0: every root on the imaginary axis; zero roots are structural (a cyclic
+    coordinate) and named by their eigenvector.
+(b) K > 0: the roots of every mode the drives reach (PBH: its eigenvector at K = 0 has
+    a non-zero zdot part) lie in the open left half plane, and exactly the unreached ones
+    stay on the axis, at their K = 0 values (Hagedorn's exclusion).
+(c) K -> infinity: the roots tend to the spectrum of the locked system (z = 0 held,
+    computed separately), plus m real roots to -infinity and m to 0.
+(d) every K* where a pair meets on the real axis or leaves it, with its kind and meeting
+    point; net, m pairs meet.
+
+The claims are decided by the one checker of every system, :mod:`gyro_rotor.linear.claims`,
+on :meth:`Linearization.drive_system` (:func:`check_claims`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from gyro_rotor.core.scene import check_steady, Scene
+from gyro_rotor.core.system.model import GeneralModel
+from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.linear.linearize import linearize, LinearSystem
+from gyro_rotor.linear.stability import analyze, Mode, ModeKind
+import numpy as np
+
+__all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'check_claims',
+           'dominant', 'REL_AXIS']
+
+#: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
+#: labels and the predicted verdict; the claims use each root's own resolution)
+REL_AXIS = 1e-9
+#: a mode is reached when the zdot part of its unit eigenvector exceeds this
+REACH_TOL = 1e-7
+#: the coordinate of each state of the centrifuge's analytic linearizations (the rates'
+#: coordinates: thetadot is theta's, W_1 alpha's, ...)
+_CENTRIFUGE_COORDINATE = {'thetadot': 'theta', 'psidot': 'psi', 'chidot': 'chi', 'zdot': 'z',
+                          'W_1': 'alpha', 'W_2': 'beta'}
+
+
+@dataclasses.dataclass(frozen=True)
+class Linearization:
+    """A(K) = A0 - K b c' about a scene's steady motion (module doc), with the states' names.
+
+    ``A0``, ``b``, ``c``: the drives varied (``vary``) undamped, the others at their K_D;
+    ``A_cons``, ``b_all``, ``c_all``, ``K_all``: every drive (A_cons: all undamped);
+    ``names`` the states, ``coordinate`` the coordinate each state belongs to (a rate
+    belongs to its angle); ``fast_rates`` the eigenvalues of c' b (the roots that escape
+    like -K c' b); ``A_locked`` the locked system (the varied drives' z held at 0).
+    ``analytic``: the built-in centrifuge's analytic linearization, else None.
+    """
+
+    A0: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    K_D: float
+    A_locked: np.ndarray
+    names: tuple
+    coordinate: tuple
+    fast_rates: np.ndarray
+    K_each: np.ndarray
+    A_cons: np.ndarray
+    b_all: np.ndarray
+    c_all: np.ndarray
+    K_all: np.ndarray
+    vary: tuple
+    analytic: LinearSystem | None = None
+
+    @property
+    def m(self) -> int:
+        """Return the number of drives."""
+        return self.b_all.shape[1]
+
+    @property
+    def n(self) -> int:
+        """Return the number of coordinates q (those that are not a drive's lag z)."""
+        return len(set(self.coordinate)) - self.m
+
+    def drive_system(self):
+        """Return the :class:`~gyro_rotor.linear.claims.DriveSystem` of every drive."""
+        from gyro_rotor.linear.claims import DriveSystem
+        return DriveSystem(A0=self.A_cons, B=self.b_all, C=self.c_all.T, K_scene=self.K_all,
+                           vary=self.vary)
+
+    def A_scene(self) -> np.ndarray:
+        """Return A with every drive at its own K_D (the scene's spectrum)."""
+        return self.A_cons - self.b_all @ np.diag(self.K_all) @ self.c_all.T
+
+    def A_common(self, K: float) -> np.ndarray:
+        """Return A with every drive at the same K_D = K."""
+        return self.A_cons - K * (self.b_all @ self.c_all.T)
+
+    def A(self, K: float) -> np.ndarray:
+        """Return the matrix for drive damping K of the drives varied."""
+        return self.A0 - K * (self.b @ self.c.T)
+
+    def eig(self, K: float) -> np.ndarray:
+        """Return the eigenvalues of A(K)."""
+        return np.linalg.eigvals(self.A(K))
+
+
+def _locked(A0: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Return the locked system: the varied drives' z held at 0 by their torques (module doc).
+
+    The torques u that keep zdot' = c'(A0 x + b u) = 0 give x' = P A0 x, P = I - b (c'b)^-1
+    c'; the states z (whose rate is zdot: the rows of A0 equal to c') and zdot are dropped.
+    """
+    N = A0.shape[0]
+    P = np.eye(N) - b @ np.linalg.solve(c.T @ b, c.T)
+    z = [int(np.flatnonzero(np.all(A0 == c[:, j], axis=1))[0]) for j in range(c.shape[1])]
+    zdot = [int(np.argmax(c[:, j])) for j in range(c.shape[1])]
+    keep = [i for i in range(N) if i not in z and i not in zdot]
+    return (P @ A0)[np.ix_(keep, keep)]
+
+
+def _drive_parts(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:
+    """A0 (varied drives undamped), b, c of the varied drives, A_cons (all undamped)."""
+    n, m, N = model.n, model.m, model.N
+    Mbar, Fq, Fv = model.lin(y)
+    Gx = np.zeros((N, N))
+    Gx[:, :n] = Fq
+    Gv = Fv.copy()
+    z = y[2 * n:2 * n + m]
+    for k, d in enumerate(drives):
+        p = d.pole_pairs
+        Gx[n + k, n + k] = -d.K_S * (math.cos(p * z[k]) if p else 1.0)
+    Minv = np.linalg.inv(Mbar)
+    A_cons = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
+    for k, d in enumerate(drives):
+        if k not in which:
+            Gv[n + k, n + k] -= d.K_D
+    A0 = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
+    E = np.zeros((N, len(which)))
+    for j, k in enumerate(which):
+        E[n + k, j] = 1.0
+    b = np.vstack([np.zeros((N, len(which))), Minv @ E])
+    c = np.vstack([np.zeros((N, len(which))), E])
+    return A0, b, c, A_cons
+
+
+def linearize_scene(scene: Scene, *, drive: str | None = None,
+                    model: GeneralModel | None = None) -> Linearization:
+    """Linearize any scene about its steady motion (a system file's: checked steady).
+
+    The built-in centrifuge: its analytic linearization (:func:`_centrifuge`); a system
+    file: the exact derivatives of its generated equations. ``drive``: vary only that
+    rotor's K_D (default: all drives together).
+    """
+    if scene.builtin:
+        return _centrifuge(scene, drive)
+    model = model or scene.make_model()
+    check_steady(scene, model)
+    system = scene.system
+    if drive is None:
+        which = list(range(system.m))
+    elif drive in system.rotors:
+        which = [system.rotors.index(drive)]
+    else:
+        raise ParameterError(f"unknown rotor '{drive}'; rotors of {system.name}: "
+                             f"{', '.join(system.rotors)}")
+    y0 = scene.steady_state(model)
+    A0, b, c, A_cons = _drive_parts(model, y0, system.drives, which)
+    everyone = list(range(system.m))
+    _, b_all, c_all, _ = _drive_parts(model, y0, system.drives, everyone)
+    if np.any(np.asarray(scene.steady_qdot) != 0):
+        y1 = y0.copy()
+        y1[:model.n] += 0.37 * np.asarray(scene.steady_qdot)
+        A1 = _drive_parts(model, y1, system.drives, which)[0]
+        if not np.allclose(A0, A1, rtol=1e-8, atol=1e-10 * np.abs(A0).max()):
+            raise SceneError(f'scene {scene.name}: the linearization changes along the steady '
+                             'motion (the moving coordinates are not cyclic): no constant '
+                             'A matrix to analyse')
+    if not np.all(np.isfinite(A0)):
+        raise SceneError(f'scene {scene.name}: the linearization is not finite')
+    Ks = np.array([system.drives[k].K_D for k in which])
+    positions = tuple(system.coordinates) + tuple(f'z_{r}' for r in system.rotors)
+    names = positions + tuple(f'{q}_dot' for q in system.coordinates) + tuple(
+        f'zdot_{r}' for r in system.rotors)
+    return Linearization(A0=A0, b=b, c=c, K_D=float(Ks.max()), A_locked=_locked(A0, b, c),
+                         names=names, coordinate=positions * 2,
+                         fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=Ks, A_cons=A_cons,
+                         b_all=b_all, c_all=c_all,
+                         K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which))
+
+
+def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
+    """Return the built-in centrifuge's pieces: its analytic A0, b, c (one drive)."""
+    from gyro_rotor.linear.stability import scene_operating_point
+    if drive is not None:
+        raise ParameterError('--drive is for the scenes of system files; the centrifuge '
+                             'has one drive')
+    return from_analytic(linearize(*scene_operating_point(scene)))
+
+
+def from_analytic(ls: LinearSystem) -> Linearization:
+    """Return the centrifuge's analytic linearization ``ls`` as a :class:`Linearization`."""
+    b, c = ls.b[:, None], ls.c[:, None]
+    K = np.array([ls.params.K_D], dtype=float)
+    return Linearization(A0=ls.A0, b=b, c=c, K_D=ls.params.K_D, A_locked=_locked(ls.A0, b, c),
+                         names=ls.state_names,
+                         coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
+                                          for x in ls.state_names),
+                         fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=K, A_cons=ls.A0,
+                         b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls)
+
+
+def _scale(lam: np.ndarray) -> float:
+    return max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
+
+
+def dominant(lin: Linearization, v: np.ndarray) -> str:
+    """Return the coordinate that holds most of eigenvector ``v`` (its angle and rate)."""
+    order = list(dict.fromkeys(lin.coordinate))
+    w = np.zeros(len(order))
+    for i, name in enumerate(lin.coordinate):
+        w[order.index(name)] += abs(v[i])
+    return order[int(np.argmax(w))]
+
+
+def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
+    """Return the modes of A(K) (default: every drive at its own K_D), named, with their reach.
+
+    The centrifuge (``lin.analytic``): its named modes, one per complex pair
+    (:func:`gyro_rotor.linear.stability.analyze`). A system file: every root, named by its
+    dominant coordinate; a root is unreached when it is one of the K = 0 roots whose
+    eigenvector has no zdot part (the PBH test): those stay where they are for every K.
+    ``eigenvalue_K_D0`` is the root at K = 0 the root is followed from (eigenvector
+    continuity), ``dRe_dKD`` its sensitivity there to a common K.
+    """
+    if lin.analytic is not None:
+        ls = lin.analytic
+        return analyze(ls.params, ls.motion, ls.model, K_D=K).modes
+    Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
+    A = lin.A_scene() if K is None else lin.A_common(K)
+    un, zeros, scale = _unreached(lin)
+    lam, V = np.linalg.eig(A)
+    lam0, dre = _followed(lin, Ks, lam)
+    tol_im = 1e-9 * max(np.linalg.norm(lin.A_cons), 1.0)
+    out = []
+    for i, value in enumerate(lam):
+        v = V[:, i] / np.linalg.norm(V[:, i])
+        zero = abs(value) <= 1e-7 * scale
+        unreached = bool(un.size) and float(np.min(np.abs(un - value))) <= 1e-7 * scale and \
+            float(np.abs(lin.c_all.T @ v).max()) <= REACH_TOL
+        if zero:
+            label = f'zero root (cyclic {dominant(lin, v)})'
+        else:
+            label = f'{"unreached mode" if unreached else "mode"} ({dominant(lin, v)})'
+        value = complex(value)
+        re = value.real
+        kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > tol_im
+                else ModeKind.REAL)
+        on_axis = abs(re) <= REL_AXIS * scale
+        out.append(Mode(name=label, eigenvalue=value, freq_hz=abs(value.imag) / (2 * math.pi),
+                        zeta=0.0 if zero or on_axis else -re / abs(value),
+                        tau=-1.0 / re if re < 0 and not on_axis else math.inf,
+                        reached_by_drive=not (zero or unreached), dRe_dKD=float(dre[i]),
+                        kind=kind, eigenvalue_K_D0=complex(lam0[i])))
+    return out
+
+
+def _unit(A: np.ndarray) -> tuple:
+    lam, V = np.linalg.eig(A)
+    return lam, V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+
+
+def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
+    """Return, for each root ``lam`` of A at dampings ``Ks``, its K = 0 root and d Re/d K there.
+
+    The roots are followed from K = 0 (every drive's K scaled by s in [0, 1], a log path)
+    by eigenvector continuity (:func:`gyro_rotor.linear.spectrum.track`). The sensitivity to
+    a common K: d lambda/d K = -(w^H B C' v)/(w^H v) (left and right eigenvectors w, v);
+    a defective root (w^H v ~ 0: a Jordan block, the cyclic zero roots) by a central
+    difference of its nearest roots instead.
+    """
+    from scipy.linalg import eig
+    from scipy.optimize import linear_sum_assignment
+    from gyro_rotor.linear.spectrum import track
+    BC = lin.b_all @ lin.c_all.T
+    lam0, W, V0 = eig(lin.A_cons, left=True, right=True)
+    V0 = V0 / np.maximum(np.linalg.norm(V0, axis=0), 1e-300)
+
+    def fn(s):
+        if s == 0:
+            return lam0, V0
+        return _unit(lin.A_cons - lin.b_all @ np.diag(s * Ks) @ lin.c_all.T)
+    path = [0.0] + list(np.geomspace(1e-6, 1.0, 49)) if np.any(Ks > 0) else [0.0]
+    end = track(fn, path, [''] * len(lam0), log=True)[-1]
+    rows, cols = linear_sum_assignment(np.abs(end[:, None] - lam[None, :]))
+    start = np.empty(len(lam), dtype=complex)
+    d = np.empty(len(lam))
+    h = 1e-7 * np.linalg.norm(lin.A_cons) / max(np.linalg.norm(BC), 1e-300)
+    for j, i in zip(rows, cols):
+        start[i] = lam0[j]
+        w, v = W[:, j], V0[:, j]
+        den = np.vdot(w, v)
+        if np.linalg.norm(w) * np.linalg.norm(v) < 1e8 * abs(den):
+            d[i] = (-np.vdot(w, BC @ v) / den).real
+        else:
+            lp = np.linalg.eigvals(lin.A_cons - h * BC)
+            lm = np.linalg.eigvals(lin.A_cons + h * BC)
+            d[i] = ((lp[np.argmin(abs(lp - lam0[j]))] - lm[np.argmin(abs(lm - lam0[j]))])
+                    / (2 * h)).real
+    return start, d
+
+
+def _unreached(lin: Linearization) -> tuple[np.ndarray, np.ndarray, float]:
+    """Non-zero roots at K = 0 whose eigenvectors have no zdot part, zero roots, scale."""
+    lam0, V0 = np.linalg.eig(lin.A_cons)
+    scale = _scale(lam0)
+    zero = np.abs(lam0) <= 1e-7 * scale
+    un = []
+    for i in np.flatnonzero(~zero):
+        v = V0[:, i] / np.linalg.norm(V0[:, i])
+        if float(np.abs(lin.c_all.T @ v).max()) <= REACH_TOL:
+            un.append(lam0[i])
+    return np.array(un, dtype=complex), lam0[zero], scale
+
+
+def check_claims(lin: Linearization):
+    """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`."""
+    from gyro_rotor.linear.claims import check
+    return check(lin.drive_system())
