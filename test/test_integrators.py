@@ -376,11 +376,39 @@ def test_dop853_lands_on_samples_instead_of_interpolating():
 
 
 # -- the generated straight-line kernels (rk_codegen) ------------------------------------------
-def test_generated_kernels_are_what_the_generator_writes():
-    """rk_generated.py is the generator's output from the tableaux (regenerate: module doc)."""
+def test_generated_kernels_are_written_on_first_use_and_reused(tmp_path, monkeypatch):
+    """The kernels' module is the generator's text, written into the cache once, then reused.
+
+    A file that is not the generator's text (edited, cut short) is written again.
+    """
+    from pathlib import Path
     from gyro_rotor.numerics.integrators import rk_codegen
-    assert rk_codegen.TARGET.read_text() == rk_codegen.generate(), \
-        'run python -m gyro_rotor.numerics.integrators.rk_codegen'
+    monkeypatch.setenv('GYRO_ROTOR_CACHE', str(tmp_path))
+    notes = []
+    first = rk_codegen.load(progress=notes.append)
+    path = Path(first.__file__)
+    assert path.parent == tmp_path / 'kernels'
+    assert path.read_text() == rk_codegen.generate()
+    assert len(notes) == 1 and str(path) in notes[0]
+    stamp = path.stat().st_mtime_ns
+    second = rk_codegen.load(progress=notes.append)
+    assert (len(notes), second.__file__, path.stat().st_mtime_ns) == (1, str(path), stamp)
+    path.write_text(rk_codegen.generate()[:1000])
+    rk_codegen.load(progress=notes.append)
+    assert len(notes) == 2 and path.read_text() == rk_codegen.generate()
+
+
+def test_generated_kernels_without_a_writable_cache(tmp_path, monkeypatch):
+    """A cache that cannot be made: the module goes to a temporary folder, with a note."""
+    from gyro_rotor.numerics.integrators import rk_codegen
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    monkeypatch.setenv('GYRO_ROTOR_CACHE', str(blocker / 'cache'))
+    notes = []
+    module = rk_codegen.load(progress=notes.append)
+    assert len(notes) == 1 and notes[0].startswith('cannot write the cache')
+    assert not module.__file__.startswith(str(blocker))
+    assert open(module.__file__).read() == rk_codegen.generate()
 
 
 @pytest.mark.parametrize('scene', ['precession', 'pole_slip', 'upright'])

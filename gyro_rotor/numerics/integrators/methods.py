@@ -36,8 +36,8 @@ import math
 
 from gyro_rotor.core.model import Model
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
-                                             splitting as split, tableaux as tb)
+from gyro_rotor.numerics.integrators import (kernels, radau, splitting as split,
+                                             tableaux as tb)
 from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator,
                                                   STATUS_MESSAGES)
 from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
@@ -157,9 +157,9 @@ class DOP853(Integrator):
             clipped = self.t + h >= t_limit
             if clipped:
                 h = t_limit - self.t
-            err = rk_generated.dop853_step(self.kind, self.P, self.y, self.f, h, self.rtol,
-                                           self.atol, self._K, self._ytmp, self._ynew,
-                                           self._fnew)
+            err = kernels.rk_generated.dop853_step(self.kind, self.P, self.y, self.f, h,
+                                                   self.rtol, self.atol, self._K, self._ytmp,
+                                                   self._ynew, self._fnew)
             self.nfev += 12
             if math.isfinite(err) and err <= 1.0:
                 break
@@ -186,12 +186,13 @@ class DOP853(Integrator):
         if not (t0 <= t <= self.t):
             raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
         if not self._dense_ready:
-            rk_generated.dop853_dense(self.kind, self.P, self._y_old, self.y, self._f_old,
-                                      self.f, h, self._K, self._ytmp, self._F)
+            kernels.rk_generated.dop853_dense(self.kind, self.P, self._y_old, self.y,
+                                              self._f_old, self.f, h, self._K, self._ytmp,
+                                              self._F)
             self.nfev += 3
             self._dense_ready = True
         out = np.empty(self.model.n)
-        rk_generated.dop853_eval(self.kind, self._F, self._y_old, (t - t0) / h, out)
+        kernels.rk_generated.dop853_eval(self.kind, self._F, self._y_old, (t - t0) / h, out)
         return out
 
     def _run(self, t_eval, Y, counts):
@@ -218,10 +219,10 @@ class Verner(Integrator):
         super().__init__(*args, **kwargs)
         pair = tb.VERNER[self.name]
         n = self.model.n
-        self._kstep = getattr(rk_generated, f'{self.name}_step')
-        self._kdense = getattr(rk_generated, f'{self.name}_dense')
-        self._keval = getattr(rk_generated, f'{self.name}_eval')
-        self._krun = getattr(rk_generated, f'{self.name}_run')
+        self._kstep = getattr(kernels.rk_generated, f'{self.name}_step')
+        self._kdense = getattr(kernels.rk_generated, f'{self.name}_dense')
+        self._keval = getattr(kernels.rk_generated, f'{self.name}_eval')
+        self._krun = getattr(kernels.rk_generated, f'{self.name}_run')
         self._s = pair.n_stages
         self._n_extra = pair.A.shape[0] - pair.n_stages - 1
         self._K = np.empty((pair.A.shape[0], n))

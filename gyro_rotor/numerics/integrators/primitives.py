@@ -6,7 +6,7 @@ right-hand side :func:`rhs` chosen at compile time by the type of ``kind``,
 :func:`state_size`, the projection hook :func:`normalize_quaternion`, the status codes
 (:class:`Status` and its plain int constants OK, UNDERFLOW, ...), the step size control
 constants, :func:`initial_step`, :func:`land_step`, :func:`all_finite` and the small LU
-solver. The run loops (:mod:`~.kernels`, the generated :mod:`~.rk_generated`,
+solver. The run loops (:mod:`~.kernels`, the generated ones of :mod:`~.rk_codegen`,
 :mod:`~.radau`, :mod:`~.radau_jac`, :mod:`~.splitting`) import them from here; this
 module imports none of them, so the import graph has no circle (issue 25).
 
@@ -38,7 +38,7 @@ __all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind'
            'Status', 'OK', 'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY',
            'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'pack_params',
            'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'initial_step',
-           'land_step', 'equal_steps', 'lu_factor', 'lu_solve']
+           'land_step', 'land_on_sample', 'equal_steps', 'lu_factor', 'lu_solve']
 
 
 class FullKind(enum.IntEnum):
@@ -279,6 +279,22 @@ def land_step(t_eval, k, t, h, h_max, dense_cost):
     if h_land > h_max:
         return 0.0
     return h_land
+
+
+@njit(cache=True, error_model='numpy')
+def land_on_sample(t_eval, k, t, h, h_max):
+    """Return the step from t that ends exactly on the sample t_eval[k], or 0.0 (DOP853's rule).
+
+    The step lands when the sample is the only one the step h reaches and the step that
+    lands on it is between LAND_SHRINK and LAND_STRETCH times h (and not longer than h_max).
+    """
+    nt = t_eval.shape[0]
+    if k >= nt:
+        return 0.0
+    d = t_eval[k] - t
+    if not (LAND_SHRINK * h <= d <= LAND_STRETCH * h and d <= h_max and d > 0.0):
+        return 0.0
+    return d if k + 1 >= nt or t_eval[k + 1] > t + h else 0.0
 
 
 @njit(cache=True, error_model='numpy')
