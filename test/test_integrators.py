@@ -411,6 +411,26 @@ def test_generated_kernels_without_a_writable_cache(tmp_path, monkeypatch):
     assert open(module.__file__).read() == rk_codegen.generate()
 
 
+def test_generated_kernels_concurrent_first_use(tmp_path):
+    """Processes that start together on a cold cache each import the whole module.
+
+    (Each writes a temporary file and renames it: no process reads a partial file, and no
+    temporary file is left.)
+    """
+    import os
+    import subprocess
+    import sys
+    code = ('from gyro_rotor.numerics.integrators import rk_codegen, rk_generated; '
+            'print(open(rk_generated.__file__).read() == rk_codegen.generate())')
+    env = {**os.environ, 'GYRO_ROTOR_CACHE': str(tmp_path)}
+    procs = [subprocess.Popen([sys.executable, '-c', code], env=env, text=True,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for _ in range(4)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [(p.returncode, out.strip()) for p, (out, _) in zip(procs, outs)] == [(0, 'True')] * 4
+    assert [f.suffix for f in (tmp_path / 'kernels').iterdir() if f.is_file()] == ['.py']
+
+
 @pytest.mark.parametrize('scene', ['precession', 'pole_slip', 'upright'])
 def test_generated_dop853_step_and_dense_equal_the_tableau_loops(scene):
     """The straight-line DOP853 step, error norm and dense output are the generic ones.

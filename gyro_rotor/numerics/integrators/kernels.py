@@ -35,18 +35,18 @@ import math
 
 from gyro_rotor.numerics.integrators import rk_codegen
 from gyro_rotor.numerics.integrators.primitives import (
-    all_finite, BUDGET, equal_steps, FullKind, HAVE_NUMBA, initial_step, KIND, LAND_SHRINK,
-    land_step, LAND_STRETCH, LockedKind, lu_factor, lu_solve, MAX_FACTOR, MIN_FACTOR, njit,
-    NOCONV, NONFINITE, normalize_quaternion, OK, pack_params, rhs, SAFETY, state_size, Status,
-    UNDERFLOW, UprightKind)
+    all_finite, BUDGET, clip_to_sample, equal_steps, finish_run, FullKind, HAVE_NUMBA,
+    initial_step, KIND, LAND_SHRINK, land_step, LAND_STRETCH, LockedKind, lu_factor, lu_solve,
+    MAX_FACTOR, MIN_FACTOR, njit, NOCONV, NONFINITE, normalize_quaternion, OK, pack_params, rhs,
+    SAFETY, start_run, state_size, Status, store_samples, too_small, UNDERFLOW, UprightKind)
 import numpy as np
 
 #: the straight-line explicit Runge-Kutta kernels (DOP853, Verner), generated on first use
 rk_generated = rk_codegen.load()
 
 __all__ = ['HAVE_NUMBA', 'KIND', 'FullKind', 'UprightKind', 'LockedKind', 'Status',
-           'pack_params', 'rhs', 'state_size', 'rk_run', 'dop853_run', 'gauss_run',
-           'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense', 'gauss_step', 'rodas_step',
+           'pack_params', 'rhs', 'state_size', 'fixed_run', 'dop853_run', 'rodas_run',
+           'rk_step', 'dop853_step', 'dop853_dense', 'gauss_step', 'rodas_step',
            'fd_jacobian', 'normalize_quaternion', 'land_step', 'all_finite', 'njit', 'OK',
            'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY', 'MIN_FACTOR', 'MAX_FACTOR',
            'LAND_SHRINK', 'LAND_STRETCH', 'initial_step', 'lu_factor', 'lu_solve',
@@ -66,6 +66,17 @@ def _rms_error(err, y, y_new, rtol, atol):
 
 # -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
 @njit(cache=True, error_model='numpy')
+def explicit_stage(kind, P, y, h, A, i, K, ytmp):
+    """Stage i of an explicit tableau: K[i] = f(y + h sum_{j<i} A[i, j] K[j])."""
+    for m in range(y.shape[0]):
+        acc = 0.0
+        for j in range(i):
+            acc += A[i, j] * K[j, m]
+        ytmp[m] = y[m] + h * acc
+    rhs(kind, ytmp, P, K[i])
+
+
+@njit(cache=True, error_model='numpy')
 def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     """One explicit RK step of tableau (A, B) from (y, f0 = f(y)); result in ``y_new``.
 
@@ -76,12 +87,7 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     for m in range(n):
         K[0, m] = f0[m]
     for i in range(1, s):
-        for m in range(n):
-            acc = 0.0
-            for j in range(i):
-                acc += A[i, j] * K[j, m]
-            ytmp[m] = y[m] + h * acc
-        rhs(kind, ytmp, P, K[i])
+        explicit_stage(kind, P, y, h, A, i, K, ytmp)
     for m in range(n):
         acc = 0.0
         for j in range(s):
@@ -90,12 +96,15 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
 
 
 @njit(cache=True, error_model='numpy')
-def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, counts):
-    """Fixed-step explicit RK from t0 through the sample times ``t_eval`` (increasing).
+def fixed_run(kind, P, y0, t0, t_eval, h_max, A, B, implicit, renorm, max_steps, max_iter,
+              Y_out, counts):
+    """Fixed-step Runge-Kutta of tableau (A, B) from t0 through the sample times ``t_eval``.
 
-    Between consecutive samples the interval is cut into the fewest equal steps no longer
-    than ``h_max``, so every sample is hit exactly (no dense output needed). Returns the
-    status; ``counts`` receives (nfev, nsteps) and ``Y_out`` the samples.
+    Explicit (:func:`rk_step`), or with ``implicit`` the Gauss method (:func:`gauss_step`,
+    at most ``max_iter`` sweeps of its fixed-point iteration). Between consecutive samples
+    (increasing) the interval is cut into the fewest equal steps no longer than ``h_max``,
+    so every sample is hit exactly (no dense output needed). Returns the status; ``counts``
+    receives (nfev, nsteps) and ``Y_out`` the samples.
     """
     n = y0.shape[0]
     s = B.shape[0]
@@ -115,30 +124,28 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
             for i in range(m):
                 rhs(kind, y, P, f)
                 if not all_finite(f):
-                    counts[0] = nfev + 1
-                    counts[1] = nsteps
-                    return NONFINITE
-                rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
-                nfev += s
+                    return finish_run(counts, NONFINITE, nfev + 1, nsteps, 0, 0.0)
+                if implicit:
+                    ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
+                    if ne < 0:
+                        return finish_run(counts, NOCONV, nfev, nsteps, 0, 0.0)
+                    nfev += ne + 1
+                else:
+                    rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
+                    nfev += s
                 nsteps += 1
                 if renorm:
                     normalize_quaternion(kind, y_new, f)
                 for j in range(n):
                     y[j] = y_new[j]
                 if not all_finite(y):
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return NONFINITE
+                    return finish_run(counts, NONFINITE, nfev, nsteps, 0, 0.0)
                 if nsteps >= max_steps:
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return BUDGET
+                    return finish_run(counts, BUDGET, nfev, nsteps, 0, 0.0)
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
-    counts[0] = nfev
-    counts[1] = nsteps
-    return OK
+    return finish_run(counts, OK, nfev, nsteps, 0, 0.0)
 
 
 # -- DOP853, adaptive with dense output --------------------------------------------------------
@@ -149,20 +156,7 @@ def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_ne
     ``K`` (16, n): rows 0-11 the stages, row 12 f(y_new) (also copied to ``f_new``).
     """
     n = y.shape[0]
-    for m in range(n):
-        K[0, m] = f[m]
-    for i in range(1, 12):
-        for m in range(n):
-            acc = 0.0
-            for j in range(i):
-                acc += A[i, j] * K[j, m]
-            ytmp[m] = y[m] + h * acc
-        rhs(kind, ytmp, P, K[i])
-    for m in range(n):
-        acc = 0.0
-        for j in range(12):
-            acc += B[j] * K[j, m]
-        y_new[m] = y[m] + h * acc
+    rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
     rhs(kind, y_new, P, f_new)
     for m in range(n):
         K[12, m] = f_new[m]
@@ -192,12 +186,7 @@ def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
     """
     n = y_old.shape[0]
     for s in range(13, 16):
-        for m in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += A[s, j] * K[j, m]
-            ytmp[m] = y_old[m] + h * acc
-        rhs(kind, ytmp, P, K[s])
+        explicit_stage(kind, P, y_old, h, A, s, K, ytmp)
     for m in range(n):
         dy = y_new[m] - y_old[m]
         F[0, m] = dy
@@ -274,55 +263,6 @@ def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
             acc += B[j] * K[j, m]
         y_new[m] = y[m] + h * acc
     return nfev
-
-
-@njit(cache=True, error_model='numpy')
-def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, counts):
-    """Fixed-step Gauss method through the sample times (as :func:`rk_run`)."""
-    n = y0.shape[0]
-    s = B.shape[0]
-    y = y0.copy()
-    y_new = np.empty(n)
-    f = np.empty(n)
-    ytmp = np.empty(n)
-    K = np.empty((s, n))
-    t = t0
-    nfev = 0
-    nsteps = 0
-    for k in range(t_eval.shape[0]):
-        span = t_eval[k] - t
-        if span > 0.0:
-            m = equal_steps(span, h_max)
-            h = span / m
-            for i in range(m):
-                rhs(kind, y, P, f)
-                if not all_finite(f):
-                    counts[0] = nfev + 1
-                    counts[1] = nsteps
-                    return NONFINITE
-                ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
-                if ne < 0:
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return NOCONV
-                nfev += ne + 1
-                nsteps += 1
-                for j in range(n):
-                    y[j] = y_new[j]
-                if not all_finite(y):
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return NONFINITE
-                if nsteps >= max_steps:
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return BUDGET
-            t = t_eval[k]
-        for j in range(n):
-            Y_out[k, j] = y[j]
-    counts[0] = nfev
-    counts[1] = nsteps
-    return OK
 
 
 # -- RODAS4 (Rosenbrock, L-stable) -------------------------------------------------------------
@@ -415,38 +355,17 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     piv = np.zeros(n, dtype=np.int64)
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
-    nfev = 0
     njev = 0
     nsteps = 0
     nrej = 0
-    k = 0
-    while k < t_eval.shape[0] and t_eval[k] <= t:
-        for j in range(n):
-            Y_out[k, j] = y[j]
-        k += 1
-    rhs(kind, y, P, f)
-    nfev += 1
-    if h_init > 0.0:
-        h = h_init
-    else:
-        h = initial_step(kind, P, y, f, rtol, atol, 3, h_max, ytmp, fa)
-        nfev += 1
-    # a non-finite derivative at the start (a singular state) ends the run at once
-    status = OK if all_finite(f) else NONFINITE
+    k = store_samples(t_eval, 0, t, y, Y_out)
+    h, nfev, status = start_run(kind, P, y, f, rtol, atol, 3, h_max, h_init, ytmp, fa)
     jac_fresh = False
     while status == OK and t < t_end:
-        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if not h >= min_step:           # also a NaN step (never compares)
+        if too_small(t, h):
             status = UNDERFLOW
             break
-        if h > h_max:
-            h = h_max
-        h_free = h
-        clipped = False
-        t_next = t_eval[k] if k < t_eval.shape[0] else t_end
-        if t + h >= t_next:
-            h = t_next - t
-            clipped = True
+        h, h_free, clipped, t_next = clip_to_sample(t_eval, k, t, h, h_max, t_end)
         if not jac_fresh:
             nfev += fd_jacobian(kind, P, y, J, ytmp, f, fb)
             njev += 1
@@ -473,19 +392,12 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         if not all_finite(y):
             status = NONFINITE
             break
-        while k < t_eval.shape[0] and t_eval[k] <= t:
-            for j in range(n):
-                Y_out[k, j] = y[j]
-            k += 1
+        k = store_samples(t_eval, k, t, y, Y_out)
         if nsteps >= max_steps:
             status = BUDGET
             break
         fac = 6.0 if err == 0.0 else min(6.0, SAFETY * err ** (-0.25))
         fac = max(MIN_FACTOR, fac)
         h = max(h * fac, h_free) if clipped else h * fac
-    counts[0] = nfev
-    counts[1] = nsteps
-    counts[2] = nrej
-    counts[3] = h
     counts[4] = njev
-    return status
+    return finish_run(counts, status, nfev, nsteps, nrej, h)

@@ -36,11 +36,12 @@ coefficients folded in as constants (the numbers are those of :mod:`~.tableaux`)
 argument conventions are those of the generic kernels (see :mod:`~.rk_codegen`).
 """
 
-from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, finish_run,
                                                         land_on_sample, land_step, MAX_FACTOR,
                                                         MIN_FACTOR, njit, NONFINITE,
                                                         normalize_quaternion, OK, rhs, SAFETY,
-                                                        state_size, UNDERFLOW)
+                                                        start_run, state_size, store_samples,
+                                                        too_small, UNDERFLOW)
 import numpy as np
 
 __all__ = [{names}]
@@ -194,25 +195,13 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
     F = np.empty(({nf}, n))
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
-    rhs(kind, y, P, f)
-    nfev = 1
     nsteps = 0
     nrej = 0
-    k = 0
-    while k < t_eval.shape[0] and t_eval[k] <= t:
-        for j in range(n):
-            Y_out[k, j] = y[j]
-        k += 1
-    if h_init > 0.0:
-        h = h_init
-    else:
-        h = initial_step(kind, P, y, f, rtol, atol, {p1}, h_max, ytmp, ftmp)
-        nfev += 1
-    status = OK if all_finite(f) else NONFINITE
+    k = store_samples(t_eval, 0, t, y, Y_out)
+    h, nfev, status = start_run(kind, P, y, f, rtol, atol, {p1}, h_max, h_init, ytmp, ftmp)
     just_rejected = False
     while status == OK and t < t_end:
-        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if not h >= min_step:           # also a NaN step (never compares)
+        if too_small(t, h):
             status = UNDERFLOW
             break
         if h > h_max:
@@ -268,11 +257,7 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
             fac = min(fac, 1.0)
             just_rejected = False
         h *= fac
-    counts[0] = nfev
-    counts[1] = nsteps
-    counts[2] = nrej
-    counts[3] = h
-    return status
+    return finish_run(counts, status, nfev, nsteps, nrej, h)
 '''
 
 
