@@ -66,17 +66,6 @@ def _rms_error(err, y, y_new, rtol, atol):
 
 # -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
 @njit(cache=True, error_model='numpy')
-def explicit_stage(kind, P, y, h, A, i, K, ytmp):
-    """Stage i of an explicit tableau: K[i] = f(y + h sum_{j<i} A[i, j] K[j])."""
-    for m in range(y.shape[0]):
-        acc = 0.0
-        for j in range(i):
-            acc += A[i, j] * K[j, m]
-        ytmp[m] = y[m] + h * acc
-    rhs(kind, ytmp, P, K[i])
-
-
-@njit(cache=True, error_model='numpy')
 def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     """One explicit RK step of tableau (A, B) from (y, f0 = f(y)); result in ``y_new``.
 
@@ -87,7 +76,12 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     for m in range(n):
         K[0, m] = f0[m]
     for i in range(1, s):
-        explicit_stage(kind, P, y, h, A, i, K, ytmp)
+        for m in range(n):
+            acc = 0.0
+            for j in range(i):
+                acc += A[i, j] * K[j, m]
+            ytmp[m] = y[m] + h * acc
+        rhs(kind, ytmp, P, K[i])
     for m in range(n):
         acc = 0.0
         for j in range(s):
@@ -186,7 +180,12 @@ def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
     """
     n = y_old.shape[0]
     for s in range(13, 16):
-        explicit_stage(kind, P, y_old, h, A, s, K, ytmp)
+        for m in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * K[j, m]
+            ytmp[m] = y_old[m] + h * acc
+        rhs(kind, ytmp, P, K[s])
     for m in range(n):
         dy = y_new[m] - y_old[m]
         F[0, m] = dy
