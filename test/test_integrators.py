@@ -376,11 +376,59 @@ def test_dop853_lands_on_samples_instead_of_interpolating():
 
 
 # -- the generated straight-line kernels (rk_codegen) ------------------------------------------
-def test_generated_kernels_are_what_the_generator_writes():
-    """rk_generated.py is the generator's output from the tableaux (regenerate: module doc)."""
+def test_generated_kernels_are_written_on_first_use_and_reused(tmp_path, monkeypatch):
+    """The kernels' module is the generator's text, written into the cache once, then reused.
+
+    A file that is not the generator's text (edited, cut short) is written again.
+    """
+    from pathlib import Path
     from gyro_rotor.numerics.integrators import rk_codegen
-    assert rk_codegen.TARGET.read_text() == rk_codegen.generate(), \
-        'run python -m gyro_rotor.numerics.integrators.rk_codegen'
+    monkeypatch.setenv('GYRO_ROTOR_CACHE', str(tmp_path))
+    notes = []
+    first = rk_codegen.load(progress=notes.append)
+    path = Path(first.__file__)
+    assert path.parent == tmp_path / 'kernels'
+    assert path.read_text() == rk_codegen.generate()
+    assert len(notes) == 1 and str(path) in notes[0]
+    stamp = path.stat().st_mtime_ns
+    second = rk_codegen.load(progress=notes.append)
+    assert (len(notes), second.__file__, path.stat().st_mtime_ns) == (1, str(path), stamp)
+    path.write_text(rk_codegen.generate()[:1000])
+    rk_codegen.load(progress=notes.append)
+    assert len(notes) == 2 and path.read_text() == rk_codegen.generate()
+
+
+def test_generated_kernels_without_a_writable_cache(tmp_path, monkeypatch):
+    """A cache that cannot be made: the module goes to a temporary folder, with a note."""
+    from gyro_rotor.numerics.integrators import rk_codegen
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    monkeypatch.setenv('GYRO_ROTOR_CACHE', str(blocker / 'cache'))
+    notes = []
+    module = rk_codegen.load(progress=notes.append)
+    assert len(notes) == 1 and notes[0].startswith('cannot write the cache')
+    assert not module.__file__.startswith(str(blocker))
+    assert open(module.__file__).read() == rk_codegen.generate()
+
+
+def test_generated_kernels_concurrent_first_use(tmp_path):
+    """Processes that start together on a cold cache each import the whole module.
+
+    (Each writes a temporary file and renames it: no process reads a partial file, and no
+    temporary file is left.)
+    """
+    import os
+    import subprocess
+    import sys
+    code = ('from gyro_rotor.numerics.integrators import rk_codegen, rk_generated; '
+            'print(open(rk_generated.__file__).read() == rk_codegen.generate())')
+    env = {**os.environ, 'GYRO_ROTOR_CACHE': str(tmp_path)}
+    procs = [subprocess.Popen([sys.executable, '-c', code], env=env, text=True,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for _ in range(4)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [(p.returncode, out.strip()) for p, (out, _) in zip(procs, outs)] == [(0, 'True')] * 4
+    assert [f.suffix for f in (tmp_path / 'kernels').iterdir() if f.is_file()] == ['.py']
 
 
 @pytest.mark.parametrize('scene', ['precession', 'pole_slip', 'upright'])

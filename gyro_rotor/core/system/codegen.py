@@ -29,13 +29,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.util
-import os
 from pathlib import Path
-import sys
-import tempfile
 import time
 
+from gyro_rotor.cache import cache_root, import_file, note, write_atomic
 from gyro_rotor.core.system.equations import derive, Equations
 from gyro_rotor.core.system.system_file import RotorSystem
 import numpy as np
@@ -78,10 +75,8 @@ class _Printer(PythonCodePrinter):
 
 
 def cache_dir() -> Path:
-    """Directory of the generated modules (``$GYRO_ROTOR_CACHE`` or ~/.cache/gyro_rotor)."""
-    env = os.environ.get('GYRO_ROTOR_CACHE')
-    base = Path(env) if env else Path.home() / '.cache' / 'gyro_rotor'
-    return base / 'systems'
+    """Directory of the generated modules (``systems`` in :func:`gyro_rotor.cache.cache_root`)."""
+    return cache_root() / 'systems'
 
 
 def pack(system: RotorSystem) -> np.ndarray:
@@ -434,22 +429,8 @@ class _FirstClass(WrapperAddressProtocol):
         return self.sig
 
 
-def _import(path: Path, key: str):
-    name = f'gyro_rotor_generated_{key}'
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-def _stderr_progress(text: str) -> None:
-    import sys
-    print(f'gyro_rotor: {text}', file=sys.stderr, flush=True)
-
-
 def compile_system(system: RotorSystem, *, warm: bool = True,
-                   progress=_stderr_progress) -> CompiledSystem:
+                   progress=note) -> CompiledSystem:
     """Return the compiled equations of ``system``, generating them only if not cached.
 
     ``warm`` runs ``rhs`` and ``energy`` once, so that numba compiles (or loads from its
@@ -474,12 +455,8 @@ def compile_system(system: RotorSystem, *, warm: bool = True,
         say(f'  derived in {time.perf_counter() - start:.1f} s; writing the code')
         source = _source(system, eq)
         say(f'  code written at {time.perf_counter() - start:.1f} s; compiling (numba)')
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix='.tmp')
-        with os.fdopen(fd, 'w', encoding='utf-8') as f:
-            f.write(source)
-        os.replace(tmp, path)   # atomic: a concurrent reader sees the whole file or none
-    module = _import(path, key)
+        write_atomic(path, source)
+    module = import_file(path, f'gyro_rotor_generated_{key}')
     if warm:
         ny = 2 * (system.n + system.m) + 1
         y = np.zeros(ny)

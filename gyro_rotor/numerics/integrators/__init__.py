@@ -8,7 +8,7 @@ See :mod:`gyro_rotor.numerics.integrators.base` for the contract (scipy's OdeSol
 
 from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator, model_rate,
                                                   STATUS_MESSAGES)
-from gyro_rotor.numerics.integrators.kernels import HAVE_NUMBA
+from gyro_rotor.numerics.integrators.kernels import HAVE_NUMBA, rk_generated
 from gyro_rotor.numerics.integrators.methods import (cheapest_explicit, choose_method,
                                                      COST_METHODS, DOP853, Gauss6, integrate,
                                                      make_integrator, method_cost, METHODS,
@@ -18,4 +18,4 @@ from gyro_rotor.numerics.integrators.methods import (cheapest_explicit, choose_m
 __all__ = ['Integrator', 'IntegrationResult', 'STATUS_MESSAGES', 'METHODS', 'RK4', 'RK8',
            'DOP853', 'Vern7', 'Vern8', 'Vern9', 'Gauss6', 'Rodas4', 'Radau9', 'Split8',
            'integrate', 'choose_method', 'cheapest_explicit', 'method_cost', 'COST_METHODS',
-           'make_integrator', 'model_rate', 'HAVE_NUMBA']
+           'make_integrator', 'model_rate', 'HAVE_NUMBA', 'rk_generated']

@@ -31,7 +31,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import kernels
 import numpy as np
 
-__all__ = ['Integrator', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate', 'kernel_args']
+__all__ = ['Integrator', 'LoopStepped', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate',
+           'kernel_args']
 
 STATUS_MESSAGES = {
     0: 'The solver successfully reached the end of the integration interval.',
@@ -258,6 +259,45 @@ class Integrator:
     def _run(self, t_eval: np.ndarray, Y: np.ndarray,
              counts: np.ndarray) -> int:  # pragma: no cover
         raise NotImplementedError
+
+
+class LoopStepped(Integrator):
+    """A method whose one step is its compiled run loop with a budget of one step.
+
+    Subclasses implement ``_loop(t_eval, Y, counts, max_steps)``: the run loop, which
+    returns the status and leaves (nfev, nsteps, rejected, next step, njev, t at the end) in
+    ``counts`` and the state there in ``self._ylast``.
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._h_next = 0.0
+        self._ylast = np.empty(self.model.n)
+
+    def _loop(self, t_eval, Y, counts, max_steps):  # pragma: no cover
+        raise NotImplementedError
+
+    def _call(self, t_eval, Y, counts, max_steps):
+        status = self._loop(t_eval, Y, counts, max_steps)
+        self._h_next = counts[3]
+        return status
+
+    def _step_impl(self, t_limit):
+        counts = np.zeros(6)
+        Y = np.empty((1, self.model.n))
+        status = self._call(np.array([t_limit]), Y, counts, 1)
+        self.nfev += int(counts[0])
+        self.njev += int(counts[4])
+        self.nrejected += int(counts[2])
+        if status not in (kernels.OK, kernels.BUDGET) or counts[1] < 1:
+            return False, STATUS_MESSAGES[status if status < 0 else -1]
+        self.t = t_limit if status == kernels.OK else float(counts[5])
+        self.y = self._ylast.copy()
+        self.f = self._rhs(self.y)
+        return True, None
+
+    def _run(self, t_eval, Y, counts):
+        return self._call(t_eval, Y, counts, self.max_steps - self.nsteps)
 
 
 def kernel_args(model, params) -> tuple:

@@ -2,9 +2,9 @@
 
 The building blocks they share (``njit``, the model kinds and :func:`rhs`, the status
 codes, the step size control, :func:`initial_step`, :func:`land_step`, the LU solver) are
-in :mod:`~.primitives`, which the generated :mod:`~.rk_generated`, :mod:`~.radau`,
-:mod:`~.radau_jac` and :mod:`~.splitting` import as well; they are re-exported here
-(``kernels.rhs``, ``kernels.KIND``, ...).
+in :mod:`~.primitives`, which the generated kernels (:mod:`~.rk_codegen`, loaded here as
+``kernels.rk_generated``), :mod:`~.radau`, :mod:`~.radau_jac` and :mod:`~.splitting` import
+as well; they are re-exported here (``kernels.rhs``, ``kernels.KIND``, ...).
 
 Everything here is written in plain scalar arithmetic on float64 arrays, with no
 allocation inside the loops, so that numba compiles it to machine code (``cache=True``:
@@ -33,20 +33,24 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.numerics.integrators import rk_generated
+from gyro_rotor.numerics.integrators import rk_codegen
 from gyro_rotor.numerics.integrators.primitives import (
-    all_finite, BUDGET, equal_steps, FullKind, HAVE_NUMBA, initial_step, KIND, LAND_SHRINK,
-    land_step, LAND_STRETCH, LockedKind, lu_factor, lu_solve, MAX_FACTOR, MIN_FACTOR, njit,
-    NOCONV, NONFINITE, normalize_quaternion, OK, pack_params, rhs, SAFETY, state_size, Status,
-    UNDERFLOW, UprightKind)
+    all_finite, BUDGET, clip_to_sample, equal_steps, finish_run, FullKind, HAVE_NUMBA,
+    initial_step, KIND, LAND_SHRINK, land_step, LAND_STRETCH, LockedKind, lu_factor, lu_solve,
+    MAX_FACTOR, MIN_FACTOR, njit, NOCONV, NONFINITE, normalize_quaternion, OK, pack_params, rhs,
+    SAFETY, start_run, state_size, Status, store_samples, too_small, UNDERFLOW, UprightKind)
 import numpy as np
 
+#: the straight-line explicit Runge-Kutta kernels (DOP853, Verner), generated on first use
+rk_generated = rk_codegen.load()
+
 __all__ = ['HAVE_NUMBA', 'KIND', 'FullKind', 'UprightKind', 'LockedKind', 'Status',
-           'pack_params', 'rhs', 'state_size', 'rk_run', 'dop853_run', 'gauss_run',
-           'rodas_run', 'rk_step', 'dop853_step', 'dop853_dense', 'gauss_step', 'rodas_step',
+           'pack_params', 'rhs', 'state_size', 'fixed_run', 'dop853_run', 'rodas_run',
+           'rk_step', 'dop853_step', 'dop853_dense', 'gauss_step', 'rodas_step',
            'fd_jacobian', 'normalize_quaternion', 'land_step', 'all_finite', 'njit', 'OK',
            'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY', 'MIN_FACTOR', 'MAX_FACTOR',
-           'LAND_SHRINK', 'LAND_STRETCH', 'initial_step', 'lu_factor', 'lu_solve']
+           'LAND_SHRINK', 'LAND_STRETCH', 'initial_step', 'lu_factor', 'lu_solve',
+           'rk_generated']
 
 
 @njit(cache=True, error_model='numpy')
@@ -86,12 +90,15 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
 
 
 @njit(cache=True, error_model='numpy')
-def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, counts):
-    """Fixed-step explicit RK from t0 through the sample times ``t_eval`` (increasing).
+def fixed_run(kind, P, y0, t0, t_eval, h_max, A, B, implicit, renorm, max_steps, max_iter,
+              Y_out, counts):
+    """Fixed-step Runge-Kutta of tableau (A, B) from t0 through the sample times ``t_eval``.
 
-    Between consecutive samples the interval is cut into the fewest equal steps no longer
-    than ``h_max``, so every sample is hit exactly (no dense output needed). Returns the
-    status; ``counts`` receives (nfev, nsteps) and ``Y_out`` the samples.
+    Explicit (:func:`rk_step`), or with ``implicit`` the Gauss method (:func:`gauss_step`,
+    at most ``max_iter`` sweeps of its fixed-point iteration). Between consecutive samples
+    (increasing) the interval is cut into the fewest equal steps no longer than ``h_max``,
+    so every sample is hit exactly (no dense output needed). Returns the status; ``counts``
+    receives (nfev, nsteps) and ``Y_out`` the samples.
     """
     n = y0.shape[0]
     s = B.shape[0]
@@ -111,30 +118,28 @@ def rk_run(kind, P, y0, t0, t_eval, h_max, A, B, renorm, max_steps, Y_out, count
             for i in range(m):
                 rhs(kind, y, P, f)
                 if not all_finite(f):
-                    counts[0] = nfev + 1
-                    counts[1] = nsteps
-                    return NONFINITE
-                rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
-                nfev += s
+                    return finish_run(counts, NONFINITE, nfev + 1, nsteps, 0, 0.0)
+                if implicit:
+                    ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
+                    if ne < 0:
+                        return finish_run(counts, NOCONV, nfev, nsteps, 0, 0.0)
+                    nfev += ne + 1
+                else:
+                    rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
+                    nfev += s
                 nsteps += 1
                 if renorm:
                     normalize_quaternion(kind, y_new, f)
                 for j in range(n):
                     y[j] = y_new[j]
                 if not all_finite(y):
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return NONFINITE
+                    return finish_run(counts, NONFINITE, nfev, nsteps, 0, 0.0)
                 if nsteps >= max_steps:
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return BUDGET
+                    return finish_run(counts, BUDGET, nfev, nsteps, 0, 0.0)
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
-    counts[0] = nfev
-    counts[1] = nsteps
-    return OK
+    return finish_run(counts, OK, nfev, nsteps, 0, 0.0)
 
 
 # -- DOP853, adaptive with dense output --------------------------------------------------------
@@ -145,20 +150,7 @@ def dop853_step(kind, P, y, f, h, rtol, atol, A, B, E3, E5, K, ytmp, y_new, f_ne
     ``K`` (16, n): rows 0-11 the stages, row 12 f(y_new) (also copied to ``f_new``).
     """
     n = y.shape[0]
-    for m in range(n):
-        K[0, m] = f[m]
-    for i in range(1, 12):
-        for m in range(n):
-            acc = 0.0
-            for j in range(i):
-                acc += A[i, j] * K[j, m]
-            ytmp[m] = y[m] + h * acc
-        rhs(kind, ytmp, P, K[i])
-    for m in range(n):
-        acc = 0.0
-        for j in range(12):
-            acc += B[j] * K[j, m]
-        y_new[m] = y[m] + h * acc
+    rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
     rhs(kind, y_new, P, f_new)
     for m in range(n):
         K[12, m] = f_new[m]
@@ -221,121 +213,9 @@ def dense_eval(F, y_old, x, out):
         out[m] = v + y_old[m]
 
 
-@njit(cache=True, error_model='numpy')
-def _land_on_sample(t_eval, k, t, h, h_max):
-    """Return True if the step h from t should end exactly on the sample t_eval[k].
-
-    That is: the sample is the only one the step reaches, and the step that lands on it
-    is between LAND_SHRINK and LAND_STRETCH times h (and not longer than h_max).
-    """
-    nt = t_eval.shape[0]
-    if k >= nt:
-        return False
-    d = t_eval[k] - t
-    if not (LAND_SHRINK * h <= d <= LAND_STRETCH * h and d <= h_max and d > 0.0):
-        return False
-    return k + 1 >= nt or t_eval[k + 1] > t + h
-
-
-@njit(cache=True, error_model='numpy')
-def dop853_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
-               Y_out, counts):
-    """Adaptive DOP853 from t0 to t_eval[-1], sampling ``t_eval`` with the dense output.
-
-    Steps and dense output are the straight-line kernels of :mod:`~.rk_generated` (the same
-    formulas as :func:`dop853_step` and :func:`dop853_dense`, about half the cost).
-    Returns the status; ``counts`` = (nfev, nsteps, rejected, last step size).
-    """
-    n = state_size(kind, y0)
-    y = y0.copy()
-    y_new = np.empty(n)
-    f = np.empty(n)
-    f_new = np.empty(n)
-    ytmp = np.empty(n)
-    ftmp = np.empty(n)
-    K = np.empty((16, n))
-    F = np.empty((7, n))
-    t = t0
-    t_end = t_eval[t_eval.shape[0] - 1]
-    rhs(kind, y, P, f)
-    nfev = 1
-    nsteps = 0
-    nrej = 0
-    k = 0
-    while k < t_eval.shape[0] and t_eval[k] <= t:
-        for j in range(n):
-            Y_out[k, j] = y[j]
-        k += 1
-    if h_init > 0.0:
-        h = h_init
-    else:
-        h = initial_step(kind, P, y, f, rtol, atol, 7, h_max, ytmp, ftmp)
-        nfev += 1
-    # a non-finite derivative at the start (a singular state) ends the run at once
-    status = OK if all_finite(f) else NONFINITE
-    just_rejected = False
-    while status == OK and t < t_end:
-        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if not h >= min_step:           # also a NaN step (never compares)
-            status = UNDERFLOW
-            break
-        if h > h_max:
-            h = h_max
-        if t + h > t_end:
-            h = t_end - t
-        landed = _land_on_sample(t_eval, k, t, h, h_max)
-        if landed:
-            h = t_eval[k] - t
-        err = rk_generated.dop853_step(kind, P, y, f, h, rtol, atol, K, ytmp, y_new, f_new)
-        nfev += 12
-        if not math.isfinite(err):
-            h *= MIN_FACTOR
-            nrej += 1
-            just_rejected = True
-            continue
-        if err > 1.0:
-            h *= max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
-            nrej += 1
-            just_rejected = True
-            continue
-        t_new = t_eval[k] if landed else t + h
-        if renorm:
-            normalize_quaternion(kind, y_new, f_new)
-        if k < t_eval.shape[0] and t_eval[k] <= t_new:
-            if t_eval[k] < t_new:       # a sample inside the step: the dense output
-                rk_generated.dop853_dense(kind, P, y, y_new, f, f_new, h, K, ytmp, F)
-                nfev += 3
-            while k < t_eval.shape[0] and t_eval[k] <= t_new:
-                if t_eval[k] == t_new:
-                    for j in range(n):
-                        Y_out[k, j] = y_new[j]
-                else:
-                    rk_generated.dop853_eval(kind, F, y, (t_eval[k] - t) / h, Y_out[k])
-                k += 1
-        for j in range(n):
-            y[j] = y_new[j]
-            f[j] = f_new[j]
-        t = t_new
-        nsteps += 1
-        if not all_finite(y):
-            status = NONFINITE
-            break
-        if nsteps >= max_steps:
-            status = BUDGET
-            break
-        if err == 0.0:
-            fac = MAX_FACTOR
-        else:
-            fac = min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
-        if just_rejected:           # Hairer's DOP853: no growth right after a rejection
-            fac = min(fac, 1.0)
-            just_rejected = False
-        h *= fac
-    counts[0] = nfev
-    counts[1] = nsteps
-    counts[2] = nrej
-    counts[3] = h
-    return status
+#: the adaptive DOP853 loop is the generated one (:mod:`~.rk_codegen`: straight-line steps and
+#: dense output, about half the cost of :func:`dop853_step` and :func:`dop853_dense`)
+dop853_run = rk_generated.dop853_run
 
 
 # -- Gauss-Legendre collocation (implicit, fixed step) -----------------------------------------
@@ -382,55 +262,6 @@ def gauss_step(kind, P, y, f0, h, A, B, K, ytmp, y_new, max_iter):
             acc += B[j] * K[j, m]
         y_new[m] = y[m] + h * acc
     return nfev
-
-
-@njit(cache=True, error_model='numpy')
-def gauss_run(kind, P, y0, t0, t_eval, h_max, A, B, max_steps, max_iter, Y_out, counts):
-    """Fixed-step Gauss method through the sample times (as :func:`rk_run`)."""
-    n = y0.shape[0]
-    s = B.shape[0]
-    y = y0.copy()
-    y_new = np.empty(n)
-    f = np.empty(n)
-    ytmp = np.empty(n)
-    K = np.empty((s, n))
-    t = t0
-    nfev = 0
-    nsteps = 0
-    for k in range(t_eval.shape[0]):
-        span = t_eval[k] - t
-        if span > 0.0:
-            m = equal_steps(span, h_max)
-            h = span / m
-            for i in range(m):
-                rhs(kind, y, P, f)
-                if not all_finite(f):
-                    counts[0] = nfev + 1
-                    counts[1] = nsteps
-                    return NONFINITE
-                ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
-                if ne < 0:
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return NOCONV
-                nfev += ne + 1
-                nsteps += 1
-                for j in range(n):
-                    y[j] = y_new[j]
-                if not all_finite(y):
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return NONFINITE
-                if nsteps >= max_steps:
-                    counts[0] = nfev
-                    counts[1] = nsteps
-                    return BUDGET
-            t = t_eval[k]
-        for j in range(n):
-            Y_out[k, j] = y[j]
-    counts[0] = nfev
-    counts[1] = nsteps
-    return OK
 
 
 # -- RODAS4 (Rosenbrock, L-stable) -------------------------------------------------------------
@@ -523,38 +354,17 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     piv = np.zeros(n, dtype=np.int64)
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
-    nfev = 0
     njev = 0
     nsteps = 0
     nrej = 0
-    k = 0
-    while k < t_eval.shape[0] and t_eval[k] <= t:
-        for j in range(n):
-            Y_out[k, j] = y[j]
-        k += 1
-    rhs(kind, y, P, f)
-    nfev += 1
-    if h_init > 0.0:
-        h = h_init
-    else:
-        h = initial_step(kind, P, y, f, rtol, atol, 3, h_max, ytmp, fa)
-        nfev += 1
-    # a non-finite derivative at the start (a singular state) ends the run at once
-    status = OK if all_finite(f) else NONFINITE
+    k = store_samples(t_eval, 0, t, y, Y_out)
+    h, nfev, status = start_run(kind, P, y, f, rtol, atol, 3, h_max, h_init, ytmp, fa)
     jac_fresh = False
     while status == OK and t < t_end:
-        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
-        if not h >= min_step:           # also a NaN step (never compares)
+        if too_small(t, h):
             status = UNDERFLOW
             break
-        if h > h_max:
-            h = h_max
-        h_free = h
-        clipped = False
-        t_next = t_eval[k] if k < t_eval.shape[0] else t_end
-        if t + h >= t_next:
-            h = t_next - t
-            clipped = True
+        h, h_free, clipped, t_next = clip_to_sample(t_eval, k, t, h, h_max, t_end)
         if not jac_fresh:
             nfev += fd_jacobian(kind, P, y, J, ytmp, f, fb)
             njev += 1
@@ -581,19 +391,12 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         if not all_finite(y):
             status = NONFINITE
             break
-        while k < t_eval.shape[0] and t_eval[k] <= t:
-            for j in range(n):
-                Y_out[k, j] = y[j]
-            k += 1
+        k = store_samples(t_eval, k, t, y, Y_out)
         if nsteps >= max_steps:
             status = BUDGET
             break
         fac = 6.0 if err == 0.0 else min(6.0, SAFETY * err ** (-0.25))
         fac = max(MIN_FACTOR, fac)
         h = max(h * fac, h_free) if clipped else h * fac
-    counts[0] = nfev
-    counts[1] = nsteps
-    counts[2] = nrej
-    counts[3] = h
     counts[4] = njev
-    return status
+    return finish_run(counts, status, nfev, nsteps, nrej, h)

@@ -36,9 +36,9 @@ import math
 
 from gyro_rotor.core.model import Model
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.numerics.integrators import (kernels, radau, rk_generated,
-                                             splitting as split, tableaux as tb)
-from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator,
+from gyro_rotor.numerics.integrators import (kernels, radau, splitting as split,
+                                             tableaux as tb)
+from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator, LoopStepped,
                                                   STATUS_MESSAGES)
 from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
 import numpy as np
@@ -63,12 +63,18 @@ DRIFT_PER_PERIOD = 8e-5
 CONSERVATIVE_DRIFT_LIMIT = 0.1
 
 
-class ExplicitRK(Integrator):
-    """Fixed-step explicit Runge-Kutta with a class-level tableau ``A, B, C``."""
+class FixedStepRK(Integrator):
+    """Fixed-step Runge-Kutta with a class-level tableau ``A, B, C``.
+
+    Explicit (:func:`kernels.rk_step`), or for an ``implicit`` class the Gauss method
+    (:func:`kernels.gauss_step`, at most ``max_iter`` sweeps of its fixed-point iteration;
+    a step where it does not converge fails the run with status -4).
+    """
 
     A: np.ndarray
     B: np.ndarray
     C: np.ndarray
+    max_iter = 0
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -82,9 +88,16 @@ class ExplicitRK(Integrator):
         clipped = self.t + h * (1.0 + 1e-9) >= t_limit
         if clipped:
             h = t_limit - self.t
-        kernels.rk_step(self.kind, self.P, self.y, self.f, h, self.A, self.B, self._K,
-                        self._ytmp, self._ynew)
-        self.nfev += self.B.shape[0] - 1
+        if self.implicit:
+            ne = kernels.gauss_step(self.kind, self.P, self.y, self.f, h, self.A, self.B,
+                                    self._K, self._ytmp, self._ynew, self.max_iter)
+            if ne < 0:
+                return False, STATUS_MESSAGES[-4]
+        else:
+            kernels.rk_step(self.kind, self.P, self.y, self.f, h, self.A, self.B, self._K,
+                            self._ytmp, self._ynew)
+            ne = self.B.shape[0] - 1
+        self.nfev += ne
         y = self._ynew.copy()
         f = self._rhs(y)
         self.project(y, f)
@@ -93,12 +106,12 @@ class ExplicitRK(Integrator):
         return True, None
 
     def _run(self, t_eval, Y, counts):
-        return kernels.rk_run(self.kind, self.P, self.y, self.t, t_eval, self.h, self.A,
-                              self.B, self.renormalize, self.max_steps - self.nsteps, Y,
-                              counts)
+        return kernels.fixed_run(self.kind, self.P, self.y, self.t, t_eval, self.h, self.A,
+                                 self.B, self.implicit, self.renormalize,
+                                 self.max_steps - self.nsteps, self.max_iter, Y, counts)
 
 
-class RK4(ExplicitRK):
+class RK4(FixedStepRK):
     """Classical Runge-Kutta, order 4, fixed step (default step 0.02 / model rate)."""
 
     name = 'rk4'
@@ -107,7 +120,7 @@ class RK4(ExplicitRK):
     A, B, C = tb.RK4_A, tb.RK4_B, tb.RK4_C
 
 
-class RK8(ExplicitRK):
+class RK8(FixedStepRK):
     """DOP853's 8th-order formula (12 stages) at a fixed step (default 0.2 / model rate)."""
 
     name = 'rk8'
@@ -117,115 +130,37 @@ class RK8(ExplicitRK):
     B, C = tb.DOP853_B, tb.DOP853_C[:12]
 
 
-class DOP853(Integrator):
-    """Dormand-Prince 8(5,3): adaptive, error control in the RMS norm, dense output.
+class EmbeddedRK(Integrator):
+    """An explicit pair with error control and an interpolant: the kernels of :mod:`~.rk_codegen`.
 
-    In :meth:`run`, a step that reaches exactly one sample time and would end within a
-    factor 2/3 to 1.1 of it ends on it instead (``kernels.LAND_SHRINK``, ``LAND_STRETCH``):
-    that sample needs no dense output, which costs about half a step.
-    References: Hairer, Norsett, Wanner I, sec. II.10; scipy's DOP853 (same control).
-    """
-
-    name = 'dop853'
-    order = 8
-    adaptive = True
-    default_rtol = 1e-10
-    default_atol = 1e-12
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        n = self.model.n
-        self._K = np.empty((16, n))
-        self._F = np.empty((7, n))
-        self._ytmp = np.empty(n)
-        self._ynew = np.empty(n)
-        self._fnew = np.empty(n)
-        self._y_old = None
-        self._f_old = None
-        self._h_next = 0.0
-
-    def _step_impl(self, t_limit):
-        if self._h_next <= 0.0:
-            self._h_next = kernels.initial_step(self.kind, self.P, self.y, self.f, self.rtol,
-                                                self.atol, 7, self.h_max, self._ytmp,
-                                                self._fnew)
-            self.nfev += 1
-        h = min(self._h_next, self.h_max)
-        while True:
-            if not h >= 10.0 * abs(math.nextafter(self.t, math.inf) - self.t):  # or NaN
-                return False, STATUS_MESSAGES[-1]
-            clipped = self.t + h >= t_limit
-            if clipped:
-                h = t_limit - self.t
-            err = rk_generated.dop853_step(self.kind, self.P, self.y, self.f, h, self.rtol,
-                                           self.atol, self._K, self._ytmp, self._ynew,
-                                           self._fnew)
-            self.nfev += 12
-            if math.isfinite(err) and err <= 1.0:
-                break
-            self.nrejected += 1
-            h *= (max(kernels.MIN_FACTOR, kernels.SAFETY * err ** (-1.0 / 8.0))
-                  if math.isfinite(err) else kernels.MIN_FACTOR)
-        y, f = self._ynew.copy(), self._fnew.copy()
-        self.project(y, f)
-        self._y_old, self._f_old, self._h_old = self.y, self.f, h
-        self._t_old_step = self.t
-        self._dense_ready = False
-        self.y, self.f = y, f
-        self.t = t_limit if clipped else self.t + h
-        fac = (kernels.MAX_FACTOR if err == 0.0
-               else min(kernels.MAX_FACTOR, kernels.SAFETY * err ** (-1.0 / 8.0)))
-        self._h_next = max(h * fac, self._h_next if clipped else 0.0)
-        return True, None
-
-    def dense_output(self, t: float) -> np.ndarray:
-        """State at ``t`` inside the last step (7th-order interpolant, 3 more evaluations)."""
-        if self._y_old is None:
-            raise RuntimeError('Dense output is available only after a step.')
-        t0, h = self._t_old_step, self._h_old
-        if not (t0 <= t <= self.t):
-            raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
-        if not self._dense_ready:
-            rk_generated.dop853_dense(self.kind, self.P, self._y_old, self.y, self._f_old,
-                                      self.f, h, self._K, self._ytmp, self._F)
-            self.nfev += 3
-            self._dense_ready = True
-        out = np.empty(self.model.n)
-        rk_generated.dop853_eval(self.kind, self._F, self._y_old, (t - t0) / h, out)
-        return out
-
-    def _run(self, t_eval, Y, counts):
-        return kernels.dop853_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
-                                  self.atol, self.h_max, self._h_next, self.renormalize,
-                                  self.max_steps - self.nsteps, Y, counts)
-
-
-class Verner(Integrator):
-    """Verner's most efficient pair p(p-1) with its order-p interpolant (tableaux.VERNER).
-
-    Adaptive, error control in the RMS norm as dop853 (the p-1 formula's estimate, step
-    exponent 1/p), the derivative at the end of a step is the next step's first stage; a
-    sample inside a step costs the interpolant's extra stages, so steps land on samples when
-    that is cheaper (``kernels.land_step``). The kernels are generated straight-line code
-    (:mod:`~.rk_codegen`). Reference: Verner, Numer. Algorithms 53 (2010) 383-396.
+    Adaptive, error control in the RMS norm (step exponent 1/order), the derivative at the
+    end of a step is the next step's first stage; a sample inside a step costs the
+    interpolant's extra stages, so :meth:`run` lands steps on samples when that is cheaper.
+    :meth:`sizes` gives the evaluations a step, the rows of the stages' array and the
+    interpolant's coefficients.
     """
 
     adaptive = True
     default_rtol = 1e-10
     default_atol = 1e-12
 
+    @classmethod
+    def sizes(cls) -> tuple[int, int, int]:  # pragma: no cover
+        """Return (stages a step, stages with the interpolant's, interpolant coefficients)."""
+        raise NotImplementedError
+
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        pair = tb.VERNER[self.name]
         n = self.model.n
-        self._kstep = getattr(rk_generated, f'{self.name}_step')
-        self._kdense = getattr(rk_generated, f'{self.name}_dense')
-        self._keval = getattr(rk_generated, f'{self.name}_eval')
-        self._krun = getattr(rk_generated, f'{self.name}_run')
-        self._s = pair.n_stages
-        self._n_extra = pair.A.shape[0] - pair.n_stages - 1
-        self._K = np.empty((pair.A.shape[0], n))
-        self._F = np.empty((pair.order, n))
+        self._s, rows, coefs = self.sizes()
+        self._n_extra = rows - self._s - 1
+        gen = kernels.rk_generated
+        self._kstep = getattr(gen, f'{self.name}_step')
+        self._kdense = getattr(gen, f'{self.name}_dense')
+        self._keval = getattr(gen, f'{self.name}_eval')
+        self._krun = getattr(gen, f'{self.name}_run')
+        self._K = np.empty((rows, n))
+        self._F = np.empty((coefs, n))
         self._ytmp = np.empty(n)
         self._ynew = np.empty(n)
         self._fnew = np.empty(n)
@@ -256,7 +191,7 @@ class Verner(Integrator):
                   if math.isfinite(err) else kernels.MIN_FACTOR)
         y, f = self._ynew.copy(), self._fnew.copy()
         self.project(y, f)
-        self._y_old, self._h_old, self._t_old_step = self.y, h, self.t
+        self._y_old, self._f_old, self._h_old, self._t_old_step = self.y, self.f, h, self.t
         self._dense_ready = False
         self.y, self.f = y, f
         self.t = t_limit if clipped else self.t + h
@@ -265,15 +200,19 @@ class Verner(Integrator):
         self._h_next = max(h * fac, self._h_next if clipped else 0.0)
         return True, None
 
+    def _dense(self, h):
+        """Compute the interpolant's coefficients over the last step (its extra stages)."""
+        self._kdense(self.kind, self.P, self._y_old, h, self._K, self._ytmp, self._F)
+
     def dense_output(self, t: float) -> np.ndarray:
-        """State at ``t`` inside the last step (the order-p interpolant, its extra stages)."""
+        """State at ``t`` inside the last step (the interpolant: its extra evaluations)."""
         if self._y_old is None:
             raise RuntimeError('Dense output is available only after a step.')
         t0, h = self._t_old_step, self._h_old
         if not (t0 <= t <= self.t):
             raise ParameterError(f't must lie in the last step [{t0}, {self.t}], got {t!r}')
         if not self._dense_ready:
-            self._kdense(self.kind, self.P, self._y_old, h, self._K, self._ytmp, self._F)
+            self._dense(h)
             self.nfev += self._n_extra
             self._dense_ready = True
         out = np.empty(self.model.n)
@@ -284,6 +223,44 @@ class Verner(Integrator):
         return self._krun(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol,
                           self.h_max, self._h_next, self.renormalize,
                           self.max_steps - self.nsteps, Y, counts)
+
+
+class DOP853(EmbeddedRK):
+    """Dormand-Prince 8(5,3): adaptive, error control in the RMS norm, dense output.
+
+    12 evaluations a step, 3 more for the 7th-order dense output. In :meth:`run`, a step
+    that reaches exactly one sample time and would end within a factor 2/3 to 1.1 of it
+    ends on it instead (``kernels.LAND_SHRINK``, ``LAND_STRETCH``): that sample needs no
+    dense output, which costs about half a step.
+    References: Hairer, Norsett, Wanner I, sec. II.10; scipy's DOP853 (same control).
+    """
+
+    name = 'dop853'
+    order = 8
+
+    @classmethod
+    def sizes(cls) -> tuple[int, int, int]:
+        """Return (12, 16, 7): 12 stages a step, 3 more and 7 coefficients for the dense output."""
+        return 12, 16, 7
+
+    def _dense(self, h):
+        kernels.rk_generated.dop853_dense(self.kind, self.P, self._y_old, self.y, self._f_old,
+                                          self.f, h, self._K, self._ytmp, self._F)
+
+
+class Verner(EmbeddedRK):
+    """Verner's most efficient pair p(p-1) with its order-p interpolant (tableaux.VERNER).
+
+    Adaptive, error control in the RMS norm as dop853 (the p-1 formula's estimate, step
+    exponent 1/p); steps land on samples when that is cheaper than the interpolant
+    (``kernels.land_step``). Reference: Verner, Numer. Algorithms 53 (2010) 383-396.
+    """
+
+    @classmethod
+    def sizes(cls) -> tuple[int, int, int]:
+        """Return the pair's (stages a step, stages with the interpolant's, order)."""
+        pair = tb.VERNER[cls.name]
+        return pair.n_stages, pair.A.shape[0], pair.order
 
 
 class Vern7(Verner):
@@ -307,7 +284,7 @@ class Vern9(Verner):
     order = 9
 
 
-class Gauss6(Integrator):
+class Gauss6(FixedStepRK):
     """3-stage Gauss-Legendre collocation, order 6, fixed step (default 0.1 / model rate).
 
     Symmetric and symplectic; preserves quadratic invariants exactly, so |q| = 1 needs no
@@ -323,33 +300,6 @@ class Gauss6(Integrator):
     step_factor = 0.1
     max_iter = 60
     A, B, C = tb.GAUSS6_A, tb.GAUSS6_B, tb.GAUSS6_C
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        n = self.model.n
-        self._K = np.empty((3, n))
-        self._ytmp = np.empty(n)
-        self._ynew = np.empty(n)
-
-    def _step_impl(self, t_limit):
-        h = self.h
-        clipped = self.t + h * (1.0 + 1e-9) >= t_limit
-        if clipped:
-            h = t_limit - self.t
-        ne = kernels.gauss_step(self.kind, self.P, self.y, self.f, h, self.A, self.B,
-                                self._K, self._ytmp, self._ynew, self.max_iter)
-        if ne < 0:
-            return False, STATUS_MESSAGES[-4]
-        self.nfev += ne
-        self.y = self._ynew.copy()
-        self.f = self._rhs(self.y)
-        self.t = t_limit if clipped else self.t + h
-        return True, None
-
-    def _run(self, t_eval, Y, counts):
-        return kernels.gauss_run(self.kind, self.P, self.y, self.t, t_eval, self.h, self.A,
-                                 self.B, self.max_steps - self.nsteps, self.max_iter, Y,
-                                 counts)
 
 
 class Rodas4(Integrator):
@@ -417,7 +367,7 @@ class Rodas4(Integrator):
                                  tb.RODAS4_M, tb.RODAS4_GAMMA, Y, counts)
 
 
-class Radau9(Integrator):
+class Radau9(LoopStepped):
     """Radau IIA, 5 stages, order 9: L-stable, stiffly accurate, adaptive (:mod:`~.radau`).
 
     The stage equations are solved by simplified Newton iterations with the exact Jacobian
@@ -435,35 +385,11 @@ class Radau9(Integrator):
     #: the stage iteration converges to at least this relative level (radau.ITER_RTOL_MAX)
     iter_rtol_max = radau.ITER_RTOL_MAX
 
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._h_next = 0.0
-        self._ylast = np.empty(self.model.n)
-
-    def _call(self, t_eval, Y, counts, max_steps):
-        status = radau.radau_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol,
-                                 self.atol, self.h_max, self._h_next, self.renormalize,
-                                 max_steps, tb.RADAU5_A, tb.RADAU5_AINV, tb.RADAU5_C,
-                                 tb.RADAU5_BH, tb.RADAU5_GAMMA0, self.iter_rtol_max, Y,
-                                 counts, self._ylast)
-        self._h_next = counts[3]
-        return status
-
-    def _step_impl(self, t_limit):
-        counts = np.zeros(6)
-        Y = np.empty((1, self.model.n))
-        status = self._call(np.array([t_limit]), Y, counts, 1)
-        self.nfev += int(counts[0])
-        self.nrejected += int(counts[2])
-        if status not in (kernels.OK, kernels.BUDGET) or counts[1] < 1:
-            return False, STATUS_MESSAGES[status if status < 0 else -1]
-        self.t = t_limit if status == kernels.OK else float(counts[5])
-        self.y = self._ylast.copy()
-        self.f = self._rhs(self.y)
-        return True, None
-
-    def _run(self, t_eval, Y, counts):
-        return self._call(t_eval, Y, counts, self.max_steps - self.nsteps)
+    def _loop(self, t_eval, Y, counts, max_steps):
+        return radau.radau_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol,
+                               self.h_max, self._h_next, self.renormalize, max_steps,
+                               tb.RADAU5_A, tb.RADAU5_AINV, tb.RADAU5_C, tb.RADAU5_BH,
+                               tb.RADAU5_GAMMA0, self.iter_rtol_max, Y, counts, self._ylast)
 
 
 class Split8(Integrator):
@@ -571,11 +497,8 @@ def method_cost(name: str, rate: float, tol: float, sample_rate: float = 0.0) ->
         i = max(i, 0)
     w = (x - lev[i]) / (lev[i + 1] - lev[i])
     steps = rate * math.exp(val[i] + w * (val[i + 1] - val[i]))
-    if name == 'dop853':
-        s, extra = 12, 3
-    else:
-        pair = tb.VERNER[name]
-        s, extra = pair.n_stages, pair.A.shape[0] - pair.n_stages - 1
+    s, rows, _ = METHODS[name].sizes()
+    extra = rows - s - 1
     dense = steps if steps < sample_rate else LANDED_DENSE * sample_rate
     return steps * (s + STEP_OVERHEAD) + dense * extra
 

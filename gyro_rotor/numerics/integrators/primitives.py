@@ -6,7 +6,7 @@ right-hand side :func:`rhs` chosen at compile time by the type of ``kind``,
 :func:`state_size`, the projection hook :func:`normalize_quaternion`, the status codes
 (:class:`Status` and its plain int constants OK, UNDERFLOW, ...), the step size control
 constants, :func:`initial_step`, :func:`land_step`, :func:`all_finite` and the small LU
-solver. The run loops (:mod:`~.kernels`, the generated :mod:`~.rk_generated`,
+solver. The run loops (:mod:`~.kernels`, the generated ones of :mod:`~.rk_codegen`,
 :mod:`~.radau`, :mod:`~.radau_jac`, :mod:`~.splitting`) import them from here; this
 module imports none of them, so the import graph has no circle (issue 25).
 
@@ -38,7 +38,8 @@ __all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind'
            'Status', 'OK', 'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY',
            'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'pack_params',
            'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'initial_step',
-           'land_step', 'equal_steps', 'lu_factor', 'lu_solve']
+           'land_step', 'land_on_sample', 'equal_steps', 'store_samples', 'start_run',
+           'finish_run', 'too_small', 'clip_to_sample', 'lu_factor', 'lu_solve']
 
 
 class FullKind(enum.IntEnum):
@@ -282,6 +283,22 @@ def land_step(t_eval, k, t, h, h_max, dense_cost):
 
 
 @njit(cache=True, error_model='numpy')
+def land_on_sample(t_eval, k, t, h, h_max):
+    """Return the step from t that ends exactly on the sample t_eval[k], or 0.0 (DOP853's rule).
+
+    The step lands when the sample is the only one the step h reaches and the step that
+    lands on it is between LAND_SHRINK and LAND_STRETCH times h (and not longer than h_max).
+    """
+    nt = t_eval.shape[0]
+    if k >= nt:
+        return 0.0
+    d = t_eval[k] - t
+    if not (LAND_SHRINK * h <= d <= LAND_STRETCH * h and d <= h_max and d > 0.0):
+        return 0.0
+    return d if k + 1 >= nt or t_eval[k + 1] > t + h else 0.0
+
+
+@njit(cache=True, error_model='numpy')
 def equal_steps(span, h_max):
     """Return the fewest equal steps no longer than ``h_max`` that cover ``span`` (at least 1).
 
@@ -293,6 +310,65 @@ def equal_steps(span, h_max):
     if m < 1:
         m = 1
     return m
+
+
+@njit(cache=True, error_model='numpy')
+def store_samples(t_eval, k, t, y, Y_out):
+    """Copy ``y`` into the rows of ``Y_out`` of the samples t_eval[k], ... up to ``t``.
+
+    Returns the index of the first sample after ``t``.
+    """
+    while k < t_eval.shape[0] and t_eval[k] <= t:
+        for j in range(y.shape[0]):
+            Y_out[k, j] = y[j]
+        k += 1
+    return k
+
+
+@njit(cache=True, error_model='numpy')
+def start_run(kind, P, y, f, rtol, atol, order, h_max, h_init, ytmp, ftmp):
+    """Evaluate ``f`` = f(y) and choose the first step of an adaptive run of ``order``.
+
+    Returns (h, nfev, status): ``h_init`` if positive, else :func:`initial_step`; status
+    NONFINITE for a non-finite derivative (a singular state ends the run at once), else OK.
+    """
+    rhs(kind, y, P, f)
+    status = OK if all_finite(f) else NONFINITE
+    if h_init > 0.0:
+        return h_init, 1, status
+    return initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp), 2, status
+
+
+@njit(cache=True, error_model='numpy')
+def finish_run(counts, status, nfev, nsteps, nrej, h):
+    """Write (nfev, nsteps, rejected, step size) into ``counts`` and return ``status``."""
+    counts[0] = nfev
+    counts[1] = nsteps
+    counts[2] = nrej
+    counts[3] = h
+    return status
+
+
+@njit(cache=True, error_model='numpy')
+def too_small(t, h):
+    """Return True if the step h from t is below 10 spacings of the numbers at t (or NaN)."""
+    return not h >= 10.0 * abs(math.nextafter(t, math.inf) - t)
+
+
+@njit(cache=True, error_model='numpy')
+def clip_to_sample(t_eval, k, t, h, h_max, t_end):
+    """Return (h, h_free, clipped, t_next): the step at most h_max, clipped to the next sample.
+
+    ``h_free`` is the step before clipping, ``t_next`` the sample t_eval[k] (or ``t_end``);
+    a clipped step ends exactly on it.
+    """
+    if h > h_max:
+        h = h_max
+    h_free = h
+    t_next = t_eval[k] if k < t_eval.shape[0] else t_end
+    if t + h >= t_next:
+        return t_next - t, h_free, True, t_next
+    return h, h_free, False, t_next
 
 
 @njit(cache=True, error_model='numpy')

@@ -25,10 +25,11 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
-                                                        MAX_FACTOR, MIN_FACTOR, njit, NONFINITE,
-                                                        normalize_quaternion, OK, rhs, SAFETY,
-                                                        state_size, UNDERFLOW)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, clip_to_sample,
+                                                        finish_run, MAX_FACTOR, MIN_FACTOR, njit,
+                                                        NONFINITE, normalize_quaternion, OK, rhs,
+                                                        SAFETY, start_run, state_size,
+                                                        store_samples, too_small, UNDERFLOW)
 import numpy as np
 
 __all__ = ['stiff_direction', 'radau_run', 'extrapolate', 'MAX_ITER']
@@ -195,36 +196,16 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     Tm = np.empty((s, s))
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
-    nfev = 0
     nsteps = 0
     nrej = 0
-    kk = 0
-    while kk < t_eval.shape[0] and t_eval[kk] <= t:
-        for j in range(n):
-            Y_out[kk, j] = y[j]
-        kk += 1
-    rhs(kind, y, P, f)
-    nfev += 1
-    if h_init > 0.0:
-        h = h_init
-    else:
-        h = initial_step(kind, P, y, f, rtol, atol, 5, h_max, ytmp, ftmp)
-        nfev += 1
+    kk = store_samples(t_eval, 0, t, y, Y_out)
+    h, nfev, status = start_run(kind, P, y, f, rtol, atol, 5, h_max, h_init, ytmp, ftmp)
     h_old = 0.0
-    # a non-finite derivative at the start (a singular state) ends the run at once
-    status = OK if all_finite(f) else NONFINITE
     while status == OK and t < t_end:
-        if not h >= 10.0 * abs(math.nextafter(t, math.inf) - t):   # NaN too
+        if too_small(t, h):
             status = UNDERFLOW
             break
-        if h > h_max:
-            h = h_max
-        h_free = h
-        clipped = False
-        t_next = t_eval[kk] if kk < t_eval.shape[0] else t_end
-        if t + h >= t_next:
-            h = t_next - t
-            clipped = True
+        h, h_free, clipped, t_next = clip_to_sample(t_eval, kk, t, h, h_max, t_end)
         if h_old > 0.0:
             extrapolate(C, Zp, h / h_old, Z)
         else:
@@ -276,10 +257,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         if not all_finite(y):
             status = NONFINITE
             break
-        while kk < t_eval.shape[0] and t_eval[kk] <= t:
-            for j in range(n):
-                Y_out[kk, j] = y[j]
-            kk += 1
+        kk = store_samples(t_eval, kk, t, y, Y_out)
         # the next step before the budget check: a caller that steps one at a time
         # (max_steps = 1, the live stepper) resumes with it, not with this step's size
         fac = MAX_FACTOR if e == 0.0 else min(MAX_FACTOR, SAFETY * e ** (-1.0 / (s + 1)))
@@ -287,10 +265,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
         if nsteps >= max_steps:
             status = BUDGET
             break
-    counts[0] = nfev
-    counts[1] = nsteps
-    counts[2] = nrej
-    counts[3] = h
+    finish_run(counts, status, nfev, nsteps, nrej, h)
     counts[5] = t
     for j in range(n):
         y_last[j] = y[j]

@@ -32,10 +32,12 @@ import math
 
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import tableaux as tb
-from gyro_rotor.numerics.integrators.base import Integrator, STATUS_MESSAGES
-from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, initial_step,
-                                                        lu_factor, lu_solve, MIN_FACTOR, njit,
-                                                        NONFINITE, OK, rhs, UNDERFLOW)
+from gyro_rotor.numerics.integrators.base import LoopStepped
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, clip_to_sample,
+                                                        finish_run, lu_factor, lu_solve,
+                                                        MIN_FACTOR, njit, NONFINITE, OK, rhs,
+                                                        start_run, store_samples, too_small,
+                                                        UNDERFLOW)
 from gyro_rotor.numerics.integrators.radau import extrapolate
 import numpy as np
 
@@ -110,6 +112,18 @@ def _factor(J, h, mu_r, mu_c, LR, LC, pr, pc):
 
 
 @njit(cache=True, error_model='numpy')
+def _apply(M, X, out):
+    """Set ``out`` = M X for the s x s matrix M and the stages X (s, n): Z = T W, W = T^-1 Z."""
+    s = M.shape[0]
+    for i in range(s):
+        for m in range(X.shape[1]):
+            acc = 0.0
+            for j in range(s):
+                acc += M[i, j] * X[j, m]
+            out[i, m] = acc
+
+
+@njit(cache=True, error_model='numpy')
 def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, ytmp, br,
             bc):
     """Simplified Newton iterations on the stages (start values in Z).
@@ -121,12 +135,7 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
     s = C.shape[0]
     n = y.shape[0]
     npair = mu_c.shape[0]
-    for i in range(s):
-        for m in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += TI[i, j] * Z[j, m]
-            W[i, m] = acc
+    _apply(TI, Z, W)
     norm_old = -1.0
     rate = 1.0
     for it in range(NEWTON_MAXITER):
@@ -174,12 +183,7 @@ def _newton(f, P, y, h, C, T, TI, mu_r, mu_c, LR, LC, pr, pc, sc, tol, Z, W, F, 
             for p in range(npair):
                 W[1 + 2 * p, m] += bc[p, m].real
                 W[2 + 2 * p, m] += bc[p, m].imag
-        for i in range(s):
-            for m in range(n):
-                acc = 0.0
-                for j in range(s):
-                    acc += T[i, j] * W[j, m]
-                Z[i, m] = acc
+        _apply(T, W, Z)
         if norm == 0.0 or (norm_old >= 0.0 and rate / (1.0 - rate) * norm < tol):
             return it + 1, rate
         norm_old = norm
@@ -238,24 +242,12 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
     pc = np.zeros((npair, n), dtype=np.int64)
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
-    nfev = 0
     njev = 0
     nsteps = 0
     nrej = 0
-    kk = 0
-    while kk < t_eval.shape[0] and t_eval[kk] <= t:
-        for j in range(n):
-            Y_out[kk, j] = y[j]
-        kk += 1
-    rhs(f, y, P, fy)
-    nfev += 1
-    if h_init > 0.0:
-        h = h_init
-    else:
-        h = initial_step(f, P, y, fy, rtol, atol, s, h_max, ytmp, ftmp)
-        nfev += 1
+    kk = store_samples(t_eval, 0, t, y, Y_out)
+    h, nfev, status = start_run(f, P, y, fy, rtol, atol, s, h_max, h_init, ytmp, ftmp)
     tol = max(10.0 * 2.220446049250313e-16 / rtol, min(0.03, math.sqrt(rtol)))
-    status = OK if all_finite(fy) else NONFINITE
     jac(y, P, J)
     njev += 1
     jac_current = True
@@ -264,17 +256,10 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
     err_old = -1.0
     rejected = False
     while status == OK and t < t_end:
-        if not h >= 10.0 * abs(math.nextafter(t, math.inf) - t):   # NaN too
+        if too_small(t, h):
             status = UNDERFLOW
             break
-        if h > h_max:
-            h = h_max
-        h_free = h
-        clipped = False
-        t_next = t_eval[kk] if kk < t_eval.shape[0] else t_end
-        if t + h >= t_next:
-            h = t_next - t
-            clipped = True
+        h, h_free, clipped, t_next = clip_to_sample(t_eval, kk, t, h, h_max, t_end)
         # simplified Newton: the factors of h_lu serve steps h in [h_lu / KEEP_STEP, h_lu]
         if not (h_lu > 0.0 and h_lu / KEEP_STEP <= h <= h_lu):
             if not _factor(J, h, mu_r, mu_c, LR, LC, pr, pc):
@@ -333,10 +318,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
         if not (all_finite(y) and all_finite(fy)):
             status = NONFINITE
             break
-        while kk < t_eval.shape[0] and t_eval[kk] <= t:
-            for m in range(n):
-                Y_out[kk, m] = y[m]
-            kk += 1
+        kk = store_samples(t_eval, kk, t, y, Y_out)
         # Gustafsson's predictive controller (as scipy's Radau)
         if err_old < 0.0 or e == 0.0 or h_old == 0.0:
             mult = 1.0
@@ -365,10 +347,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
         if nsteps >= max_steps:
             status = BUDGET
             break
-    counts[0] = nfev
-    counts[1] = nsteps
-    counts[2] = nrej
-    counts[3] = h
+    finish_run(counts, status, nfev, nsteps, nrej, h)
     counts[4] = njev
     counts[5] = t
     for m in range(n):
@@ -379,7 +358,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
 _A, _C, _T, _TI, _MU_R, _MU_C, _E = tableau(STAGES)
 
 
-class Radau9Jac(Integrator):
+class Radau9Jac(LoopStepped):
     """Radau IIA, 5 stages, order 9, with the exact generated Jacobian (module doc).
 
     For generated systems only (:class:`gyro_rotor.numerics.kernel_system.KernelSystem`: its
@@ -401,29 +380,8 @@ class Radau9Jac(Integrator):
                                  f'system, not {getattr(model, "name", model)!r}')
         super().__init__(model, *args, **kwargs)
         self.jac = model.kernel_jac
-        self._h_next = 0.0
-        self._ylast = np.empty(self.model.n)
 
-    def _call(self, t_eval, Y, counts, max_steps):
-        status = radau_jac_run(self.kind, self.jac, self.P, self.y, self.t, t_eval, self.rtol,
-                               self.atol, self.h_max, self._h_next, max_steps, _A, _C, _T,
-                               _TI, _MU_R, _MU_C, _E, Y, counts, self._ylast)
-        self._h_next = counts[3]
-        return status
-
-    def _step_impl(self, t_limit):
-        counts = np.zeros(6)
-        Y = np.empty((1, self.model.n))
-        status = self._call(np.array([t_limit]), Y, counts, 1)
-        self.nfev += int(counts[0])
-        self.njev += int(counts[4])
-        self.nrejected += int(counts[2])
-        if status not in (OK, BUDGET) or counts[1] < 1:
-            return False, STATUS_MESSAGES[status if status < 0 else -1]
-        self.t = t_limit if status == OK else float(counts[5])
-        self.y = self._ylast.copy()
-        self.f = self._rhs(self.y)
-        return True, None
-
-    def _run(self, t_eval, Y, counts):
-        return self._call(t_eval, Y, counts, self.max_steps - self.nsteps)
+    def _loop(self, t_eval, Y, counts, max_steps):
+        return radau_jac_run(self.kind, self.jac, self.P, self.y, self.t, t_eval, self.rtol,
+                             self.atol, self.h_max, self._h_next, max_steps, _A, _C, _T, _TI,
+                             _MU_R, _MU_C, _E, Y, counts, self._ylast)

@@ -29,8 +29,8 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.core.model import drive_law, tilt_twist_torque
-from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, equal_steps, njit,
-                                                        NONFINITE, OK)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, equal_steps,
+                                                        finish_run, njit, NONFINITE, OK)
 
 __all__ = ['kick', 'drift', 'composed_step', 'split_run']
 
@@ -149,6 +149,7 @@ def split_run(P, y0, t0, t_eval, h_max, W, max_steps, Y_out, counts):
     ``counts`` = (flow evaluations as kicks + drifts, nsteps).
     """
     n = y0.shape[0]
+    flows = 2 * W.shape[0] + 1
     y = y0.copy()
     t = t0
     nsteps = 0
@@ -161,16 +162,10 @@ def split_run(P, y0, t0, t_eval, h_max, W, max_steps, Y_out, counts):
                 composed_step(P, y, h, W)
                 nsteps += 1
                 if not all_finite(y):
-                    counts[0] = nsteps * (2 * W.shape[0] + 1)
-                    counts[1] = nsteps
-                    return NONFINITE
+                    return finish_run(counts, NONFINITE, nsteps * flows, nsteps, 0, 0.0)
                 if nsteps >= max_steps:
-                    counts[0] = nsteps * (2 * W.shape[0] + 1)
-                    counts[1] = nsteps
-                    return BUDGET
+                    return finish_run(counts, BUDGET, nsteps * flows, nsteps, 0, 0.0)
             t = t_eval[k]
         for j in range(n):
             Y_out[k, j] = y[j]
-    counts[0] = nsteps * (2 * W.shape[0] + 1)
-    counts[1] = nsteps
-    return OK
+    return finish_run(counts, OK, nsteps * flows, nsteps, 0, 0.0)

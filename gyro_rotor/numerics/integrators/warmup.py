@@ -3,8 +3,10 @@
 ``python -m gyro_rotor.numerics.integrators.warmup`` (run by ``bootstrap.sh`` after an install)
 runs every method briefly through both of its paths (the compiled ``run`` loop of
 ``integrate`` and the ``advance_to`` stepping of the nodes), and the ensemble, so that
-neither the first demo nor a node started by a test waits for the JIT compiler. Without
-numba it does nothing useful but does no harm.
+neither the first demo nor a node started by a test waits for the JIT compiler. Importing
+the integrators writes the generated Runge-Kutta kernels into the cache first, if they are
+not there yet (:func:`~.rk_codegen.load`). Without numba it does nothing useful but does
+no harm.
 """
 
 from __future__ import annotations
