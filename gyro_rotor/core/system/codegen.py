@@ -32,7 +32,7 @@ import functools
 from pathlib import Path
 import time
 
-from gyro_rotor.cache import cache_root, import_file, note, write_atomic
+from gyro_rotor.core.cache import cache_root, import_file, note, write_atomic
 from gyro_rotor.core.system.equations import derive, Equations
 from gyro_rotor.core.system.system_file import RotorSystem
 import numpy as np
@@ -75,7 +75,10 @@ class _Printer(PythonCodePrinter):
 
 
 def cache_dir() -> Path:
-    """Directory of the generated modules (``systems`` in :func:`gyro_rotor.cache.cache_root`)."""
+    """Directory of the generated modules (folder ``systems`` of the cache root).
+
+    The cache root: :func:`gyro_rotor.core.cache.cache_root`.
+    """
     return cache_root() / 'systems'
 
 

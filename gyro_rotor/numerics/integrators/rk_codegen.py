@@ -9,7 +9,7 @@ zeros skipped, and the error norm computed with one division per component. The 
 run loop of DOP853 and of the Verner pairs is one template (:data:`_RUN`).
 
 :func:`load` writes the generated module into the cache directory
-(:func:`gyro_rotor.cache.cache_root`, folder ``kernels``) under the hash of its text, the
+(:func:`gyro_rotor.core.cache.cache_root`, folder ``kernels``) under the hash of its text, the
 first time a machine imports the integrators, and imports it from there, so that numba's
 ``cache=True`` keeps its machine code beside it; :mod:`~.kernels` holds the module as
 ``kernels.rk_generated``.
@@ -24,7 +24,7 @@ import shutil
 import tempfile
 import textwrap
 
-from gyro_rotor.cache import cache_root, import_file, note, write_atomic
+from gyro_rotor.core.cache import cache_root, import_file, note, write_atomic
 from gyro_rotor.numerics.integrators import tableaux as tb
 
 __all__ = ['generate', 'load']
