@@ -43,7 +43,7 @@ __all__ = ['CompiledSystem', 'compile_system', 'pack', 'cache_dir', 'GENERATOR_V
            'RHS_TYPE', 'JAC_TYPE']
 
 #: bump when the generated code changes, so that old cache entries are not reused
-GENERATOR_VERSION = 5
+GENERATOR_VERSION = 6
 #: parameters per drive in P: K_S, K_D, Omega0, pole_pairs
 DRIVE_SLOTS = 4
 
@@ -106,17 +106,22 @@ def _cse_lines(names: list[str], exprs: list, indent: str, printer: _Printer) ->
     return lines
 
 
-def _drive_lines(eq: Equations, nc: int, indent: str) -> list[str]:
-    lines = [f'{indent}diss = 0.0']
+def _drive_lines(eq: Equations, nc: int, indent: str, *, slope: bool = False) -> list[str]:
+    """Return the drive law Q_k(z_k, zdot_k) of each rotor (eq. 8: linear, or sine law).
+
+    One text for the right-hand side and the Jacobian: ``slope`` adds dQ_k/dz_k (``Qz``).
+    """
+    lines = []
     for k in range(eq.m):
         base = nc + DRIVE_SLOTS * k
-        lines += [f'{indent}KS = P[{base}]', f'{indent}KD = P[{base + 1}]',
-                  f'{indent}pp = P[{base + 3}]',
-                  f'{indent}if pp != 0.0:',
-                  f'{indent}    Q{k} = -(KS / pp) * math.sin(pp * z{k}) - KD * v{eq.n + k}',
-                  f'{indent}else:',
-                  f'{indent}    Q{k} = -KS * z{k} - KD * v{eq.n + k}',
-                  f'{indent}diss += KD * v{eq.n + k} * v{eq.n + k}']
+        KS, KD, pp, v = f'KS{k}', f'KD{k}', f'pp{k}', f'v{eq.n + k}'
+        lines += [f'{indent}{KS} = P[{base}]', f'{indent}{KD} = P[{base + 1}]',
+                  f'{indent}{pp} = P[{base + 3}]',
+                  f'{indent}if {pp} != 0.0:',
+                  f'{indent}    Q{k} = -({KS} / {pp}) * math.sin({pp} * z{k}) - {KD} * {v}']
+        lines += [f'{indent}    Qz{k} = -{KS} * math.cos({pp} * z{k})'] if slope else []
+        lines += [f'{indent}else:', f'{indent}    Q{k} = -{KS} * z{k} - {KD} * {v}']
+        lines += [f'{indent}    Qz{k} = -{KS}'] if slope else []
     return lines
 
 
@@ -264,16 +269,7 @@ def _jac_source(system: RotorSystem, eq: Equations, pr: _Printer) -> str:
     names, exprs, dM, Fq, Fv = _jac_symbols(eq)
     ind = '    '
     body = _unpack_lines(eq, nc, ind) + _cse_lines(names, exprs, ind, pr)
-    for k in range(m):
-        base = nc + DRIVE_SLOTS * k
-        body += [f'{ind}KS{k} = P[{base}]', f'{ind}KD{k} = P[{base + 1}]',
-                 f'{ind}pp{k} = P[{base + 3}]',
-                 f'{ind}if pp{k} != 0.0:',
-                 f'{ind}    Q{k} = -(KS{k} / pp{k}) * math.sin(pp{k} * z{k}) - KD{k} * v{n + k}',
-                 f'{ind}    Qz{k} = -KS{k} * math.cos(pp{k} * z{k})',
-                 f'{ind}else:',
-                 f'{ind}    Q{k} = -KS{k} * z{k} - KD{k} * v{n + k}',
-                 f'{ind}    Qz{k} = -KS{k}']
+    body += _drive_lines(eq, nc, ind, slope=True)
     body += [f'{ind}Mb = np.empty(({N}, {N}))', f'{ind}dg = np.empty({N})',
              f'{ind}a = np.empty(({N}, 1))', f'{ind}G = np.zeros(({N}, {2 * N}))']
     body += [f'{ind}Mb[{i}, {j}] = M{i}_{j}' for i in range(N) for j in range(i + 1)]
@@ -310,6 +306,7 @@ def _source(system: RotorSystem, eq: Equations) -> str:
     exprs = [eq.Mbar[i, j] for i in range(N) for j in range(i + 1)] + list(eq.F)
     body = _unpack_lines(eq, nc, '    ') + _cse_lines(names, exprs, '    ', pr)
     body += _drive_lines(eq, nc, '    ')
+    body += ['    diss = 0.0'] + [f'    diss += KD{k} * v{n + k} * v{n + k}' for k in range(m)]
     body += [f'    F{n + k} = F{n + k} + Q{k}' for k in range(m)]
     body += _ldl_lines(N, '    ')
     body += [f'    out[{i}] = v{i}' for i in range(n)]
