@@ -158,14 +158,17 @@ def _names(value: Any, where: str, minimum: int) -> tuple:
     return tuple(value)
 
 
+def _check_mapping(doc: Any, keys, where: str, expected: str) -> None:
+    """Refuse a ``doc`` that is not a mapping, or that has a key not in ``keys`` (did you mean)."""
+    if not isinstance(doc, dict):
+        raise SystemFileError(f'{where}: expected a mapping with {expected}')
+    for key in doc:
+        if key not in keys:
+            raise SystemFileError(f"{where}: unknown key '{key}'{did_you_mean(str(key), keys)}")
+
+
 def _drive(entry: Any, where: str) -> Drive:
-    if not isinstance(entry, dict):
-        raise SystemFileError(f'{where}: expected a mapping with {", ".join(DRIVE_KEYS)}, '
-                              f'got {short(entry)}')
-    for key in entry:
-        if key not in DRIVE_KEYS:
-            hint = did_you_mean(str(key), DRIVE_KEYS)
-            raise SystemFileError(f"{where}: unknown key '{key}'{hint}")
+    _check_mapping(entry, DRIVE_KEYS, where, f'{", ".join(DRIVE_KEYS)}, got {short(entry)}')
     for key in ('K_S', 'K_D', 'Omega0'):
         if key not in entry:
             raise SystemFileError(f'{where}: {key} is missing')
@@ -253,13 +256,7 @@ def _check_numbers(system: RotorSystem, where: str) -> None:
 def system_from_mapping(doc: Any, path: str | None = None) -> RotorSystem:
     """Build a RotorSystem from the parsed YAML document (see module doc)."""
     where = f'system file {path}' if path else 'system'
-    if not isinstance(doc, dict):
-        raise SystemFileError(f'{where}: expected a mapping with the keys '
-                              f'{", ".join(SYSTEM_KEYS)}')
-    for key in doc:
-        if key not in SYSTEM_KEYS:
-            hint = did_you_mean(str(key), SYSTEM_KEYS)
-            raise SystemFileError(f"{where}: unknown key '{key}'{hint}")
+    _check_mapping(doc, SYSTEM_KEYS, where, f'the keys {", ".join(SYSTEM_KEYS)}')
     for key in SYSTEM_KEYS:
         if key not in doc and key != 'description':
             raise SystemFileError(f'{where}: the key {key} is missing')
