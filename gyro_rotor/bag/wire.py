@@ -22,6 +22,7 @@ the bag reader and the tools all take the layouts from here.
 from __future__ import annotations
 
 from enum import StrEnum
+import functools
 import struct
 from typing import NamedTuple
 
@@ -232,39 +233,46 @@ class _Cdr:
 _F64: dict[int, struct.Struct] = {}
 
 
-def energy_from_cdr(data: bytes) -> EnergyRow:
-    """Decode a serialized std_msgs/Float64MultiArray (layout and data).
+def _decoder(what: str):
+    """Make ``fn(reader)`` a decoder of bytes: a truncation raises one CdrError naming ``what``."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def decode(data: bytes):
+            try:
+                return fn(_Cdr(data))
+            except struct.error as err:
+                raise CdrError(f'{what} of {len(data)} bytes: {err}') from err
+        return decode
+    return wrap
+
+
+@_decoder('Float64MultiArray')
+def energy_from_cdr(r: _Cdr) -> EnergyRow:
+    """Decode a serialized std_msgs/Float64MultiArray (layout and data) from its bytes.
 
     Raises
     ------
     CdrError
         If the bytes are too short for what they announce.
     """
-    try:
-        r = _Cdr(data)
-        dims = []
-        for _ in range(r.u32()):
-            label = r.string()
-            dims.append(_Dim(label, r.u32(), r.u32()))
-        offset = r.u32()
-        return EnergyRow(_Layout(dims, offset), r.f64s())
-    except struct.error as err:
-        raise CdrError(f'Float64MultiArray of {len(data)} bytes: {err}') from err
+    dims = []
+    for _ in range(r.u32()):
+        label = r.string()
+        dims.append(_Dim(label, r.u32(), r.u32()))
+    offset = r.u32()
+    return EnergyRow(_Layout(dims, offset), r.f64s())
 
 
-def joints_from_cdr(data: bytes) -> JointRow:
-    """Decode a serialized sensor_msgs/JointState.
+@_decoder('JointState')
+def joints_from_cdr(r: _Cdr) -> JointRow:
+    """Decode a serialized sensor_msgs/JointState from its bytes.
 
     Raises
     ------
     CdrError
         If the bytes are too short for what they announce.
     """
-    try:
-        r = _Cdr(data)
-        stamp = _Stamp(r.i32(), r.u32())
-        header = _Header(stamp, r.string())
-        names = [r.string() for _ in range(r.u32())]
-        return JointRow(header, names, r.f64s(), r.f64s(), r.f64s())
-    except struct.error as err:
-        raise CdrError(f'JointState of {len(data)} bytes: {err}') from err
+    stamp = _Stamp(r.i32(), r.u32())
+    header = _Header(stamp, r.string())
+    names = [r.string() for _ in range(r.u32())]
+    return JointRow(header, names, r.f64s(), r.f64s(), r.f64s())
