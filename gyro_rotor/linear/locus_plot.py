@@ -22,6 +22,16 @@ COLORS = {'nutation': 'tab:blue', 'precession': 'tab:cyan', 'housing twist': 'ta
           'rotor-field coupling': 'tab:red', ZERO_ROOT: 'black'}
 
 
+def _frame(ax, scale: float, top: float) -> None:
+    """Draw the axes through 0 and frame the upper half plane to ``scale`` (``top`` x above)."""
+    ax.axvline(0.0, color='0.4', lw=0.8)
+    ax.axhline(0.0, color='0.4', lw=0.8)
+    ax.set_xlim(-1.15 * scale, 0.08 * scale)
+    ax.set_ylim(-0.04 * scale, top * scale)
+    ax.set_xlabel('Re lambda [1/s]')
+    ax.set_ylabel('Im lambda [rad/s]')
+
+
 def plot_root_locus(loc: RootLocus, path: str, *, title: str = '',
                     claims: ClaimsReport | None = None, K_D_mark: float | None = None) -> None:
     """Draw the upper half plane of the root locus over K_D and save it to ``path``.
@@ -78,12 +88,7 @@ def root_locus_figure(loc: RootLocus, *, title: str = '', claims: ClaimsReport |
         ax.plot(mt.lam, 0.0, 'D', color='tab:red', ms=7)
         ax.annotate(f'K_D* = {mt.K_D:.4g} ({mt.kind})', (mt.lam, 0.0),
                     textcoords='offset points', xytext=(6, 12 + 20 * i), color='tab:red')
-    ax.axvline(0.0, color='0.4', lw=0.8)
-    ax.axhline(0.0, color='0.4', lw=0.8)
-    ax.set_xlim(-1.15 * scale, 0.08 * scale)
-    ax.set_ylim(-0.04 * scale, 1.12 * scale)
-    ax.set_xlabel('Re lambda [1/s]')
-    ax.set_ylabel('Im lambda [rad/s]')
+    _frame(ax, scale, 1.12)
     ax.set_title(title or 'root locus over K_D (x: K_D = 0, o: K_D -> infinity)')
     fig.text(0.01, 0.005, f'K_D from 0 to {loc.K_D[-1]:.3g} N m s/rad (log grid); the fast '
              f'{loc.fast_label} root leaves to the left like -{loc.fast_gain:.4g} K_D',
@@ -311,12 +316,7 @@ def _draw_general_main(ax, d: _GeneralLocus, color: dict, title: str) -> None:
         ax.annotate(f'K_D* = {mt.K_D:.4g} ({mt.kind})', (mt.lam, 0.0),
                     textcoords='offset points', xytext=(8, 12 + 20 * i), color='tab:red',
                     fontsize=8, arrowprops={'arrowstyle': '-', 'color': 'tab:red', 'lw': 0.6})
-    ax.axvline(0.0, color='0.4', lw=0.8)
-    ax.axhline(0.0, color='0.4', lw=0.8)
-    ax.set_xlim(-1.15 * S, 0.08 * S)
-    ax.set_ylim(-0.04 * S, 1.15 * S)
-    ax.set_xlabel('Re lambda [1/s]')
-    ax.set_ylabel('Im lambda [rad/s]')
+    _frame(ax, S, 1.15)
     ax.set_title(title or 'root locus over K_D', fontsize=10)
     _ticks(ax)
     ax.grid(True, alpha=0.3)
