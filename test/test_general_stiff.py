@@ -143,7 +143,7 @@ def test_auto_and_the_stepper_use_radau9_with_the_generated_jacobian():
     assert np.abs(stepper.y - run.y[-1]).max() < 1e-7
 
 
-def test_live_general_simulation_runs_a_stiff_drive_with_radau9():
+def test_the_live_simulation_runs_a_stiff_drive_of_a_system_file_with_radau9():
     """The live path (rotor_sim's stepper): auto is radau9 at K_D = 1e4, the residual small."""
     from gyro_rotor.node_settings import NODE_KEYS
     from gyro_rotor.numerics.live import LiveSimulation
