@@ -34,16 +34,15 @@ def joint_names(scene) -> tuple:
     return scene.joint_names
 
 
-def start_joints(scene) -> tuple[tuple, tuple, float]:
-    """(positions, velocities, E*) that rotor_sim publishes for a scene at t = 0."""
-    model = scene.make_model()
+def start_joints(scene, model) -> tuple[tuple, tuple, float]:
+    """(positions, velocities, E*) that rotor_sim publishes for a scene (its model) at t = 0."""
     Y = np.asarray(scene.initial_state(model), dtype=float)[None, :]
     E = float(np.asarray(model.energy(Y)).reshape(-1)[0])
     pos, vel, _, _ = model.joints(Y, np.zeros((1, len(model.field_speeds()))))
     return tuple(float(v) for v in pos[0]), tuple(float(v) for v in vel[0]), E
 
 
-def energy_from_joints(scene, model, s: Sample) -> float:
+def energy_from_joints(model, s: Sample) -> float:
     """E* of a recorded sample's state by the scene's model (NaN where not rebuildable)."""
     if not s.joints:
         return math.nan
@@ -60,9 +59,11 @@ def _differs(a: float, b: float, angle: bool = False) -> bool:
     return not d <= TOL * max(1.0, abs(a), abs(b))
 
 
-def check_energy(scene, model, s: Sample) -> str | None:
-    """Why the sample's recorded E* is not the scene's E* of its state (None: it is)."""
-    E = energy_from_joints(scene, model, s)
+def check_energy(scene, s: Sample, E: float) -> str | None:
+    """Why the sample's recorded E* is not E, the scene's E* of its state (None: it is).
+
+    ``E``: :func:`energy_from_joints` of the sample (NaN: nothing to check).
+    """
     if not math.isfinite(E) or not math.isfinite(s.E_star):
         return None
     if _differs(E, s.E_star):
@@ -72,18 +73,17 @@ def check_energy(scene, model, s: Sample) -> str | None:
     return None
 
 
-def check_start(scene, s: Sample, names: tuple) -> str | None:
+def check_start(scene, model, s: Sample, names: tuple) -> str | None:
     """Why a run's first sample (k = 0) is not the scene's initial state (None: it is).
 
-    ``names``: the joint names (for the message).
+    ``model``: the scene's model; ``names``: the joint names (for the message).
     """
     if not s.joints:
         return None
-    pos, vel, E = start_joints(scene)
+    pos, vel, E = start_joints(scene, model)
     if len(pos) != len(s.positions) or len(vel) != len(s.velocities):
         return None
     diffs = []
-    model = scene.make_model()
     skip = model.singular_joints(pos)
     for i, (a, b) in enumerate(zip(s.positions, pos)):
         if i not in skip and _differs(a, b, angle=model.joint_angles):
@@ -115,15 +115,16 @@ class SceneFit:
     def on_start(self, s: Sample) -> None:
         """Check a sample that begins a run (k = 0 after a start or a reset)."""
         self.starts += 1
-        why = check_start(self.scene, s, self.names)
+        why = check_start(self.scene, self.model, s, self.names)
         if why and why not in self.problems:
             self.problems.append(why)
 
     def on_sample(self, s: Sample) -> None:
         """Check a sample's E* against the scene's E* of its state."""
-        why = check_energy(self.scene, self.model, s)
+        E = energy_from_joints(self.model, s)
+        why = check_energy(self.scene, s, E)
         if why is None:
-            self.energies += math.isfinite(energy_from_joints(self.scene, self.model, s))
+            self.energies += math.isfinite(E)
         elif why not in self.problems:
             self.problems.append(why)
 
