@@ -300,7 +300,7 @@ def test_general_eig_shows_round_off_as_zero(name, sets, capsys, tmp_path):
     rows = _eig_rows(out)
     assert rows
     for line in rows:
-        re_text = line[39:52].strip()      # the Re column (2 + 36 + 1 characters in)
+        re_text = line[43:56].strip()      # the Re column (2 + 40 + 1 characters in)
         if re_text != '0':
             assert abs(float(re_text)) > 1e-9, line           # never a round-off real part
         if re_text == '0' and 'zero root' not in line:

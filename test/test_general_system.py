@@ -566,8 +566,8 @@ def test_locus_unknown_drive_is_one_error_line(capsys):
 def test_tune_finds_a_better_common_K_D(capsys):
     assert main(['tune', 'twin_gimbal']) == 0
     out = capsys.readouterr().out
-    best = float(out.split('slowest reached mode decays at ')[1].split()[0])
-    at_scene = float(out.split('slowest reached decay ')[1].split()[0])
+    best = float(out.split('slowest decay rate ')[1].split()[0])
+    at_scene = float(out.split('scene K_D = 0.02, 0.02: rate ')[1].split()[0])
     assert best > at_scene > 0
 
 

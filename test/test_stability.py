@@ -454,7 +454,7 @@ def test_cli_refuses_unwritable_outputs_and_huge_grids(argv, msg, tmp_path, caps
     import gyro_rotor.cli.commands.locus as locus_cmd
     argv = [a.replace('{tmp}', str(tmp_path)) for a in argv]
     called = []
-    monkeypatch.setattr(eig_cmd, 'analyze', lambda *a, **k: called.append(1))
+    monkeypatch.setattr(eig_cmd, 'linearize_scene', lambda *a, **k: called.append(1))
     monkeypatch.setattr(locus_cmd, 'check_claims', lambda *a, **k: called.append(1))
     assert cli.main(argv) == 1
     assert msg in capsys.readouterr().err

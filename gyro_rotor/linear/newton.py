@@ -7,10 +7,12 @@ in the centrifuge's case): :func:`solve_steady` solves for (q, z) from a scene's
 
 from __future__ import annotations
 
+import dataclasses
+
 from gyro_rotor.core.scene import Scene
 import numpy as np
 
-__all__ = ['damped_newton', 'solve_steady']
+__all__ = ['damped_newton', 'solve_steady', 'steady_motions', 'SteadyMotions']
 
 
 def damped_newton(acc, u, tol: float, *, max_iter: int = 60,
@@ -62,3 +64,68 @@ def solve_steady(scene: Scene, *, max_iter: int = 50) -> tuple:
     x, r = damped_newton(acc, x, 1e-13 * max(1.0, model.rate()), max_iter=max_iter,
                          min_step=1e-4)
     return x[:n], x[n:], float(np.abs(r).max())
+
+
+@dataclasses.dataclass(frozen=True)
+class SteadyMotions:
+    """A scene's steady motions in words (:func:`steady_motions`).
+
+    ``head``: the parameters or the guess they come from; ``lines``: one per motion (and
+    note); ``found``: every motion asked for exists.
+    """
+
+    head: str
+    lines: list
+    found: bool
+
+
+def steady_motions(scene: Scene, theta0: float | None = None) -> SteadyMotions:
+    """Return the steady motions the scene's system offers.
+
+    The built-in centrifuge: solution I and solution II on both branches in closed form
+    (Magnus 1980, eqs. 20-22; ``theta0``: the tilt of II, default the scene's, else 0.1);
+    a system file: Newton from the scene's guess (:func:`solve_steady`).
+    """
+    return (_closed_form if scene.builtin else _from_guess)(scene, theta0)
+
+
+def _closed_form(scene: Scene, theta0: float | None) -> SteadyMotions:
+    """Solutions I and II (both branches) of the centrifuge, exact and by eq. (22)."""
+    from gyro_rotor.core.steady import steady_motion
+    from gyro_rotor.errors import NoSteadyMotionError
+    p = scene.params
+    if theta0 is None:
+        theta0 = scene.initial.theta0 if scene.initial.theta0 > 0 else 0.1
+    lines = ['I:  theta = 0, psidot = 0, rotor at Omega0 about the vertical, housing at rest']
+    found = True
+    for branch in (1, 2):
+        try:
+            sm = steady_motion(p, theta0, branch)
+        except NoSteadyMotionError as err:
+            lines.append(f'II branch {branch}: {err}')
+            found = False
+            continue
+        lines.append(f'{sm.name}: theta0 = {sm.theta0:.6g} rad, psidot0 = {sm.psidot0:.12g} '
+                     f'rad/s (exact); eq. (22) corrected: {sm.psidot0_eq22:.12g} rad/s; '
+                     f'relative difference {sm.relative_difference:+.3e}')
+    return SteadyMotions(f'Omega0 = {p.Omega0:g} rad/s, I = {p.I:g} kg m^2, C_R = {p.C_R:g}, '
+                         f'G s = {p.Gs:g} N m, c_theta = {p.c_theta:g} N m/rad', lines, found)
+
+
+def _from_guess(scene: Scene, theta0: float | None) -> SteadyMotions:
+    """Return the accelerations at the scene's guess and the steady motion Newton finds."""
+    import json
+    from gyro_rotor.core.scene import steady_residual
+    acc = steady_residual(scene)
+    names = [f'{c}_ddot' for c in scene.system.coordinates] + [
+        f'zddot_{r}' for r in scene.system.rotors]
+    q, z, res = solve_steady(scene)
+    ok = res <= 1e-9 * max(1.0, scene.make_model().rate())
+    lines = ['accelerations there: ' + ', '.join(f'{a} = {v:.3g}' for a, v in zip(names, acc)),
+             f'{"steady motion" if ok else "no steady motion found"} (Newton, qdot held): '
+             f'q = {q.tolist()}, z = {z.tolist()}, largest acceleration {res:.3g}']
+    if ok:
+        lines.append('for the scene: steady: {q: ' + json.dumps(q.tolist()) + ', z: '
+                     + json.dumps(z.tolist()) + '}')
+    return SteadyMotions(f'steady guess q = {list(scene.steady_q)}, qdot = '
+                         f'{list(scene.steady_qdot)}, z = {list(scene.steady_z)}', lines, ok)

@@ -28,14 +28,15 @@ from typing import Sequence
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linear.linearize import Coords, linearize, LinearSystem
+from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # noqa: F401
                                         spectrum, STRUCTURAL, TOL_RE_REL, TOL_SENS_REL, track,
                                         ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
-__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'spectrum', 'analyze',
+__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'Verdict', 'judge', 'spectrum',
+           'analyze',
            'analyze_scene',
            'track', 'sweep', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
@@ -65,7 +66,7 @@ class Mode:
     ``freq_hz`` = |Im lambda|/(2 pi); ``zeta`` = -Re lambda/|lambda|; ``tau`` = -1/Re lambda
     [s] (inf if Re >= 0); ``dRe_dKD`` = d Re(lambda)/d K_D at K_D = 0 [1/(N m s^2/rad)];
     ``reached_by_drive``: that sensitivity is strictly negative; ``kind`` a
-    :class:`ModeKind` (ZERO: the structural zero root).
+    :class:`ModeKind` (ZERO: the structural zero root); ``resolution`` the eigenvalue's.
     """
 
     name: str
@@ -77,6 +78,8 @@ class Mode:
     dRe_dKD: float
     kind: ModeKind
     eigenvalue_K_D0: complex
+    #: a |Re| within this is 0 (round-off; :mod:`gyro_rotor.linear.roundoff`)
+    resolution: float = 0.0
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""
@@ -198,7 +201,7 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
                 name=label, eigenvalue=lamv, freq_hz=abs(lamv.imag) / (2 * math.pi),
                 zeta=zeta,
                 tau=(-1.0 / re) if re < -tol_re else math.inf, reached_by_drive=reached,
-                dRe_dKD=dre, kind=kind, eigenvalue_K_D0=complex(lam0[j])))
+                dRe_dKD=dre, kind=kind, eigenvalue_K_D0=complex(lam0[j]), resolution=tol_re))
     out.sort(key=lambda m: (m.kind == ModeKind.ZERO, -m.eigenvalue.real))
     return out
 
@@ -227,15 +230,63 @@ def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
     return [0.0] + list(np.geomspace(lo, K_D, 6 * per_decade + 1))
 
 
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """The verdict of :func:`judge` about a list of modes."""
+
+    verdict: Stability
+    reason: str
+    spectral_abscissa: float
+    slowest_mode: str
+    marginal_modes: list
+    #: the resolution of the slowest mode's root (its |Re| within it prints as 0)
+    slowest_resolution: float = 0.0
+
+
+def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
+    """Judge modes: unstable, marginal or asymptotically stable, with the reason.
+
+    'unstable' if a root (other than a structural zero root) has Re beyond its
+    resolution; 'marginal' if one is on the imaginary axis within it (the reason names
+    the modes and whether the drive damping reaches them; ``undamped_drives``: every
+    K_D is 0); 'asymptotically stable' otherwise. A structural zero root (a cyclic
+    coordinate: a neighbouring steady motion of the family) is listed but not judged:
+    the paper's stability is in the velocities and the rotor angles. A complex pair
+    counts once (its root with Im >= 0).
+    """
+    ms = [m for m in ms if m.eigenvalue.imag >= -m.resolution]
+    judged = [m for m in ms if m.kind != ModeKind.ZERO]
+    absc = max((m.eigenvalue.real for m in judged), default=-math.inf)
+    top = max(judged, key=lambda m: m.eigenvalue.real) if judged else None
+    slowest, res = (top.name, top.resolution) if top else ('', 0.0)
+    unstable = [m for m in judged if m.eigenvalue.real > m.resolution]
+    marginal = [m for m in judged if abs(m.eigenvalue.real) <= m.resolution]
+    if unstable:
+        return Verdict(Stability.UNSTABLE, 'growing: ' + ', '.join(
+            f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)' for m in unstable),
+            float(absc), slowest, [], res)
+    if marginal:
+        parts = []
+        for m in marginal:
+            why = ('no drive damping (K_D = 0)' if undamped_drives and m.reached_by_drive
+                   else 'not reached by the drive damping (dRe/dK_D = 0 at K_D = 0; '
+                        "Hagedorn's exclusion)" if not m.reached_by_drive
+                   else 'on the imaginary axis')
+            parts.append(f'{m.name}: {why}')
+        return Verdict(Stability.MARGINAL, '; '.join(parts), float(absc), slowest,
+                       [m.name for m in marginal], res)
+    but = ' except the cyclic zero roots' if len(judged) < len(ms) else ''
+    return Verdict(Stability.ASYMPTOTICALLY_STABLE,
+                   f'every root{but} has Re < 0; slowest: {slowest} (Re = {absc:.4g} 1/s)',
+                   float(absc), slowest, [], res)
+
+
 def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
             K_D: float | None = None, scene: str = '') -> StabilityReport:
-    """Modes, spectral abscissa and verdict about ``motion`` at drive damping ``K_D``.
+    """Modes, spectral abscissa and verdict (:func:`judge`) about ``motion`` at ``K_D``.
 
-    Verdict: 'unstable' if a root (other than the cyclic zero root) has Re > 0;
-    'marginal' if one is on the imaginary axis (the reason names the modes and whether
-    the drive damping reaches them); 'asymptotically stable' otherwise. The structural
-    zero root of solution II (a neighbouring steady motion of the family) is listed but
-    not judged: the paper's stability is in the velocities and the rotor angles.
+    The structural zero root of solution II (a neighbouring steady motion of the family)
+    is listed but not judged.
     """
     K_D = params.K_D if K_D is None else float(K_D)
     if not (K_D >= 0 and math.isfinite(K_D)):
@@ -246,35 +297,12 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     tol_re = _tol_re(lin)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
     ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens)
-    judged = [m for m in ms if m.kind != ModeKind.ZERO]
-    absc = max((m.eigenvalue.real for m in judged), default=-math.inf)
-    slowest = max(judged, key=lambda m: m.eigenvalue.real).name if judged else ''
-    unstable = [m for m in judged if m.eigenvalue.real > tol_re]
-    marginal = [m for m in judged if abs(m.eigenvalue.real) <= tol_re]
-    if unstable:
-        verdict = Stability.UNSTABLE
-        reason = 'growing: ' + ', '.join(f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)'
-                                         for m in unstable)
-    elif marginal:
-        verdict = Stability.MARGINAL
-        parts = []
-        for m in marginal:
-            why = ('no drive damping (K_D = 0)' if K_D == 0 and m.reached_by_drive
-                   else 'not reached by the drive damping (dRe/dK_D = 0 at K_D = 0; '
-                        "Hagedorn's exclusion)" if not m.reached_by_drive
-                   else 'on the imaginary axis')
-            parts.append(f'{m.name}: {why}')
-        reason = '; '.join(parts)
-    else:
-        verdict = Stability.ASYMPTOTICALLY_STABLE
-        reason = (f'every root except the cyclic zero root has Re < 0; slowest: {slowest} '
-                  f'(Re = {absc:.4g} 1/s)' if lin.coords == Coords.II else
-                  f'every root has Re < 0; slowest: {slowest} (Re = {absc:.4g} 1/s)')
+    v = judge(ms, K_D == 0)
     return StabilityReport(scene=scene, model=model, motion=motion, coords=lin.coords,
                            state_names=lin.state_names, K_D=K_D, modes=ms,
-                           spectral_abscissa=float(absc), slowest_mode=slowest,
-                           verdict=verdict, marginal_modes=[m.name for m in marginal],
-                           reason=reason, A=lin.A)
+                           spectral_abscissa=v.spectral_abscissa, slowest_mode=v.slowest_mode,
+                           verdict=v.verdict, marginal_modes=v.marginal_modes,
+                           reason=v.reason, A=lin.A)
 
 
 def scene_operating_point(scene) -> tuple:

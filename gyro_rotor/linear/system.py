@@ -38,15 +38,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Callable
 
 from gyro_rotor.core.scene import check_steady, Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import ParameterError, SceneError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
-from gyro_rotor.linear.stability import analyze, Mode, ModeKind
+from gyro_rotor.linear.stability import analyze, judge, Mode, ModeKind
 import numpy as np
 
-__all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'check_claims',
+__all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
            'dominant', 'REL_AXIS']
 
 #: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
@@ -69,7 +70,9 @@ class Linearization:
     ``names`` the states, ``coordinate`` the coordinate each state belongs to (a rate
     belongs to its angle); ``fast_rates`` the eigenvalues of c' b (the roots that escape
     like -K c' b); ``A_locked`` the locked system (the varied drives' z held at 0).
-    ``analytic``: the built-in centrifuge's analytic linearization, else None.
+    ``analytic``: the built-in centrifuge's analytic linearization, else None; ``about``
+    the steady motion in words; ``modes_at(lin, K)`` the named modes it offers
+    (:func:`modes`: the centrifuge's by modal energy, a system file's by coordinate).
     """
 
     A0: np.ndarray
@@ -87,6 +90,9 @@ class Linearization:
     K_all: np.ndarray
     vary: tuple
     analytic: LinearSystem | None = None
+    about: str = ''
+    modes_at: Callable = dataclasses.field(
+        default=lambda lin, K: _modes_by_coordinate(lin, K), repr=False, compare=False)
 
     @property
     def m(self) -> int:
@@ -195,6 +201,8 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
     if not np.all(np.isfinite(A0)):
         raise SceneError(f'scene {scene.name}: the linearization is not finite')
     Ks = np.array([system.drives[k].K_D for k in which])
+    about = (f'q = {list(scene.steady_q)}, qdot = {list(scene.steady_qdot)}, '
+             f'z = {list(scene.steady_z)}')
     positions = tuple(system.coordinates) + tuple(f'z_{r}' for r in system.rotors)
     names = positions + tuple(f'{q}_dot' for q in system.coordinates) + tuple(
         f'zdot_{r}' for r in system.rotors)
@@ -202,7 +210,8 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
                          names=names, coordinate=positions * 2,
                          fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=Ks, A_cons=A_cons,
                          b_all=b_all, c_all=c_all,
-                         K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which))
+                         K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which),
+                         about=about)
 
 
 def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
@@ -217,13 +226,17 @@ def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
 def from_analytic(ls: LinearSystem) -> Linearization:
     """Return the centrifuge's analytic linearization ``ls`` as a :class:`Linearization`."""
     b, c = ls.b[:, None], ls.c[:, None]
-    K = np.array([ls.params.K_D], dtype=float)
+    p, sm = ls.params, ls.motion
+    K = np.array([p.K_D], dtype=float)
     return Linearization(A0=ls.A0, b=b, c=c, K_D=ls.params.K_D, A_locked=_locked(ls.A0, b, c),
                          names=ls.state_names,
                          coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
                                           for x in ls.state_names),
                          fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=K, A_cons=ls.A0,
-                         b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls)
+                         b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
+                         about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
+                               f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
+                         modes_at=lambda lin, K: analyze(p, sm, ls.model, K_D=K).modes)
 
 
 def _scale(lam: np.ndarray) -> float:
@@ -240,23 +253,38 @@ def dominant(lin: Linearization, v: np.ndarray) -> str:
 
 
 def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
-    """Return the modes of A(K) (default: every drive at its own K_D), named, with their reach.
+    """Return the modes of A(K) (default: every drive at its own K_D) the linearization offers.
 
-    The centrifuge (``lin.analytic``): its named modes, one per complex pair
-    (:func:`gyro_rotor.linear.stability.analyze`). A system file: every root, named by its
-    dominant coordinate; a root is unreached when it is one of the K = 0 roots whose
-    eigenvector has no zdot part (the PBH test): those stay where they are for every K.
-    ``eigenvalue_K_D0`` is the root at K = 0 the root is followed from (eigenvector
-    continuity), ``dRe_dKD`` its sensitivity there to a common K.
+    The centrifuge: its named modes, one per complex pair
+    (:func:`gyro_rotor.linear.stability.analyze`); a system file: every root
+    (:func:`_modes_by_coordinate`).
     """
-    if lin.analytic is not None:
-        ls = lin.analytic
-        return analyze(ls.params, ls.motion, ls.model, K_D=K).modes
+    return lin.modes_at(lin, K)
+
+
+def assess(lin: Linearization, K: float | None = None) -> tuple:
+    """Return the modes of A(K) (:func:`modes`) and their :class:`Verdict` (one rule)."""
+    ms = modes(lin, K)
+    Ks = lin.K_all if K is None else np.array([float(K)])
+    return ms, judge(ms, not np.any(Ks > 0))
+
+
+def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
+    """Return every root of A(K), named by its dominant coordinate, with its reach.
+
+    A root is unreached when it is one of the K = 0 roots whose eigenvector has no zdot
+    part (the PBH test): those stay where they are for every K. ``eigenvalue_K_D0`` is
+    the root at K = 0 the root is followed from (eigenvector continuity), ``dRe_dKD`` its
+    sensitivity there to a common K, ``resolution`` its round-off
+    (:func:`gyro_rotor.linear.roundoff.resolutions`).
+    """
+    from gyro_rotor.linear.roundoff import resolutions
     Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
     A = lin.A_scene() if K is None else lin.A_common(K)
     un, zeros, scale = _unreached(lin)
     lam, V = np.linalg.eig(A)
     lam0, dre = _followed(lin, Ks, lam)
+    lam_r, res_r = resolutions(A, lin.A_cons)
     tol_im = 1e-9 * max(np.linalg.norm(lin.A_cons), 1.0)
     out = []
     for i, value in enumerate(lam):
@@ -272,12 +300,13 @@ def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
         re = value.real
         kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > tol_im
                 else ModeKind.REAL)
-        on_axis = abs(re) <= REL_AXIS * scale
+        res = float(res_r[int(np.argmin(np.abs(lam_r - value)))])
+        on_axis = abs(re) <= res
         out.append(Mode(name=label, eigenvalue=value, freq_hz=abs(value.imag) / (2 * math.pi),
                         zeta=0.0 if zero or on_axis else -re / abs(value),
                         tau=-1.0 / re if re < 0 and not on_axis else math.inf,
                         reached_by_drive=not (zero or unreached), dRe_dKD=float(dre[i]),
-                        kind=kind, eigenvalue_K_D0=complex(lam0[i])))
+                        kind=kind, eigenvalue_K_D0=complex(lam0[i]), resolution=res))
     return out
 
 

@@ -1,8 +1,10 @@
 """The best drive damping K_D for a given K_S (the paper's closing remark): ``gyro-rotor tune``.
 
-The slowest decay rate -max Re(lambda) over the modes the drive damping reaches, maximized
-over K_D on the tracked spectrum (:mod:`gyro_rotor.linear.stability` names the modes,
-:mod:`gyro_rotor.linear.locus` gives the K_D grid).
+One objective on any :class:`~gyro_rotor.linear.system.Linearization`: the slowest decay
+rate -max Re(lambda) of A(K) = A_cons - K B C' (every drive at the same K) over the roots
+the drive damping reaches (not the structural zero roots, not the roots the drives do not
+reach: PBH, their rate is 0 for every K), maximized over K: a log grid scan, then the root
+of the slowest root's d Re/d K = -(w^H B C' v)/(w^H v) (left and right eigenvectors).
 """
 
 from __future__ import annotations
@@ -14,19 +16,19 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
-from gyro_rotor.linear.locus import check_grid, default_grid
-from gyro_rotor.linear.spectrum import spectrum, STRUCTURAL, TOL_SENS_REL, track
-from gyro_rotor.linear.stability import _path_to, _tracked_names, sensitivities
+from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 
-__all__ = ['TuneResult', 'best_K_D']
+__all__ = ['TuneResult', 'tune', 'best_K_D']
 
 
 @dataclasses.dataclass(frozen=True)
 class TuneResult:
-    """Best K_D for the slowest decay (the paper's closing remark) and its sensitivity."""
+    """Best K_D for the slowest decay (the paper's closing remark) and its sensitivity.
 
-    K_S: float
+    ``K_D_current``: the drives' own K_D; ``K_S`` is set by :func:`best_K_D` only.
+    """
+
     K_D_best: float
     rate_best: float
     tau_best: float
@@ -35,81 +37,86 @@ class TuneResult:
     rate_at: dict
     K_D_range_90: tuple
     dlnrate_dlnKD: tuple
-    K_D_current: float
+    K_D_current: list
     rate_current: float
+    K_S: float = math.nan
+
+
+def tune(lin) -> TuneResult:
+    """Return the common K_D that maximizes the slowest decay rate of the judged roots.
+
+    Sensitivity: the rate at 0.5, 0.9, 1.1, 2 times the optimum, the K_D range where the
+    rate stays within 90% of the best (on the grid), and d ln(rate)/d ln(K_D) just below
+    and above. The rate at the scene's own K_D is that of its modes (:func:`modes`).
+    """
+    from scipy.linalg import eig
+    from scipy.optimize import brentq
+    from gyro_rotor.linear.system import _unreached, modes
+    un, zeros, scale = _unreached(lin)
+    here = [m for m in modes(lin) if m.eigenvalue.imag >= -m.resolution]
+    if all(m.kind == ModeKind.ZERO or not m.reached_by_drive for m in here):
+        raise ParameterError('no mode is reached by the drive damping: K_D cannot be tuned')
+    BC = lin.b_all @ lin.c_all.T
+
+    def judged(lam: np.ndarray) -> np.ndarray:
+        keep = np.ones(len(lam), dtype=bool)
+        keep[np.argsort(np.abs(lam))[:zeros.size]] = False     # the structural zero roots
+        for u in un:
+            keep &= np.abs(lam - u) > 1e-7 * scale
+        return keep
+
+    def rate(K: float) -> float:
+        lam = np.linalg.eigvals(lin.A_common(K))
+        return float(-lam[judged(lam)].real.max())
+
+    def slope(u: float) -> float:
+        """Return d rate/d ln K of the slowest judged root: K Re(w^H B C' v)/(w^H v)."""
+        lam, W, V = eig(lin.A_common(math.exp(u)), left=True, right=True)
+        j = int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))
+        w, v = W[:, j], V[:, j]
+        return math.exp(u) * float((np.vdot(w, BC @ v) / np.vdot(w, v)).real)
+    K_ref = scale / float(lin.fast_rates.min())
+    grid = np.geomspace(1e-6 * K_ref, 1e4 * K_ref, 401)
+    rates = np.array([rate(K) for K in grid])
+    i = int(np.argmax(rates))
+    lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
+    # the maximum: where the slope of the slowest root changes sign (smooth, or a kink
+    # where two roots meet), not a search on the flat rate itself (its round-off)
+    K_best = (math.exp(brentq(slope, lo, hi, xtol=1e-12)) if slope(lo) > 0 > slope(hi)
+              else float(grid[i]))
+    r_best = rate(K_best)
+    gov = sorted({m.name for m in modes(lin, K_best)
+                  if m.kind != ModeKind.ZERO and m.reached_by_drive
+                  and -m.eigenvalue.real <= r_best * (1 + 1e-6)})
+    ok = np.flatnonzero(rates >= 0.9 * r_best)
+
+    def edge(j: int, k: int) -> float:
+        """Return where the rate crosses 90% of the best between grid points j and k."""
+        if not 0 <= k < len(grid) or rates[k] >= 0.9 * r_best:
+            return float(grid[j])
+        return brentq(lambda K: rate(K) - 0.9 * r_best, *sorted((grid[j], grid[k])),
+                      xtol=1e-12 * grid[j])
+    h = 0.01
+    r_m, r_p = rate(K_best * math.exp(-h)), rate(K_best * math.exp(h))
+    slopes = ((math.log(r_best) - math.log(r_m)) / h if r_m > 0 else math.nan,
+              (math.log(r_p) - math.log(r_best)) / h if r_p > 0 else math.nan)
+    now = [m.eigenvalue.real for m in here if m.kind != ModeKind.ZERO and m.reached_by_drive]
+    excluded = [m.name + (f' ({m.freq_hz:.4g} Hz)' if m.kind == ModeKind.OSCILLATORY else '')
+                for m in here if m.kind == ModeKind.ZERO or not m.reached_by_drive]
+    return TuneResult(K_D_best=K_best, rate_best=r_best,
+                      tau_best=1.0 / r_best if r_best > 0 else math.inf,
+                      governing_modes=gov, excluded_modes=excluded,
+                      rate_at={f'{f:g}': rate(K_best * f) for f in (0.5, 0.9, 1.1, 2.0)},
+                      K_D_range_90=(edge(ok[0], ok[0] - 1), edge(ok[-1], ok[-1] + 1)),
+                      dlnrate_dlnKD=slopes, K_D_current=lin.K_all.tolist(),
+                      rate_current=-max(now) if np.any(lin.K_all > 0) else 0.0)
 
 
 def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
-             K_S: float | None = None, K_D_grid=None) -> TuneResult:
-    """Return the K_D that maximizes the slowest decay rate -max Re over the judged modes.
-
-    Judged modes: all except the cyclic zero root and the modes the drive damping does not
-    reach (their rate is 0 for every K_D; they are listed in ``excluded_modes``). A grid
-    scan (default grid) is refined by a bounded scalar search in log K_D. Sensitivity:
-    the rate at 0.5, 0.9, 1.1, 2 times the optimum, the K_D range where the rate stays
-    within 90% of the best, and d ln(rate)/d ln(K_D) just below and above.
-    """
-    from scipy.optimize import minimize_scalar
+             K_S: float | None = None) -> TuneResult:
+    """:func:`tune` the centrifuge's analytic linearization about ``motion`` (at ``K_S``)."""
+    from gyro_rotor.linear.system import from_analytic
     if K_S is not None:
         params = params.replace(K_S=float(K_S))
-    lin = linearize(params, motion, model)
-    names, lam0, d0, _ = _tracked_names(lin, [0.0])
-    lam_z, _, Vw_z = sensitivities(lin)
-
-    def fn0(k):          # the K_D = 0 basis that named the modes (zero clusters resolved)
-        return (lam_z, Vw_z) if k == 0 else spectrum(lin, k)
-    tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
-    excluded = sorted({nm for j, nm in enumerate(names)
-                       if nm in STRUCTURAL or not d0[j].real < -tol_sens})
-    judged_names = {nm for nm in names if nm not in excluded}
-    if not judged_names:
-        raise ParameterError('no mode is reached by the drive damping: K_D cannot be tuned')
-    grid = default_grid(params) if K_D_grid is None else check_grid(K_D_grid)
-    grid = grid[grid > 0]
-    lam_path = track(fn0, [0.0] + list(grid), names, log=True)[1:]
-    judged = [j for j, nm in enumerate(names) if nm in judged_names]
-
-    def rate_of(lam):
-        return float(-np.max(lam[judged].real))
-
-    rates = np.array([rate_of(r) for r in lam_path])
-    i = int(np.argmax(rates))
-
-    def rate_at(K):
-        return rate_of(_aligned(lin, lam_path[i], grid[i], K))
-
-    lo = grid[max(i - 1, 0)]
-    hi = grid[min(i + 1, len(grid) - 1)]
-    res = minimize_scalar(lambda u: -rate_at(math.exp(u)), bounds=(math.log(lo), math.log(hi)),
-                          method='bounded', options={'xatol': 1e-6})
-    K_best = float(math.exp(res.x))
-    r_best = -float(res.fun)
-    if rates[i] > r_best:
-        K_best, r_best = float(grid[i]), float(rates[i])
-    lam_best = _aligned(lin, lam_path[i], grid[i], K_best)
-    gov = sorted({names[j] for j in judged if -lam_best[j].real <= r_best * (1 + 1e-6)})
-    at = {f'{f:g}': rate_at(K_best * f) for f in (0.5, 0.9, 1.1, 2.0)}
-    ok = np.where(rates >= 0.9 * r_best)[0]
-    rng = (float(grid[ok[0]]), float(grid[ok[-1]])) if ok.size else (K_best, K_best)
-    h = 0.01
-    r_m, r_p = rate_at(K_best * math.exp(-h)), rate_at(K_best * math.exp(h))
-    slopes = ((math.log(r_best) - math.log(r_m)) / h if r_m > 0 else math.nan,
-              (math.log(r_p) - math.log(r_best)) / h if r_p > 0 else math.nan)
-    cur = params.K_D
-    r_cur = (rate_of(track(fn0, _path_to(cur, params), names, log=True)[-1])
-             if cur > 0 else 0.0)
-    return TuneResult(K_S=params.K_S, K_D_best=K_best, rate_best=r_best,
-                      tau_best=1.0 / r_best if r_best > 0 else math.inf,
-                      governing_modes=gov, excluded_modes=excluded, rate_at=at,
-                      K_D_range_90=rng, dlnrate_dlnKD=slopes, K_D_current=cur,
-                      rate_current=r_cur)
-
-
-def _aligned(lin, lam_ref, K_ref, K) -> np.ndarray:
-    """Eigenvalues at K in the tracked order of ``lam_ref`` (known at K_ref)."""
-    lam_s, V = spectrum(lin, K_ref)
-    perm0 = [int(np.argmin(np.abs(lam_s - x))) for x in lam_ref]
-    names = [str(k) for k in range(len(lam_ref))]
-    path = track(lambda k: (lambda r: (r[0][perm0], r[1][:, perm0]))(spectrum(lin, k))
-                 if k == K_ref else spectrum(lin, k), [K_ref, K], names, log=True)
-    return path[-1]
+    return dataclasses.replace(tune(from_analytic(linearize(params, motion, model))),
+                               K_S=params.K_S)
