@@ -55,11 +55,11 @@ class Prediction:
     pole_pairs: int
     K_D: float
     source: str = ''
-    #: general systems: the steady motion (q, qdot, z) the deviations are taken from
+    #: a system file's steady motion (q, qdot, z) the deviations are taken from
     steady: tuple = ()
-    #: general systems: the pole pairs of each rotor's drive
+    #: the pole pairs of each rotor's drive
     rotor_pole_pairs: tuple = ()
-    #: general systems: rows that map the coordinates' deviation q - q_s to the deviation
+    #: rows that map the deviation q - q_s of a system file's coordinates to the deviation
     #: channels: a basis of the complement of the zero roots' directions (a cyclic
     #: combination of coordinates drifts after a kick and is left out)
     active_q: tuple = ()
@@ -112,6 +112,8 @@ def predict(scene: Scene) -> Prediction:
     else:
         verdict = Stability.ASYMPTOTICALLY_STABLE
     sm = scene.steady() if scene.params else None
+    # a system file's steady motion in its coordinates (the centrifuge's: theta0, psidot0)
+    steady = (tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z))
     return Prediction(
         scene=scene.name, coords=lin.analytic.coords if lin.analytic else GENERAL_COORDS,
         modes=_unique_names(tuple(m for m, _ in out)), spectral_abscissa=float(abscissa),
@@ -119,9 +121,9 @@ def predict(scene: Scene) -> Prediction:
         theta0=sm.theta0 if sm else math.nan, psidot0=sm.psidot0 if sm else math.nan,
         pole_pairs=max(scene.pole_pairs), K_D=float(lin.K_all.max()),
         source='linear.system.modes',
-        steady=(tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z)),
-        rotor_pole_pairs=scene.pole_pairs, active_q=_position_channels(lin.A_scene(), lin.n,
-                                                                       scale))
+        steady=steady if any(steady) else (),
+        rotor_pole_pairs=scene.pole_pairs,
+        active_q=_position_channels(lin.A_scene(), len(scene.steady_q), scale))
 
 
 def _resolutions(lin, roots) -> list:
