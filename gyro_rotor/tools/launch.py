@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+from pathlib import Path
 import signal
 import struct
 import subprocess
@@ -24,10 +25,10 @@ import sys
 import tempfile
 from typing import Any, IO, Mapping
 
-from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.errors import GyroRotorError, ParameterError
 
 __all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param',
-           'energy_seq_from_cdr']
+           'energy_seq_from_cdr', 'make_output_dir']
 
 
 class DomainClaim:
@@ -64,6 +65,18 @@ def claim_domain_id(first: int = 101, last: int = 232) -> DomainClaim:
             continue
         return DomainClaim(domain, f)
     raise RuntimeError(f'no free ROS_DOMAIN_ID in {first}..{last}')
+
+
+def make_output_dir(out: Path) -> Path:
+    """Create the output directory ``out`` of a node run (its parents too) and return it.
+
+    Raises ParameterError if it cannot be created (the demo and the soak run's bad --out).
+    """
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ParameterError(f'cannot create output directory {out}: {err}') from err
+    return out
 
 
 def ros_param(name: str, value: Any) -> str:
