@@ -160,6 +160,38 @@ class NodeProcess:
 _TRUE = ('true', '1', 'yes', 'on')
 
 
+#: the arguments of the launch files: name -> (default, description), each written once
+LAUNCH_ARGUMENTS = {
+    'scene': ('precession', 'scene of rotor_sim: a name (config/<scene>.yaml, '
+                            'config/systems/scenes/<scene>.yaml) or a path'),
+    'output': ('', "rosbag2 (MCAP) directory to record to, which must not exist yet ('': a "
+                   'fresh bags_out/rotor_<time>)'),
+    'rviz': ('false', 'start RViz2'),
+    'robot_description': ('true', "start robot_state_publisher with the URDF of the scene's "
+                                  'system (the centrifuge scenes; a general system has none: '
+                                  'not started)'),
+    'use_sim_time': ('true', "the nodes but rotor_sim follow rotor_sim's /clock (simulation "
+                             'time; rotor_sim is the clock source); false: the system clock'),
+    'namespace': ('', 'ROS namespace of every node and of their topics'),
+    'window_s': ('8.0', 'analysis window [s]'),
+    'wait_for_subscribers': ('0', 'hold t = 0 until joint_states and energy have this many '
+                                  'subscribers (0: start at once)'),
+    'wait_for_node': ('', '... and until this node subscribes to both'),
+}
+
+
+def launch_arguments(*names: str, **own: tuple[str, str]) -> list:
+    """Return a DeclareLaunchArgument for each of ``names`` (:data:`LAUNCH_ARGUMENTS`).
+
+    ``own``: name -> (default, description) of an argument that a launch file declares its
+    own way.
+    """
+    from launch.actions import DeclareLaunchArgument
+    return [DeclareLaunchArgument(name, default_value=default, description=description)
+            for name in names
+            for default, description in [own.get(name, LAUNCH_ARGUMENTS[name])]]
+
+
 def scene_urdf(scene: str, share: str) -> str | None:
     """Return the URDF of a scene's system, or None if it has none (or is not found).
 
