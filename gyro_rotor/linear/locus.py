@@ -99,7 +99,11 @@ REACH_TOL = 0.01
 
 
 def _reach(lin: Linearization, K: float, limits: np.ndarray) -> float:
-    """Return the distance of the roots at K from their K -> infinity limits (module doc)."""
+    """Return the distance of the roots at K from their K -> infinity limits.
+
+    Relative to the spectral scale max(|limits|, |eig A(0)|); at least 1 while the m fast
+    roots are not yet beyond 10 times that scale.
+    """
     from scipy.optimize import linear_sum_assignment
     lam = lin.eig(K)
     fast = np.argsort(lam.real)[:len(lin.vary)]
