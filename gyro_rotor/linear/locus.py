@@ -17,7 +17,6 @@ import math
 
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.claims import ClaimsResult, resolution
 from gyro_rotor.linear.spectrum import track
 from gyro_rotor.linear.stability import _K_ref
 from gyro_rotor.linear.system import Linearization, modes
@@ -99,7 +98,11 @@ REACH_TOL = 0.01
 
 
 def _reach(lin: Linearization, K: float, limits: np.ndarray) -> float:
-    """Return the distance of the roots at K from their K -> infinity limits (module doc)."""
+    """Return the distance of the roots at K from their K -> infinity limits.
+
+    Relative to the spectral scale max(|limits|, |eig A(0)|); at least 1 while the m fast
+    roots are not yet beyond 10 times that scale.
+    """
     from scipy.optimize import linear_sum_assignment
     lam = lin.eig(K)
     fast = np.argsort(lam.real)[:len(lin.vary)]
@@ -117,6 +120,7 @@ def root_locus(lin: Linearization, K_D_grid) -> RootLocus:
     or that does not reach large K_D (roots further than REACH_TOL from their limits).
     """
     from scipy.optimize import linear_sum_assignment
+    from gyro_rotor.linear.claims import resolution
     grid = check_grid(K_D_grid)
     if np.finfo(float).eps * grid[-1] * np.linalg.norm(lin.b @ lin.c.T) > np.linalg.norm(lin.A0):
         raise ParameterError(f'K_D = {float(grid[-1])!r} N m s/rad is too large for the linear '
@@ -145,7 +149,7 @@ def root_locus(lin: Linearization, K_D_grid) -> RootLocus:
                      locked_res=res, locked_labels=ends)
 
 
-def check_claims(lin: Linearization) -> ClaimsResult:
+def check_claims(lin: Linearization):
     """Check claims (a) to (d), naming in (b) the modes the drives do not reach.
 
     The one checker of every system (:func:`gyro_rotor.linear.system.check_claims`).
@@ -161,8 +165,11 @@ def check_claims(lin: Linearization) -> ClaimsResult:
     return dataclasses.replace(res, claims={**res.claims, 'b': b})
 
 
-def regimes(res: ClaimsResult) -> list:
-    """Return the K_D intervals between meetings, each with its number of real moving roots."""
+def regimes(res) -> list:
+    """Return the K_D intervals between meetings, each with its number of real moving roots.
+
+    ``res``: a :class:`~gyro_rotor.linear.claims.ClaimsResult` (its continuation's counts).
+    """
     K, counts = res.locus.K, res.locus.real_counts
     edges = [0.0] + [mt.K_D for mt in res.meetings] + [math.inf]
     return [{'K_D_from': a, 'K_D_to': b, 'real_roots':

@@ -74,8 +74,8 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene_with_sets(args.scene, args.set)
     lin = linearize_scene(scene, drive=args.drive)
     grid = _grid(args, lin)
-    cr = check_claims(lin)
     loc = root_locus(lin, grid)
+    cr = check_claims(lin)
     print(f'scene {scene.name} (system {scene.system_name}): root locus over K_D of '
           f'{args.drive or "all drives"}, from 0 to {grid[-1]:.4g} N m s/rad '
           f'({len(grid)} values)')
