@@ -16,6 +16,7 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
+from gyro_rotor.linear.spectrum import drive_sensitivity
 from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 
@@ -70,11 +71,11 @@ def tune(lin) -> TuneResult:
         return float(-lam[judged(lam)].real.max())
 
     def slope(u: float) -> float:
-        """Return d rate/d ln K of the slowest judged root: K Re(w^H B C' v)/(w^H v)."""
-        lam, W, V = eig(lin.A_common(math.exp(u)), left=True, right=True)
-        j = int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))
-        w, v = W[:, j], V[:, j]
-        return math.exp(u) * float((np.vdot(w, BC @ v) / np.vdot(w, v)).real)
+        """Return d rate/d ln K = -K d Re/d K of the slowest judged root."""
+        A = lin.A_common(math.exp(u))
+        lam, W, V = eig(A, left=True, right=True)
+        j = [int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))]
+        return -math.exp(u) * float(drive_sensitivity(A, BC, lam[j], W[:, j], V[:, j])[0].real)
     K_ref = scale / float(lin.fast_rates.min())
     grid = np.geomspace(1e-6 * K_ref, 1e4 * K_ref, 401)
     rates = np.array([rate(K) for K in grid])
