@@ -10,9 +10,10 @@ Arguments (``ros2 launch gyro_rotor sim.launch.py --show-args``):
   the path of a scene file; rotor_sim reads the file and declares every key of it as a
   parameter;
 * ``robot_description``: start robot_state_publisher (TF from ``joint_states``) with the
-  URDF of the scene's system: ``share/gyro_rotor/urdf/centrifuge.urdf`` for the centrifuge
-  scenes; a general system has none (its joints are its coordinates and rotor lags), so
-  for it robot_state_publisher is not started, whatever this says;
+  URDF of the scene's system: ``share/gyro_rotor/urdf/NAME.urdf`` for a shipped system
+  (``centrifuge``, ``centrifuge_euler``, ``twin_gimbal``, ``elastic_frame``), ``mine.urdf``
+  beside a system file ``mine.yaml`` of your own. A system without one gets a log line
+  instead, whatever this says;
 * ``rviz``: start RViz2 with ``share/gyro_rotor/rviz/gyro_rotor.rviz``;
 * ``use_sim_time``: robot_state_publisher and RViz follow rotor_sim's ``/clock`` (default
   true). Not passed to rotor_sim: it is the clock source and refuses use_sim_time true;
@@ -27,20 +28,28 @@ Arguments (``ros2 launch gyro_rotor sim.launch.py --show-args``):
 import os
 
 from ament_index_python.packages import get_package_share_directory
-from gyro_rotor.tools.launch import robot_description_condition
-from launch import Condition, LaunchDescription
-from launch.actions import DeclareLaunchArgument, LogInfo
+from gyro_rotor.tools.launch import robot_description
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 
 
+def _robot_state_publisher(context, share, namespace, use_sim_time):
+    """Return robot_state_publisher with the URDF of the scene's system (or why not)."""
+    urdf, why = robot_description(context.launch_configurations, share)
+    if urdf is None:
+        return [LogInfo(msg=why)] if why else []
+    return [Node(package='robot_state_publisher', executable='robot_state_publisher',
+                 name='robot_state_publisher', namespace=namespace, output='screen',
+                 parameters=[{'robot_description': urdf, 'use_sim_time': use_sim_time}])]
+
+
 def generate_launch_description():
     """Return the description: rotor_sim, robot_state_publisher, RViz2 (optional)."""
     share = get_package_share_directory('gyro_rotor')
-    with open(os.path.join(share, 'urdf', 'centrifuge.urdf')) as f:
-        urdf = f.read()
     scene = LaunchConfiguration('scene')
     namespace = LaunchConfiguration('namespace')
     use_sim_time = ParameterValue(LaunchConfiguration('use_sim_time'), value_type=bool)
@@ -50,8 +59,8 @@ def generate_launch_description():
                                           'config/systems/scenes/<scene>.yaml) or path'),
         DeclareLaunchArgument('robot_description', default_value='true',
                               description='start robot_state_publisher with the URDF of the '
-                                          "scene's system (the centrifuge scenes; a general "
-                                          'system has none: not started)'),
+                                          "scene's system (urdf/NAME.urdf, or NAME.urdf "
+                                          'beside its system file)'),
         DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
         DeclareLaunchArgument('use_sim_time', default_value='true',
                               description="robot_state_publisher and RViz follow rotor_sim's "
@@ -69,14 +78,8 @@ def generate_launch_description():
                           'wait_for_subscribers': ParameterValue(
                               LaunchConfiguration('wait_for_subscribers'), value_type=int),
                           'wait_for_node': LaunchConfiguration('wait_for_node')}]),
-        Node(package='robot_state_publisher', executable='robot_state_publisher',
-             name='robot_state_publisher', namespace=namespace, output='screen',
-             condition=Condition(predicate=robot_description_condition(share)),
-             parameters=[{'robot_description': urdf, 'use_sim_time': use_sim_time}]),
-        LogInfo(msg=['scene ', scene, ' is a general system without a URDF: '
-                     'robot_state_publisher is not started'],
-                condition=Condition(predicate=robot_description_condition(share,
-                                                                          no_urdf=True))),
+        OpaqueFunction(function=_robot_state_publisher,
+                       args=[share, namespace, use_sim_time]),
         Node(package='rviz2', executable='rviz2', name='rviz2', namespace=namespace,
              output='screen', condition=IfCondition(LaunchConfiguration('rviz')),
              arguments=['-d', os.path.join(share, 'rviz', 'gyro_rotor.rviz')],

@@ -14,8 +14,8 @@ from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.linear import claims as cl
 from gyro_rotor.linear.linearize import linearize
-from gyro_rotor.linear.locus import check_claims as centrifuge_claims, drive_system
-from gyro_rotor.linear.system import check_claims, linearize_scene
+from gyro_rotor.linear.locus import check_claims as named_claims
+from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scene
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
@@ -192,7 +192,7 @@ CENTRIFUGE_SETS = [
 def test_centrifuge_K_D_star_same_from_quaternion_model_and_system_file(values):
     p = RotorParams().replace(**values)
     sm = steady_motion(p, 0.1, 1)
-    ref = centrifuge_claims(linearize(p, sm))
+    ref = named_claims(from_analytic(linearize(p, sm)))
     assert ref.all_hold, {k: c.detail for k, c in ref.claims.items()}
     consts = {f'constants.{k}': v for k, v in values.items() if k not in ('K_S', 'K_D')}
     drive = {f'drive.R.{k}': v for k, v in values.items() if k in ('K_S', 'K_D')}
@@ -214,8 +214,8 @@ def test_centrifuge_K_D_star_same_from_quaternion_model_and_system_file(values):
 def test_one_checker_on_every_centrifuge_scene(scene):
     sc = load_scene(scene)
     lin = linearize(sc.params, sc.steady(), sc.model)
-    cr = centrifuge_claims(lin)
-    res = cl.check(drive_system(lin))
+    cr = named_claims(from_analytic(lin))
+    res = cl.check(from_analytic(lin).drive_system())
     held = {k: c.holds for k, c in res.claims.items()}
     assert {k: c.holds for k, c in cr.claims.items()} == held
     assert [mt.K_D for mt in cr.meetings] == res.K_D_star

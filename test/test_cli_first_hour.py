@@ -179,20 +179,19 @@ def test_campbell_command_writes_the_plot(tmp_path, capsys):
 
 
 # -- root-locus plots: zoomed to where the roots meet --------------------------------------
-def _general_locus_fig(name):
-    from gyro_rotor.linear.system import check_claims, linearize_scene
-    from gyro_rotor.linear.locus_plot import general_locus_figure
+def _locus_fig(name):
+    from gyro_rotor.linear.locus import check_claims, K_ref
+    from gyro_rotor.linear.locus_plot import locus_figure
+    from gyro_rotor.linear.system import linearize_scene
     lin = linearize_scene(load_scene(name))
     claims = check_claims(lin)
-    scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max()))
-    K_ref = scale / float(lin.fast_rates.min())
-    return claims, general_locus_figure(lin, claims, K_lo=1e-4 * K_ref, K_hi=1e4 * K_ref,
-                                        title=name)
+    K = K_ref(lin)
+    return claims, locus_figure(lin, claims, K_lo=1e-4 * K, K_hi=1e4 * K, title=name)
 
 
 @pytest.mark.parametrize('name', list_scenes(builtin=False))
 def test_general_locus_plot_shows_every_meeting(name):
-    claims, fig = _general_locus_fig(name)
+    claims, fig = _locus_fig(name)
     try:
         ax = fig.axes[0]
         x0, x1 = ax.get_xlim()
@@ -223,7 +222,7 @@ def test_general_locus_plot_magnifies_the_slow_branches():
     The gimbal branches leave the axis by 1e-4 .. 0.1 1/s while the drive branches reach
     -74 1/s.
     """
-    claims, fig = _general_locus_fig('twin_gimbal')
+    claims, fig = _locus_fig('twin_gimbal')
     try:
         side = fig.axes[1:]
         assert len(side) == 3
@@ -239,9 +238,9 @@ def test_general_locus_plot_magnifies_the_slow_branches():
 
 def test_general_locus_plot_of_a_part_of_the_range_says_where_it_starts():
     from gyro_rotor.linear.system import check_claims, linearize_scene
-    from gyro_rotor.linear.locus_plot import general_locus_figure
+    from gyro_rotor.linear.locus_plot import locus_figure
     lin = linearize_scene(load_scene('twin_gimbal'))
-    fig = general_locus_figure(lin, check_claims(lin), K_lo=0.1, K_hi=0.5)
+    fig = locus_figure(lin, check_claims(lin), K_lo=0.1, K_hi=0.5)
     try:
         texts = _legend(fig.axes[0])
         start = [t for t in texts if t.startswith('K_D = ')]
@@ -253,13 +252,7 @@ def test_general_locus_plot_of_a_part_of_the_range_says_where_it_starts():
 
 @pytest.mark.parametrize('name', ['precession', 'stiff_drive', 'nutation'])
 def test_centrifuge_locus_plot_marks_every_meeting(name):
-    from gyro_rotor.linear.linearize import linearize
-    from gyro_rotor.linear.locus import check_claims, default_grid
-    from gyro_rotor.linear.locus_plot import root_locus_figure
-    from gyro_rotor.linear.stability import scene_operating_point
-    p, sm, model = scene_operating_point(load_scene(name))
-    cr = check_claims(linearize(p, sm, model), np.concatenate([[0.0], default_grid(p)[1:]]))
-    fig = root_locus_figure(cr.locus, claims=cr, K_D_mark=p.K_D)
+    cr, fig = _locus_fig(name)
     try:
         ax = fig.axes[0]
         x0, x1 = ax.get_xlim()

@@ -1,17 +1,15 @@
 """The files a ROS 2 install uses beside the nodes: URDF, launch files, RViz and Foxglove.
 
 ``ros2 launch``, robot_state_publisher and RViz cannot run here (not installable from the
-PyPI wheels), so these tests check what can be checked without them: the URDF's joints are
-the ``joint_states`` names and its forward kinematics is the model's 3-1-3 convention; the
-launch files, imported against stub ``launch``/``launch_ros`` modules, start executables
-that exist, with files that setup.py installs; RViz and Foxglove configs name topics the
-nodes publish.
+PyPI wheels), so these tests check what can be checked without them (the URDFs: test_urdf.py):
+the launch files, imported against stub ``launch``/``launch_ros`` modules, start executables
+that exist, with files that setup.py installs, and robot_state_publisher with the URDF of
+the scene's system; RViz and Foxglove configs name topics the nodes publish.
 """
 
 import ast
 from glob import glob
 import json
-import math
 from pathlib import Path
 import runpy
 import sys
@@ -19,105 +17,10 @@ import types
 import xml.etree.ElementTree as ET
 
 from gyro_rotor.bag import wire
-from gyro_rotor.core.rotations import axis_from_quaternion, quaternion_from_euler
-import numpy as np
 import pytest
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-URDF = REPO / 'urdf' / 'centrifuge.urdf'
-#: joint_states names, as rotor_sim publishes them (the pure wire layouts: no rclpy needed)
-JOINT_NAMES = wire.JOINT_NAMES
-
-
-# -- the URDF ---------------------------------------------------------------------------
-def _rpy(r, p, y):
-    """URDF rpy: fixed-axis roll, pitch, yaw, R = Rz(y) Ry(p) Rx(r)."""
-    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
-                              math.cos(y), math.sin(y))
-    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                     [-sp, cp * sr, cp * cr]])
-
-
-def _axis_angle(axis, a):
-    """Rodrigues' rotation about the unit vector ``axis`` by ``a``."""
-    k = np.asarray(axis, float) / np.linalg.norm(axis)
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
-
-
-def _joints():
-    root = ET.parse(URDF).getroot()
-    out = {}
-    for j in root.findall('joint'):
-        origin = j.find('origin')
-        xyz = [float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None
-                                  else '0 0 0').split()]
-        rpy = [float(v) for v in (origin.get('rpy', '0 0 0') if origin is not None
-                                  else '0 0 0').split()]
-        axis = [float(v) for v in j.find('axis').get('xyz').split()]
-        out[j.get('name')] = {'type': j.get('type'), 'parent': j.find('parent').get('link'),
-                              'child': j.find('child').get('link'), 'xyz': xyz,
-                              'rpy': rpy, 'axis': axis}
-    return root, out
-
-
-def _link_rotation(joints, link, q):
-    """World rotation of ``link`` at joint positions ``q`` (a dict), by walking the chain."""
-    by_child = {j['child']: (name, j) for name, j in joints.items()}
-    chain = []
-    while link in by_child:
-        name, j = by_child[link]
-        chain.append((name, j))
-        link = j['parent']
-    R = np.eye(3)
-    for name, j in reversed(chain):
-        R = R @ _rpy(*j['rpy']) @ _axis_angle(j['axis'], q[name])
-    return R, link
-
-
-def test_urdf_joints_are_the_joint_states_names():
-    root, joints = _joints()
-    assert root.tag == 'robot'
-    assert set(joints) == set(JOINT_NAMES)
-    links = {ln.get('name') for ln in root.findall('link')}
-    for j in joints.values():
-        assert j['parent'] in links and j['child'] in links
-        assert j['xyz'] == [0.0, 0.0, 0.0]          # every joint turns about F
-    assert joints['theta']['type'] == 'revolute'
-    assert all(joints[n]['type'] == 'continuous' for n in ('psi', 'phi_R', 'phi_M'))
-
-
-def test_urdf_forward_kinematics_is_the_models_3_1_3_convention():
-    """Housing = Rz(psi) Rx(theta) Rz(phi_M), rotor likewise with phi_R; axis e_3; 1e-12."""
-    _, joints = _joints()
-    rng = np.random.default_rng(7)
-    for _ in range(200):
-        psi, phi_R, phi_M = rng.uniform(-math.pi, math.pi, 3)
-        theta = rng.uniform(0.0, math.pi)
-        q = {'psi': psi, 'theta': theta, 'phi_R': phi_R, 'phi_M': phi_M}
-        for link, phi in (('housing', phi_M), ('rotor', phi_R)):
-            R, root = _link_rotation(joints, link, q)
-            assert root == 'world'
-            w, x, y, z = quaternion_from_euler(psi, theta, phi)
-            R_model = np.array([
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-            assert np.max(np.abs(R - R_model)) < 1e-12
-            axis = axis_from_quaternion(quaternion_from_euler(psi, theta, phi))
-            assert np.max(np.abs(R[:, 2] - axis)) < 1e-12
-
-
-def test_urdf_fails_on_a_wrong_convention():
-    """The kinematics check can fail: a 3-2-3 chain (theta about y) is caught."""
-    _, joints = _joints()
-    joints['theta']['axis'] = [0.0, 1.0, 0.0]
-    R, _ = _link_rotation(joints, 'housing', {'psi': 0.3, 'theta': 0.4, 'phi_R': 0.0,
-                                              'phi_M': 0.2})
-    axis = axis_from_quaternion(quaternion_from_euler(0.3, 0.4, 0.2))
-    assert np.max(np.abs(R[:, 2] - axis)) > 1e-3
 
 
 # -- the launch files, against stub launch modules --------------------------------------
@@ -255,12 +158,26 @@ def _is_config(value, name: str, typ=None) -> bool:
     return type(value).__name__ == 'LaunchConfiguration' and value.args[0] == name
 
 
+class _Context:
+    """The launch context an OpaqueFunction reads: the launch configurations."""
+
+    def __init__(self, **cfg):
+        self.launch_configurations = cfg
+
+
+def _robot_state_publisher(ld, **cfg) -> list:
+    """Return the actions of sim.launch.py's OpaqueFunction for these configurations."""
+    op = next(e for e in _walk(ld) if type(e).__name__ == 'OpaqueFunction')
+    return op.kwargs['function'](_Context(**cfg), *op.kwargs.get('args', ()))
+
+
 def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
     path = launch_env / 'launch' / 'sim.launch.py'
     ld = runpy.run_path(str(path))['generate_launch_description']()
     nodes = {n.kwargs['executable']: n for n in _walk(ld) if type(n).__name__ == 'Node'}
-    rsp = nodes['robot_state_publisher'].kwargs['parameters'][0]
-    assert rsp['robot_description'] == URDF.read_text()
+    [rsp_node] = _robot_state_publisher(ld, scene='precession')
+    rsp = rsp_node.kwargs['parameters'][0]
+    assert rsp['robot_description'] == (REPO / 'urdf' / 'centrifuge.urdf').read_text()
     assert _is_config(rsp['use_sim_time'], 'use_sim_time', bool)
     sim_params = nodes['rotor_sim'].kwargs['parameters'][0]
     assert sim_params['publish_clock'] is True
@@ -272,48 +189,52 @@ def test_sim_launch_publishes_the_urdf_and_clock(launch_env):
                if isinstance(p, dict))
     rviz = nodes['rviz2'].kwargs['parameters'][0]
     assert _is_config(rviz['use_sim_time'], 'use_sim_time', bool)
-    for n in nodes.values():
+    for n in list(nodes.values()) + [rsp_node]:
         assert _is_config(n.kwargs['namespace'], 'namespace')
 
 
-class _Context:
-    """The launch context a condition's predicate reads: the launch configurations."""
-
-    def __init__(self, **cfg):
-        self.launch_configurations = cfg
-
-
-@pytest.mark.parametrize('scene, robot_description, started', [
-    ('precession', 'true', True), ('nutation', 'True', True), ('precession', 'false', False),
-    ('twin_gimbal', 'true', False), ('elastic_frame', 'true', False),
-    ('twin_gimbal', 'false', False)])
-def test_robot_state_publisher_only_for_systems_with_a_urdf(launch_env, scene,
-                                                            robot_description, started):
+@pytest.mark.parametrize('scene, system', [
+    ('precession', 'centrifuge'), ('nutation', 'centrifuge'), ('twin_gimbal', 'twin_gimbal'),
+    ('elastic_frame', 'elastic_frame'), ('centrifuge_euler', 'centrifuge_euler')])
+def test_robot_state_publisher_gets_the_urdf_of_the_scenes_system(launch_env, scene, system):
     ld = runpy.run_path(str(launch_env / 'launch' / 'sim.launch.py'))[
         'generate_launch_description']()
-    entities = list(_walk(ld))
-    rsp = next(n for n in entities if type(n).__name__ == 'Node'
-               and n.kwargs['executable'] == 'robot_state_publisher')
-    log = next(e for e in entities if type(e).__name__ == 'LogInfo')
-    ctx = _Context(scene=scene, robot_description=robot_description)
-    assert rsp.kwargs['condition'].kwargs['predicate'](ctx) is started
-    # a general system with robot_description on: one log line says why there is no TF
-    said = log.kwargs['condition'].kwargs['predicate'](ctx)
-    assert said is (robot_description.lower() == 'true' and not started)
+    for on in ('true', 'True', '1'):
+        [node] = _robot_state_publisher(ld, scene=scene, robot_description=on)
+        assert node.kwargs['executable'] == 'robot_state_publisher'
+        assert node.kwargs['parameters'][0]['robot_description'] == \
+            (REPO / 'urdf' / f'{system}.urdf').read_text()
+    assert _robot_state_publisher(ld, scene=scene, robot_description='false') == []
+
+
+def test_a_system_without_urdf_gets_a_log_line(launch_env, tmp_path):
+    """A system file of one's own without NAME.urdf beside it: no TF, one line says why."""
+    ld = runpy.run_path(str(launch_env / 'launch' / 'sim.launch.py'))[
+        'generate_launch_description']()
+    (tmp_path / 'mine.yaml').write_text(
+        (REPO / 'config' / 'systems' / 'twin_gimbal.yaml').read_text())
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text('/**:\n  ros__parameters:\n    system: mine.yaml\n')
+    [log] = _robot_state_publisher(ld, scene=str(scene))
+    assert type(log).__name__ == 'LogInfo' and 'no URDF' in log.kwargs['msg']
+    (tmp_path / 'mine.urdf').write_text('<robot name="mine"/>')
+    [node] = _robot_state_publisher(ld, scene=str(scene))
+    assert node.kwargs['parameters'][0]['robot_description'] == '<robot name="mine"/>'
 
 
 def test_scene_urdf_follows_rotor_sims_lookup(launch_env, tmp_path):
     from gyro_rotor.tools.launch import scene_urdf
     share = str(launch_env)
     assert scene_urdf('precession', share) == str(launch_env / 'urdf' / 'centrifuge.urdf')
-    assert scene_urdf('twin_gimbal', share) is None
+    assert scene_urdf('twin_gimbal', share) == str(launch_env / 'urdf' / 'twin_gimbal.urdf')
     assert scene_urdf('no_such_scene', share) is None        # rotor_sim reports it
     general = tmp_path / 'mine.yaml'
-    general.write_text('/**:\n  ros__parameters:\n    system: twin_gimbal\n')
+    general.write_text('/**:\n  ros__parameters:\n    system: no_such_system\n')
     assert scene_urdf(str(general), share) is None
     (tmp_path / 'c.yaml').write_text(
         (REPO / 'config' / 'nutation.yaml').read_text())
-    assert scene_urdf(str(tmp_path / 'c.yaml'), share) is not None
+    assert scene_urdf(str(tmp_path / 'c.yaml'), share) == \
+        str(launch_env / 'urdf' / 'centrifuge.urdf')
 
 
 def test_combined_launch_records_from_t0(launch_env):

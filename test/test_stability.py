@@ -15,10 +15,11 @@ from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
                                          reduced_rhs_lagrange)
-from gyro_rotor.linear.locus import check_claims, root_locus
+from gyro_rotor.linear.locus import check_claims, regimes, root_locus
 from gyro_rotor.linear.stability import (analyze, analyze_scene, sensitivities, spectrum, sweep,
                                          ZERO_ROOT, ZERO_ROOT_Z)
 from gyro_rotor.linear.sysid import match_eigenvalues, matrix_pencil
+from gyro_rotor.linear.system import from_analytic, linearize_scene
 from gyro_rotor.linear.tune import best_K_D
 from gyro_rotor.numerics.simulate import simulate
 import numpy as np
@@ -29,8 +30,7 @@ P = RotorParams()
 
 @pytest.fixture(scope='module')
 def claims_default():
-    sc = load_scene('precession')
-    return check_claims(linearize(sc.params, sc.steady(), sc.model))
+    return check_claims(linearize_scene(load_scene('precession')))
 
 
 # -- Jacobians ----------------------------------------------------------------------------
@@ -85,7 +85,9 @@ def test_claim_c_locked_spectrum_computed_separately(claims_default):
     c = claims_default.claims['c']
     assert c.holds, c.detail
     locked = np.array(c.data['locked_re']) + 1j * np.array(c.data['locked_im'])
-    zeros = claims_default.locus.zeros
+    sc = load_scene('precession')
+    lin = linearize(sc.params, sc.steady(), sc.model)
+    zeros = spectrum(lin, math.inf)[0]
     assert len(locked) == len(zeros)
     scale = np.max(np.abs(zeros))
     from scipy.optimize import linear_sum_assignment
@@ -93,7 +95,6 @@ def test_claim_c_locked_spectrum_computed_separately(claims_default):
     r, k = linear_sum_assignment(D)
     assert D[r, k].max() < 1e-9 * scale
     assert c.data['to_zero'] == 1
-    lin = claims_default.locus.lin
     assert c.data['fast_gain'] == pytest.approx([float(lin.c @ lin.b)], rel=1e-12)
     assert c.data['distance'][1] < 0.2 * c.data['distance'][0]     # converging like 1/K_D
 
@@ -101,17 +102,20 @@ def test_claim_c_locked_spectrum_computed_separately(claims_default):
 def test_claim_d_pair_meets_on_negative_real_axis(claims_default):
     c = claims_default.claims['d']
     assert c.holds, c.detail
-    K_star, lam_star = claims_default.K_D_star, claims_default.breakaway
+    (mt,) = claims_default.meetings
+    K_star, lam_star = mt.K_D, mt.lam
     # the value of the grid-bracketed bisection before issue 11, now polished
     assert K_star == pytest.approx(0.858071, rel=1e-6) and lam_star < 0
-    lin = claims_default.locus.lin
+    sc = load_scene('precession')
+    lin = linearize(sc.params, sc.steady(), sc.model)
     # 1e-9 below K_D* the pair is complex, 1e-9 above it two distinct real roots
     below, _ = spectrum(lin, K_star * (1 - 1e-9))
     above, _ = spectrum(lin, K_star * (1 + 1e-9))
     n_real = [int(np.sum(lam.imag == 0)) for lam in (below, above)]
     assert n_real[1] == n_real[0] + 2
-    reg = claims_default.regimes
+    reg = regimes(claims_default)
     assert reg[0]['K_D_to'] == reg[1]['K_D_from'] == K_star
+    assert reg[1]['real_roots'] == reg[0]['real_roots'] + 2
 
 
 ISSUE_11_SET = {'A_R': 0.02, 'A_M': 0.03, 'C_R': 0.03, 'C_M': 0.01, 'G': 98.1, 's': 0.05,
@@ -122,17 +126,17 @@ def test_claims_hold_on_the_issue_11_parameter_set():
     # the set on which the name-based check said "(c) FAILS" and "(d) FAILS": the pair the
     # paper describes meets the real axis at K_D* = 0.76017 in a double root at -45.516 1/s
     sc = load_scene('precession', overrides={**ISSUE_11_SET, 'initial.theta0': 0.1})
-    cr = check_claims(linearize(sc.params, sc.steady(), sc.model))
+    cr = check_claims(linearize_scene(sc))
     assert cr.all_hold, {k: c.detail for k, c in cr.claims.items()}
-    assert cr.K_D_star == pytest.approx(0.760173, rel=1e-6)
-    assert cr.breakaway == pytest.approx(-45.516, abs=1e-3)
+    assert cr.K_D_star == pytest.approx([0.760173], rel=1e-6)
+    assert cr.meetings[-1].lam == pytest.approx(-45.516, abs=1e-3)
 
 
 @pytest.mark.parametrize('scene', ['precession', 'nutation', 'stiff_drive', 'fast_spin',
                                    'pole_slip', 'upright', 'conservative'])
 def test_claims_hold_on_every_shipped_scene(scene):
     sc = load_scene(scene)
-    cr = check_claims(linearize(sc.params, sc.steady(), sc.model))
+    cr = check_claims(linearize_scene(sc))
     assert cr.all_hold, {k: c.detail for k, c in cr.claims.items()}
     if sc.steady().branch == 0:
         # solution I: the tilt modes are not reached; theory expects them on the axis
@@ -208,7 +212,7 @@ def test_non_finite_spectrum_is_a_parameter_error():
     with pytest.raises(ParameterError, match='too large'):
         spectrum(lin, 1e300)
     with pytest.raises(ParameterError, match='too large'):
-        root_locus(lin, np.geomspace(1e-3, 1e300, 20))
+        root_locus(from_analytic(lin), np.geomspace(1e-3, 1e300, 20))
 
 
 def test_no_drive_stiffness_cyclic_z_is_a_structural_zero_root():
@@ -302,9 +306,9 @@ def test_bad_input_errors():
     with pytest.raises(ParameterError, match='negative'):
         analyze(P, steady_motion(P, 0.1, 1), K_D=-1.0)
     with pytest.raises(ParameterError, match='negative'):
-        root_locus(lin, [0.0, -1.0, 10.0])
+        root_locus(from_analytic(lin), [0.0, -1.0, 10.0])
     with pytest.raises(ParameterError, match='does not reach large K_D'):
-        root_locus(lin, np.geomspace(1e-3, 1.0, 20))
+        root_locus(from_analytic(lin), np.geomspace(1e-3, 1.0, 20))
     with pytest.warns(UserWarning):
         p = RotorParams(c_theta=2.0, Omega0=10.0)
     with pytest.raises(NoSteadyMotionError, match='discriminant'):
@@ -399,7 +403,7 @@ def test_cli_eig_locus_tune(tmp_path, capsys):
                      str(json_path)]) == 0
     assert 'K_D* =' in capsys.readouterr().out
     rows = csv_path.read_text().splitlines()
-    assert rows[0] == 'K_D,branch,re,im' and len(rows) > 100
+    assert rows[0] == 'K_D,branch,mode,re,im' and len(rows) > 100
     import json
     doc = json.loads(json_path.read_text())
     assert all(c['holds'] for c in doc['claims'].values())

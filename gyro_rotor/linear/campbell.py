@@ -12,12 +12,14 @@ root that stays real over the whole range. Its frequency is |Im| / 2 pi (0 while
 is real), its decay rate the slower -Re of the pair; a real part within its eigenvalue's
 round-off (:mod:`gyro_rotor.linear.roundoff`) is 0: the mode is undamped there.
 
-General scenes (a ``system`` key) scale every drive's Omega0 with the first. An
-equilibrium (steady.qdot = 0) keeps q; a steady motion that moves (the centrifuge in
-Euler angles) keeps its non-moving coordinates and the pattern of its rates, whose size
-and the drive lags are solved at each speed (Gauss-Newton, continued from the scene's
-speed outwards). Centrifuge scenes recompute their steady motion (branch, theta0) at
-each speed; speeds where it does not exist are left out and reported.
+Every drive's Omega0 is scaled with the first; at each speed the scene's steady motion is
+re-solved (:func:`_family`), linearized (:func:`gyro_rotor.linear.system.linearize_scene`)
+and its roots named as the linearization names its modes. The centrifuge's steady motion
+(branch, theta0) follows from its parameters in closed form; a system file's equilibrium
+(steady.qdot = 0) keeps q, and a steady motion that moves (the centrifuge in Euler angles)
+keeps its non-moving coordinates and the pattern of its rates, whose size and the drive
+lags are solved at each speed (Gauss-Newton, continued from the scene's speed outwards).
+Speeds where the steady motion does not exist are left out and reported.
 """
 
 from __future__ import annotations
@@ -25,11 +27,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.errors import NoSteadyMotionError, ParameterError, SceneError
 from gyro_rotor.linear.newton import damped_newton
 import numpy as np
 
-__all__ = ['Campbell', 'campbell', 'campbell_general', 'campbell_centrifuge']
+__all__ = ['Campbell', 'campbell']
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,40 +87,97 @@ def _check_values(values) -> np.ndarray:
 
 
 def campbell(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
-    """Campbell diagram of a general or a centrifuge scene (module doc)."""
-    if not scene.builtin:
-        return campbell_general(scene, Omega0_values, orders=orders)
-    return campbell_centrifuge(scene, Omega0_values, orders=orders)
+    """Campbell diagram of any scene over the field speeds ``Omega0_values`` (module doc)."""
+    from gyro_rotor.linear.locus import name_roots
+    from gyro_rotor.linear.spectrum import track
+    values = _check_values(Omega0_values)
+    path = _Speeds(scene)
+    # continue the steady motion from the scene's speed outwards; leave out where none
+    failed = {}
+    for W in sorted(values, key=lambda w: abs(w - path.ref)):
+        try:
+            path.eig(float(W))
+        except (NoSteadyMotionError, ParameterError) as err:
+            failed[float(W)] = err
+    if len(values) - len(failed) < 2:
+        raise SceneError(f'scene {scene.name}: its steady motion exists at '
+                         f'{len(values) - len(failed)} of the {len(values)} speeds '
+                         f'({next(iter(failed.values()))}); choose another range with '
+                         '--omega-min/--omega-max')
+    values = np.array([w for w in values if float(w) not in failed])
+    n_roots = len(path.eig(float(values[0]))[0])
+    R = track(lambda W: path.eig(W)[:2], values, [''] * n_roots)
+    res = np.empty(R.shape)
+    for i, W in enumerate(values):
+        lam, _, r, _ = path.eig(float(W))
+        for j, x in enumerate(R[i]):
+            res[i, j] = r[int(np.argmin(np.abs(lam - x)))]
+
+    def name(i, j):
+        return name_roots(path.eig(float(values[i]))[3], [R[i, j]])[0]
+    return _assemble(values, R, res, name, orders, skipped=tuple(sorted(failed)),
+                     nominal=path.ref)
 
 
-# -- general scenes ---------------------------------------------------------------------------
-class _GeneralPath:
-    """The scene at any speed: drives scaled, steady motion solved, A and its eigenpairs."""
+class _Speeds:
+    """The scene at any field speed W: its steady motion re-solved there, linearized."""
 
     def __init__(self, scene):
-        from gyro_rotor.core.system.model import GeneralModel
-        self.scene = scene
-        self.ref = scene.system.drives[0].Omega0
+        """Keep the scene and its family of steady motions (:func:`_family`)."""
+        self.ref = scene.Omega0
         if self.ref == 0:
             raise ParameterError('campbell: the first drive has Omega0 = 0; nothing to scale')
+        self.at = _family(scene)
+        self.cache = {}
+
+    def eig(self, W: float):
+        """Return (eigenvalues, unit eigenvectors, resolutions, linearization) of A at W."""
+        if W not in self.cache:
+            from gyro_rotor.linear.roundoff import resolutions
+            from gyro_rotor.linear.system import linearize_scene
+            lin = linearize_scene(self.at(W))
+            A = lin.A_scene()
+            lam, V = np.linalg.eig(A)
+            V = V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+            lam_r, res_r = resolutions(A, lin.A_cons)
+            res = np.array([res_r[int(np.argmin(np.abs(lam_r - x)))] for x in lam])
+            self.cache[W] = (lam, V, res, lin)
+        return self.cache[W]
+
+
+def _family(scene):
+    """Return W -> the scene with every drive's Omega0 scaled by W / Omega0 of the first.
+
+    The centrifuge's steady motion follows its parameters exactly (closed form); a system
+    file's is re-solved by :class:`_Continuation`.
+    """
+    if scene.builtin:
+        return lambda W: scene.with_params(Omega0=W)
+    return _Continuation(scene)
+
+
+class _Continuation:
+    """A system file's steady motion at any speed: drives scaled, Newton from the nearest."""
+
+    def __init__(self, scene):
+        """Keep the scene, its model's compiled code and the steady motion at its speed."""
+        from gyro_rotor.core.system.model import GeneralModel
+        self.scene, self.ref = scene, scene.Omega0
         self.model = scene.make_model()
         self._Model = GeneralModel
         self.qdot = np.asarray(scene.steady_qdot, dtype=float)
         self.moving = bool(np.any(self.qdot != 0))
         # unknowns: the drive lags z and (moving) the size s of the rate pattern
         self.solved = {self.ref: (np.asarray(scene.steady_z, dtype=float), 1.0)}
-        self.cache = {}
 
-    def at(self, W: float):
-        """(scene, model) at field speed W (every drive scaled by W / Omega0 of the first)."""
+    def __call__(self, W: float):
+        """Return the scene at field speed W, its steady motion solved."""
         f = W / self.ref
         drives = [d.replace(Omega0=d.Omega0 * f) for d in self.scene.system.drives]
         sc = dataclasses.replace(self.scene, system=self.scene.system.with_drives(drives))
-        mdl = self._Model(sc.system, self.model.compiled)
-        z, s = self._steady(sc, mdl, W)
-        sc = dataclasses.replace(sc, steady_z=tuple(z.tolist()),
-                                 steady_qdot=tuple((s * self.qdot).tolist()))
-        return sc, mdl
+        z, s = self._steady(sc, self._Model(sc.system, self.model.compiled), W)
+        return dataclasses.replace(sc, steady_z=tuple(z.tolist()),
+                                   steady_qdot=tuple((s * self.qdot).tolist()))
 
     def _steady(self, sc, mdl, W):
         if W in self.solved:
@@ -137,87 +196,13 @@ class _GeneralPath:
                           mdl.rate())
         u, r = damped_newton(acc, u, tol)
         if not (np.all(np.isfinite(r)) and np.abs(r).max() <= 1e3 * tol):
-            raise SceneError(
+            raise NoSteadyMotionError(
                 f'scene {self.scene.name}: no steady motion of its family at Omega0 = {W:.6g} '
                 f'rad/s (the rates keep the pattern of steady.qdot, the other coordinates '
-                f'stay; largest acceleration {np.abs(r).max():.3g}); narrow the range with '
-                '--omega-min/--omega-max')
+                f'stay; largest acceleration {np.abs(r).max():.3g})')
         out = (u[:m], float(u[m]) if self.moving else 1.0)
         self.solved[W] = out
         return out
-
-    def eig(self, W: float):
-        """(eigenvalues, unit eigenvectors, resolutions) of A at speed W."""
-        if W not in self.cache:
-            from gyro_rotor.linear.system import linearize_scene
-            from gyro_rotor.linear.roundoff import resolutions
-            sc, mdl = self.at(W)
-            lin = linearize_scene(sc, model=mdl)
-            A = lin.A_scene()
-            lam, V = np.linalg.eig(A)
-            V = V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
-            lam_r, res_r = resolutions(A, lin.A_cons)
-            res = np.array([res_r[int(np.argmin(np.abs(lam_r - x)))] for x in lam])
-            self.cache[W] = (lam, V, res, lin)
-        return self.cache[W]
-
-
-def campbell_general(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
-    """Campbell diagram of a general scene (module doc)."""
-    from gyro_rotor.linear.system import dominant
-    from gyro_rotor.linear.spectrum import track
-    values = _check_values(Omega0_values)
-    path = _GeneralPath(scene)
-    # continue the steady motion from the scene's speed outwards
-    order = np.argsort(np.abs(values - path.ref))
-    for W in values[order]:
-        path.at(float(W))
-    n_roots = len(path.eig(float(values[0]))[0])
-    R = track(lambda W: path.eig(W)[:2], values, [''] * n_roots)
-    res = np.empty(R.shape)
-    for i, W in enumerate(values):
-        lam, _, r, _ = path.eig(float(W))
-        for j, x in enumerate(R[i]):
-            res[i, j] = r[int(np.argmin(np.abs(lam - x)))]
-
-    def name(i, j):
-        lam, V, _, lin = path.eig(float(values[i]))
-        k = int(np.argmin(np.abs(lam - R[i, j])))
-        return dominant(lin, V[:, k])
-    return _assemble(values, R, res, name, orders, nominal=path.ref)
-
-
-# -- centrifuge scenes ------------------------------------------------------------------------
-def campbell_centrifuge(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
-    """Campbell diagram of a centrifuge scene: its steady motion recomputed at each speed."""
-    from gyro_rotor.core.steady import NoSteadyMotionError, steady_motion
-    from gyro_rotor.linear.linearize import linearize
-    from gyro_rotor.linear.spectrum import _tol_re
-    from gyro_rotor.linear.stability import sweep
-    values = _check_values(Omega0_values)
-    ic = scene.initial
-    branch = ic.branch if ic.mode == 'steady' else 0
-    theta0 = ic.theta0 if branch else 0.0
-    p = scene.params
-    keep, skipped = [], []
-    for W in values:
-        try:
-            steady_motion(p.replace(Omega0=float(W)), theta0, branch)
-            keep.append(float(W))
-        except (NoSteadyMotionError, ParameterError, ValueError):
-            skipped.append(float(W))
-    if len(keep) < 2:
-        raise SceneError(f'scene {scene.name}: its steady motion (branch {branch}, theta0 = '
-                         f'{theta0:g} rad) exists at {len(keep)} of the {len(values)} speeds; '
-                         'choose another range with --omega-min/--omega-max')
-    values = np.array(keep)
-    names, R = sweep(p, 'Omega0', values, theta0=theta0, branch=branch, model=scene.model)
-    res = np.empty(R.shape)
-    for i, W in enumerate(values):
-        pp = p.replace(Omega0=float(W))
-        res[i] = _tol_re(linearize(pp, steady_motion(pp, theta0, branch), scene.model))
-    return _assemble(values, R, res, lambda i, j: names[j], orders, skipped=tuple(skipped),
-                     nominal=p.Omega0)
 
 
 # -- modes from tracked roots -----------------------------------------------------------------

@@ -1,7 +1,6 @@
-"""Root-locus figures in the style of the paper's figure 2 (matplotlib, imported lazily).
+"""The root-locus figure of any scene, in the style of the paper's figure 2 (matplotlib, lazily).
 
-The centrifuge's (:func:`root_locus_figure`) and any general system's
-(:func:`general_locus_figure`): zoomed to where the roots meet, each K_D* marked and
+:func:`locus_figure`: zoomed to where the roots meet, each K_D* marked and
 annotated, a legend for the branches and the markers, short tick labels, and a magnified
 view of the branches that barely leave the imaginary axis. The figure functions return the
 figure (tests read its limits and legend); only the command line saves them. Everything
@@ -12,14 +11,9 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.linear.locus import ClaimsReport, RootLocus
-from gyro_rotor.linear.spectrum import ZERO_ROOT
 import numpy as np
 
-__all__ = ['plot_root_locus', 'root_locus_figure', 'general_locus_figure']
-
-COLORS = {'nutation': 'tab:blue', 'precession': 'tab:cyan', 'housing twist': 'tab:green',
-          'rotor-field coupling': 'tab:red', ZERO_ROOT: 'black'}
+__all__ = ['plot_root_locus', 'locus_figure']
 
 
 def _frame(ax, scale: float, top: float) -> None:
@@ -32,110 +26,15 @@ def _frame(ax, scale: float, top: float) -> None:
     ax.set_ylabel('Im lambda [rad/s]')
 
 
-def plot_root_locus(loc: RootLocus, path: str, *, title: str = '',
-                    claims: ClaimsReport | None = None, K_D_mark: float | None = None) -> None:
-    """Draw the upper half plane of the root locus over K_D and save it to ``path``.
-
-    Branches are coloured by mode; x marks K_D = 0, o the K_D -> infinity asymptotes, a
-    diamond each meeting point K_D* on the real axis, a dot the roots at ``K_D_mark``
-    (:func:`root_locus_figure`).
-    """
+def plot_root_locus(lin, claims, path: str, *, K_lo: float, K_hi: float,
+                    title: str = '') -> None:
+    """Draw the root locus over K_D of any scene (:func:`locus_figure`), save it to ``path``."""
     import matplotlib.pyplot as plt
-    fig = root_locus_figure(loc, title=title, claims=claims, K_D_mark=K_D_mark)
+    fig = locus_figure(lin, claims, K_lo=K_lo, K_hi=K_hi, title=title)
     fig.savefig(path)
     plt.close(fig)
 
 
-def root_locus_figure(loc: RootLocus, *, title: str = '', claims: ClaimsReport | None = None,
-                      K_D_mark: float | None = None):
-    """Return the centrifuge's root-locus figure (:func:`plot_root_locus`) unsaved."""
-    try:
-        import matplotlib
-        matplotlib.use('Agg')
-        import matplotlib.pyplot as plt
-        from matplotlib.lines import Line2D
-    except ImportError as err:   # pragma: no cover -- optional dependency
-        from gyro_rotor.errors import AnalysisError
-        raise AnalysisError('plotting needs matplotlib (pip install matplotlib)') from err
-    lam = loc.eigenvalues
-    meetings = list(getattr(claims, 'meetings', None) or [])
-    scale = max(np.max(np.abs(lam[0])), np.max(np.abs(loc.zeros)),
-                max((abs(mt.lam) for mt in meetings), default=0.0), 1e-9)
-    fig, ax = plt.subplots(figsize=(8.0, 5.5), dpi=110)
-    seen = set()
-    for j, nm in enumerate(loc.labels):
-        z = lam[:, j]
-        if np.all(z.imag < -1e-9 * scale):
-            continue                                   # lower half plane: the mirror image
-        z = np.where(z.imag < 0, z.conj(), z)
-        col = COLORS.get(nm, 'tab:gray')
-        ax.plot(z.real, z.imag, '-', color=col, lw=1.6,
-                label=None if nm in seen else nm)
-        seen.add(nm)
-        ax.plot(z[0].real, abs(z[0].imag), 'x', color=col, ms=9, mew=2)
-        if K_D_mark is not None:
-            i = int(np.argmin(np.abs(np.log(np.maximum(loc.K_D, 1e-300)) - math.log(K_D_mark))))
-            ax.plot(z[i].real, abs(z[i].imag), '.', color=col, ms=9)
-    for zz, nm in zip(loc.zeros, loc.zero_labels):
-        if zz.imag >= -1e-9 * scale:
-            ax.plot(zz.real, zz.imag, 'o', mfc='none', color=COLORS.get(nm, 'tab:gray'), ms=9,
-                    mew=1.5)
-    if not meetings and claims is not None and claims.K_D_star is not None:
-        ax.plot(claims.breakaway, 0.0, 'D', color='tab:red', ms=7)
-        ax.annotate(f'K_D* = {claims.K_D_star:.4g}', (claims.breakaway, 0.0),
-                    textcoords='offset points', xytext=(5, 12), color='tab:red')
-    for i, mt in enumerate(sorted(meetings, key=lambda mt: mt.lam)):
-        ax.plot(mt.lam, 0.0, 'D', color='tab:red', ms=7)
-        ax.annotate(f'K_D* = {mt.K_D:.4g} ({mt.kind})', (mt.lam, 0.0),
-                    textcoords='offset points', xytext=(6, 12 + 20 * i), color='tab:red')
-    _frame(ax, scale, 1.12)
-    ax.set_title(title or 'root locus over K_D (x: K_D = 0, o: K_D -> infinity)')
-    fig.text(0.01, 0.005, f'K_D from 0 to {loc.K_D[-1]:.3g} N m s/rad (log grid); the fast '
-             f'{loc.fast_label} root leaves to the left like -{loc.fast_gain:.4g} K_D',
-             fontsize=8, color='0.3')
-    marks = [Line2D([], [], ls='', marker='x', color='0.3', ms=8, mew=2, label='K_D = 0'),
-             Line2D([], [], ls='', marker='o', mfc='none', color='0.3', ms=8,
-                    label='K_D -> infinity')]
-    if meetings or (claims is not None and claims.K_D_star is not None):
-        marks.append(Line2D([], [], ls='', marker='D', color='tab:red', ms=6,
-                            label='K_D*: a pair meets on the real axis'))
-    if K_D_mark is not None:
-        marks.append(Line2D([], [], ls='', marker='.', color='0.3', ms=9,
-                            label=f"scene's K_D = {K_D_mark:.4g}"))
-    h, t = ax.get_legend_handles_labels()
-    ax.legend(h + marks, t + [m.get_label() for m in marks], loc='upper left', fontsize=8)
-    _ticks(ax)
-    ax.grid(True, alpha=0.3)
-    _nutation_inset(ax, loc, K_D_mark)
-    fig.tight_layout(rect=(0, 0.03, 1, 1))
-    return fig
-
-
-def _nutation_inset(ax, loc: RootLocus, K_D_mark) -> None:
-    """Magnified view of the nutation branch, which barely leaves the imaginary axis."""
-    js = [j for j, nm in enumerate(loc.labels) if nm == 'nutation'
-          and np.mean(loc.eigenvalues[:, j].imag) > 0]
-    if not js:
-        return
-    z = loc.eigenvalues[:, js[0]]
-    re_min = float(np.min(z.real))
-    if re_min >= 0:
-        return
-    ins = ax.inset_axes([0.55, 0.35, 0.3, 0.3])
-    w0 = float(abs(z[0].imag))          # Im about its K_D = 0 value: no digits lost
-    ins.plot(z.real * 1e3, z.imag - w0, '-', color=COLORS['nutation'])
-    ins.plot(z[0].real * 1e3, z[0].imag - w0, 'x', color=COLORS['nutation'], ms=8, mew=2)
-    if K_D_mark is not None:
-        i = int(np.argmin(np.abs(np.log(np.maximum(loc.K_D, 1e-300)) - math.log(K_D_mark))))
-        ins.plot(z[i].real * 1e3, z[i].imag - w0, '.', color=COLORS['nutation'], ms=9)
-    ins.axvline(0.0, color='0.4', lw=0.8)
-    ins.set_xlim(1.15 * re_min * 1e3, -0.1 * re_min * 1e3)
-    ins.set_title(f'nutation branch: Re x 1000, Im - {w0:.6g} rad/s', fontsize=8)
-    _ticks(ins)
-    ins.tick_params(labelsize=7)
-
-
-# -- general systems ---------------------------------------------------------------------------
 def _retrack(roots: np.ndarray) -> np.ndarray:
     """Columns that follow each root: nearest to the linear prediction from row to row."""
     from scipy.optimize import linear_sum_assignment
@@ -182,13 +81,13 @@ def _ticks(ax) -> None:
         axis.set_major_formatter(FuncFormatter(lambda v, _: f'{v:.4g}'))
 
 
-class _GeneralLocus:
-    """What the general root-locus figure draws (:func:`general_locus_figure`)."""
+class _Locus:
+    """What the root-locus figure draws (:func:`locus_figure`)."""
 
     def __init__(self, lin, claims, K_lo: float, K_hi: float):
         """Collect the branches (tracked, densified), names, fixed and limit roots, scale."""
         from gyro_rotor.linear.claims import locked_spectrum
-        from gyro_rotor.linear.system import dominant
+        from gyro_rotor.linear.locus import name_roots
         loc = claims.locus
         sel = (loc.K >= K_lo * (1 - 1e-12)) & (loc.K <= K_hi * (1 + 1e-12))
         if np.sum(sel) < 2:
@@ -198,16 +97,15 @@ class _GeneralLocus:
         self.K, R = _densify(loc.K[sel], _retrack(loc.roots)[sel],
                              lambda K: np.linalg.eigvals(A0l - K * (Bl @ Cl)))
         self.R = R
-        # names at the start of the locus: the dominant coordinate of each eigenvector;
-        # the roots of A(K) on no branch do not move (not reached by the drives)
-        lam_s, V_s = np.linalg.eig(ds.A(float(self.K[0])))
-        self.names, used = [], set()
+        # names at the start of the locus: the linearization's modes there; the roots of
+        # A(K) on no branch do not move (not reached by the drives)
+        lam_s = np.linalg.eigvals(ds.A(float(self.K[0])))
+        used = set()
         for z in R[0]:
             d = np.abs(lam_s - z)
             d[list(used)] = np.inf
-            k = int(np.argmin(d))
-            used.add(k)
-            self.names.append(dominant(lin, V_s[:, k] / np.linalg.norm(V_s[:, k])))
+            used.add(int(np.argmin(d)))
+        self.names = name_roots(lin, R[0], float(self.K[0]))
         self.fixed = np.array([lam_s[i] for i in range(len(lam_s)) if i not in used],
                               dtype=complex)
         try:
@@ -241,19 +139,20 @@ class _GeneralLocus:
         return f'{self.names[j]} ({abs(self.R[0, j].imag):.4g} rad/s at {self.start})'
 
 
-def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = ''):
-    """Return the root-locus figure of a general system (matplotlib), like the centrifuge's.
+def locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = ''):
+    """Return the root-locus figure of any scene (matplotlib).
 
     ``lin``: :class:`~gyro_rotor.linear.system.Linearization`; ``claims``: its
     :class:`~gyro_rotor.linear.claims.ClaimsResult` (the continuation's locus, the
     meetings). The upper half plane is drawn (the lower is its mirror image), zoomed to
     where the roots meet: every K_D* meeting point, the K_D = 0 roots and the locked
     system's lie inside; the m fast roots that leave to -infinity leave the picture
-    (a note gives their rate). Branches are coloured by mode (the dominant coordinate of
-    the K_D = 0 eigenvector); x marks K_D = 0, o the K_D -> infinity limits, a diamond
-    each meeting K_D* (annotated with its value and kind), a dot the scene's K_D, + the
-    roots the drives do not reach. Branches that barely leave the imaginary axis get a
-    panel each beside it (Re scaled by a power of ten, Im about its K_D = 0 value).
+    (a note gives their rate). Branches are coloured by mode (named as
+    :func:`gyro_rotor.linear.system.modes` names them); x marks K_D = 0, o the
+    K_D -> infinity limits, a diamond each meeting K_D* (annotated with its value and
+    kind), a dot the scene's K_D, + the roots the drives do not reach. Branches that
+    barely leave the imaginary axis get a panel each beside it (Re scaled by a power of
+    ten, Im about its K_D = 0 value).
     """
     try:
         import matplotlib
@@ -262,7 +161,7 @@ def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = 
     except ImportError as err:   # pragma: no cover -- optional dependency
         from gyro_rotor.errors import AnalysisError
         raise AnalysisError('plotting needs matplotlib (pip install matplotlib)') from err
-    d = _GeneralLocus(lin, claims, K_lo, K_hi)
+    d = _Locus(lin, claims, K_lo, K_hi)
     if d.slow:
         fig = plt.figure(figsize=(12.5, 6.0), dpi=110)
         gs = fig.add_gridspec(len(d.slow), 2, width_ratios=(2.2, 1))
@@ -275,7 +174,7 @@ def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = 
     labels = sorted({d.label(j) for j in range(d.R.shape[1]) if d.upper[j]},
                     key=lambda t: -float(t.split('(')[-1].split()[0]))
     color = {t: cmap[i % len(cmap)] for i, t in enumerate(labels)}
-    _draw_general_main(ax, d, color, title)
+    _draw_main(ax, d, color, title)
     for ax2, j in zip(side, d.slow):
         _draw_slow_branch(ax2, d, j, color.get(d.label(j), 'tab:gray'))
     if side:
@@ -288,7 +187,7 @@ def general_locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = 
     return fig
 
 
-def _draw_general_main(ax, d: _GeneralLocus, color: dict, title: str) -> None:
+def _draw_main(ax, d: _Locus, color: dict, title: str) -> None:
     """Draw the branches, markers, annotations, limits and legend of the main panel."""
     from matplotlib.lines import Line2D
     S, seen = d.S, set()
@@ -336,7 +235,7 @@ def _draw_general_main(ax, d: _GeneralLocus, color: dict, title: str) -> None:
               framealpha=0.9)
 
 
-def _draw_slow_branch(ax2, d: _GeneralLocus, j: int, col) -> None:
+def _draw_slow_branch(ax2, d: _Locus, j: int, col) -> None:
     """Draw one slow branch, Re magnified by a power of ten to fill the panel."""
     top = max(float(d.excursion[j]), 1e-300)
     p = int(math.floor(math.log10(d.S / top) / 3) * 3) or 3

@@ -150,9 +150,11 @@ _TRUE = ('true', '1', 'yes', 'on')
 def scene_urdf(scene: str, share: str) -> str | None:
     """Return the URDF of a scene's system, or None if it has none (or is not found).
 
-    The centrifuge's scenes (``system: centrifuge``, or no ``system`` key) have
-    ``urdf/centrifuge.urdf``; a system file's scene has none. Light: reads the YAML file
-    only, for launch files.
+    A system's URDF sits beside its system file, with the same name: a shipped system
+    ``NAME`` (the built-in ``centrifuge`` included; no ``system`` key reads as it) has
+    ``share/urdf/NAME.urdf``, a system file given by path ``dir/mine.yaml`` has
+    ``dir/mine.urdf`` (a path relative to the scene file's folder, as rotor_sim resolves
+    it). Light: reads the YAML file only, for launch files.
     """
     import yaml
     if scene.endswith(('.yaml', '.yml')) or os.sep in scene or os.path.isfile(scene):
@@ -171,25 +173,32 @@ def scene_urdf(scene: str, share: str) -> str | None:
         params = next((v['ros__parameters'] for v in (doc or {}).values()
                        if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)),
                       {})
-        return (os.path.join(share, 'urdf', 'centrifuge.urdf')
-                if params.get('system', 'centrifuge') == 'centrifuge' else None)
+        system = str(params.get('system', 'centrifuge'))
+        if system.endswith(('.yaml', '.yml')) or os.sep in system:     # as system_path
+            if not os.path.isabs(system) and not os.path.isfile(system):
+                system = os.path.join(os.path.dirname(path), system)
+            urdf = os.path.splitext(system)[0] + '.urdf'
+        else:
+            urdf = os.path.join(share, 'urdf', f'{system}.urdf')
+        return urdf if os.path.isfile(urdf) else None
     return None
 
 
-def robot_description_condition(share: str, no_urdf: bool = False):
-    """Return a launch condition predicate: robot_description on and the scene has a URDF.
+def robot_description(cfg, share: str) -> tuple[str | None, str | None]:
+    """Return the URDF for robot_state_publisher, or None and the log line that says why.
 
-    ``no_urdf``: the predicate of the opposite case worth a log line: robot_description on
-    but the scene's system has no URDF. Reads the launch configurations ``scene`` and
-    ``robot_description``.
+    ``cfg``: the launch configurations (``scene``, ``robot_description``). Off: (None,
+    None); on, but the scene's system has no URDF (:func:`scene_urdf`): (None, the reason).
     """
-    def predicate(context) -> bool:
-        cfg = context.launch_configurations
-        if str(cfg.get('robot_description', 'true')).lower() not in _TRUE:
-            return False
-        has = scene_urdf(str(cfg.get('scene', 'precession')), share) is not None
-        return has != no_urdf
-    return predicate
+    if str(cfg.get('robot_description', 'true')).lower() not in _TRUE:
+        return None, None
+    scene = str(cfg.get('scene', 'precession'))
+    path = scene_urdf(scene, share)
+    if path is None:
+        return None, (f'scene {scene}: its system has no URDF (NAME.urdf beside its system '
+                      'file NAME.yaml): robot_state_publisher is not started')
+    with open(path, encoding='utf-8') as f:
+        return f.read(), None
 
 
 # -- ros2 launch, stopped as a terminal's Ctrl-C stops it ---------------------------------------
