@@ -52,6 +52,7 @@ def tune(lin) -> TuneResult:
     """
     from scipy.linalg import eig
     from scipy.optimize import brentq
+    from gyro_rotor.linear.locus import K_ref
     from gyro_rotor.linear.system import _unreached, modes
     un, zeros, scale = _unreached(lin)
     here = [m for m in modes(lin) if m.eigenvalue.imag >= -m.resolution]
@@ -76,8 +77,7 @@ def tune(lin) -> TuneResult:
         lam, W, V = eig(A, left=True, right=True)
         j = [int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))]
         return -math.exp(u) * float(drive_sensitivity(A, BC, lam[j], W[:, j], V[:, j])[0].real)
-    K_ref = scale / float(lin.fast_rates.min())
-    grid = np.geomspace(1e-6 * K_ref, 1e4 * K_ref, 401)
+    grid = np.geomspace(1e-6 * K_ref(lin), 1e4 * K_ref(lin), 401)
     rates = np.array([rate(K) for K in grid])
     i = int(np.argmax(rates))
     lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
