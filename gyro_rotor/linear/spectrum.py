@@ -44,10 +44,6 @@ SLOTS = {
 }
 
 
-def _tol_re(lin: LinearSystem) -> float:
-    return TOL_RE_REL * max(np.linalg.norm(lin.A0), 1.0)
-
-
 def _cyclic_z(lin: LinearSystem) -> int | None:
     """Index of z if it is cyclic (K_S = 0: its column of A0 is zero), else None."""
     if lin.params.K_S != 0.0 or 'z' not in lin.state_names:

@@ -29,7 +29,8 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
-from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # noqa: F401
+from gyro_rotor.linear.roundoff import floor
+from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
                                         TOL_SENS_REL, track, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
@@ -268,7 +269,7 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     lin = linearize(params.replace(K_D=K_D), motion, model)
     names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
     lam_K = lam_path[-1]
-    tol_re = _tol_re(lin)
+    tol_re = floor(lin.A0)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
     ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens)
     return StabilityReport(**vars(judge(ms, K_D == 0)), scene=scene, model=model,

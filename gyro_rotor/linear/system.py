@@ -239,10 +239,6 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          modes_at=lambda lin, K: analyze(p, sm, ls.model, K_D=K).modes)
 
 
-def _scale(lam: np.ndarray) -> float:
-    return max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
-
-
 def dominant(lin: Linearization, v: np.ndarray) -> str:
     """Return the coordinate that holds most of eigenvector ``v`` (its angle and rate)."""
     order = list(dict.fromkeys(lin.coordinate))
@@ -346,7 +342,7 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
 def _unreached(lin: Linearization) -> tuple[np.ndarray, np.ndarray, float]:
     """Non-zero roots at K = 0 whose eigenvectors have no zdot part, zero roots, scale."""
     lam0, V0 = np.linalg.eig(lin.A_cons)
-    scale = _scale(lam0)
+    scale = max(1.0, float(np.abs(lam0).max(initial=0.0)))
     zero = np.abs(lam0) <= 1e-7 * scale
     un = []
     for i in np.flatnonzero(~zero):
