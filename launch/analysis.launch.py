@@ -9,8 +9,8 @@ and ``namespace`` (of the node and its relative topics: it then listens to the r
 of that namespace; ``/clock`` and ``/diagnostics`` stay global).
 """
 
+from gyro_rotor.tools.launch import launch_arguments
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
@@ -19,21 +19,9 @@ from launch_ros.parameter_descriptions import ParameterValue
 def generate_launch_description():
     """Return the description: rotor_analysis recording to ``output``."""
     return LaunchDescription([
-        DeclareLaunchArgument('output', default_value='',
-                              description='rosbag2 (MCAP) directory to record to, which must '
-                                          "not exist yet ('': a fresh "
-                                          'bags_out/rotor_<time>)'),
-        DeclareLaunchArgument('scene', default_value='',
-                              description="scene to predict against ('': the one rotor_sim "
-                                          'announces on ~/scene, followed through live '
-                                          'changes)'),
-        DeclareLaunchArgument('window_s', default_value='8.0',
-                              description='analysis window [s]'),
-        DeclareLaunchArgument('use_sim_time', default_value='true',
-                              description="follow rotor_sim's /clock (simulation time); "
-                                          'false: the system clock'),
-        DeclareLaunchArgument('namespace', default_value='',
-                              description='ROS namespace of the node and its topics'),
+        *launch_arguments('output', 'scene', 'window_s', 'use_sim_time', 'namespace',
+                          scene=('', "scene to predict against ('': the one rotor_sim announces "
+                                     'on ~/scene, followed through live changes)')),
         Node(package='gyro_rotor', executable='rotor_analysis', name='rotor_analysis',
              namespace=LaunchConfiguration('namespace'), output='screen',
              parameters=[{'output': LaunchConfiguration('output'),

@@ -13,8 +13,9 @@ the bag finalized.
 import os
 
 from ament_index_python.packages import get_package_share_directory
+from gyro_rotor.tools.launch import launch_arguments
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription
+from launch.actions import IncludeLaunchDescription
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration
 
@@ -26,23 +27,8 @@ def generate_launch_description():
     common = {'use_sim_time': LaunchConfiguration('use_sim_time'),
               'namespace': LaunchConfiguration('namespace')}
     return LaunchDescription([
-        DeclareLaunchArgument('scene', default_value='precession',
-                              description='scene of rotor_sim: a name (config/<scene>.yaml, '
-                                          'config/systems/scenes/<scene>.yaml) or a path'),
-        DeclareLaunchArgument('output', default_value='',
-                              description='rosbag2 (MCAP) directory to record to, which must '
-                                          "not exist yet ('': a fresh "
-                                          'bags_out/rotor_<time>)'),
-        DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
-        DeclareLaunchArgument('robot_description', default_value='true',
-                              description='start robot_state_publisher with the URDF of the '
-                                          "scene's system (the centrifuge scenes; a general "
-                                          'system has none: not started)'),
-        DeclareLaunchArgument('use_sim_time', default_value='true',
-                              description="the nodes but rotor_sim follow rotor_sim's /clock "
-                                          '(rotor_sim is the clock source)'),
-        DeclareLaunchArgument('namespace', default_value='',
-                              description='ROS namespace of every node and of their topics'),
+        *launch_arguments('scene', 'output', 'rviz', 'robot_description', 'use_sim_time',
+                          'namespace'),
         IncludeLaunchDescription(
             PythonLaunchDescriptionSource(os.path.join(launch_dir, 'analysis.launch.py')),
             launch_arguments={'output': LaunchConfiguration('output'),

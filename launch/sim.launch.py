@@ -28,9 +28,9 @@ Arguments (``ros2 launch gyro_rotor sim.launch.py --show-args``):
 import os
 
 from ament_index_python.packages import get_package_share_directory
-from gyro_rotor.tools.launch import robot_description
+from gyro_rotor.tools.launch import launch_arguments, robot_description
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.actions import LogInfo, OpaqueFunction
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -54,24 +54,8 @@ def generate_launch_description():
     namespace = LaunchConfiguration('namespace')
     use_sim_time = ParameterValue(LaunchConfiguration('use_sim_time'), value_type=bool)
     return LaunchDescription([
-        DeclareLaunchArgument('scene', default_value='precession',
-                              description='scene name (config/<scene>.yaml, '
-                                          'config/systems/scenes/<scene>.yaml) or path'),
-        DeclareLaunchArgument('robot_description', default_value='true',
-                              description='start robot_state_publisher with the URDF of the '
-                                          "scene's system (urdf/NAME.urdf, or NAME.urdf "
-                                          'beside its system file)'),
-        DeclareLaunchArgument('rviz', default_value='false', description='start RViz2'),
-        DeclareLaunchArgument('use_sim_time', default_value='true',
-                              description="robot_state_publisher and RViz follow rotor_sim's "
-                                          '/clock (rotor_sim itself is the clock source)'),
-        DeclareLaunchArgument('namespace', default_value='',
-                              description='ROS namespace of the nodes and their topics'),
-        DeclareLaunchArgument('wait_for_subscribers', default_value='0',
-                              description='hold t = 0 until joint_states and energy have '
-                                          'this many subscribers (0: start at once)'),
-        DeclareLaunchArgument('wait_for_node', default_value='',
-                              description='... and until this node subscribes to both'),
+        *launch_arguments('scene', 'robot_description', 'rviz', 'use_sim_time', 'namespace',
+                          'wait_for_subscribers', 'wait_for_node'),
         Node(package='gyro_rotor', executable='rotor_sim', name='rotor_sim',
              namespace=namespace, output='screen',
              parameters=[{'scene': scene, 'publish_clock': True,

@@ -573,12 +573,27 @@ def test_demo_with_a_duration_whose_kick_is_off_the_grid(tmp_path, capsys):
     (['demo', '--kick-at', '30', '--duration', '20'], 'before --duration'),
     (['simulate', 'precession', '--set', 'publish_rate=0.0'], 'publish_rate must be in'),
     (['simulate', 'precession', '--set', 'step_size=-0.001'], 'step_size must be in'),
+    (['eig', '--json', '{tmp}/missing/x.json'], 'does not exist'),
+    (['eig', '--json', '{tmp}'], 'is a directory'),
+    (['locus', '--csv', '{tmp}/missing/x.csv'], 'does not exist'),
+    (['locus', '--json', '{tmp}'], 'is a directory'),
+    (['locus', '--points', '100000000'], '--points must be from 2 to 100000'),
 ])
-def test_command_line_values_are_checked_before_any_work(argv, message, capsys):
-    """Finding 15: these ran forever, exited 0 with nothing, printed nan or skipped a kick."""
-    assert cli.main(argv) == 1
+def test_command_line_values_are_checked_before_any_work(argv, message, tmp_path, capsys,
+                                                         monkeypatch):
+    """Finding 15: these ran forever, exited 0 with nothing, printed nan or skipped a kick.
+
+    eig and locus refuse an unwritable output and a huge grid before they compute anything.
+    """
+    import gyro_rotor.cli.commands.eig as eig_cmd
+    import gyro_rotor.cli.commands.locus as locus_cmd
+    called = []
+    monkeypatch.setattr(eig_cmd, 'linearize_scene', lambda *a, **k: called.append(1))
+    monkeypatch.setattr(locus_cmd, 'check_claims', lambda *a, **k: called.append(1))
+    assert cli.main([a.replace('{tmp}', str(tmp_path)) for a in argv]) == 1
     err = capsys.readouterr().err
     assert message in err and err.startswith('ERROR: ') and 'Traceback' not in err, err
+    assert not called, 'refused before any computation'
 
 
 def test_simulate_out_never_overwrites_nor_leaves_a_partial_file(tmp_path, capsys):

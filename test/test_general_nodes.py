@@ -12,7 +12,7 @@ import subprocess
 import sys
 
 from gyro_rotor.analysis.offline import analyze_bag
-from gyro_rotor.analysis.prediction import predict_general
+from gyro_rotor.analysis.prediction import predict
 from gyro_rotor.bag.bagio import open_bag
 from gyro_rotor.core.scene import list_scenes, load_scene, scene_from_flat
 from gyro_rotor.core.system.model import GeneralModel, joint_names
@@ -159,7 +159,7 @@ def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_pat
                        text=True, timeout=300)
     assert 'Traceback' not in r.stderr, r.stderr[-3000:]
     scene = load_scene(name)
-    expected = predict_general(scene).verdict
+    expected = predict(scene).verdict
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert f'RESULT: CONFIRMED: {expected}' in r.stdout
     bag = out / 'bag'
@@ -343,7 +343,7 @@ def test_a_sine_law_run_ending_on_an_unpaired_sample_is_judged():
 
 
 def test_the_deviation_channels_keep_theta_and_drop_only_the_cyclic_direction():
-    pred = predict_general(load_scene('centrifuge_euler'))
+    pred = predict(load_scene('centrifuge_euler'))
     P = np.array(pred.active_q)
     assert P.shape == (2, 3)
     assert np.linalg.norm(P @ [1.0, 0.0, 0.0]) == pytest.approx(1.0)   # theta is seen

@@ -21,6 +21,12 @@ def exact(t):
     return np.array([math.cos(t), -math.sin(t)])
 
 
+def oscillator_pacer(**options):
+    """Return (stepper, pacer): a DenseStepper of :func:`oscillator` from (1, 0) at t = 0."""
+    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
+    return st, Pacer(st, **options)
+
+
 @pytest.mark.parametrize('method', ['DOP853', 'rk4', 'Radau'])
 def test_advance_to_lands_exactly_on_target(method):
     st = make_stepper(method, oscillator, 0.0, np.array([1.0, 0.0]), rtol=1e-10, atol=1e-12,
@@ -34,8 +40,7 @@ def test_advance_to_lands_exactly_on_target(method):
 
 
 def test_skipped_ticks_land_exactly_on_target_and_keep_the_grid():
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=100.0, rtf=1.0, max_catch_up=0.25)
+    st, pacer = oscillator_pacer(sample_rate=100.0, rtf=1.0, max_catch_up=0.25)
     wall0 = 1000.0
     ticks = [0.0, 0.01, 0.02, 0.0537, 0.06, 0.0999, 0.2]   # irregular, with skipped ticks
     seen = []
@@ -51,8 +56,7 @@ def test_skipped_ticks_land_exactly_on_target_and_keep_the_grid():
 
 
 def test_real_time_factor_scales_simulation_time():
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=50.0, rtf=0.5)
+    st, pacer = oscillator_pacer(sample_rate=50.0, rtf=0.5)
     samples = pacer.tick(10.0)
     samples += pacer.tick(10.2)
     assert st.t == pytest.approx(0.1, abs=1e-12)
@@ -63,8 +67,7 @@ def test_real_time_factor_scales_simulation_time():
 
 
 def test_catch_up_is_capped_counted_and_reanchored():
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=100.0, rtf=1.0, max_catch_up=0.1)
+    st, pacer = oscillator_pacer(sample_rate=100.0, rtf=1.0, max_catch_up=0.1)
     pacer.tick(0.0)
     samples = pacer.tick(0.5)                      # a 0.5 s stall: only 0.1 s caught up
     assert st.t == pytest.approx(0.1, abs=1e-12)
@@ -89,8 +92,7 @@ def test_rtf_zero_advances_a_fixed_chunk_per_tick():
 
 
 def test_pause_holds_time_and_resume_does_not_jump():
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=100.0, rtf=1.0)
+    st, pacer = oscillator_pacer(sample_rate=100.0, rtf=1.0)
     pacer.tick(0.0)
     pacer.tick(0.1)
     pacer.pause(0.1)
@@ -104,8 +106,7 @@ def test_pause_holds_time_and_resume_does_not_jump():
 
 
 def test_t_end_stops_the_pacer():
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=10.0, rtf=1.0, t_end=0.35)
+    st, pacer = oscillator_pacer(sample_rate=10.0, rtf=1.0, t_end=0.35)
     samples = pacer.tick(0.0)
     samples += pacer.tick(0.2)
     samples += pacer.tick(0.3)
@@ -128,8 +129,7 @@ def test_t_end_stops_the_pacer():
 
 
 def test_overruns_count_ticks_longer_than_the_period():
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=100.0, rtf=1.0)
+    st, pacer = oscillator_pacer(sample_rate=100.0, rtf=1.0)
     pacer.tick(0.0)
     pacer.end_tick(0.005)
     pacer.tick(0.01)
@@ -347,8 +347,7 @@ def test_thread_priority_is_raised_or_the_reason_given():
 
 def test_pacer_targets_the_scheduled_time_and_says_when_the_next_sample_is_due():
     """A loop passes the deadline as ``now`` (the target lands on the grid), ``woke`` apart."""
-    st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
-    pacer = Pacer(st, sample_rate=1000.0, rtf=1.0)
+    st, pacer = oscillator_pacer(sample_rate=1000.0, rtf=1.0)
     assert pacer.due() is None                            # no time base yet
     out = pacer.tick(50.0, woke=50.0004)
     assert [s.k for s in out] == [0] and st.t == 0.0

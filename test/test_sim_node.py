@@ -84,6 +84,20 @@ class Rig:
         rclpy.shutdown(context=self.context)
 
 
+@pytest.fixture
+def own_context():
+    """Yield (context, executor) of the test's own; its nodes destroyed and it shut down after."""
+    context = rclpy.context.Context()
+    rclpy.init(context=context)
+    ex = SingleThreadedExecutor(context=context)
+    yield context, ex
+    nodes = ex.get_nodes()
+    ex.shutdown()
+    for node in nodes:
+        node.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
 @pytest.fixture(scope='module')
 def rig():
     r = Rig()
@@ -342,40 +356,34 @@ def test_live_change_of_the_wrong_type_names_parameter_value_and_type(rig):
     assert rig.node.get_parameter('K_S').value == 20.0
 
 
-def test_wait_for_node_holds_time_until_that_node_subscribes():
+def test_wait_for_node_holds_time_until_that_node_subscribes(own_context):
     """A viewer that subscribes first cannot stand in for the recorder (wait_for_node)."""
-    context = rclpy.context.Context()
-    rclpy.init(context=context)
-    ex = SingleThreadedExecutor(context=context)
-    try:
-        node = RotorSimNode(context=context, parameter_overrides=[
-            Parameter('scene', value='precession'), Parameter('real_time_factor', value=0.0),
-            Parameter('wait_for_subscribers', value=1),
-            Parameter('wait_for_node', value='rotor_analysis')])
-        ex.add_node(node)
-        viewer = rclpy.create_node('foxglove_bridge', context=context)
-        for topic, cls in (('energy', Float64MultiArray), ('joint_states', JointState)):
-            viewer.create_subscription(cls, topic, lambda m: None, PROBE_QOS)
-        ex.add_node(viewer)
-        ticks = []
-        node.create_timer(0.0, lambda: ticks.append(node.stepper.t))
-        deadline = time.monotonic() + 20
-        while not (node.pub['energy'].get_subscription_count() >= 1 and len(ticks) > 200):
-            assert time.monotonic() < deadline
-            ex.spin_once(timeout_sec=0.01)
-        assert node.stepper.t == 0.0 and node._waiting      # the viewer alone: held at 0
-        # the recorder's hidden node counts as rotor_analysis
-        rec = rclpy.create_node('_rotor_analysis_recorder', context=context)
-        for topic, cls in (('energy', Float64MultiArray), ('joint_states', JointState)):
-            rec.create_subscription(cls, topic, lambda m: None, PROBE_QOS)
-        ex.add_node(rec)
-        while node.stepper.t == 0.0:
-            assert time.monotonic() < deadline
-            ex.spin_once(timeout_sec=0.01)
-        assert not node._waiting
-    finally:
-        ex.shutdown()
-        rclpy.try_shutdown(context=context)
+    context, ex = own_context
+    node = RotorSimNode(context=context, parameter_overrides=[
+        Parameter('scene', value='precession'), Parameter('real_time_factor', value=0.0),
+        Parameter('wait_for_subscribers', value=1),
+        Parameter('wait_for_node', value='rotor_analysis')])
+    ex.add_node(node)
+    viewer = rclpy.create_node('foxglove_bridge', context=context)
+    for topic, cls in (('energy', Float64MultiArray), ('joint_states', JointState)):
+        viewer.create_subscription(cls, topic, lambda m: None, PROBE_QOS)
+    ex.add_node(viewer)
+    ticks = []
+    node.create_timer(0.0, lambda: ticks.append(node.stepper.t))
+    deadline = time.monotonic() + 20
+    while not (node.pub['energy'].get_subscription_count() >= 1 and len(ticks) > 200):
+        assert time.monotonic() < deadline
+        ex.spin_once(timeout_sec=0.01)
+    assert node.stepper.t == 0.0 and node._waiting      # the viewer alone: held at 0
+    # the recorder's hidden node counts as rotor_analysis
+    rec = rclpy.create_node('_rotor_analysis_recorder', context=context)
+    for topic, cls in (('energy', Float64MultiArray), ('joint_states', JointState)):
+        rec.create_subscription(cls, topic, lambda m: None, PROBE_QOS)
+    ex.add_node(rec)
+    while node.stepper.t == 0.0:
+        assert time.monotonic() < deadline
+        ex.spin_once(timeout_sec=0.01)
+    assert not node._waiting
 
 
 def test_use_sim_time_is_refused_live(rig):
@@ -429,33 +437,26 @@ def test_three_d_topics_at_their_own_rate(rig):
             rig.probe.destroy_subscription(sub)
 
 
-def test_the_loop_runs_once_an_executor_spins_the_node_and_stops_with_it():
+def test_the_loop_runs_once_an_executor_spins_the_node_and_stops_with_it(own_context):
     """A node only constructed (to read its parameters, say) does not integrate."""
-    context = rclpy.context.Context()
-    rclpy.init(context=context)
-    ex = SingleThreadedExecutor(context=context)
-    try:
-        node = RotorSimNode(context=context, parameter_overrides=[
-            Parameter('scene', value='precession'), Parameter('publish_rate', value=500.0)])
-        time.sleep(0.2)
-        assert node._thread is None and node.published['joint_states'] == 0
-        ex.add_node(node)
-        deadline = time.monotonic() + 20
-        while node.published['joint_states'] < 100:
-            assert time.monotonic() < deadline
-            ex.spin_once(timeout_sec=0.05)
-        assert node._thread.is_alive() and node._thread.name == 'rotor_sim-loop'
-        assert node.scheduling.startswith(('SCHED_FIFO', 'SCHED_OTHER'))
-        thread = node._thread
-        node.stop_loop()
-        assert not thread.is_alive()
-        n = node.published['joint_states']
-        time.sleep(0.1)
-        assert node.published['joint_states'] == n
-    finally:
-        ex.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
+    context, ex = own_context
+    node = RotorSimNode(context=context, parameter_overrides=[
+        Parameter('scene', value='precession'), Parameter('publish_rate', value=500.0)])
+    time.sleep(0.2)
+    assert node._thread is None and node.published['joint_states'] == 0
+    ex.add_node(node)
+    deadline = time.monotonic() + 20
+    while node.published['joint_states'] < 100:
+        assert time.monotonic() < deadline
+        ex.spin_once(timeout_sec=0.05)
+    assert node._thread.is_alive() and node._thread.name == 'rotor_sim-loop'
+    assert node.scheduling.startswith(('SCHED_FIFO', 'SCHED_OTHER'))
+    thread = node._thread
+    node.stop_loop()
+    assert not thread.is_alive()
+    n = node.published['joint_states']
+    time.sleep(0.1)
+    assert node.published['joint_states'] == n
 
 
 def test_a_loop_that_never_sleeps_gives_up_its_real_time_priority(rig):

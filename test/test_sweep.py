@@ -281,6 +281,11 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     assert got['final_E_star'][j] == pytest.approx(model.energy(run.y[-1:])[0], rel=1e-7)
     # the values reach the points: a stiffer turntable spring changes the motion
     assert len(set(np.round(got['final_E_star'], 9))) == 4
+    # every system offers every metric: the linear drives of twin_gimbal have no wells,
+    # and the abscissa is the prediction's (the one linearization of every scene)
+    from gyro_rotor.analysis.prediction import predict
+    assert got['final_well'][j] == 0 and got['pole_slips'][j] == 0
+    assert got['spectral_abscissa'][j] == predict(scene).spectral_abscissa < 0
 
 
 def test_general_sweep_same_on_a_local_cluster(cluster2, tmp_path):
@@ -299,7 +304,7 @@ def test_general_sweep_same_on_a_local_cluster(cluster2, tmp_path):
     (['--grid', 'constants.J_g=-1:1:3'], 'not positive definite'),
     (['--grid', 'K_D=-1:1:3'], 'must not be negative'),
     (['--grid', 'initial.q=0:1:2'], 'cannot be swept in a general scene'),
-    (['--grid', 'K_D=0.1:0.2:2', '--metrics', 'well'], "metric 'well' is not computed"),
+    (['--grid', 'K_D=0.1:0.2:2', '--metrics', 'wells'], "unknown metric 'wells'"),
 ])
 def test_bad_general_grid_is_an_error_before_any_work(extra, message, tmp_path, capsys):
     """General scenes: one ERROR line naming the problem, exit 1, nothing written."""

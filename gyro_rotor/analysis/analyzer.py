@@ -306,7 +306,7 @@ class RotorAnalyzer:
         lags = self._lags(s)
         if lags:
             seg.lags = lags
-        for r, (p, z) in enumerate(zip(self._poles(pred), lags)):
+        for r, (p, z) in enumerate(zip(pred.rotor_pole_pairs, lags)):
             if p > 0 and math.isfinite(z):
                 u = p * z / _TWO_PI                    # z in wells (bottoms at integers)
                 k = round(u)
@@ -328,20 +328,13 @@ class RotorAnalyzer:
             return tuple(s.positions[n:]) if ok else ()
         return (s.z,)
 
-    @staticmethod
-    def _poles(pred: Prediction) -> tuple:
-        return pred.rotor_pole_pairs if pred.coords == GENERAL_COORDS else (pred.pole_pairs,)
-
     def _row(self, s: Sample, pred: Prediction) -> tuple:
         """(t, E*, residual, z, zdot, deviation channels...) of one sample."""
         if pred.coords == GENERAL_COORDS:
             return _general_row(s, pred)
         th, psi = s.positions[0], s.positions[1]
         thd, psid, _, phiMd = s.velocities
-        p = pred.pole_pairs
-        z = s.z
-        if p > 0:
-            z = z - _TWO_PI / p * round(p * z / _TWO_PI)       # deviation from the well
+        z = _from_well(s.z, pred.pole_pairs)
         if pred.coords == 'II':
             dev = (th - pred.theta0, thd, psid - pred.psidot0, psid + phiMd, z, s.zdot)
         elif pred.coords == 'I':
@@ -419,7 +412,7 @@ class RotorAnalyzer:
         pred, last = seg.pred, seg.last
         if pred.pole_pairs <= 0 or last is None:
             return SyncState.SYNCHRONOUS, 0
-        r, p = next((r, p) for r, p in enumerate(self._poles(pred)) if p > 0)
+        r, p = next((r, p) for r, p in enumerate(pred.rotor_pole_pairs) if p > 0)
         z = seg.lags[r] if len(seg.lags) > r else math.nan
         well = int(round(p * z / _TWO_PI)) if math.isfinite(z) else 0
         if last.t - seg.last_slip_t <= self.sync_hold_s:
@@ -603,10 +596,12 @@ def _general_row(s: Sample, pred: Prediction) -> tuple:
     q = np.asarray(s.positions[:n]) - np.asarray(q_s) - np.asarray(qd_s) * s.t
     dq = tuple(float(np.dot(row, q)) for row in pred.active_q)
     dqd = tuple(v - w for v, w in zip(s.velocities[:n], qd_s))
-    dz = []
-    for p, z, z0 in zip(pred.rotor_pole_pairs, s.positions[n:], z_s):
-        d = z - z0
-        dz.append(d - _TWO_PI / p * round(p * d / _TWO_PI) if p > 0 else d)
+    dz = tuple(_from_well(z - z0, p)
+               for p, z, z0 in zip(pred.rotor_pole_pairs, s.positions[n:], z_s))
     zd = tuple(s.velocities[n:])
-    return (s.t, s.E_star, s.residual, s.positions[n], s.velocities[n]) + dq + dqd + \
-        tuple(dz) + zd
+    return (s.t, s.E_star, s.residual, s.positions[n], s.velocities[n]) + dq + dqd + dz + zd
+
+
+def _from_well(z: float, p: int) -> float:
+    """Return a lag's deviation from the bottom of its nearest well (p > 0: a sine law)."""
+    return z - _TWO_PI / p * round(p * z / _TWO_PI) if p > 0 else z

@@ -10,11 +10,10 @@ import dataclasses
 import math
 
 from gyro_rotor.core.scene import Scene
-from gyro_rotor.linear.stability import analyze_scene, ModeKind
+from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 
-__all__ = ['PredictedMode', 'Prediction', 'predict', 'predict_general',
-           'GENERAL_COORDS']
+__all__ = ['PredictedMode', 'Prediction', 'predict', 'GENERAL_COORDS']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -56,11 +55,11 @@ class Prediction:
     pole_pairs: int
     K_D: float
     source: str = ''
-    #: general systems: the steady motion (q, qdot, z) the deviations are taken from
+    #: a system file's steady motion (q, qdot, z) the deviations are taken from
     steady: tuple = ()
-    #: general systems: the pole pairs of each rotor's drive
+    #: the pole pairs of each rotor's drive
     rotor_pole_pairs: tuple = ()
-    #: general systems: rows that map the coordinates' deviation q - q_s to the deviation
+    #: rows that map the deviation q - q_s of a system file's coordinates to the deviation
     #: channels: a basis of the complement of the zero roots' directions (a cyclic
     #: combination of coordinates drifts after a kick and is left out)
     active_q: tuple = ()
@@ -77,84 +76,68 @@ class Prediction:
         return max(re) if re else math.nan
 
 
-def _steady_state(scene: Scene) -> np.ndarray:
-    """Model state on the unperturbed steady motion of the scene."""
-    model = scene.make_model()
-    ic = scene.initial
-    if ic.mode != 'steady':
-        return model.state_from_euler()
-    sm = scene.steady()
-    return model.state_from_euler(theta=sm.theta0, psidot=sm.psidot0,
-                                  phi_M_dot=-sm.psidot0)
-
-
-def predict(scene) -> Prediction:
-    """Predicted eigenvalues, named modes and verdict of a scene's steady motion.
-
-    A general scene goes to :func:`predict_general`. Otherwise from
-    :func:`gyro_rotor.linear.stability.analyze_scene` (modes named there, by their
-    modal energy at K_D = 0, followed by continuity).
-    """
-    if not scene.builtin:
-        return predict_general(scene)
-    model = scene.make_model()
-    E_inf = float(model.energy(_steady_state(scene)))
-    sm = scene.steady()
-    p = scene.params
-    common = {'scene': scene.name, 'E_inf': E_inf, 'theta0': sm.theta0,
-              'psidot0': sm.psidot0, 'pole_pairs': int(p.pole_pairs), 'K_D': float(p.K_D)}
-    rep = analyze_scene(scene)
-    marginal = {str(m) for m in rep.marginal_modes}
-    modes = tuple(PredictedMode(str(m.name), complex(m.eigenvalue), bool(m.reached_by_drive),
-                                str(m.name) in marginal, structural=m.kind == ModeKind.ZERO)
-                  for m in rep.modes if complex(m.eigenvalue).imag >= -1e-12)
-    return Prediction(coords=rep.coords, modes=modes,
-                      spectral_abscissa=float(rep.spectral_abscissa),
-                      verdict=str(rep.verdict), source='stability.analyze_scene', **common)
-
-
-#: :attr:`Prediction.coords` of a general system (deviations of q, qdot, z, zdot)
+#: :attr:`Prediction.coords` of a system file's linearization (deviations of q, qdot, z, zdot)
 GENERAL_COORDS = 'general'
 
 
-def predict_general(scene) -> Prediction:
-    """Predict the modes and verdict of a general scene (:mod:`gyro_rotor.linear.system`).
+def predict(scene: Scene) -> Prediction:
+    """Predict the modes and verdict of a scene's steady motion, any system's.
 
-    Modes: the roots of A(K) at the scene's drives, one of each conjugate pair, named by
-    their largest state; a zero root is structural (a cyclic coordinate), a root the
-    drives do not reach (PBH) is marginal. Verdict: unstable if a root has Re > 0,
-    marginal if a mode is not reached, else asymptotically stable.
+    Modes: the roots of A at the scene's drives (:func:`~gyro_rotor.linear.system.modes`),
+    one of each conjugate pair, with their names (the centrifuge's by modal energy at
+    K_D = 0, followed by continuity; a system file's by the dominant coordinate). A real
+    part within its root's resolution (:mod:`gyro_rotor.linear.roundoff`, the rule of
+    every system) is on the imaginary axis. A zero root is structural (a cyclic
+    coordinate) and not judged. Verdict: unstable if a judged root has Re beyond its
+    resolution, marginal if one is on the axis (a mode the drives do not reach, or no
+    drive damping), else asymptotically stable.
     """
-    from gyro_rotor.linear.system import linearize_scene, modes, REL_AXIS
     from gyro_rotor.linear.stability import Stability
+    from gyro_rotor.linear.system import linearize_scene, modes
     model = scene.make_model()
     lin = linearize_scene(scene, model=model)
     roots = modes(lin)
     scale = max([1.0] + [abs(r.eigenvalue) for r in roots])
-    out = _unique_names(tuple(PredictedMode(r.name, r.eigenvalue, r.reached_by_drive,
-                                            marginal=not (r.reached_by_drive or _zero(r)),
-                                            structural=_zero(r))
-                              for r in roots if r.eigenvalue.imag >= -1e-12 * scale))
-    live = [m.eigenvalue.real for m in out if not m.structural]
-    abscissa = max(live) if live else -math.inf
-    if abscissa > REL_AXIS * scale:
+    res = _resolutions(lin, roots)
+    out = [(PredictedMode(r.name, complex(r.eigenvalue), bool(r.reached_by_drive),
+                          marginal=abs(r.eigenvalue.real) <= tol and not _zero(r),
+                          structural=_zero(r)), tol)
+           for r, tol in zip(roots, res) if r.eigenvalue.imag >= -1e-12 * scale]
+    judged = [(m, tol) for m, tol in out if not m.structural]
+    abscissa = max((m.eigenvalue.real for m, _ in judged), default=-math.inf)
+    if any(m.eigenvalue.real > tol for m, tol in judged):
         verdict = Stability.UNSTABLE
-    elif any(m.marginal for m in out):
+    elif any(m.marginal for m, _ in judged):
         verdict = Stability.MARGINAL
     else:
         verdict = Stability.ASYMPTOTICALLY_STABLE
-    n = lin.n
-    active = _position_channels(lin.A_scene(), n, scale)
-    drives = scene.system.drives
-    poles = scene.pole_pairs
+    sm = scene.steady() if scene.params else None
+    # a system file's steady motion in its coordinates (the centrifuge's: theta0, psidot0)
+    steady = (tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z))
     return Prediction(
-        scene=scene.name, coords=GENERAL_COORDS, modes=out, spectral_abscissa=abscissa,
+        scene=scene.name, coords=lin.analytic.coords if lin.analytic else GENERAL_COORDS,
+        modes=_unique_names(tuple(m for m, _ in out)), spectral_abscissa=float(abscissa),
         verdict=str(verdict), E_inf=float(model.energy(scene.steady_state(model))),
-        theta0=math.nan, psidot0=math.nan,
-        pole_pairs=max(poles), K_D=max(d.K_D for d in drives),
+        theta0=sm.theta0 if sm else math.nan, psidot0=sm.psidot0 if sm else math.nan,
+        pole_pairs=max(scene.pole_pairs), K_D=float(lin.K_all.max()),
         source='linear.system.modes',
-        steady=(tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z)),
-        rotor_pole_pairs=poles, active_q=active)
+        steady=steady if any(steady) else (),
+        rotor_pole_pairs=scene.pole_pairs,
+        active_q=_position_channels(lin.A_scene(), len(scene.steady_q), scale))
+
+
+def _resolutions(lin, roots) -> list:
+    """Return the resolution of each root's real part (:mod:`gyro_rotor.linear.roundoff`).
+
+    The floor TOL_RE_REL ||A0||, and where the roots are computed from A itself (a system
+    file's) each root's own round-off bound; the centrifuge's analytic spectrum keeps its
+    roots to the floor at any K_D through its pencil form.
+    """
+    from gyro_rotor.linear.roundoff import floor, resolutions
+    if lin.analytic is not None:
+        return [floor(lin.A_cons)] * len(roots)
+    lam, res = resolutions(lin.A_scene(), lin.A_cons)
+    return [float(res[int(np.argmin(np.abs(lam - r.eigenvalue)))]) for r in roots]
 
 
 def _zero(mode) -> bool:

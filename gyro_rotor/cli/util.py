@@ -54,16 +54,6 @@ def load_scene_with_sets(scene: str, sets: list[str], *, check: bool = True):
         raise type(err)(f'{given} (scene {base.name}): {text}') from err
 
 
-def on_system(args, centrifuge, system, *, check: bool = True) -> int:
-    """Load the command's scene once (``--set`` applied) and run it on the scene's system.
-
-    ``centrifuge(args, scene)`` for the built-in centrifuge, ``system(args, scene)`` for a
-    system file's scene; ``check=False``: a system file's steady motion is not checked.
-    """
-    scene = load_scene_with_sets(args.scene, args.set, check=check)
-    return (centrifuge if scene.builtin else system)(args, scene)
-
-
 def check_output_file(path: str, suffixes: tuple[str, ...] = (), *,
                       overwrite: bool | None = None) -> None:
     """Refuse, before any work is done, an output file that could not be written.

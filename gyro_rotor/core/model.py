@@ -51,7 +51,10 @@ import numpy as np
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
            'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
            'pack_params', 'tilt_twist_torque', 'drive_rates', 'full_rhs', 'upright_rhs',
-           'locked_rhs', 'numba_able', 'perturb_state', 'PERTURBATION_KEYS']
+           'locked_rhs', 'numba_able', 'perturb_state', 'PERTURBATION_KEYS', 'AXIS_DOWN']
+
+#: why a run of the centrifuge can fail at a finite state: its one singular orientation
+AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
 
 try:  # pragma: no cover - exercised by whichever branch the install has
     from numba.extending import register_jitable
@@ -328,6 +331,11 @@ class Model:
     def body_rates(self, Y) -> np.ndarray:  # pragma: no cover
         """Stator body angular velocity of states Y."""
         raise NotImplementedError
+
+    def singular_at(self, y) -> str:
+        """Return why the model is singular at state ``y`` (:data:`AXIS_DOWN`), else ''."""
+        theta = self.outputs(np.zeros(1), np.asarray(y, dtype=float)[None])['theta'][0]
+        return AXIS_DOWN if np.pi - abs(theta) < 1e-6 else ''
 
     def quaternion_norm_error(self, Y) -> np.ndarray:
         """|q| - 1 (zero for the reduced models, whose orientation is exact)."""

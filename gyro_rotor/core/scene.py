@@ -258,9 +258,18 @@ class Scene:
             return model.state(self.q0, self.qdot0, self.z0, self.zdot0)
         return _centrifuge_state(self, model)
 
-    def steady_state(self, model: GeneralModel | None = None) -> np.ndarray:
-        """State on a system file's steady motion at t = 0 (zdot = 0, D = 0)."""
+    def steady_state(self, model: Model | GeneralModel | None = None) -> np.ndarray:
+        """State on the scene's steady motion at t = 0 (z = zdot = 0, D = 0).
+
+        The centrifuge: its steady motion (I or II, eqs. 20-23; the resting state for a
+        body-mode scene); a system file: its checked steady motion (q_s, qdot_s, z_s).
+        """
         model = model or self.make_model()
+        if self.system is None:
+            sm = self.steady()
+            return (model.state_from_euler(theta=sm.theta0, psidot=sm.psidot0,
+                                           phi_M_dot=-sm.psidot0)
+                    if self.initial.mode == 'steady' else model.state_from_euler())
         return model.state(self.steady_q, self.steady_qdot, self.steady_z,
                            np.zeros(self.system.m))
 

@@ -354,8 +354,9 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
     stiff = _is_stiff(scene)
     rtols = RTOLS['quick' if quick else 'full']
     jobs = []
-    for name in (methods or (QUICK_METHODS if quick else (AUTO,) + methods_for(scene.builtin))):
-        if name != AUTO and name not in methods_for(scene.builtin):
+    own = methods_for(model)
+    for name in (methods or (QUICK_METHODS if quick else (AUTO,) + own)):
+        if name != AUTO and name not in own:
             continue
         if name == AUTO or METHODS[name].adaptive:
             for r in rtols:
@@ -364,8 +365,8 @@ def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool =
         elif name in STEP_FACTORS:
             if name == 'gauss6' and stiff:
                 continue       # fixed-point stages cannot converge at useful steps
-            if name == 'split8' and (stiff or scene.model != 'full'):
-                continue       # explicit sub-flows; full model only
+            if name == 'split8' and stiff:
+                continue       # explicit sub-flows
             facs = STEP_FACTORS[name]
             facs = facs[1::3] if quick else facs
             for f in facs:

@@ -9,9 +9,10 @@ fastest rate); :func:`kernel_model` gives the view of any model, the one
 :func:`gyro_rotor.numerics.simulate.integrate`, :func:`gyro_rotor.numerics.ensemble.run_ensemble`
 and the live simulation hand to the integrators.
 
-Methods of a system file (:data:`SYSTEM_METHODS`): those whose kernels need nothing but the
+Methods of every model (:data:`SYSTEM_METHODS`): those whose kernels need nothing but the
 right-hand side, and radau9, which for a generated system is Radau IIA with the generated
-exact Jacobian (:mod:`~gyro_rotor.numerics.integrators.radau_jac`; ``kernel_jac``).
+exact Jacobian (:mod:`~gyro_rotor.numerics.integrators.radau_jac`; ``kernel_jac``); a
+model adds its own symplectic method (:func:`methods_for`).
 """
 
 from __future__ import annotations
@@ -71,6 +72,11 @@ def kernel_model(model: Model | GeneralModel | KernelSystem):
     return KernelSystem(model) if isinstance(model, GeneralModel) else model
 
 
-def methods_for(builtin: bool) -> tuple:
-    """Return the project's integration methods of the built-in centrifuge or a system file."""
-    return tuple(METHODS) if builtin else SYSTEM_METHODS
+def methods_for(model) -> tuple:
+    """Return the project's integration methods ``model`` offers (in the integrators' order).
+
+    Those of :data:`SYSTEM_METHODS`, which need nothing but the right-hand side (and a
+    generated system's exact Jacobian), and the model's own symplectic method
+    (``symplectic_method``: split8, the exact sub-flows of the centrifuge's full model).
+    """
+    return tuple(n for n in METHODS if n in SYSTEM_METHODS or n == model.symplectic_method)

@@ -25,13 +25,13 @@ import dataclasses
 import time
 from typing import Any, Mapping
 
-from gyro_rotor.core.model import Model
+from gyro_rotor.core.model import AXIS_DOWN, Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
 from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
                                              integrate as integrate_kernels, make_integrator)
-from gyro_rotor.numerics.kernel_system import kernel_model, KernelSystem, methods_for
+from gyro_rotor.numerics.kernel_system import kernel_model, methods_for
 import numpy as np
 
 __all__ = ['Trajectory', 'simulate', 'integrate', 'Run', 'DEFAULT_METHOD', 'DEFAULT_RTOL',
@@ -198,11 +198,11 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     atol = DEFAULT_ATOL if atol is None else float(atol)
     check_tolerances(rtol, atol)
     reason = ''
-    own = methods_for(scene.builtin)
+    model = scene.make_model()
+    own = methods_for(model)
     if method not in ('auto',) + own and method not in SCIPY_METHODS:
         raise ParameterError(f"unknown integrator '{method}' for system {scene.system_name}; "
                              f"valid: auto, {', '.join(own)}, {', '.join(SCIPY_METHODS)}")
-    model = scene.make_model()
     y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
     size = len(model.state_names)
     if y_init.shape != (size,) or not np.all(np.isfinite(y_init)):
@@ -257,11 +257,10 @@ def integrate(model, y0, t_eval, *, method: str = 'auto', rtol: float = 1e-9,
     if method == 'auto':
         method = choose_integrator(model, te[-1] - te[0], rtol, 0.0, y0)[0]
     view = kernel_model(model)
-    general = isinstance(view, KernelSystem)
-    own = methods_for(not general)
+    own = methods_for(model)
     if method not in own:
-        raise ParameterError(f"{'general systems' if general else 'centrifuge models'} "
-                             f"integrate with auto, {', '.join(own)}; got {method!r}")
+        raise ParameterError(f"model '{model.name}' integrates with auto, {', '.join(own)}; "
+                             f'got {method!r}')
     res = integrate_kernels(view, y0, (te[0], te[-1]), te, method=method, rtol=rtol,
                             atol=atol, step=step, max_steps=max_steps)
     if not res.success:
@@ -342,18 +341,10 @@ def _run_scipy(scene: Scene, model: Model, y_init: np.ndarray, t_eval: np.ndarra
                 time.perf_counter() - t0, rtol, atol)
 
 
-#: why a run can fail at a finite state: the one singular orientation of the model
-AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
-
-
 def _failure(scene: Scene, model: Model, method: str, run: _Run) -> str:
-    """Return the error text of a failed run, naming theta = pi where the axis points down."""
+    """Return the error text of a failed run, naming the model's singularity if it got there."""
     good = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
     t_fail = run.t[-1] if run.t.size else 0.0
     text = f'integration of scene {scene.name} with {method} failed at t = {t_fail}'
-    if np.any(good) and scene.builtin:
-        k = int(np.flatnonzero(good)[-1])
-        theta = model.outputs(run.t[k:k + 1], run.y[k:k + 1])['theta'][0]
-        if np.pi - abs(theta) < 1e-6:
-            return f'{text}: {AXIS_DOWN}; {run.message}'
-    return f'{text}: {run.message}'
+    why = model.singular_at(run.y[np.flatnonzero(good)[-1]]) if np.any(good) else ''
+    return f'{text}: {why}; {run.message}' if why else f'{text}: {run.message}'

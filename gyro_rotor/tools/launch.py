@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+from pathlib import Path
 import signal
 import struct
 import subprocess
@@ -24,10 +25,10 @@ import sys
 import tempfile
 from typing import Any, IO, Mapping
 
-from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.errors import GyroRotorError, ParameterError
 
 __all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param',
-           'energy_seq_from_cdr']
+           'energy_seq_from_cdr', 'make_output_dir']
 
 
 class DomainClaim:
@@ -64,6 +65,18 @@ def claim_domain_id(first: int = 101, last: int = 232) -> DomainClaim:
             continue
         return DomainClaim(domain, f)
     raise RuntimeError(f'no free ROS_DOMAIN_ID in {first}..{last}')
+
+
+def make_output_dir(out: Path) -> Path:
+    """Create the output directory ``out`` of a node run (its parents too) and return it.
+
+    Raises ParameterError if it cannot be created (the demo and the soak run's bad --out).
+    """
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ParameterError(f'cannot create output directory {out}: {err}') from err
+    return out
 
 
 def ros_param(name: str, value: Any) -> str:
@@ -145,6 +158,38 @@ class NodeProcess:
 
 # -- the launch files' helpers ---------------------------------------------------------------
 _TRUE = ('true', '1', 'yes', 'on')
+
+
+#: the arguments of the launch files: name -> (default, description), each written once
+LAUNCH_ARGUMENTS = {
+    'scene': ('precession', 'scene of rotor_sim: a name (config/<scene>.yaml, '
+                            'config/systems/scenes/<scene>.yaml) or a path'),
+    'output': ('', "rosbag2 (MCAP) directory to record to, which must not exist yet ('': a "
+                   'fresh bags_out/rotor_<time>)'),
+    'rviz': ('false', 'start RViz2'),
+    'robot_description': ('true', "start robot_state_publisher with the URDF of the scene's "
+                                  'system (urdf/NAME.urdf, or NAME.urdf beside its system '
+                                  'file)'),
+    'use_sim_time': ('true', "the nodes but rotor_sim follow rotor_sim's /clock (simulation "
+                             'time; rotor_sim is the clock source); false: the system clock'),
+    'namespace': ('', 'ROS namespace of every node and of their topics'),
+    'window_s': ('8.0', 'analysis window [s]'),
+    'wait_for_subscribers': ('0', 'hold t = 0 until joint_states and energy have this many '
+                                  'subscribers (0: start at once)'),
+    'wait_for_node': ('', '... and until this node subscribes to both'),
+}
+
+
+def launch_arguments(*names: str, **own: tuple[str, str]) -> list:
+    """Return a DeclareLaunchArgument for each of ``names`` (:data:`LAUNCH_ARGUMENTS`).
+
+    ``own``: name -> (default, description) of an argument that a launch file declares its
+    own way.
+    """
+    from launch.actions import DeclareLaunchArgument
+    return [DeclareLaunchArgument(name, default_value=default, description=description)
+            for name in names
+            for default, description in [own.get(name, LAUNCH_ARGUMENTS[name])]]
 
 
 def scene_urdf(scene: str, share: str) -> str | None:

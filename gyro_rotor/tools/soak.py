@@ -322,10 +322,8 @@ def _check_soak_args(rate: float, duration: float, rtf: float, out: Path) -> Pat
     bag = out / 'bag'
     if bag.exists():
         raise ParameterError(f'{bag} exists already')
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ParameterError(f'cannot create output directory {out}: {err}') from err
+    from gyro_rotor.tools.launch import make_output_dir
+    make_output_dir(out)
     return bag
 
 

@@ -24,15 +24,17 @@ column                 definition                                               
                        of 0; NaN ("not resolved within t_end") otherwise
 ``final_E_star``       E* (eq. 13) at t = T                                                 J
 ``spectral_abscissa``  max Re of the linearization's roots at the point (judged modes,      1/s
-                       :func:`gyro_rotor.linear.stability.analyze`)
+                       :func:`gyro_rotor.linear.system.modes`)
 =====================  ===============================================================  =====
 
-A scene with a ``system`` key (eqs. 1-17 of any rotor system) has no single drive lag:
-its metrics (:data:`SYSTEM_METRICS`, :func:`system_metrics`) are taken of the deviation
-amplitude a = max_i |q_i - steady.q_i| over the coordinates that move: ``peak`` (max a),
-``settling`` (first time after which a stays <= tol), ``decay`` (the decay rate of a over
-the run, :func:`fit_decay`), ``energy`` (E* at t_end, eq. 13). ``well`` and ``abscissa``
-are not computed for them (refused up front).
+Every system offers every metric. A scene with a ``system`` key (eqs. 1-17 of any rotor
+system) has no single drive lag: its ``peak``, ``settling`` and ``decay``
+(:func:`system_metrics`) are taken of the deviation amplitude a = max_i |q_i - steady.q_i|
+over the coordinates that move (peak: max a; settling: the first time after which a stays
+<= tol; decay: the decay rate of a over the run, :func:`fit_decay`). ``well`` of any
+system: the well of the first rotor with a sine law and the passages of all its rotors
+(:func:`wells`); ``energy``: E* at t_end (eq. 13); ``abscissa``: of the one linearization
+of every scene (:mod:`gyro_rotor.linear.system`).
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
            'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay',
-           'decay_interval', 'SYSTEM_METRICS', 'system_metrics']
+           'decay_interval', 'system_metrics', 'wells']
 
 #: default settling tolerance of the drive amplitude a [rad]
 DEFAULT_TOL = 1e-3
@@ -80,8 +82,6 @@ METRIC_COLUMNS = {
     Metric.ENERGY: ('final_E_star',),
     Metric.ABSCISSA: ('spectral_abscissa',),
 }
-#: the metric groups computed for a scene with a ``system`` key
-SYSTEM_METRICS = (Metric.SETTLING, Metric.PEAK, Metric.DECAY, Metric.ENERGY)
 #: columns stored as (nullable) integers
 INT_COLUMNS = ('final_well', 'pole_slips')
 COLUMN_UNITS = {'final_well': '-', 'pole_slips': '-', 'settling_time': 's',
@@ -99,6 +99,18 @@ def well_passages(u: np.ndarray) -> int:
     k = np.round(u)
     k = k[np.abs(u - k) <= 0.25]
     return int(np.sum(np.abs(np.diff(k)))) if k.size > 1 else 0
+
+
+def wells(Z: np.ndarray, poles) -> dict:
+    """Return ``final_well`` and ``pole_slips`` of the lags ``Z`` (samples, rotors).
+
+    final_well: round(p z(T) / 2 pi) of the first rotor with a sine law (p > 0), else 0;
+    pole_slips: the passages (:func:`well_passages`) of every rotor, summed.
+    """
+    sine = [(r, p) for r, p in enumerate(poles) if p > 0]
+    return {'final_well': int(round(Z[-1, sine[0][0]] / (_TWO_PI / sine[0][1])))
+            if sine else 0,
+            'pole_slips': sum(well_passages(Z[:, r] / (_TWO_PI / p)) for r, p in sine)}
 
 
 #: chunks of the run over which the amplitude's envelope is taken (their maxima)
@@ -182,8 +194,7 @@ def trajectory_metrics(model: Model, t: np.ndarray, y: np.ndarray, metrics, *,
     well_w = _TWO_PI / pp if pp > 0 else 0.0
     k_end = int(round(z[-1] / well_w)) if pp > 0 else 0
     if Metric.WELL in metrics:
-        out['final_well'] = k_end
-        out['pole_slips'] = well_passages(z / well_w) if pp > 0 else 0
+        out.update(wells(z[:, None], (pp,)))
     if Metric.PEAK in metrics:
         z0 = well_w * round(z[0] / well_w) if pp > 0 else 0.0
         out['peak_deviation'] = float(np.max(np.abs(z - z0)))
@@ -208,11 +219,15 @@ def system_metrics(model, steady_q: np.ndarray, t: np.ndarray, y: np.ndarray, me
     """Column -> value for one trajectory of a rotor system (samples ``y`` (m, n), finite).
 
     ``model`` is the point's :class:`~gyro_rotor.core.system.model.GeneralModel`,
-    ``steady_q`` its steady coordinates; ``metrics`` a set of :data:`SYSTEM_METRICS`.
+    ``steady_q`` its steady coordinates; ``metrics`` a set of :class:`Metric` (the
+    spectral abscissa is computed by the caller).
     """
     q = y[:, model.slices()[0]]
     a = np.max(np.abs(q - steady_q), axis=1) if q.shape[1] else np.zeros(t.size)
     out: dict = {}
+    if Metric.WELL in metrics:
+        out.update(wells(y[:, model.slices()[2]],
+                         tuple(d.pole_pairs for d in model.system.drives)))
     if Metric.PEAK in metrics:
         out['peak_deviation'] = float(np.max(a))
     if Metric.SETTLING in metrics:

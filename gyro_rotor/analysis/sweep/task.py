@@ -30,8 +30,7 @@ import warnings
 
 from gyro_rotor.analysis.sweep.grid import SweepGrid
 from gyro_rotor.analysis.sweep.metrics import (Metric, METRIC_COLUMNS, PointStatus,
-                                               SYSTEM_METRICS, system_metrics,
-                                               trajectory_metrics)
+                                               system_metrics, trajectory_metrics)
 from gyro_rotor.core.model import make_model
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.scene import flatten, load_scene, Scene, scene_from_mapping, scene_path
@@ -149,16 +148,12 @@ def _fastest_rate(base: Mapping[str, Any], grid: SweepGrid) -> float:
     return fastest
 
 
-def _check_metrics(wanted, done: Sequence[Metric]) -> None:
-    """Refuse an unknown metric, then one not computed for the scene's kind (``done``)."""
+def _check_metrics(wanted) -> None:
+    """Refuse an unknown metric (every system offers every :class:`Metric`)."""
     for m in wanted:
         if m not in tuple(Metric):
             raise ParameterError(f"unknown metric '{m}'; valid: "
                                  f"{', '.join(x.value for x in Metric)}")
-    for m in wanted:
-        if Metric(m) not in done:
-            raise ParameterError(f"metric '{m}' is not computed for general scenes; valid: "
-                                 f"{', '.join(x.value for x in done)}")
 
 
 def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = None,
@@ -172,9 +167,8 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
     grid = SweepGrid.parse(grid_specs)
     loaded = load_scene(scene)
     general = not loaded.builtin
-    done = tuple(Metric) if loaded.builtin else SYSTEM_METRICS
-    wanted = done if metrics is None else tuple(metrics)
-    _check_metrics(wanted, done)
+    wanted = tuple(Metric) if metrics is None else tuple(metrics)
+    _check_metrics(wanted)
     if general:
         from gyro_rotor.core.system.model import system_rate
         path = str(loaded.path)
@@ -300,6 +294,7 @@ def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
         return _Points(idx, msg)
     model = scenes[idx[0]].make_model()
     systems = [scenes[j].system for j in idx]
+    cache: dict = {}
 
     def run(sel: slice):
         return run_ensemble(model, Y[sel], spec.t_eval, method='rk4', step=spec.step,
@@ -308,7 +303,10 @@ def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
     def measure(j: int, y: np.ndarray) -> dict:
         bound = GeneralModel(scenes[j].system, compiled=model.compiled)
         steady_q = np.asarray(scenes[j].steady_q, dtype=float)
-        return system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
+        out = system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
+        if Metric.ABSCISSA in metrics:
+            out['spectral_abscissa'] = _abscissa(scenes[j], cache)
+        return out
 
     Y = np.array([scenes[j].initial_state(model) for j in idx])
     return _Points(idx, msg, Y, run, measure)
@@ -333,14 +331,22 @@ def _integrate(pts: _Points, m: int):
 
 
 def _abscissa(scene: Scene, cache: dict) -> float:
-    from gyro_rotor.linear.stability import analyze, scene_operating_point
-    p, sm, model = scene_operating_point(scene)
-    key = (p, sm, model)
-    if key not in cache:
-        try:
-            cache[key] = analyze(p, sm, model).spectral_abscissa
-        except (GyroRotorError, ArithmeticError, np.linalg.LinAlgError):
-            cache[key] = math.nan
+    """Return the spectral abscissa of any scene: its judged modes' largest Re (NaN: none).
+
+    The one linearization of every scene (:mod:`gyro_rotor.linear.system`); its modes are
+    computed once per distinct linearization (a kick does not change it).
+    """
+    from gyro_rotor.linear.stability import ModeKind
+    from gyro_rotor.linear.system import linearize_scene, modes
+    try:
+        lin = linearize_scene(scene)
+        key = tuple(np.asarray(x).tobytes() for x in (lin.A_cons, lin.b_all, lin.c_all,
+                                                      lin.K_all))
+        if key not in cache:
+            cache[key] = max((m.eigenvalue.real for m in modes(lin)
+                              if m.kind != ModeKind.ZERO), default=-math.inf)
+    except (GyroRotorError, ArithmeticError, np.linalg.LinAlgError):
+        return math.nan
     return cache[key]
 
 

@@ -269,11 +269,8 @@ def _out_dir(args: argparse.Namespace, scene) -> Path:
     out = Path(args.out)
     if out.exists() and any(out.iterdir()):
         raise ParameterError(f'output directory {out} exists and is not empty')
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ParameterError(f'cannot create output directory {out}: {err}') from err
-    return out
+    from gyro_rotor.tools.launch import make_output_dir
+    return make_output_dir(out)
 
 
 def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) -> list:

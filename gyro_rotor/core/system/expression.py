@@ -124,21 +124,19 @@ class _Parser:
         if self.depth > MAX_DEPTH:
             raise _Refusal(col, f'nested more than {MAX_DEPTH} levels deep')
 
-    def expr(self):
-        left = self.term()
-        while self.peek()[1] in ('+', '-') and self.peek()[0] is TokenKind.OP:
+    def left_assoc(self, ops, operand):
+        """Parse ``operand (op operand)*`` for the operators ``ops``, grouped from the left."""
+        left = operand()
+        while self.peek()[1] in ops and self.peek()[0] is TokenKind.OP:
             _, op, col = self.take()
-            right = self.term()
-            left = _combine(op, left, right, col)
+            left = _combine(op, left, operand(), col)
         return left
 
+    def expr(self):
+        return self.left_assoc(('+', '-'), self.term)
+
     def term(self):
-        left = self.unary()
-        while self.peek()[1] in ('*', '/') and self.peek()[0] is TokenKind.OP:
-            _, op, col = self.take()
-            right = self.unary()
-            left = _combine(op, left, right, col)
-        return left
+        return self.left_assoc(('*', '/'), self.unary)
 
     def unary(self):
         kind, value, col = self.peek()

@@ -223,6 +223,10 @@ class GeneralModel:
         """Return a typical fastest rate [1/s] of the system, for the first step size."""
         return system_rate(self.system)
 
+    def singular_at(self, y) -> str:
+        """Return '': the mass matrix of a loaded system is positive definite (checked)."""
+        return ''
+
     # -- outputs of a trajectory (the interface the centrifuge's models present too) --------
     def outputs(self, t, Y) -> dict:
         """Return the outputs of a trajectory (``t`` (k,), states ``Y`` (k, 2 N + 1)).
