@@ -19,8 +19,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
-__all__ = ['spectrum', 'track', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL',
-           'TOL_SENS_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
+__all__ = ['spectrum', 'track', 'drive_sensitivity', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL',
+           'TOL_RE_REL', 'TOL_SENS_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
 #: without drive stiffness (K_S = 0) the lag z is cyclic too: a second structural zero root
@@ -42,10 +42,6 @@ SLOTS = {
     'upright': (('housing twist', 'twist'), ('rotor-field coupling', 'drive')),
     'locked': (('rotor-field coupling', 'drive'),),
 }
-
-
-def _tol_re(lin: LinearSystem) -> float:
-    return TOL_RE_REL * max(np.linalg.norm(lin.A0), 1.0)
 
 
 def _cyclic_z(lin: LinearSystem) -> int | None:
@@ -95,6 +91,30 @@ def spectrum(lin: LinearSystem, K_D: float, *, left: bool = False):
         raise ParameterError(f'K_D = {float(K_D)!r} N m s/rad is too large for the linear '
                              'analysis: the eigenvalues are not finite in double precision')
     return out
+
+
+def drive_sensitivity(A0: np.ndarray, BC: np.ndarray, lam: np.ndarray, W: np.ndarray,
+                      V: np.ndarray) -> np.ndarray:
+    """Return d lambda_j/d K of A0 - K BC at its eigenpairs (lam, left W, right V).
+
+    Eigenvalue perturbation theory: d lambda/d K = -(w^H BC v)/(w^H v). Where w^H v is
+    tiny (a defective or repeated root: a Jordan block, the cyclic zero roots) a central
+    finite difference of the nearest eigenvalue over K in [-h, h] replaces it.
+    """
+    d = np.empty(len(lam), dtype=complex)
+    h = 1e-7 * max(np.linalg.norm(A0), 1.0) / max(np.linalg.norm(BC), 1e-300)
+    near = None
+    for j in range(len(lam)):
+        w, v = W[:, j], V[:, j]
+        den = np.vdot(w, v)
+        if np.linalg.norm(w) * np.linalg.norm(v) < 1e8 * abs(den):
+            d[j] = -np.vdot(w, BC @ v) / den
+            continue
+        if near is None:
+            near = [np.linalg.eigvals(A0 - h * BC), np.linalg.eigvals(A0 + h * BC)]
+        lp, lm = (x[np.argmin(abs(x - lam[j]))] for x in near)
+        d[j] = (lp - lm) / (2 * h)
+    return d
 
 
 def _spectrum(lin: LinearSystem, K_D: float, left: bool):

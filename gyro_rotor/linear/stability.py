@@ -29,9 +29,10 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
-from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero, _tol_re,  # noqa: F401
-                                        spectrum, STRUCTURAL, TOL_RE_REL, TOL_SENS_REL, track,
-                                        ZERO_ROOT, ZERO_ROOT_Z)
+from gyro_rotor.linear.roundoff import floor
+from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
+                                        drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
+                                        TOL_SENS_REL, track, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
@@ -90,7 +91,20 @@ class Mode:
 
 
 @dataclasses.dataclass(frozen=True)
-class StabilityReport:
+class Verdict:
+    """The verdict of :func:`judge` about a list of modes."""
+
+    verdict: Stability
+    reason: str
+    spectral_abscissa: float
+    slowest_mode: str
+    marginal_modes: list
+    #: the resolution of the slowest mode's root (its |Re| within it prints as 0)
+    slowest_resolution: float
+
+
+@dataclasses.dataclass(frozen=True)
+class StabilityReport(Verdict):
     """Modes about a steady motion and the verdict (see :func:`analyze`)."""
 
     scene: str
@@ -100,11 +114,6 @@ class StabilityReport:
     state_names: tuple
     K_D: float
     modes: list
-    spectral_abscissa: float
-    slowest_mode: str
-    verdict: Stability
-    marginal_modes: list
-    reason: str
     A: np.ndarray = dataclasses.field(repr=False)
 
     def mode(self, name: str) -> Mode:
@@ -119,9 +128,8 @@ class StabilityReport:
 def sensitivities(lin: LinearSystem) -> tuple:
     """(eigenvalues of A0, d lambda/d K_D at K_D = 0, weighted right eigenvectors).
 
-    Eigenvalue perturbation theory: d lambda/d K_D = -(w^H b)(c^T v)/(w^H v). Where
-    w^H v is tiny (a defective or repeated root) a central finite difference of the
-    tracked eigenvalue over K_D in [-h, h] replaces it. A semisimple cluster of zero roots
+    :func:`~gyro_rotor.linear.spectrum.drive_sensitivity` (d lambda/d K_D =
+    -(w^H b)(c^T v)/(w^H v)). A semisimple cluster of zero roots
     (K_S = 0 about solution II: the roots of psi and of the drive's slip) has no unique
     eigenvectors: its basis is the one that the perturbation -K_D b c^T diagonalizes
     (first-order degenerate perturbation theory), and d lambda/d K_D are the eigenvalues
@@ -129,45 +137,28 @@ def sensitivities(lin: LinearSystem) -> tuple:
     """
     lam, Vw, W = spectrum(lin, 0.0, left=True)
     V = Vw / lin.weights[:, None]
-    d = np.empty(len(lam), dtype=complex)
-    done = _zero_cluster(lin, lam, V, W, Vw, d)
-    for j in range(len(lam)):
-        if j in done:
-            continue
-        w, v = W[:, j], V[:, j]
-        den = np.vdot(w, v)
-        cond = np.linalg.norm(w) * np.linalg.norm(v) / max(abs(den), 1e-300)
-        if cond < 1e8:
-            d[j] = -np.vdot(w, lin.b) * (lin.c @ v) / den
-        else:                                      # pragma: no cover -- degenerate roots
-            h = 1e-7 * np.linalg.norm(lin.A0) / max(np.linalg.norm(lin.b), 1e-300)
-            lp = np.linalg.eigvals(lin.A0 - h * np.outer(lin.b, lin.c))
-            lm = np.linalg.eigvals(lin.A0 + h * np.outer(lin.b, lin.c))
-            d[j] = (lp[np.argmin(abs(lp - lam[j]))] - lm[np.argmin(abs(lm - lam[j]))]) / (2 * h)
+    d = drive_sensitivity(lin.A0, np.outer(lin.b, lin.c), lam, W, V)
+    _zero_cluster(lin, lam, V, W, Vw, d)
     return lam, d, Vw
 
 
-def _zero_cluster(lin, lam, V, W, Vw, d) -> set:
-    """Resolve a semisimple cluster of zero roots in place (see :func:`sensitivities`).
-
-    Returns the indices handled (their ``Vw`` columns rotated, ``d`` set).
-    """
+def _zero_cluster(lin, lam, V, W, Vw, d) -> None:
+    """Resolve a semisimple cluster of zero roots in place: its ``Vw`` and ``d``."""
     n = len(lam)
     iz = _cyclic_z(lin)
     tol = 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
     idx = [j for j in range(n) if abs(lam[j]) <= tol and not (iz is not None and j == n - 1)]
     if len(idx) < 2:
-        return set()
+        return
     N, L = V[:, idx], W[:, idx]
     G = L.conj().T @ N
     if np.linalg.cond(G) > 1e8:        # pragma: no cover -- a defective cluster
-        return set()
+        return
     M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
     mu, Y = np.linalg.eig(M)
     Vn = (N @ Y) * lin.weights[:, None]
     Vw[:, idx] = Vn / np.maximum(np.linalg.norm(Vn, axis=0), 1e-300)
     d[idx] = mu
-    return set(idx)
 
 
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
@@ -230,19 +221,6 @@ def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
     return [0.0] + list(np.geomspace(lo, K_D, 6 * per_decade + 1))
 
 
-@dataclasses.dataclass(frozen=True)
-class Verdict:
-    """The verdict of :func:`judge` about a list of modes."""
-
-    verdict: Stability
-    reason: str
-    spectral_abscissa: float
-    slowest_mode: str
-    marginal_modes: list
-    #: the resolution of the slowest mode's root (its |Re| within it prints as 0)
-    slowest_resolution: float = 0.0
-
-
 def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
     """Judge modes: unstable, marginal or asymptotically stable, with the reason.
 
@@ -256,29 +234,26 @@ def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
     """
     ms = [m for m in ms if m.eigenvalue.imag >= -m.resolution]
     judged = [m for m in ms if m.kind != ModeKind.ZERO]
-    absc = max((m.eigenvalue.real for m in judged), default=-math.inf)
-    top = max(judged, key=lambda m: m.eigenvalue.real) if judged else None
-    slowest, res = (top.name, top.resolution) if top else ('', 0.0)
+    top = max(judged, key=lambda m: m.eigenvalue.real, default=None)
+    absc, slowest, res = ((top.eigenvalue.real, top.name, top.resolution) if top
+                          else (-math.inf, '', 0.0))
     unstable = [m for m in judged if m.eigenvalue.real > m.resolution]
     marginal = [m for m in judged if abs(m.eigenvalue.real) <= m.resolution]
     if unstable:
-        return Verdict(Stability.UNSTABLE, 'growing: ' + ', '.join(
-            f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)' for m in unstable),
-            float(absc), slowest, [], res)
-    if marginal:
-        parts = []
-        for m in marginal:
-            why = ('no drive damping (K_D = 0)' if undamped_drives and m.reached_by_drive
-                   else 'not reached by the drive damping (dRe/dK_D = 0 at K_D = 0; '
-                        "Hagedorn's exclusion)" if not m.reached_by_drive
-                   else 'on the imaginary axis')
-            parts.append(f'{m.name}: {why}')
-        return Verdict(Stability.MARGINAL, '; '.join(parts), float(absc), slowest,
-                       [m.name for m in marginal], res)
-    but = ' except the cyclic zero roots' if len(judged) < len(ms) else ''
-    return Verdict(Stability.ASYMPTOTICALLY_STABLE,
-                   f'every root{but} has Re < 0; slowest: {slowest} (Re = {absc:.4g} 1/s)',
-                   float(absc), slowest, [], res)
+        verdict, reason = Stability.UNSTABLE, 'growing: ' + ', '.join(
+            f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)' for m in unstable)
+    elif marginal:
+        verdict, reason = Stability.MARGINAL, '; '.join(
+            f'{m.name}: ' + ('no drive damping (K_D = 0)' if m.reached_by_drive
+                             and undamped_drives else 'on the imaginary axis'
+                             if m.reached_by_drive else 'not reached by the drive damping '
+                             "(dRe/dK_D = 0 at K_D = 0; Hagedorn's exclusion)")
+            for m in marginal)
+    else:
+        but = ' except the cyclic zero roots' if len(judged) < len(ms) else ''
+        verdict, reason = (Stability.ASYMPTOTICALLY_STABLE, f'every root{but} has Re < 0; '
+                           f'slowest: {slowest} (Re = {absc:.4g} 1/s)')
+    return Verdict(verdict, reason, float(absc), slowest, [m.name for m in marginal], res)
 
 
 def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
@@ -294,15 +269,12 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     lin = linearize(params.replace(K_D=K_D), motion, model)
     names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
     lam_K = lam_path[-1]
-    tol_re = _tol_re(lin)
+    tol_re = floor(lin.A0)
     tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
     ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens)
-    v = judge(ms, K_D == 0)
-    return StabilityReport(scene=scene, model=model, motion=motion, coords=lin.coords,
-                           state_names=lin.state_names, K_D=K_D, modes=ms,
-                           spectral_abscissa=v.spectral_abscissa, slowest_mode=v.slowest_mode,
-                           verdict=v.verdict, marginal_modes=v.marginal_modes,
-                           reason=v.reason, A=lin.A)
+    return StabilityReport(**vars(judge(ms, K_D == 0)), scene=scene, model=model,
+                           motion=motion, coords=lin.coords, state_names=lin.state_names,
+                           K_D=K_D, modes=ms, A=lin.A)
 
 
 def scene_operating_point(scene) -> tuple:

@@ -239,10 +239,6 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          modes_at=lambda lin, K: analyze(p, sm, ls.model, K_D=K).modes)
 
 
-def _scale(lam: np.ndarray) -> float:
-    return max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
-
-
 def dominant(lin: Linearization, v: np.ndarray) -> str:
     """Return the coordinate that holds most of eigenvector ``v`` (its angle and rate)."""
     order = list(dict.fromkeys(lin.coordinate))
@@ -319,14 +315,12 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     """Return, for each root ``lam`` of A at dampings ``Ks``, its K = 0 root and d Re/d K there.
 
     The roots are followed from K = 0 (every drive's K scaled by s in [0, 1], a log path)
-    by eigenvector continuity (:func:`gyro_rotor.linear.spectrum.track`). The sensitivity to
-    a common K: d lambda/d K = -(w^H B C' v)/(w^H v) (left and right eigenvectors w, v);
-    a defective root (w^H v ~ 0: a Jordan block, the cyclic zero roots) by a central
-    difference of its nearest roots instead.
+    by eigenvector continuity (:func:`gyro_rotor.linear.spectrum.track`); the sensitivity
+    to a common K by :func:`gyro_rotor.linear.spectrum.drive_sensitivity`.
     """
     from scipy.linalg import eig
     from scipy.optimize import linear_sum_assignment
-    from gyro_rotor.linear.spectrum import track
+    from gyro_rotor.linear.spectrum import drive_sensitivity, track
     BC = lin.b_all @ lin.c_all.T
     lam0, W, V0 = eig(lin.A_cons, left=True, right=True)
     V0 = V0 / np.maximum(np.linalg.norm(V0, axis=0), 1e-300)
@@ -340,25 +334,15 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     rows, cols = linear_sum_assignment(np.abs(end[:, None] - lam[None, :]))
     start = np.empty(len(lam), dtype=complex)
     d = np.empty(len(lam))
-    h = 1e-7 * np.linalg.norm(lin.A_cons) / max(np.linalg.norm(BC), 1e-300)
-    for j, i in zip(rows, cols):
-        start[i] = lam0[j]
-        w, v = W[:, j], V0[:, j]
-        den = np.vdot(w, v)
-        if np.linalg.norm(w) * np.linalg.norm(v) < 1e8 * abs(den):
-            d[i] = (-np.vdot(w, BC @ v) / den).real
-        else:
-            lp = np.linalg.eigvals(lin.A_cons - h * BC)
-            lm = np.linalg.eigvals(lin.A_cons + h * BC)
-            d[i] = ((lp[np.argmin(abs(lp - lam0[j]))] - lm[np.argmin(abs(lm - lam0[j]))])
-                    / (2 * h)).real
+    d0 = drive_sensitivity(lin.A_cons, BC, lam0, W, V0).real
+    start[cols], d[cols] = lam0[rows], d0[rows]
     return start, d
 
 
 def _unreached(lin: Linearization) -> tuple[np.ndarray, np.ndarray, float]:
     """Non-zero roots at K = 0 whose eigenvectors have no zdot part, zero roots, scale."""
     lam0, V0 = np.linalg.eig(lin.A_cons)
-    scale = _scale(lam0)
+    scale = max(1.0, float(np.abs(lam0).max(initial=0.0)))
     zero = np.abs(lam0) <= 1e-7 * scale
     un = []
     for i in np.flatnonzero(~zero):

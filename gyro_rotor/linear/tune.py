@@ -16,6 +16,7 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize
+from gyro_rotor.linear.spectrum import drive_sensitivity
 from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 
@@ -51,6 +52,7 @@ def tune(lin) -> TuneResult:
     """
     from scipy.linalg import eig
     from scipy.optimize import brentq
+    from gyro_rotor.linear.locus import K_ref
     from gyro_rotor.linear.system import _unreached, modes
     un, zeros, scale = _unreached(lin)
     here = [m for m in modes(lin) if m.eigenvalue.imag >= -m.resolution]
@@ -70,13 +72,12 @@ def tune(lin) -> TuneResult:
         return float(-lam[judged(lam)].real.max())
 
     def slope(u: float) -> float:
-        """Return d rate/d ln K of the slowest judged root: K Re(w^H B C' v)/(w^H v)."""
-        lam, W, V = eig(lin.A_common(math.exp(u)), left=True, right=True)
-        j = int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))
-        w, v = W[:, j], V[:, j]
-        return math.exp(u) * float((np.vdot(w, BC @ v) / np.vdot(w, v)).real)
-    K_ref = scale / float(lin.fast_rates.min())
-    grid = np.geomspace(1e-6 * K_ref, 1e4 * K_ref, 401)
+        """Return d rate/d ln K = -K d Re/d K of the slowest judged root."""
+        A = lin.A_common(math.exp(u))
+        lam, W, V = eig(A, left=True, right=True)
+        j = [int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))]
+        return -math.exp(u) * float(drive_sensitivity(A, BC, lam[j], W[:, j], V[:, j])[0].real)
+    grid = np.geomspace(1e-6 * K_ref(lin), 1e4 * K_ref(lin), 401)
     rates = np.array([rate(K) for K in grid])
     i = int(np.argmax(rates))
     lo, hi = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
