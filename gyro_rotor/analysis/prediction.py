@@ -83,61 +83,36 @@ GENERAL_COORDS = 'general'
 def predict(scene: Scene) -> Prediction:
     """Predict the modes and verdict of a scene's steady motion, any system's.
 
-    Modes: the roots of A at the scene's drives (:func:`~gyro_rotor.linear.system.modes`),
-    one of each conjugate pair, with their names (the centrifuge's by modal energy at
-    K_D = 0, followed by continuity; a system file's by the dominant coordinate). A real
-    part within its root's resolution (:mod:`gyro_rotor.linear.roundoff`, the rule of
-    every system) is on the imaginary axis. A zero root is structural (a cyclic
-    coordinate) and not judged. Verdict: unstable if a judged root has Re beyond its
-    resolution, marginal if one is on the axis (a mode the drives do not reach, or no
-    drive damping), else asymptotically stable.
+    Modes and verdict: :func:`~gyro_rotor.linear.system.assess` of the scene's one
+    linearization (the centrifuge's modes named by modal energy at K_D = 0 and followed
+    by continuity, a system file's by the dominant coordinate), one of each conjugate
+    pair. A real part within its root's resolution (:mod:`gyro_rotor.linear.roundoff`,
+    the rule of every system) is on the imaginary axis: such a mode is marginal (the
+    drives do not reach it, or there is no drive damping). A zero root is structural (a
+    cyclic coordinate) and not judged (:func:`~gyro_rotor.linear.stability.judge`).
     """
-    from gyro_rotor.linear.stability import Stability
-    from gyro_rotor.linear.system import linearize_scene, modes
+    from gyro_rotor.linear.system import assess, linearize_scene
     model = scene.make_model()
     lin = linearize_scene(scene, model=model)
-    roots = modes(lin)
+    roots, verdict = assess(lin)
     scale = max([1.0] + [abs(r.eigenvalue) for r in roots])
-    res = _resolutions(lin, roots)
-    out = [(PredictedMode(r.name, complex(r.eigenvalue), bool(r.reached_by_drive),
-                          marginal=abs(r.eigenvalue.real) <= tol and not _zero(r),
-                          structural=_zero(r)), tol)
-           for r, tol in zip(roots, res) if r.eigenvalue.imag >= -1e-12 * scale]
-    judged = [(m, tol) for m, tol in out if not m.structural]
-    abscissa = max((m.eigenvalue.real for m, _ in judged), default=-math.inf)
-    if any(m.eigenvalue.real > tol for m, tol in judged):
-        verdict = Stability.UNSTABLE
-    elif any(m.marginal for m, _ in judged):
-        verdict = Stability.MARGINAL
-    else:
-        verdict = Stability.ASYMPTOTICALLY_STABLE
+    out = tuple(PredictedMode(r.name, complex(r.eigenvalue), bool(r.reached_by_drive),
+                              marginal=bool(abs(r.eigenvalue.real) <= r.resolution)
+                              and not _zero(r),
+                              structural=_zero(r))
+                for r in roots if r.eigenvalue.imag >= -1e-12 * scale)
     sm = scene.steady() if scene.params else None
     # a system file's steady motion in its coordinates (the centrifuge's: theta0, psidot0)
     steady = (tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z))
     return Prediction(
         scene=scene.name, coords=lin.analytic.coords if lin.analytic else GENERAL_COORDS,
-        modes=_unique_names(tuple(m for m, _ in out)), spectral_abscissa=float(abscissa),
-        verdict=str(verdict), E_inf=float(model.energy(scene.steady_state(model))),
+        modes=_unique_names(out), spectral_abscissa=float(verdict.spectral_abscissa),
+        verdict=str(verdict.verdict), E_inf=float(model.energy(scene.steady_state(model))),
         theta0=sm.theta0 if sm else math.nan, psidot0=sm.psidot0 if sm else math.nan,
         pole_pairs=max(scene.pole_pairs), K_D=float(lin.K_all.max()),
-        source='linear.system.modes',
-        steady=steady if any(steady) else (),
+        source='linear.system.assess', steady=steady if any(steady) else (),
         rotor_pole_pairs=scene.pole_pairs,
         active_q=_position_channels(lin.A_scene(), len(scene.steady_q), scale))
-
-
-def _resolutions(lin, roots) -> list:
-    """Return the resolution of each root's real part (:mod:`gyro_rotor.linear.roundoff`).
-
-    The floor TOL_RE_REL ||A0||, and where the roots are computed from A itself (a system
-    file's) each root's own round-off bound; the centrifuge's analytic spectrum keeps its
-    roots to the floor at any K_D through its pencil form.
-    """
-    from gyro_rotor.linear.roundoff import floor, resolutions
-    if lin.analytic is not None:
-        return [floor(lin.A_cons)] * len(roots)
-    lam, res = resolutions(lin.A_scene(), lin.A_cons)
-    return [float(res[int(np.argmin(np.abs(lam - r.eigenvalue)))]) for r in roots]
 
 
 def _zero(mode) -> bool:

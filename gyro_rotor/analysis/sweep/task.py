@@ -331,20 +331,18 @@ def _integrate(pts: _Points, m: int):
 
 
 def _abscissa(scene: Scene, cache: dict) -> float:
-    """Return the spectral abscissa of any scene: its judged modes' largest Re (NaN: none).
+    """Return the spectral abscissa of any scene (:func:`~gyro_rotor.linear.system.assess`).
 
     The one linearization of every scene (:mod:`gyro_rotor.linear.system`); its modes are
     computed once per distinct linearization (a kick does not change it).
     """
-    from gyro_rotor.linear.stability import ModeKind
-    from gyro_rotor.linear.system import linearize_scene, modes
+    from gyro_rotor.linear.system import assess, linearize_scene
     try:
         lin = linearize_scene(scene)
         key = tuple(np.asarray(x).tobytes() for x in (lin.A_cons, lin.b_all, lin.c_all,
                                                       lin.K_all))
         if key not in cache:
-            cache[key] = max((m.eigenvalue.real for m in modes(lin)
-                              if m.kind != ModeKind.ZERO), default=-math.inf)
+            cache[key] = assess(lin)[1].spectral_abscissa
     except (GyroRotorError, ArithmeticError, np.linalg.LinAlgError):
         return math.nan
     return cache[key]
