@@ -233,6 +233,16 @@ class _Cdr:
 _F64: dict[int, struct.Struct] = {}
 
 
+#: the Raises section of every decoder's docstring (:func:`_decoder` appends it)
+_RAISES = """
+
+    Raises
+    ------
+    CdrError
+        If the bytes are too short for what they announce.
+    """
+
+
 def _decoder(what: str):
     """Make ``fn(reader)`` a decoder of bytes: a truncation raises one CdrError naming ``what``."""
     def wrap(fn):
@@ -242,19 +252,14 @@ def _decoder(what: str):
                 return fn(_Cdr(data))
             except struct.error as err:
                 raise CdrError(f'{what} of {len(data)} bytes: {err}') from err
+        decode.__doc__ = (fn.__doc__ or '') + _RAISES    # None under python -OO
         return decode
     return wrap
 
 
 @_decoder('Float64MultiArray')
 def energy_from_cdr(r: _Cdr) -> EnergyRow:
-    """Decode a serialized std_msgs/Float64MultiArray (layout and data) from its bytes.
-
-    Raises
-    ------
-    CdrError
-        If the bytes are too short for what they announce.
-    """
+    """Decode a serialized std_msgs/Float64MultiArray (layout and data) from its bytes."""
     dims = []
     for _ in range(r.u32()):
         label = r.string()
@@ -265,13 +270,7 @@ def energy_from_cdr(r: _Cdr) -> EnergyRow:
 
 @_decoder('JointState')
 def joints_from_cdr(r: _Cdr) -> JointRow:
-    """Decode a serialized sensor_msgs/JointState from its bytes.
-
-    Raises
-    ------
-    CdrError
-        If the bytes are too short for what they announce.
-    """
+    """Decode a serialized sensor_msgs/JointState from its bytes."""
     stamp = _Stamp(r.i32(), r.u32())
     header = _Header(stamp, r.string())
     names = [r.string() for _ in range(r.u32())]
