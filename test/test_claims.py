@@ -255,3 +255,22 @@ def test_random_system_files_end_to_end(seed, n, m, tmp_path_factory):
     res = check_claims(lin)
     assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
     assert res.claims['d'].data['net_meetings'] == m
+
+
+def test_a_weakly_reached_mode_is_resolved_against_the_datas_own_round_off():
+    """Found by hypothesis: a slow mode (0.008 rad/s) the drive reaches only weakly.
+
+    Its damping at the scene's K_D, -6.6e-13 1/s, lies below the double-precision
+    resolution of A(K) (1.1e-11) but far beyond the round-off of A0 itself (the real parts
+    of its K = 0 roots, 3.5e-15): (b) holds. Shifted right by 1e-12 (claim (a) cannot see
+    it, within the resolution) the same root is at +3.4e-13: (b) fails.
+    """
+    sys = random_system(174451358, 3, 1)
+    res = cl.check(sys)
+    assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
+    assert 'damped below the double-precision resolution' in res.claims['b'].detail
+    assert -1e-12 < res.claims['b'].data['max_re_reached'] < 0
+    shifted = cl.DriveSystem(sys.A0 + 1e-12 * np.eye(len(sys.A0)), sys.B, sys.C, sys.K_scene)
+    res = cl.check(shifted)
+    assert res.claims['a'].holds and not res.claims['b'].holds
+    assert res.claims['b'].data['failing']
