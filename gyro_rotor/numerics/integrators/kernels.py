@@ -35,7 +35,7 @@ import math
 
 from gyro_rotor.numerics.integrators import rk_codegen
 from gyro_rotor.numerics.integrators.primitives import (
-    all_finite, BUDGET, clip_to_sample, equal_steps, finish_run, FullKind, HAVE_NUMBA,
+    all_finite, BUDGET, clip_to_sample, finish_run, fixed_segment, FullKind, HAVE_NUMBA,
     initial_step, KIND, LAND_SHRINK, land_step, LAND_STRETCH, LockedKind, lu_factor, lu_solve,
     MAX_FACTOR, MIN_FACTOR, njit, NOCONV, NONFINITE, normalize_quaternion, OK, pack_params, rhs,
     SAFETY, start_run, state_size, Status, store_samples, too_small, UNDERFLOW, UprightKind)
@@ -66,6 +66,17 @@ def _rms_error(err, y, y_new, rtol, atol):
 
 # -- explicit Runge-Kutta, fixed step ----------------------------------------------------------
 @njit(cache=True, error_model='numpy')
+def rk_stage(kind, P, y, h, A, K, i, ytmp):
+    """Evaluate stage ``i`` of the explicit tableau A into K[i]: f(y + h sum_j<i A[i, j] K[j])."""
+    for m in range(y.shape[0]):
+        acc = 0.0
+        for j in range(i):
+            acc += A[i, j] * K[j, m]
+        ytmp[m] = y[m] + h * acc
+    rhs(kind, ytmp, P, K[i])
+
+
+@njit(cache=True, error_model='numpy')
 def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     """One explicit RK step of tableau (A, B) from (y, f0 = f(y)); result in ``y_new``.
 
@@ -76,12 +87,7 @@ def rk_step(kind, P, y, f0, h, A, B, K, ytmp, y_new):
     for m in range(n):
         K[0, m] = f0[m]
     for i in range(1, s):
-        for m in range(n):
-            acc = 0.0
-            for j in range(i):
-                acc += A[i, j] * K[j, m]
-            ytmp[m] = y[m] + h * acc
-        rhs(kind, ytmp, P, K[i])
+        rk_stage(kind, P, y, h, A, K, i, ytmp)
     for m in range(n):
         acc = 0.0
         for j in range(s):
@@ -107,38 +113,32 @@ def fixed_run(kind, P, y0, t0, t_eval, h_max, A, B, implicit, renorm, max_steps,
     f = np.empty(n)
     ytmp = np.empty(n)
     K = np.empty((s, n))
-    t = t0
     nfev = 0
     nsteps = 0
-    for k in range(t_eval.shape[0]):
-        span = t_eval[k] - t
-        if span > 0.0:
-            m = equal_steps(span, h_max)
-            h = span / m
-            for i in range(m):
-                rhs(kind, y, P, f)
-                if not all_finite(f):
-                    return finish_run(counts, NONFINITE, nfev + 1, nsteps, 0, 0.0)
-                if implicit:
-                    ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
-                    if ne < 0:
-                        return finish_run(counts, NOCONV, nfev, nsteps, 0, 0.0)
-                    nfev += ne + 1
-                else:
-                    rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
-                    nfev += s
-                nsteps += 1
-                if renorm:
-                    normalize_quaternion(kind, y_new, f)
-                for j in range(n):
-                    y[j] = y_new[j]
-                if not all_finite(y):
-                    return finish_run(counts, NONFINITE, nfev, nsteps, 0, 0.0)
-                if nsteps >= max_steps:
-                    return finish_run(counts, BUDGET, nfev, nsteps, 0, 0.0)
-            t = t_eval[k]
-        for j in range(n):
-            Y_out[k, j] = y[j]
+    k, m, h = fixed_segment(t_eval, 0, t0, h_max, y, Y_out)
+    while m > 0:
+        for i in range(m):
+            rhs(kind, y, P, f)
+            if not all_finite(f):
+                return finish_run(counts, NONFINITE, nfev + 1, nsteps, 0, 0.0)
+            if implicit:
+                ne = gauss_step(kind, P, y, f, h, A, B, K, ytmp, y_new, max_iter)
+                if ne < 0:
+                    return finish_run(counts, NOCONV, nfev, nsteps, 0, 0.0)
+                nfev += ne + 1
+            else:
+                rk_step(kind, P, y, f, h, A, B, K, ytmp, y_new)
+                nfev += s
+            nsteps += 1
+            if renorm:
+                normalize_quaternion(kind, y_new, f)
+            for j in range(n):
+                y[j] = y_new[j]
+            if not all_finite(y):
+                return finish_run(counts, NONFINITE, nfev, nsteps, 0, 0.0)
+            if nsteps >= max_steps:
+                return finish_run(counts, BUDGET, nfev, nsteps, 0, 0.0)
+        k, m, h = fixed_segment(t_eval, k, t_eval[k], h_max, y, Y_out)
     return finish_run(counts, OK, nfev, nsteps, 0, 0.0)
 
 
@@ -180,12 +180,7 @@ def dop853_dense(kind, P, y_old, y_new, f_old, f_new, h, A, C, D, K, ytmp, F):
     """
     n = y_old.shape[0]
     for s in range(13, 16):
-        for m in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += A[s, j] * K[j, m]
-            ytmp[m] = y_old[m] + h * acc
-        rhs(kind, ytmp, P, K[s])
+        rk_stage(kind, P, y_old, h, A, K, s, ytmp)
     for m in range(n):
         dy = y_new[m] - y_old[m]
         F[0, m] = dy
@@ -341,12 +336,9 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     """
     n = y0.shape[0]
     s = Mw.shape[0]
-    y = y0.copy()
+    y, f, ytmp, fb, k, h, nfev, status = start_run(kind, P, y0, t0, t_eval, rtol, atol, 3,
+                                                   h_max, h_init, Y_out)
     y_new = np.empty(n)
-    f = np.empty(n)
-    ytmp = np.empty(n)
-    fa = np.empty(n)
-    fb = np.empty(n)
     rbuf = np.empty(n)
     K = np.empty((s, n))
     J = np.empty((n, n))
@@ -357,8 +349,6 @@ def rodas_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     njev = 0
     nsteps = 0
     nrej = 0
-    k = store_samples(t_eval, 0, t, y, Y_out)
-    h, nfev, status = start_run(kind, P, y, f, rtol, atol, 3, h_max, h_init, ytmp, fa)
     jac_fresh = False
     while status == OK and t < t_end:
         if too_small(t, h):

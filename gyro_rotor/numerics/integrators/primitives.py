@@ -21,6 +21,7 @@ import math
 
 from gyro_rotor.core.model import (full_rhs, FullModel, locked_rhs, LockedHousingModel,
                                    pack_params, upright_rhs, UprightAxisModel)
+import numpy as np
 
 try:  # pragma: no cover - exercised by whichever branch the install has
     from numba import njit
@@ -38,8 +39,8 @@ __all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind'
            'Status', 'OK', 'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY',
            'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'pack_params',
            'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'initial_step',
-           'land_step', 'land_on_sample', 'equal_steps', 'store_samples', 'start_run',
-           'finish_run', 'too_small', 'clip_to_sample', 'lu_factor', 'lu_solve']
+           'land_step', 'land_on_sample', 'equal_steps', 'fixed_segment', 'store_samples',
+           'start_run', 'finish_run', 'too_small', 'clip_to_sample', 'lu_factor', 'lu_solve']
 
 
 class FullKind(enum.IntEnum):
@@ -313,6 +314,26 @@ def equal_steps(span, h_max):
 
 
 @njit(cache=True, error_model='numpy')
+def fixed_segment(t_eval, k, t, h_max, y, Y_out):
+    """Store ``y`` for the samples t_eval[k], ... not after ``t``; return the next segment.
+
+    The fixed-step runs go from sample to sample (increasing) in :func:`equal_steps`.
+    Returns (k, m, h): the first sample after ``t`` and the ``m`` equal steps ``h`` from t
+    to it; m = 0 when no sample is left.
+    """
+    nt = t_eval.shape[0]
+    while k < nt and not t_eval[k] - t > 0.0:
+        for j in range(y.shape[0]):
+            Y_out[k, j] = y[j]
+        k += 1
+    if k == nt:
+        return k, 0, 0.0
+    span = t_eval[k] - t
+    m = equal_steps(span, h_max)
+    return k, m, span / m
+
+
+@njit(cache=True, error_model='numpy')
 def store_samples(t_eval, k, t, y, Y_out):
     """Copy ``y`` into the rows of ``Y_out`` of the samples t_eval[k], ... up to ``t``.
 
@@ -325,18 +346,27 @@ def store_samples(t_eval, k, t, y, Y_out):
     return k
 
 
-@njit(cache=True, error_model='numpy')
-def start_run(kind, P, y, f, rtol, atol, order, h_max, h_init, ytmp, ftmp):
-    """Evaluate ``f`` = f(y) and choose the first step of an adaptive run of ``order``.
+@njit(cache=True, error_model='numpy', inline='always')
+def start_run(kind, P, y0, t0, t_eval, rtol, atol, order, h_max, h_init, Y_out):
+    """Begin an adaptive run of ``order`` from (t0, y0): its state, f(y) and first step.
 
-    Returns (h, nfev, status): ``h_init`` if positive, else :func:`initial_step`; status
-    NONFINITE for a non-finite derivative (a singular state ends the run at once), else OK.
+    Returns (y, f, ytmp, ftmp, k, h, nfev, status): ``y`` a copy of y0 (the run's state),
+    ``f`` = f(y), two work vectors; ``k`` the first sample after t0 (those at t0 stored in
+    ``Y_out``); ``h`` = ``h_init`` if positive, else :func:`initial_step`; status NONFINITE
+    for a non-finite derivative (a singular state ends the run at once), else OK.
     """
+    n = state_size(kind, y0)
+    y = y0.copy()
+    f = np.empty(n)
+    ytmp = np.empty(n)
+    ftmp = np.empty(n)
+    k = store_samples(t_eval, 0, t0, y, Y_out)
     rhs(kind, y, P, f)
     status = OK if all_finite(f) else NONFINITE
     if h_init > 0.0:
-        return h_init, 1, status
-    return initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp), 2, status
+        return y, f, ytmp, ftmp, k, h_init, 1, status
+    h = initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp)
+    return y, f, ytmp, ftmp, k, h, 2, status
 
 
 @njit(cache=True, error_model='numpy')

@@ -182,10 +182,8 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     s = STAGES
     b = np.empty(n)
     k, lam = stiff_direction(kind, P, b)
-    y = y0.copy()
-    f = np.empty(n)
-    ytmp = np.empty(n)
-    ftmp = np.empty(n)
+    y, f, ytmp, ftmp, kk, h, nfev, status = start_run(kind, P, y0, t0, t_eval, rtol, atol, 5,
+                                                      h_max, h_init, Y_out)
     sc = np.empty(n)
     err = np.empty(n)
     Z = np.empty((s, n))
@@ -198,8 +196,6 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     t_end = t_eval[t_eval.shape[0] - 1]
     nsteps = 0
     nrej = 0
-    kk = store_samples(t_eval, 0, t, y, Y_out)
-    h, nfev, status = start_run(kind, P, y, f, rtol, atol, 5, h_max, h_init, ytmp, ftmp)
     h_old = 0.0
     while status == OK and t < t_end:
         if too_small(t, h):

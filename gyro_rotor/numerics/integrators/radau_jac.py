@@ -223,10 +223,8 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
     n = y0.shape[0]
     s = C.shape[0]
     npair = mu_c.shape[0]
-    y = y0.copy()
-    fy = np.empty(n)
-    ytmp = np.empty(n)
-    ftmp = np.empty(n)
+    y, fy, ytmp, ftmp, kk, h, nfev, status = start_run(f, P, y0, t0, t_eval, rtol, atol, s,
+                                                       h_max, h_init, Y_out)
     sc = np.empty(n)
     err = np.empty(n)
     br = np.empty(n)
@@ -245,8 +243,6 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
     njev = 0
     nsteps = 0
     nrej = 0
-    kk = store_samples(t_eval, 0, t, y, Y_out)
-    h, nfev, status = start_run(f, P, y, fy, rtol, atol, s, h_max, h_init, ytmp, ftmp)
     tol = max(10.0 * 2.220446049250313e-16 / rtol, min(0.03, math.sqrt(rtol)))
     jac(y, P, J)
     njev += 1

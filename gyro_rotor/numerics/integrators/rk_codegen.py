@@ -40,8 +40,8 @@ from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, fini
                                                         land_on_sample, land_step, MAX_FACTOR,
                                                         MIN_FACTOR, njit, NONFINITE,
                                                         normalize_quaternion, OK, rhs, SAFETY,
-                                                        start_run, state_size, store_samples,
-                                                        too_small, UNDERFLOW)
+                                                        start_run, state_size, too_small,
+                                                        UNDERFLOW)
 import numpy as np
 
 __all__ = [{names}]
@@ -185,20 +185,16 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
     Returns the status; ``counts`` = (nfev, nsteps, rejected, last step).
     """
     n = state_size(kind, y0)
-    y = y0.copy()
+    y, f, ytmp, ftmp, k, h, nfev, status = start_run(kind, P, y0, t0, t_eval, rtol, atol, {p1},
+                                                     h_max, h_init, Y_out)
     y_new = np.empty(n)
-    f = np.empty(n)
     f_new = np.empty(n)
-    ytmp = np.empty(n)
-    ftmp = np.empty(n)
     K = np.empty(({tot}, n))
     F = np.empty(({nf}, n))
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
     nsteps = 0
     nrej = 0
-    k = store_samples(t_eval, 0, t, y, Y_out)
-    h, nfev, status = start_run(kind, P, y, f, rtol, atol, {p1}, h_max, h_init, ytmp, ftmp)
     just_rejected = False
     while status == OK and t < t_end:
         if too_small(t, h):

@@ -29,8 +29,8 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.core.model import drive_law, tilt_twist_torque
-from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, equal_steps,
-                                                        finish_run, njit, NONFINITE, OK)
+from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, finish_run,
+                                                        fixed_segment, njit, NONFINITE, OK)
 
 __all__ = ['kick', 'drift', 'composed_step', 'split_run']
 
@@ -148,24 +148,17 @@ def split_run(P, y0, t0, t_eval, h_max, W, max_steps, Y_out, counts):
 
     ``counts`` = (flow evaluations as kicks + drifts, nsteps).
     """
-    n = y0.shape[0]
     flows = 2 * W.shape[0] + 1
     y = y0.copy()
-    t = t0
     nsteps = 0
-    for k in range(t_eval.shape[0]):
-        span = t_eval[k] - t
-        if span > 0.0:
-            m = equal_steps(span, h_max)
-            h = span / m
-            for i in range(m):
-                composed_step(P, y, h, W)
-                nsteps += 1
-                if not all_finite(y):
-                    return finish_run(counts, NONFINITE, nsteps * flows, nsteps, 0, 0.0)
-                if nsteps >= max_steps:
-                    return finish_run(counts, BUDGET, nsteps * flows, nsteps, 0, 0.0)
-            t = t_eval[k]
-        for j in range(n):
-            Y_out[k, j] = y[j]
+    k, m, h = fixed_segment(t_eval, 0, t0, h_max, y, Y_out)
+    while m > 0:
+        for i in range(m):
+            composed_step(P, y, h, W)
+            nsteps += 1
+            if not all_finite(y):
+                return finish_run(counts, NONFINITE, nsteps * flows, nsteps, 0, 0.0)
+            if nsteps >= max_steps:
+                return finish_run(counts, BUDGET, nsteps * flows, nsteps, 0, 0.0)
+        k, m, h = fixed_segment(t_eval, k, t_eval[k], h_max, y, Y_out)
     return finish_run(counts, OK, nsteps * flows, nsteps, 0, 0.0)
