@@ -570,6 +570,19 @@ def test_tune_finds_a_better_common_K_D(capsys):
     assert best > at_scene > 0
 
 
+def test_tune_refuses_a_system_unstable_for_every_K_D(capsys):
+    """An indefinite potential (c_b2 < 0): one ERROR line naming the growing root, exit 1."""
+    lam = np.linalg.eigvals(linearize_scene(load_scene(
+        'twin_gimbal', overrides={'constants.c_b2': -2.0}, check=False)).A_scene())
+    assert main(['tune', 'twin_gimbal', '--set', 'constants.c_b2=-2.0']) == 1
+    cap = capsys.readouterr()
+    err = _errors(cap.err)
+    assert err.count('\n') == 1 and err.startswith('ERROR: unstable for every K_D: ')
+    assert 'Traceback' not in cap.err and not cap.out
+    grows = float(err.split('the root lambda = ')[1].split()[0])
+    assert grows > 0 and abs(grows - lam.real.max()) < 1e-3 * lam.real.max()
+
+
 def test_campbell_critical_speeds_are_crossings(tmp_path):
     import json
     out = tmp_path / 'c.json'

@@ -86,6 +86,8 @@ def tune(lin) -> TuneResult:
     K_best = (math.exp(brentq(slope, lo, hi, xtol=1e-12)) if slope(lo) > 0 > slope(hi)
               else float(grid[i]))
     r_best = rate(K_best)
+    if not r_best > 0:
+        _refuse(lin, K_best, modes)
     gov = sorted({m.name for m in modes(lin, K_best)
                   if m.kind != ModeKind.ZERO and m.reached_by_drive
                   and -m.eigenvalue.real <= r_best * (1 + 1e-6)})
@@ -111,6 +113,29 @@ def tune(lin) -> TuneResult:
                       K_D_range_90=(edge(ok[0], ok[0] - 1), edge(ok[-1], ok[-1] + 1)),
                       dlnrate_dlnKD=slopes, K_D_current=lin.K_all.tolist(),
                       rate_current=-max(now) if np.any(lin.K_all > 0) else 0.0)
+
+
+def _refuse(lin, K: float, modes) -> None:
+    """Raise the one error of a system no common K_D makes decay (the theorem's premise fails).
+
+    ``K`` is the best K_D found: the slowest judged root there is named, with its real part
+    against its resolution (growing, or on the imaginary axis).
+    """
+    judged = [m for m in modes(lin, K) if m.kind != ModeKind.ZERO and m.reached_by_drive]
+    m = max(judged, key=lambda x: x.eigenvalue.real)
+    lam = m.eigenvalue
+    root = (f'lambda = {lam.real:+.6g}{lam.imag:+.6g}j' if lam.imag else
+            f'lambda = {lam.real:+.6g}') + f' 1/s ({m.name})'
+    if lam.real > m.resolution:
+        raise ParameterError(
+            f'unstable for every K_D: even at the best K_D = {K:.4g} N m s/rad the root '
+            f'{root} grows (doubling in {math.log(2) / lam.real:.4g} s): '
+            "the theorem's premise fails (E*, eq. 13, is not positive definite about this "
+            'motion), K_D cannot be tuned')
+    raise ParameterError(
+        f'no K_D makes every reached root decay: at the best K_D = {K:.4g} N m s/rad the root '
+        f'{root} stays on the imaginary axis (|Re| within its resolution '
+        f'{m.resolution:.2g} 1/s): K_D cannot be tuned')
 
 
 def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
