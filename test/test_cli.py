@@ -122,6 +122,25 @@ def test_bad_output_and_sizes_are_refused_before_work(argv, match, capsys):
     assert match in capsys.readouterr().err
 
 
+@pytest.mark.parametrize('argv, match', [
+    (['locus', 'precession', '--csv', '/proc/x.csv'], 'cannot write /proc/x.csv'),
+    (['locus', 'precession', '--json', '/proc/x.json'], 'cannot write /proc/x.json'),
+    (['campbell', 'precession', '--json', '/proc/x.json'], 'cannot write /proc/x.json'),
+    (['campbell', 'precession', '--omega-min', '10', '--omega-max', '5'],
+     '--omega-max (5) must exceed --omega-min (10)'),
+    (['campbell', 'precession', '--omega-min', '-10'], '--omega-min must be >= 0 rad/s'),
+    (['campbell', 'precession', '--set', 'Omega0=-314.16', '--omega-max', '10'],
+     '--omega-max must be <= 0 rad/s'),
+    (['steady', 'twin_gimbal', '--theta0', '0.1'], '--theta0 applies to the centrifuge'),
+])
+def test_bad_outputs_and_ranges_are_one_error_line_before_work(argv, match, capsys):
+    assert main(argv) == 1
+    cap = capsys.readouterr()
+    err = ''.join(x for x in cap.err.splitlines(True) if not x.startswith('gyro_rotor: '))
+    assert err.startswith('ERROR: ') and err.count('\n') == 1 and match in err, err
+    assert not cap.out
+
+
 def test_set_reads_exponent_notation(capsys):
     assert main(['steady', 'precession', '--set', 'K_D=1e-3']) == 0
 

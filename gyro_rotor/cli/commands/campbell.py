@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file
+from gyro_rotor.cli.util import check_output_file, write_output
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
@@ -34,6 +34,28 @@ def _load(args):
     return scene, scene.Omega0
 
 
+def _speed_range(args, W0: float) -> tuple:
+    """Return --omega-min, --omega-max (default 0.05 and 2 x nominal), refused if reversed.
+
+    The speeds scale the scene's own: they lie on its side of 0 (its sense of rotation;
+    0 itself is allowed), the smallest first.
+    """
+    if W0 == 0:
+        raise ParameterError('campbell: the first drive has Omega0 = 0; nothing to scale')
+    default = sorted((0.05 * W0, 2.0 * W0))
+    lo = args.omega_min if args.omega_min is not None else default[0]
+    hi = args.omega_max if args.omega_max is not None else default[1]
+    side = 'must be >= 0' if W0 > 0 else 'must be <= 0'
+    for name, v in (('--omega-min', lo), ('--omega-max', hi)):
+        if not math.isfinite(v) or v * W0 < 0:
+            raise ParameterError(
+                f'{name} {side} rad/s (finite, the sense of rotation of the scene\'s '
+                f'Omega0 = {W0:g} rad/s, whose speed the diagram scales), got {v!r}')
+    if hi <= lo:
+        raise ParameterError(f'--omega-max ({hi:g}) must exceed --omega-min ({lo:g})')
+    return lo, hi
+
+
 def run(args: argparse.Namespace) -> int:
     """Compute, print and write the Campbell diagram."""
     from gyro_rotor.linear.campbell import campbell
@@ -44,10 +66,7 @@ def run(args: argparse.Namespace) -> int:
     if not 2 <= args.points <= 20000:
         raise ParameterError(f'--points must be 2..20000, got {args.points}')
     scene, W0 = _load(args)
-    lo = args.omega_min if args.omega_min is not None else 0.05 * W0
-    hi = args.omega_max if args.omega_max is not None else 2.0 * W0
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo != hi):
-        raise ParameterError(f'need two different finite speeds, got {lo}, {hi}')
+    lo, hi = _speed_range(args, W0)
     cb = campbell(scene, np.linspace(lo, hi, args.points))
     print(f'scene {scene.name}: Campbell diagram over Omega0 = {lo:.4g} .. {hi:.4g} rad/s '
           f'({args.points} speeds, every drive scaled with the first); modes tracked by '
@@ -72,12 +91,14 @@ def run(args: argparse.Namespace) -> int:
     if not cb.critical:
         print('  no critical speed in this range')
     if args.json:
-        with open(args.json, 'w', encoding='utf-8') as f:
-            json.dump({'scene': scene.name, **cb.as_dict()}, f, indent=1)
+        def write_json(path):
+            with open(path, 'w', encoding='utf-8') as f:
+                json.dump({'scene': scene.name, **cb.as_dict()}, f, indent=1)
+        write_output(args.json, write_json)
         print(f'  wrote {args.json}')
     if args.out:
         fig = campbell_figure(cb, scene.name)
-        fig.savefig(args.out, dpi=120, bbox_inches='tight')
+        write_output(args.out, lambda path: fig.savefig(path, dpi=120, bbox_inches='tight'))
         import matplotlib.pyplot as plt
         plt.close(fig)
         print(f'  wrote {args.out}')
