@@ -49,7 +49,7 @@ def _speed_range(args, W0: float) -> tuple:
     for name, v in (('--omega-min', lo), ('--omega-max', hi)):
         if not math.isfinite(v) or v * W0 < 0:
             raise ParameterError(
-                f'{name} {side} rad/s (finite, the sense of rotation of the scene\'s '
+                f'{name} {side} rad/s (finite, in the sense of rotation of the scene: '
                 f'Omega0 = {W0:g} rad/s, whose speed the diagram scales), got {v!r}')
     if hi <= lo:
         raise ParameterError(f'--omega-max ({hi:g}) must exceed --omega-min ({lo:g})')

@@ -106,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
                'meeting_points': [mt.lam for mt in cr.meetings],
                'structural_zero_roots': cr.structural_zero_roots, 'regimes': regimes(cr),
                **loc.as_dict()}
+
         def write_json(path):
             with open(path, 'w') as f:
                 json.dump(doc, f, indent=1, default=str)

@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(
             f'--theta0 applies to the centrifuge (its solution II, tilted by theta0); scene '
             f'{scene.name} runs system {scene.system_name}, whose steady motion Newton solves '
-            'from the scene\'s steady guess: set that with --set steady.q=[...]')
+            "from the scene's steady guess: set that with --set steady.q=[...]")
     st = steady_motions(scene, args.theta0)
     print(f'scene {scene.name}: system {scene.system_name}; {st.head}')
     for line in st.lines:
