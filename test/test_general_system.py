@@ -568,6 +568,14 @@ def test_tune_finds_a_better_common_K_D(capsys):
     best = float(out.split('slowest decay rate ')[1].split()[0])
     at_scene = float(out.split('scene K_D = 0.02, 0.02: rate ')[1].split()[0])
     assert best > at_scene > 0
+    # the flatness of the optimum: the rates printed at 0.5 and 2 x over the best, in %
+    half = float(out.split('0.5 x best: ')[1].split(',')[0])
+    twice = float(out.split('2 x best: ')[1].split()[0])
+    pct = out.split('the rate at half the best K_D is ')[1]
+    assert float(pct.split()[0]) == pytest.approx(100 * half / best, rel=1e-2)
+    at_twice = float(pct.split('at twice it ')[1].split()[0])
+    assert at_twice == pytest.approx(100 * twice / best, rel=1e-2)
+    assert 'd ln(rate)' not in out
 
 
 def test_tune_refuses_a_system_unstable_for_every_K_D(capsys):

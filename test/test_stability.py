@@ -294,7 +294,9 @@ def test_best_K_D_is_a_maximum():
     for f, r in t.rate_at.items():
         assert r <= t.rate_best * (1 + 1e-9), f
     assert t.K_D_range_90[0] < t.K_D_best < t.K_D_range_90[1]
-    assert t.dlnrate_dlnKD[0] > 0 > t.dlnrate_dlnKD[1]
+    # the flatness: the rate at 0.5 and 2 x the best over the best, as computed anew
+    for f, r in t.relative_rate.items():
+        assert r == t.rate_at[f] / t.rate_best and 0 < r < 0.99, (f, r)
     # a different K_S gives a different optimum
     t2 = best_K_D(P, sm, K_S=80.0)
     assert t2.K_S == 80.0 and t2.K_D_best != t.K_D_best
