@@ -611,6 +611,32 @@ def test_campbell_critical_speeds_are_crossings(tmp_path):
         assert np.min(np.abs(lam.imag / (2 * math.pi) - target)) < 1e-2 * target, c
 
 
+def test_campbell_names_the_modes_at_the_scene_speed(tmp_path, capsys):
+    """A range from 0: the gimbals are out of the drives' reach at rest, not at 300 rad/s.
+
+    Each label is the name eig gives the mode's root at the scene's speed (all reached
+    there), whatever the speed of the mode's largest frequency; the critical-speed lines
+    carry the same labels.
+    """
+    import json
+    out = tmp_path / 'c.json'
+    assert main(['campbell', 'twin_gimbal', '--omega-min', '0', '--omega-max', '600',
+                 '--points', '21', '--json', str(out)]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    i = doc['Omega0'].index(300.0)
+    assert doc['modes_named_at_Omega0'] == 300.0
+    ms = modes(linearize_scene(load_scene('twin_gimbal')))
+    for k, (label, cols) in enumerate(zip(doc['modes'], doc['mode_roots'])):
+        z = max((complex(*doc['roots'][i][c]) for c in cols), key=lambda x: x.imag)
+        mode = min(ms, key=lambda m: abs(m.eigenvalue - z))
+        assert abs(mode.eigenvalue - z) < 1e-6 * abs(z), (label, z)
+        assert mode.reached_by_drive and label.startswith(f'{mode.name}, '), (label, mode)
+        assert f'mode {k}: {label} ' in text
+    assert doc['critical_speeds'] and 'unreached' not in text
+    assert all(c['label'] == doc['modes'][c['mode']] for c in doc['critical_speeds'])
+
+
 # -- the project's integrators and the ensemble run general systems ----------------------------
 # method: (keyword arguments, largest state difference to dop853 at rtol 1e-13 after 0.5 s)
 GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),

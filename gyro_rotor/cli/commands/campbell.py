@@ -74,8 +74,9 @@ def run(args: argparse.Namespace) -> int:
     if cb.skipped:
         print(f'  no steady motion at {len(cb.skipped)} speeds (Omega0 {min(cb.skipped):.4g} '
               f'.. {max(cb.skipped):.4g} rad/s): left out')
-    j0 = int(np.argmin(np.abs(cb.Omega0 - W0)))
-    print(f'  modes at Omega0 = {cb.Omega0[j0]:.4g} rad/s (frequency, decay rate):')
+    j0 = cb.named_at
+    print(f'  modes at Omega0 = {cb.Omega0[j0]:.4g} rad/s, named there (frequency, decay '
+          'rate):')
     for k, label in enumerate(cb.labels):
         d = cb.decay[j0, k]
         print(f'    mode {k}: {label:40s} {cb.frequencies[j0, k]:10.4g} Hz  '
@@ -155,7 +156,7 @@ def campbell_figure(cb, name: str):
     a1.set_xlim(float(rpm.min()), float(rpm.max()))
     a1.set_ylabel('frequency |Im lambda| / 2 pi [Hz]')
     a1.set_title(f'Campbell diagram: {name} (modes tracked by eigenvector continuity)')
-    at = int(np.argmin(np.abs(cb.Omega0 - cb.nominal))) if math.isfinite(cb.nominal) else 0
+    at = cb.named_at
     a1.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0,
               title=f'modes (f at {rpm[at]:.4g} rpm)', title_fontsize=8)
     positive = -re[-re > 0]
