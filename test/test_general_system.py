@@ -637,6 +637,30 @@ def test_campbell_names_the_modes_at_the_scene_speed(tmp_path, capsys):
     assert all(c['label'] == doc['modes'][c['mode']] for c in doc['critical_speeds'])
 
 
+@pytest.mark.parametrize('c_b2, grows', [(-2.0, True), (None, False)])
+def test_campbell_flags_growing_roots(tmp_path, capsys, c_b2, grows):
+    """A growing root (Re above its resolution) is flagged UNSTABLE in the text and JSON."""
+    import json
+    out = tmp_path / 'c.json'
+    sets = [] if c_b2 is None else ['--set', f'constants.c_b2={c_b2}']
+    assert main(['campbell', 'twin_gimbal', '--points', '40', '--json', str(out)] + sets) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    lam = np.linalg.eigvals(linearize_scene(load_scene(
+        'twin_gimbal', overrides={} if c_b2 is None else {'constants.c_b2': c_b2},
+        check=False)).A_scene())
+    assert (lam.real.max() > 1.0) == grows
+    unstable = np.array(doc['unstable'])
+    assert unstable.shape == (40, len(doc['modes']))
+    assert np.array_equal(unstable, np.array(doc['decay_rates']) < 0)
+    assert bool(doc['unstable_modes']) == grows == ('UNSTABLE' in text)
+    for k in doc['unstable_modes']:
+        assert f'UNSTABLE: mode {k} ({doc["modes"][k]}) has a growing root' in text
+        assert 'growing' in doc['modes'][k]
+        i = doc['Omega0'].index(300.0)
+        assert -np.array(doc['decay_rates'])[i, k] == pytest.approx(lam.real.max(), rel=1e-6)
+
+
 # -- the project's integrators and the ensemble run general systems ----------------------------
 # method: (keyword arguments, largest state difference to dop853 at rtol 1e-13 after 0.5 s)
 GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),

@@ -42,7 +42,8 @@ class Campbell:
 
     ``roots`` (speeds, roots): column j follows one root; ``modes`` the columns of each
     mode (two for a pair, one for a real root); ``frequencies`` and ``decay`` (speeds,
-    modes) in Hz and 1/s (0 within round-off: ``undamped``); ``critical``: one dict per
+    modes) in Hz and 1/s (0 within round-off: ``undamped``; negative where a root grows:
+    ``unstable``); ``critical``: one dict per
     crossing of a mode frequency with ``order`` x the rotor speed Omega0 / 2 pi.
     """
 
@@ -63,6 +64,11 @@ class Campbell:
         return self.decay == 0.0
 
     @property
+    def unstable(self) -> np.ndarray:
+        """Return (speeds, modes): True where a root of the mode grows (Re > its resolution)."""
+        return self.decay < 0.0
+
+    @property
     def named_at(self) -> int:
         """Return the index of the speed the modes are named at: the nearest the scene's."""
         if not math.isfinite(self.nominal):
@@ -80,6 +86,8 @@ class Campbell:
                 'frequencies_hz': self.frequencies.tolist(),
                 'decay_rates': self.decay.tolist(),
                 'undamped': self.undamped.tolist(),
+                'unstable': self.unstable.tolist(),
+                'unstable_modes': [int(k) for k in np.flatnonzero(self.unstable.any(axis=0))],
                 'critical_speeds': self.critical,
                 'roots': [[[z.real, z.imag] for z in row] for row in self.roots],
                 'mode_roots': [list(m) for m in self.modes],
@@ -275,7 +283,10 @@ def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> 
     for k, t in enumerate(labels):      # two modes with one label: tell them apart
         same = [j for j, u in enumerate(labels) if u == t]
         if len(same) == 2 and t.endswith(', real'):
-            for j, word in zip(same, ('slow', 'fast')):     # sorted slowest first
+            grows = [bool(np.any(D[:, j] < 0)) for j in same]
+            words = (('growing', 'decaying') if grows == [True, False] else
+                     ('slow', 'fast'))      # sorted slowest first: a growing root first
+            for j, word in zip(same, words):
                 labels[j] = f'{t} ({word})'
         elif len(same) > 1:
             for c, j in enumerate(same, 1):

@@ -80,7 +80,14 @@ def run(args: argparse.Namespace) -> int:
     for k, label in enumerate(cb.labels):
         d = cb.decay[j0, k]
         print(f'    mode {k}: {label:40s} {cb.frequencies[j0, k]:10.4g} Hz  '
-              + ('undamped' if d == 0 else f'{d:.4g} 1/s'))
+              + ('undamped' if d == 0 else f'{d:.4g} 1/s')
+              + ('  UNSTABLE: a root grows' if cb.unstable[j0, k] else ''))
+    for k in np.flatnonzero(cb.unstable.any(axis=0)):
+        at = cb.Omega0[cb.unstable[:, k]]
+        print(f'  UNSTABLE: mode {k} ({cb.labels[k]}) has a growing root (Re above its '
+              f'resolution) at {at.size} of the {cb.Omega0.size} speeds, Omega0 '
+              f'{at.min():.4g} .. {at.max():.4g} rad/s; fastest growth '
+              f'{-cb.decay[:, k].min():.4g} 1/s')
     nreal = cb.real_roots()
     if nreal.min() != nreal.max():
         print(f'  the number of real roots changes over the range ({nreal.min()} .. '
@@ -133,7 +140,8 @@ def campbell_figure(cb, name: str):
         col = colors[k % len(colors)]
         undamped = bool(np.all(cb.decay[:, k] == 0))
         style = '--' if undamped else '-'
-        tag = f'{label} (undamped)' if undamped else label
+        tag = (f'{label} (undamped)' if undamped else
+               f'{label} (UNSTABLE)' if cb.unstable[:, k].any() else label)
         if F[:, k].max() > 0:
             a1.plot(rpm, np.where(F[:, k] > 0, F[:, k], np.nan), style, color=col, lw=1.6,
                     label=tag)
