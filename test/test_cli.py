@@ -72,15 +72,41 @@ def test_bad_input_exits_non_zero_with_message(argv, match, capsys, tmp_path, mo
     assert 'Traceback' not in cap.err
 
 
+@pytest.mark.parametrize('argv, match', [
+    (['locus', 'precession', '--points', 'abc'], "argument --points: invalid int value: 'abc'"),
+    (['locus', 'precession', '--points', '2.5'], "argument --points: invalid int value: '2.5'"),
+    (['tune', 'precession', '--K-S', 'abc'], "argument --K-S: invalid float value: 'abc'"),
+    (['steady', 'precession', '--theta0', 'abc'],
+     "argument --theta0: invalid float value: 'abc'"),
+    (['eig', 'precession', '--bogus'], 'unrecognized arguments: --bogus (see gyro-rotor eig'),
+    (['nosuch'], "invalid choice: 'nosuch'"),
+    ([], 'the following arguments are required: COMMAND'),
+])
+def test_bad_arguments_are_one_error_line_exit_1(argv, match, capsys):
+    assert main(argv) == 1
+    cap = capsys.readouterr()
+    assert cap.err.startswith('ERROR: ') and cap.err.count('\n') == 1, cap.err
+    assert match in cap.err and 'usage:' not in cap.err and not cap.out
+
+
+def test_help_still_exits_0(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(['locus', '--help'])
+    assert exc.value.code == 0 and 'usage: gyro-rotor locus' in capsys.readouterr().out
+
+
 def test_bad_input_message_names_problem(capsys):
     main(['simulate', 'precession', '--set', 'K_D=-1'])
     assert 'K_D' in capsys.readouterr().err
 
 
 def test_usage_error_and_module_entry_point():
+    # a bad argument is bad input like any other: one ERROR line, exit 1 (not argparse's
+    # usage text and exit 2, which locus uses for "a claim failed")
     r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'simulate', 'precession',
                         '--t-end', 'abc'], capture_output=True, text=True)
-    assert r.returncode == 2 and 'invalid float value' in r.stderr
+    assert r.returncode == 1 and r.stderr.count('\n') == 1
+    assert r.stderr.startswith("ERROR: argument --t-end: invalid float value: 'abc'")
     r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'simulate', 'nosuch'],
                        capture_output=True, text=True)
     assert r.returncode == 1 and "unknown scene 'nosuch'" in r.stderr
@@ -94,6 +120,25 @@ def test_usage_error_and_module_entry_point():
 def test_bad_output_and_sizes_are_refused_before_work(argv, match, capsys):
     assert main(argv) == 1
     assert match in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('argv, match', [
+    (['locus', 'precession', '--csv', '/proc/x.csv'], 'cannot write /proc/x.csv'),
+    (['locus', 'precession', '--json', '/proc/x.json'], 'cannot write /proc/x.json'),
+    (['campbell', 'precession', '--json', '/proc/x.json'], 'cannot write /proc/x.json'),
+    (['campbell', 'precession', '--omega-min', '10', '--omega-max', '5'],
+     '--omega-max (5) must exceed --omega-min (10)'),
+    (['campbell', 'precession', '--omega-min', '-10'], '--omega-min must be >= 0 rad/s'),
+    (['campbell', 'precession', '--set', 'Omega0=-314.16', '--omega-max', '10'],
+     '--omega-max must be <= 0 rad/s'),
+    (['steady', 'twin_gimbal', '--theta0', '0.1'], '--theta0 applies to the centrifuge'),
+])
+def test_bad_outputs_and_ranges_are_one_error_line_before_work(argv, match, capsys):
+    assert main(argv) == 1
+    cap = capsys.readouterr()
+    err = ''.join(x for x in cap.err.splitlines(True) if not x.startswith('gyro_rotor: '))
+    assert err.startswith('ERROR: ') and err.count('\n') == 1 and match in err, err
+    assert not cap.out
 
 
 def test_set_reads_exponent_notation(capsys):

@@ -568,6 +568,27 @@ def test_tune_finds_a_better_common_K_D(capsys):
     best = float(out.split('slowest decay rate ')[1].split()[0])
     at_scene = float(out.split('scene K_D = 0.02, 0.02: rate ')[1].split()[0])
     assert best > at_scene > 0
+    # the flatness of the optimum: the rates printed at 0.5 and 2 x over the best, in %
+    half = float(out.split('0.5 x best: ')[1].split(',')[0])
+    twice = float(out.split('2 x best: ')[1].split()[0])
+    pct = out.split('the rate at half the best K_D is ')[1]
+    assert float(pct.split()[0]) == pytest.approx(100 * half / best, rel=1e-2)
+    at_twice = float(pct.split('at twice it ')[1].split()[0])
+    assert at_twice == pytest.approx(100 * twice / best, rel=1e-2)
+    assert 'd ln(rate)' not in out
+
+
+def test_tune_refuses_a_system_unstable_for_every_K_D(capsys):
+    """An indefinite potential (c_b2 < 0): one ERROR line naming the growing root, exit 1."""
+    lam = np.linalg.eigvals(linearize_scene(load_scene(
+        'twin_gimbal', overrides={'constants.c_b2': -2.0}, check=False)).A_scene())
+    assert main(['tune', 'twin_gimbal', '--set', 'constants.c_b2=-2.0']) == 1
+    cap = capsys.readouterr()
+    err = _errors(cap.err)
+    assert err.count('\n') == 1 and err.startswith('ERROR: unstable for every K_D: ')
+    assert 'Traceback' not in cap.err and not cap.out
+    grows = float(err.split('the root lambda = ')[1].split()[0])
+    assert grows > 0 and abs(grows - lam.real.max()) < 1e-3 * lam.real.max()
 
 
 def test_campbell_critical_speeds_are_crossings(tmp_path):
@@ -588,6 +609,56 @@ def test_campbell_critical_speeds_are_crossings(tmp_path):
         lam = np.linalg.eigvals(linearize_scene(sc).A_scene())
         target = c['order'] * c['Omega0'] / (2 * math.pi)
         assert np.min(np.abs(lam.imag / (2 * math.pi) - target)) < 1e-2 * target, c
+
+
+def test_campbell_names_the_modes_at_the_scene_speed(tmp_path, capsys):
+    """A range from 0: the gimbals are out of the drives' reach at rest, not at 300 rad/s.
+
+    Each label is the name eig gives the mode's root at the scene's speed (all reached
+    there), whatever the speed of the mode's largest frequency; the critical-speed lines
+    carry the same labels.
+    """
+    import json
+    out = tmp_path / 'c.json'
+    assert main(['campbell', 'twin_gimbal', '--omega-min', '0', '--omega-max', '600',
+                 '--points', '21', '--json', str(out)]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    i = doc['Omega0'].index(300.0)
+    assert doc['modes_named_at_Omega0'] == 300.0
+    ms = modes(linearize_scene(load_scene('twin_gimbal')))
+    for k, (label, cols) in enumerate(zip(doc['modes'], doc['mode_roots'])):
+        z = max((complex(*doc['roots'][i][c]) for c in cols), key=lambda x: x.imag)
+        mode = min(ms, key=lambda m: abs(m.eigenvalue - z))
+        assert abs(mode.eigenvalue - z) < 1e-6 * abs(z), (label, z)
+        assert mode.reached_by_drive and label.startswith(f'{mode.name}, '), (label, mode)
+        assert f'mode {k}: {label} ' in text
+    assert doc['critical_speeds'] and 'unreached' not in text
+    assert all(c['label'] == doc['modes'][c['mode']] for c in doc['critical_speeds'])
+
+
+@pytest.mark.parametrize('c_b2, grows', [(-2.0, True), (None, False)])
+def test_campbell_flags_growing_roots(tmp_path, capsys, c_b2, grows):
+    """A growing root (Re above its resolution) is flagged UNSTABLE in the text and JSON."""
+    import json
+    out = tmp_path / 'c.json'
+    sets = [] if c_b2 is None else ['--set', f'constants.c_b2={c_b2}']
+    assert main(['campbell', 'twin_gimbal', '--points', '40', '--json', str(out)] + sets) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    lam = np.linalg.eigvals(linearize_scene(load_scene(
+        'twin_gimbal', overrides={} if c_b2 is None else {'constants.c_b2': c_b2},
+        check=False)).A_scene())
+    assert (lam.real.max() > 1.0) == grows
+    unstable = np.array(doc['unstable'])
+    assert unstable.shape == (40, len(doc['modes']))
+    assert np.array_equal(unstable, np.array(doc['decay_rates']) < 0)
+    assert bool(doc['unstable_modes']) == grows == ('UNSTABLE' in text)
+    for k in doc['unstable_modes']:
+        assert f'UNSTABLE: mode {k} ({doc["modes"][k]}) has a growing root' in text
+        assert 'growing' in doc['modes'][k]
+        i = doc['Omega0'].index(300.0)
+        assert -np.array(doc['decay_rates'])[i, k] == pytest.approx(lam.real.max(), rel=1e-6)
 
 
 # -- the project's integrators and the ensemble run general systems ----------------------------

@@ -1,8 +1,10 @@
 """The ``gyro-rotor`` command line: ``main(argv) -> int``; one module per subcommand.
 
 Subcommands live in :mod:`gyro_rotor.cli.commands` (``add_arguments`` and ``run``); this
-module only dispatches and turns a :class:`~gyro_rotor.errors.GyroRotorError` (or a bad
-argument) into ``ERROR: ...`` on stderr and exit status 1 (2 for usage errors).
+module only dispatches and turns a :class:`~gyro_rotor.errors.GyroRotorError`, or a bad
+command-line argument (argparse's usage errors, :class:`_Parser`), into one ``ERROR: ...``
+line on stderr and exit status 1 (``--help`` exits 0). Exit status 2 is left to the
+commands' own meaning (``locus``: a claim failed).
 """
 
 from __future__ import annotations
@@ -35,6 +37,22 @@ COMMANDS = {
 }
 
 
+class UsageError(GyroRotorError):
+    """A bad command-line argument (argparse's message and the command it belongs to)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argparse parser whose usage errors raise :class:`UsageError` (not exit 2).
+
+    ``add_subparsers`` builds the subcommands' parsers with the class of their parent, so
+    every subcommand reports a bad argument the same way.
+    """
+
+    def error(self, message: str):
+        """Raise :class:`UsageError` with argparse's message, naming ``--help``."""
+        raise UsageError(f'{message} (see {self.prog} --help)')
+
+
 def _load(name: str):
     """Import the module of subcommand ``name`` (a registered command must exist)."""
     return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
@@ -42,7 +60,7 @@ def _load(name: str):
 
 def build_parser() -> argparse.ArgumentParser:
     """Build the argparse parser with every available subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog='gyro-rotor',
         description='Magnus (1980) gyrostat on a synchronous drive: simulate, analyse, '
                     'record, demo.')
@@ -59,7 +77,14 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args, extra = parser.parse_known_args(argv)
+        if extra:       # as parse_args, but naming the command they were given to
+            raise UsageError(f'unrecognized arguments: {" ".join(extra)} '
+                             f'(see {parser.prog} {args.command} --help)')
+    except UsageError as err:
+        print(f'ERROR: {err}', file=sys.stderr)
+        return 1
     try:
         status = int(args._run(args) or 0)
         sys.stdout.flush()      # inside the try: a closed pipe is handled below

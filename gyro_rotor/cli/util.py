@@ -75,6 +75,18 @@ def check_output_file(path: str, suffixes: tuple[str, ...] = (), *,
         raise ParameterError(f'cannot write {path}: directory {parent} does not exist')
     if not os.access(parent, os.W_OK):
         raise ParameterError(f'cannot write {path}: directory {parent} is not writable')
+    # the permission bits do not tell everything (root, /proc, a read-only mount): create
+    # and remove a probe file where the output will be written (as write_output does)
+    probe = parent / f'.{p.name}.probe{os.getpid()}'
+    try:
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    except OSError as err:
+        raise ParameterError(f'cannot write {path}: no file can be created in directory '
+                             f'{parent} ({err.strerror or err})') from None
+    try:
+        os.unlink(probe)
+    except OSError:
+        pass
 
 
 def write_output(path: str, write) -> None:

@@ -13,8 +13,10 @@ is real), its decay rate the slower -Re of the pair; a real part within its eige
 round-off (:mod:`gyro_rotor.linear.roundoff`) is 0: the mode is undamped there.
 
 Every drive's Omega0 is scaled with the first; at each speed the scene's steady motion is
-re-solved (:func:`_family`), linearized (:func:`gyro_rotor.linear.system.linearize_scene`)
-and its roots named as the linearization names its modes. The centrifuge's steady motion
+re-solved (:func:`_family`), linearized (:func:`gyro_rotor.linear.system.linearize_scene`);
+each mode is named as the linearization names its modes at one speed, the one nearest the
+scene's (:attr:`Campbell.named_at`: the name, the reach by the drives and the frequency of
+the label are those there). The centrifuge's steady motion
 (branch, theta0) follows from its parameters in closed form; a system file's equilibrium
 (steady.qdot = 0) keeps q, and a steady motion that moves (the centrifuge in Euler angles)
 keeps its non-moving coordinates and the pattern of its rates, whose size and the drive
@@ -40,7 +42,8 @@ class Campbell:
 
     ``roots`` (speeds, roots): column j follows one root; ``modes`` the columns of each
     mode (two for a pair, one for a real root); ``frequencies`` and ``decay`` (speeds,
-    modes) in Hz and 1/s (0 within round-off: ``undamped``); ``critical``: one dict per
+    modes) in Hz and 1/s (0 within round-off: ``undamped``; negative where a root grows:
+    ``unstable``); ``critical``: one dict per
     crossing of a mode frequency with ``order`` x the rotor speed Omega0 / 2 pi.
     """
 
@@ -60,6 +63,18 @@ class Campbell:
         """Return (speeds, modes): True where the mode's real part is 0 within round-off."""
         return self.decay == 0.0
 
+    @property
+    def unstable(self) -> np.ndarray:
+        """Return (speeds, modes): True where a root of the mode grows (Re > its resolution)."""
+        return self.decay < 0.0
+
+    @property
+    def named_at(self) -> int:
+        """Return the index of the speed the modes are named at: the nearest the scene's."""
+        if not math.isfinite(self.nominal):
+            return len(self.Omega0) // 2
+        return int(np.argmin(np.abs(self.Omega0 - self.nominal)))
+
     def real_roots(self) -> np.ndarray:
         """Return the number of real roots at each speed (Im = 0 within round-off)."""
         return np.sum(np.abs(self.roots.imag) <= self.resolution, axis=1)
@@ -67,9 +82,12 @@ class Campbell:
     def as_dict(self) -> dict:
         """Return the diagram as plain data (the command's --json)."""
         return {'Omega0': self.Omega0.tolist(), 'modes': list(self.labels),
+                'modes_named_at_Omega0': float(self.Omega0[self.named_at]),
                 'frequencies_hz': self.frequencies.tolist(),
                 'decay_rates': self.decay.tolist(),
                 'undamped': self.undamped.tolist(),
+                'unstable': self.unstable.tolist(),
+                'unstable_modes': [int(k) for k in np.flatnonzero(self.unstable.any(axis=0))],
                 'critical_speeds': self.critical,
                 'roots': [[[z.real, z.imag] for z in row] for row in self.roots],
                 'mode_roots': [list(m) for m in self.modes],
@@ -234,7 +252,6 @@ def _pairs(R: np.ndarray, res: np.ndarray) -> list:
 
 
 def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> Campbell:
-    S = len(values)
     re = np.where(np.abs(R.real) <= res, 0.0, R.real)
     im = np.where(np.abs(R.imag) <= res, 0.0, np.abs(R.imag))
 
@@ -245,14 +262,14 @@ def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> 
     modes = sorted(_pairs(R, res), key=lambda m: (-freq(m).max(), -re[:, list(m)].mean()))
     F = np.column_stack([freq(m) for m in modes])
     D = np.column_stack([(-re[:, list(m)]).min(axis=1) for m in modes])
-    # label each mode where it is most clearly a mode: its largest frequency (or the middle)
-    i_ref = np.where(F.max(axis=0) > 0, np.argmax(F, axis=0), S // 2)
+    # name every mode at one speed, the one nearest the scene's (its name, its reach by the
+    # drives, its frequency are those there: the reach of a mode can change with the speed,
+    # the gimbals of a rotor at rest are out of the drives' reach)
+    at = Campbell(Omega0=np.asarray(values, dtype=float), frequencies=None, decay=None,
+                  critical=[], nominal=float(nominal)).named_at
     labels = []
     for k, m in enumerate(modes):
-        i = int(i_ref[k])
-        j = max(m, key=lambda c: R[i, c].imag)
-        dom = name(i, j)
-        at = int(np.argmin(np.abs(values - nominal))) if math.isfinite(nominal) else i
+        dom = name(at, max(m, key=lambda c: R[at, c].imag))
         if F[:, k].max() == 0:
             if np.all(np.abs(R[:, list(m)]) <= res[:, list(m)]):
                 text = dom if dom.startswith('zero root') else f'zero root ({dom})'
@@ -266,7 +283,10 @@ def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> 
     for k, t in enumerate(labels):      # two modes with one label: tell them apart
         same = [j for j, u in enumerate(labels) if u == t]
         if len(same) == 2 and t.endswith(', real'):
-            for j, word in zip(same, ('slow', 'fast')):     # sorted slowest first
+            grows = [bool(np.any(D[:, j] < 0)) for j in same]
+            words = (('growing', 'decaying') if grows == [True, False] else
+                     ('slow', 'fast'))      # sorted slowest first: a growing root first
+            for j, word in zip(same, words):
                 labels[j] = f'{t} ({word})'
         elif len(same) > 1:
             for c, j in enumerate(same, 1):

@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from gyro_rotor.cli.util import check_output_file
+from gyro_rotor.cli.util import check_output_file, write_output
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
@@ -34,6 +34,28 @@ def _load(args):
     return scene, scene.Omega0
 
 
+def _speed_range(args, W0: float) -> tuple:
+    """Return --omega-min, --omega-max (default 0.05 and 2 x nominal), refused if reversed.
+
+    The speeds scale the scene's own: they lie on its side of 0 (its sense of rotation;
+    0 itself is allowed), the smallest first.
+    """
+    if W0 == 0:
+        raise ParameterError('campbell: the first drive has Omega0 = 0; nothing to scale')
+    default = sorted((0.05 * W0, 2.0 * W0))
+    lo = args.omega_min if args.omega_min is not None else default[0]
+    hi = args.omega_max if args.omega_max is not None else default[1]
+    side = 'must be >= 0' if W0 > 0 else 'must be <= 0'
+    for name, v in (('--omega-min', lo), ('--omega-max', hi)):
+        if not math.isfinite(v) or v * W0 < 0:
+            raise ParameterError(
+                f'{name} {side} rad/s (finite, in the sense of rotation of the scene: '
+                f'Omega0 = {W0:g} rad/s, whose speed the diagram scales), got {v!r}')
+    if hi <= lo:
+        raise ParameterError(f'--omega-max ({hi:g}) must exceed --omega-min ({lo:g})')
+    return lo, hi
+
+
 def run(args: argparse.Namespace) -> int:
     """Compute, print and write the Campbell diagram."""
     from gyro_rotor.linear.campbell import campbell
@@ -44,10 +66,7 @@ def run(args: argparse.Namespace) -> int:
     if not 2 <= args.points <= 20000:
         raise ParameterError(f'--points must be 2..20000, got {args.points}')
     scene, W0 = _load(args)
-    lo = args.omega_min if args.omega_min is not None else 0.05 * W0
-    hi = args.omega_max if args.omega_max is not None else 2.0 * W0
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo != hi):
-        raise ParameterError(f'need two different finite speeds, got {lo}, {hi}')
+    lo, hi = _speed_range(args, W0)
     cb = campbell(scene, np.linspace(lo, hi, args.points))
     print(f'scene {scene.name}: Campbell diagram over Omega0 = {lo:.4g} .. {hi:.4g} rad/s '
           f'({args.points} speeds, every drive scaled with the first); modes tracked by '
@@ -55,12 +74,20 @@ def run(args: argparse.Namespace) -> int:
     if cb.skipped:
         print(f'  no steady motion at {len(cb.skipped)} speeds (Omega0 {min(cb.skipped):.4g} '
               f'.. {max(cb.skipped):.4g} rad/s): left out')
-    j0 = int(np.argmin(np.abs(cb.Omega0 - W0)))
-    print(f'  modes at Omega0 = {cb.Omega0[j0]:.4g} rad/s (frequency, decay rate):')
+    j0 = cb.named_at
+    print(f'  modes at Omega0 = {cb.Omega0[j0]:.4g} rad/s, named there (frequency, decay '
+          'rate):')
     for k, label in enumerate(cb.labels):
         d = cb.decay[j0, k]
         print(f'    mode {k}: {label:40s} {cb.frequencies[j0, k]:10.4g} Hz  '
-              + ('undamped' if d == 0 else f'{d:.4g} 1/s'))
+              + ('undamped' if d == 0 else f'{d:.4g} 1/s')
+              + ('  UNSTABLE: a root grows' if cb.unstable[j0, k] else ''))
+    for k in np.flatnonzero(cb.unstable.any(axis=0)):
+        at = cb.Omega0[cb.unstable[:, k]]
+        print(f'  UNSTABLE: mode {k} ({cb.labels[k]}) has a growing root (Re above its '
+              f'resolution) at {at.size} of the {cb.Omega0.size} speeds, Omega0 '
+              f'{at.min():.4g} .. {at.max():.4g} rad/s; fastest growth '
+              f'{-cb.decay[:, k].min():.4g} 1/s')
     nreal = cb.real_roots()
     if nreal.min() != nreal.max():
         print(f'  the number of real roots changes over the range ({nreal.min()} .. '
@@ -72,12 +99,14 @@ def run(args: argparse.Namespace) -> int:
     if not cb.critical:
         print('  no critical speed in this range')
     if args.json:
-        with open(args.json, 'w', encoding='utf-8') as f:
-            json.dump({'scene': scene.name, **cb.as_dict()}, f, indent=1)
+        def write_json(path):
+            with open(path, 'w', encoding='utf-8') as f:
+                json.dump({'scene': scene.name, **cb.as_dict()}, f, indent=1)
+        write_output(args.json, write_json)
         print(f'  wrote {args.json}')
     if args.out:
         fig = campbell_figure(cb, scene.name)
-        fig.savefig(args.out, dpi=120, bbox_inches='tight')
+        write_output(args.out, lambda path: fig.savefig(path, dpi=120, bbox_inches='tight'))
         import matplotlib.pyplot as plt
         plt.close(fig)
         print(f'  wrote {args.out}')
@@ -111,7 +140,8 @@ def campbell_figure(cb, name: str):
         col = colors[k % len(colors)]
         undamped = bool(np.all(cb.decay[:, k] == 0))
         style = '--' if undamped else '-'
-        tag = f'{label} (undamped)' if undamped else label
+        tag = (f'{label} (undamped)' if undamped else
+               f'{label} (UNSTABLE)' if cb.unstable[:, k].any() else label)
         if F[:, k].max() > 0:
             a1.plot(rpm, np.where(F[:, k] > 0, F[:, k], np.nan), style, color=col, lw=1.6,
                     label=tag)
@@ -134,7 +164,7 @@ def campbell_figure(cb, name: str):
     a1.set_xlim(float(rpm.min()), float(rpm.max()))
     a1.set_ylabel('frequency |Im lambda| / 2 pi [Hz]')
     a1.set_title(f'Campbell diagram: {name} (modes tracked by eigenvector continuity)')
-    at = int(np.argmin(np.abs(cb.Omega0 - cb.nominal))) if math.isfinite(cb.nominal) else 0
+    at = cb.named_at
     a1.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0,
               title=f'modes (f at {rpm[at]:.4g} rpm)', title_fontsize=8)
     positive = -re[-re > 0]

@@ -6,7 +6,7 @@ import argparse
 import csv
 import json
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_output
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.locus import check_claims, K_ref, regimes, root_locus
 from gyro_rotor.linear.roundoff import shown
@@ -89,11 +89,13 @@ def run(args: argparse.Namespace) -> int:
         + f'; {len(lin.vary)} root(s) to 0 like 1/K_D, {len(lin.vary)} to -infinity like -K_D x '
         + ', '.join(f'{g:.6g}' for g in lin.fast_rates))
     if args.csv:
-        with open(args.csv, 'w', newline='') as f:
-            w = csv.writer(f)
-            w.writerow(['K_D', 'branch', 'mode', 're', 'im'])
-            for row in loc.to_rows():
-                w.writerow([repr(row[0]), row[1], row[2], repr(row[3]), repr(row[4])])
+        def write_csv(path):
+            with open(path, 'w', newline='') as f:
+                w = csv.writer(f)
+                w.writerow(['K_D', 'branch', 'mode', 're', 'im'])
+                for row in loc.to_rows():
+                    w.writerow([repr(row[0]), row[1], row[2], repr(row[3]), repr(row[4])])
+        write_output(args.csv, write_csv)
         print(f'  wrote {args.csv}')
     if args.json:
         doc = {'scene': scene.name, 'system': scene.system_name, 'drive': args.drive,
@@ -104,8 +106,11 @@ def run(args: argparse.Namespace) -> int:
                'meeting_points': [mt.lam for mt in cr.meetings],
                'structural_zero_roots': cr.structural_zero_roots, 'regimes': regimes(cr),
                **loc.as_dict()}
-        with open(args.json, 'w') as f:
-            json.dump(doc, f, indent=1, default=str)
+
+        def write_json(path):
+            with open(path, 'w') as f:
+                json.dump(doc, f, indent=1, default=str)
+        write_output(args.json, write_json)
         print(f'  wrote {args.json}')
     if args.out:
         from gyro_rotor.linear.locus_plot import plot_root_locus

@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     print(f'  scene K_D = {", ".join(f"{k:g}" for k in t.K_D_current)}: rate '
           f'{t.rate_current:.6g} 1/s')
     print('  rate at ' + ', '.join(f'{k} x best: {v:.6g}' for k, v in t.rate_at.items()))
-    print(f'  rate >= 90% of best for K_D in [{t.K_D_range_90[0]:.4g}, '
-          f'{t.K_D_range_90[1]:.4g}]; d ln(rate)/d ln(K_D) = {t.dlnrate_dlnKD[0]:+.3g} below, '
-          f'{t.dlnrate_dlnKD[1]:+.3g} above')
+    print(f'  flatness: the rate at half the best K_D is {100 * t.relative_rate["0.5"]:.3g} % '
+          f'of the best, at twice it {100 * t.relative_rate["2"]:.3g} %; rate >= 90% of best '
+          f'for K_D in [{t.K_D_range_90[0]:.4g}, {t.K_D_range_90[1]:.4g}]')
     return 0
