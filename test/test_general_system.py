@@ -692,6 +692,11 @@ def test_no_drive_stiffness_is_marginal_on_every_system(scene):
     assert v.verdict == 'marginal', v.reason
     assert 'rotor angle neutral (K_S = 0' in v.reason
     assert any(m.rotor_angle and m.kind == ModeKind.ZERO for m in ms)
+    # the prediction marks the same modes marginal as the verdict names
+    from gyro_rotor.analysis.prediction import predict
+    pred = predict(sc)
+    assert pred.verdict == 'marginal'
+    assert {m.name for m in pred.marginal_modes} == set(v.marginal_modes)
     # with the drives stiff again, no rotor angle is neutral
     ms, v = assess(linearize_scene(load_scene(scene)))
     assert not any(m.rotor_angle for m in ms) and 'rotor angle' not in v.reason

@@ -653,7 +653,8 @@ def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
 
     ``K``: each drive's damping (default: the scene's ``K_scene``); ``V``: a basis of the
     complement of the fixed subspace (:func:`fixed_subspace`; computed if not given). A
-    reached root is damped when Re < -resolution of A(K) on V (:func:`resolution`). A root
+    reached root is damped when Re < -resolution of A(K) on V (:func:`resolution`, at least
+    the eigen-solver's floor :func:`gyro_rotor.linear.roundoff.floor` of A0). A root
     within that resolution (a mode the drives reach only weakly, or a slow root -K_S/K at a
     large K) is recomputed in 40 digits (:func:`_eig_fine`) and judged against the
     round-off the data A0 carries itself: at K = 0 every root of the conservative A0 lies
@@ -665,7 +666,9 @@ def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
     if V is None:
         V = _split(sys.A0, sys.C)[1]
     A0v, Bv, Cv = V.T @ sys.A0 @ V, V.T @ sys.B, sys.C @ V
+    from gyro_rotor.linear.roundoff import floor
     lam, res = resolution(V.T @ (sys.A0 - (sys.B * K) @ sys.C) @ V)
+    res = np.maximum(res, floor(sys.A0))
     fine = (np.abs(lam.real) <= res) & bool(np.any(K > 0))
     ok = lam.real < -res
     noise = 0.0

@@ -112,6 +112,17 @@ class Mode:
             return bool(self.damped)
         return self.eigenvalue.real < -self.resolution
 
+    @property
+    def is_marginal(self) -> bool:
+        """Return True if :func:`judge` calls the mode marginal.
+
+        A root (not a zero root) within its resolution of the axis or beyond it to the
+        left that is not damped (:attr:`is_damped`), or a zero root of a rotor angle.
+        """
+        if self.kind == ModeKind.ZERO:
+            return self.rotor_angle
+        return self.eigenvalue.real <= self.resolution and not self.is_damped
+
 
 @dataclasses.dataclass(frozen=True)
 class Verdict:
@@ -303,12 +314,12 @@ def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
     """
     ms = [m for m in ms if m.eigenvalue.imag >= -m.resolution]
     judged = [m for m in ms if m.kind != ModeKind.ZERO]
-    neutral = [m for m in ms if m.kind == ModeKind.ZERO and m.rotor_angle]
+    neutral = [m for m in ms if m.kind == ModeKind.ZERO and m.is_marginal]
     top = max(judged, key=lambda m: m.eigenvalue.real, default=None)
     absc, slowest, res = ((top.eigenvalue.real, top.name, top.resolution) if top
                           else (-math.inf, '', 0.0))
     unstable = [m for m in judged if m.eigenvalue.real > m.resolution]
-    marginal = [m for m in judged if m.eigenvalue.real <= m.resolution and not m.is_damped]
+    marginal = [m for m in judged if m.is_marginal]
     if unstable:
         verdict, reason = Stability.UNSTABLE, 'growing: ' + ', '.join(
             f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)' for m in unstable)
