@@ -712,3 +712,16 @@ def test_sensitivity_of_a_jordan_zero_root_is_not_defined(capsys):
     # the simple roots keep their sensitivity
     ms = modes(linearize_scene(load_scene('twin_gimbal')))
     assert all(math.isfinite(m.dRe_dKD) and m.dRe_dKD < 0 for m in ms)
+
+
+def test_slow_roots_at_a_huge_K_D_are_reached_not_zero_roots():
+    # K_D = 1e7: the slow roots -K_S/K_D (-1e-6, -8e-7 1/s) are smaller than any size
+    # threshold for "zero", but they move with K: reached, damped, never a neutral rotor angle
+    from gyro_rotor.cli.util import load_scene_with_sets
+    from gyro_rotor.linear.system import assess
+    ms, v = assess(linearize_scene(load_scene_with_sets('twin_gimbal', ['K_D=1e7'])))
+    assert v.verdict == 'asymptotically stable', v.reason
+    slow = [m for m in ms if abs(m.eigenvalue) < 1e-5]
+    assert len(slow) == 2
+    assert all(m.kind == ModeKind.REAL and m.reached_by_drive and m.is_damped
+               and not m.rotor_angle for m in slow)

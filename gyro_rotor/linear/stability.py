@@ -266,7 +266,8 @@ def classify(ms: Sequence[Mode], sys, K=None) -> list:
     (:func:`~gyro_rotor.linear.claims.fixed_subspace`; it holds the structural zero
     roots and the modes of Hagedorn's exclusion). Damped: :func:`gyro_rotor.linear.claims.
     damped` (the rule of claim (b)); a reached root resolved only in 40 digits takes that
-    value and its resolution. Each mode is matched to the nearest root (one-to-one).
+    value and its resolution. Each mode is matched to the nearest root (one-to-one); a
+    reached root is never a zero root (kind REAL however small it is).
     """
     from scipy.optimize import linear_sum_assignment
     from gyro_rotor.linear import claims as cl
@@ -282,9 +283,13 @@ def classify(ms: Sequence[Mode], sys, K=None) -> list:
     out = list(ms)
     for i, j in zip(r, c):
         m = ms[i]
-        if m.kind == ModeKind.ZERO or j >= n_v:
+        if j >= n_v:
             out[i] = dataclasses.replace(m, reached_by_drive=False, damped=False)
             continue
+        # a root that moves with K is never a structural zero root, however small (a slow
+        # root -K_S/K at a large K)
+        kind = ModeKind.REAL if m.kind == ModeKind.ZERO else m.kind
+        m = dataclasses.replace(m, kind=kind, rotor_angle=False)
         lam, res = complex(m.eigenvalue), float(dm.res[j])
         if dm.fine[j]:
             z = complex(roots[j])
