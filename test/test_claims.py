@@ -274,3 +274,14 @@ def test_a_weakly_reached_mode_is_resolved_against_the_datas_own_round_off():
     res = cl.check(shifted)
     assert res.claims['a'].holds and not res.claims['b'].holds
     assert res.claims['b'].data['failing']
+
+
+def test_claim_b_headline_names_the_K_D_it_was_judged_at():
+    # the scene 'conservative' has K_D = 0: (b) is judged at a substituted small K_D, and
+    # its headline says so instead of "at the scene's K_D"
+    from gyro_rotor.core.scene import load_scene
+    b = check_claims(linearize_scene(load_scene('conservative'))).claims['b']
+    assert "at the scene's K_D" not in b.statement
+    assert 'K_D = 0 substituted' in b.statement and 'at K_D = 0.00045' in b.statement
+    b = check_claims(linearize_scene(load_scene('precession'))).claims['b']
+    assert b.statement.startswith("at the scene's K_D every root")

@@ -750,3 +750,49 @@ def test_auto_picks_radau9_for_a_stiff_drive():
     run = integrate_general(stiff, y0, np.linspace(0.0, 0.2, 5))
     assert run.method == 'radau9' and run.nsteps < 5000
     assert np.abs(stiff.residual(run.y)).max() < 1e-7 * stiff.energy(y0)
+
+
+@pytest.mark.parametrize('scene', ['twin_gimbal', 'precession', 'centrifuge_euler'])
+def test_no_drive_stiffness_is_marginal_on_every_system(scene):
+    # K_S = 0: the rotor angle z has no restoring torque; its zero root is not excused
+    # like a cyclic carrier coordinate (the theorem needs self-stable drives)
+    from gyro_rotor.cli.util import load_scene_with_sets
+    from gyro_rotor.linear.system import assess
+    sc = load_scene_with_sets(scene, ['K_S=0'])
+    ms, v = assess(linearize_scene(sc))
+    assert v.verdict == 'marginal', v.reason
+    assert 'rotor angle neutral (K_S = 0' in v.reason
+    assert any(m.rotor_angle and m.kind == ModeKind.ZERO for m in ms)
+    # the prediction marks the same modes marginal as the verdict names
+    from gyro_rotor.analysis.prediction import predict
+    pred = predict(sc)
+    assert pred.verdict == 'marginal'
+    assert {m.name for m in pred.marginal_modes} == set(v.marginal_modes)
+    # with the drives stiff again, no rotor angle is neutral
+    ms, v = assess(linearize_scene(load_scene(scene)))
+    assert not any(m.rotor_angle for m in ms) and 'rotor angle' not in v.reason
+
+
+def test_sensitivity_of_a_jordan_zero_root_is_not_defined(capsys):
+    # twin_gimbal at K_S = 0: each rotor's (z, zdot) is a Jordan block at 0; first-order
+    # perturbation theory does not apply: dRe/dK_D is printed as not defined, not +0
+    assert main(['eig', 'twin_gimbal', '--set', 'K_S=0']) == 0
+    rows = [x for x in capsys.readouterr().out.splitlines() if 'z_R1)' in x and 'verdict' not in x]
+    assert len(rows) == 2 and all('not defined' in x for x in rows), rows
+    assert all('+0.0000e+00' not in x for x in rows)
+    # the simple roots keep their sensitivity
+    ms = modes(linearize_scene(load_scene('twin_gimbal')))
+    assert all(math.isfinite(m.dRe_dKD) and m.dRe_dKD < 0 for m in ms)
+
+
+def test_slow_roots_at_a_huge_K_D_are_reached_not_zero_roots():
+    # K_D = 1e7: the slow roots -K_S/K_D (-1e-6, -8e-7 1/s) are smaller than any size
+    # threshold for "zero", but they move with K: reached, damped, never a neutral rotor angle
+    from gyro_rotor.cli.util import load_scene_with_sets
+    from gyro_rotor.linear.system import assess
+    ms, v = assess(linearize_scene(load_scene_with_sets('twin_gimbal', ['K_D=1e7'])))
+    assert v.verdict == 'asymptotically stable', v.reason
+    slow = [m for m in ms if abs(m.eigenvalue) < 1e-5]
+    assert len(slow) == 2
+    assert all(m.kind == ModeKind.REAL and m.reached_by_drive and m.is_damped
+               and not m.rotor_angle for m in slow)

@@ -233,7 +233,9 @@ def test_no_drive_stiffness_cyclic_z_is_a_structural_zero_root():
         st.spectrum = real_spectrum
     # bounded work: no interval bisected to max_depth (the old code made ~1e5 calls)
     assert len(calls) < 2000
-    assert r.verdict == 'asymptotically stable'
+    # the theorem needs self-stable drives: a neutral rotor angle is not excused
+    assert r.verdict == 'marginal' and 'rotor angle neutral' in r.reason
+    assert r.marginal_modes == [ZERO_ROOT_Z]
     assert {m.name for m in r.modes} == {'nutation', 'housing twist', 'rotor-field coupling',
                                          ZERO_ROOT, ZERO_ROOT_Z}
     slip = r.mode('rotor-field coupling')
@@ -418,6 +420,84 @@ def test_nonlinear_model_tilt_modes_undamped_about_solution_I():
             assert abs(lf.real) < 1e-6, (name, lf)
         else:
             assert abs(lf.real - lam.real) < 1e-3 * abs(lam.real), (name, lf, lam)
+
+
+# -- one verdict: eig, predict and locus judge a reached root by the same rule --------------
+def _eig_verdict(capsys, *args) -> str:
+    assert cli.main(['eig', *args]) == 0
+    return [x for x in capsys.readouterr().out.splitlines() if 'verdict:' in x][0]
+
+
+@pytest.mark.parametrize('scene', ['precession', 'twin_gimbal'])
+def test_weakly_damped_reached_modes_are_damped_for_eig_predict_and_locus(scene, capsys):
+    # K_D = 1e-9: nutation and twist damped at -4.4e-11 and -4.2e-9 1/s, below the double
+    # resolution of A(K) but resolved in 40 digits: claim (b) says PASS, so eig and the
+    # prediction must not call them on the axis
+    from gyro_rotor.analysis.prediction import predict
+    from gyro_rotor.cli.util import load_scene_with_sets
+    sc = load_scene_with_sets(scene, ['K_D=1e-9'])
+    res = check_claims(linearize_scene(sc))
+    assert res.claims['b'].holds
+    assert 'asymptotically stable' in _eig_verdict(capsys, scene, '--set', 'K_D=1e-9')
+    pred = predict(sc)
+    assert pred.verdict == 'asymptotically stable' and pred.spectral_abscissa < 0
+    assert not pred.marginal_modes
+
+
+def test_slow_roots_at_huge_K_D_are_damped(tmp_path, capsys):
+    # twin_gimbal at K_D = 1e6: the slow roots -K_S/K_D = -1e-5 lie within the double
+    # resolution of A(K) (1.9e-5) but are resolved; the verdict agrees with claim (b) and
+    # the JSON carries the spectral abscissa itself with its resolution
+    import json
+    out = tmp_path / 'e.json'
+    line = _eig_verdict(capsys, 'twin_gimbal', '--set', 'K_D=1e6', '--json', str(out))
+    assert 'asymptotically stable' in line
+    doc = json.loads(out.read_text())
+    assert doc['spectral_abscissa'] < -doc['spectral_abscissa_resolution'] < 0
+    slow = [m for m in doc['modes'] if abs(m['re']) < 1e-3 and m['im'] == 0]
+    assert len(slow) == 2 and all(m['damped'] and m['re'] < 0 for m in slow)
+
+
+def test_reached_is_one_rule_judged_at_K_D_0(capsys):
+    # Omega0 = 0: the nutation moves with K_D (dRe/dK_D = -3.0e-8), it is not on the fixed
+    # subspace: reached (as locus counts it), and damped at the scene's K_D
+    for K in ('0.05', '1'):
+        assert cli.main(['eig', 'precession', '--set', 'Omega0=0', '--set', f'K_D={K}']) == 0
+        out = capsys.readouterr().out
+        row = [x for x in out.splitlines() if x.strip().startswith('nutation')][0]
+        assert row.rstrip().endswith('yes'), row
+        assert 'verdict: asymptotically stable' in out
+    # about solution I the tilt modes are on the fixed subspace: unreached (Hagedorn)
+    r = analyze_scene('upright')
+    assert not r.mode('nutation').reached_by_drive and 'Hagedorn' in r.reason
+
+
+def test_eig_json_writes_real_booleans_for_every_scene(tmp_path, capsys):
+    import json
+    from gyro_rotor.core.scene import list_scenes
+
+    def walk(x):
+        if isinstance(x, dict):
+            for k, v in x.items():
+                yield k, v
+                yield from walk(v)
+        elif isinstance(x, list):
+            for v in x:
+                yield from walk(v)
+    for name in list_scenes():
+        out = tmp_path / f'{name}.json'
+        assert cli.main(['eig', name, '--json', str(out)]) == 0
+        doc = json.loads(out.read_text())
+        for m in doc['modes']:
+            for key in ('reached_by_drive', 'reached', 'damped', 'structural_zero',
+                        'undamped', 'rotor_angle'):
+                assert type(m[key]) is bool, (name, key, m[key])
+        # no field stringified: only the text fields are strings
+        for k, v in walk(doc):
+            if isinstance(v, str):
+                assert k in ('scene', 'system', 'about', 'name', 'kind', 'slowest_mode',
+                             'verdict', 'reason') or k == 'state_names', (name, k, v)
+    capsys.readouterr()
 
 
 # -- command line and purity ---------------------------------------------------------------------

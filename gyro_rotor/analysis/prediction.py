@@ -86,10 +86,12 @@ def predict(scene: Scene) -> Prediction:
     Modes and verdict: :func:`~gyro_rotor.linear.system.assess` of the scene's one
     linearization (the centrifuge's modes named by modal energy at K_D = 0 and followed
     by continuity, a system file's by the dominant coordinate), one of each conjugate
-    pair. A real part within its root's resolution (:mod:`gyro_rotor.linear.roundoff`,
-    the rule of every system) is on the imaginary axis: such a mode is marginal (the
-    drives do not reach it, or there is no drive damping). A zero root is structural (a
-    cyclic coordinate) and not judged (:func:`~gyro_rotor.linear.stability.judge`).
+    pair. A mode is marginal as the verdict judges it (:attr:`~gyro_rotor.linear.
+    stability.Mode.is_marginal`, the one rule of reach and damping shared with claim (b)
+    of ``locus``): a root not damped (the drives do not reach it, or there is no drive
+    damping), or the zero root of a rotor angle without drive stiffness. Any other zero
+    root is structural (a cyclic coordinate) and not judged
+    (:func:`~gyro_rotor.linear.stability.judge`).
     """
     from gyro_rotor.linear.system import assess, linearize_scene
     model = scene.make_model()
@@ -97,8 +99,7 @@ def predict(scene: Scene) -> Prediction:
     roots, verdict = assess(lin)
     scale = max([1.0] + [abs(r.eigenvalue) for r in roots])
     out = tuple(PredictedMode(r.name, complex(r.eigenvalue), bool(r.reached_by_drive),
-                              marginal=bool(abs(r.eigenvalue.real) <= r.resolution)
-                              and not _zero(r),
+                              marginal=bool(r.is_marginal),
                               structural=_zero(r))
                 for r in roots if r.eigenvalue.imag >= -1e-12 * scale)
     sm = scene.steady() if scene.params else None

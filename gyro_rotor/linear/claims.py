@@ -52,7 +52,8 @@ import scipy.linalg as sla
 from scipy.optimize import brentq, linear_sum_assignment
 
 __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
-           'fixed_subspace', 'locked_spectrum', 'track', 'check', 'resolution']
+           'fixed_subspace', 'locked_spectrum', 'track', 'check', 'resolution', 'Damping',
+           'damped']
 
 _EPS = np.finfo(float).eps
 #: rank decisions of the staircase: singular values below this times the matrix norm are 0
@@ -629,6 +630,63 @@ def _eig_fine(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.ndarray) -> np
         return np.array([complex(z) for z in ev])
 
 
+@dataclasses.dataclass(frozen=True)
+class Damping:
+    """The roots of A(K) the drives reach and whether each is damped (:func:`damped`).
+
+    ``lam`` the reached roots (A(K) on the complement V of the fixed subspace), those
+    below the double-precision resolution replaced by their 40-digit values (``fine``);
+    ``res`` each one's resolution (10 ``noise`` for a fine one); ``damped`` the one rule:
+    the root lies in the open left half plane; ``noise`` the 40-digit |Re| of A0's own
+    roots on V (0 if no root needed 40 digits).
+    """
+
+    lam: np.ndarray
+    res: np.ndarray
+    damped: np.ndarray
+    fine: np.ndarray
+    noise: float
+
+
+def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
+    """Decide, once for every command, which reached root of A(K) is damped.
+
+    ``K``: each drive's damping (default: the scene's ``K_scene``); ``V``: a basis of the
+    complement of the fixed subspace (:func:`fixed_subspace`; computed if not given). A
+    reached root is damped when Re < -resolution of A(K) on V (:func:`resolution`, at least
+    the eigen-solver's floor :func:`gyro_rotor.linear.roundoff.floor` of A0). A root
+    within that resolution (a mode the drives reach only weakly, or a slow root -K_S/K at a
+    large K) is recomputed in 40 digits (:func:`_eig_fine`) and judged against the
+    round-off the data A0 carries itself: at K = 0 every root of the conservative A0 lies
+    on the axis (claim a), so the real parts of A0's own roots in 40 digits measure that
+    round-off (``noise``); the root is damped when it lies left of the axis and has moved
+    left of its K = 0 value by more than ten times the noise.
+    """
+    K = np.asarray(sys.K_scene if K is None else K, dtype=float)
+    if V is None:
+        V = _split(sys.A0, sys.C)[1]
+    A0v, Bv, Cv = V.T @ sys.A0 @ V, V.T @ sys.B, sys.C @ V
+    from gyro_rotor.linear.roundoff import floor
+    lam, res = resolution(V.T @ (sys.A0 - (sys.B * K) @ sys.C) @ V)
+    res = np.maximum(res, floor(sys.A0))
+    fine = (np.abs(lam.real) <= res) & bool(np.any(K > 0))
+    ok = lam.real < -res
+    noise = 0.0
+    if fine.any():
+        ev, ev0 = _eig_fine(A0v, Bv, Cv, K), _eig_fine(A0v, Bv, Cv, np.zeros_like(K))
+        noise = float(np.max(np.abs(ev0.real), initial=0.0))
+        r, c = linear_sum_assignment(np.abs(lam[:, None] - ev[None, :]))
+        lam = lam.astype(complex)
+        lam[r[fine[r]]] = ev[c[fine[r]]]
+        r0, c0 = linear_sum_assignment(np.abs(lam[:, None] - ev0[None, :]))
+        base = np.empty(len(lam))
+        base[r0] = ev0[c0].real
+        res = res.copy()
+        res[fine] = 10 * noise
+        ok[fine] = (lam.real[fine] < 0) & (lam.real[fine] - base[fine] < -10 * noise)
+    return Damping(lam=lam, res=res, damped=ok, fine=fine, noise=noise)
+
+
 def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
     K = np.asarray(sys.K_scene, dtype=float).copy()
     A0v, Bv, Cv = V.T @ sys.A0 @ V, V.T @ sys.B, sys.C @ V
@@ -642,27 +700,8 @@ def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
         note = (f' (the scene has K_D = 0, conservative: judged at K_D = {K[zero][0]:.3g}, '
                 'the theorem being about K_D > 0)')
     A = sys.A0 - (sys.B * K) @ sys.C
-    lam, res = resolution(V.T @ A @ V)
-    fine = np.abs(lam.real) <= res
-    ok_reached = lam.real < -res
-    if fine.any():
-        # below the double-precision resolution of A(K) (a mode the drives reach only
-        # weakly): the same roots in 40 digits, against the round-off the data A0 carries
-        # itself. At K = 0 every root of the conservative A0 lies on the axis (claim a), so
-        # the real parts of A0's own roots in 40 digits measure that round-off (``noise``);
-        # a root counts as damped when it lies left of the axis and has moved left of its
-        # K = 0 value by more than ten times the noise
-        ev, ev0 = _eig_fine(A0v, Bv, Cv, K), _eig_fine(A0v, Bv, Cv, np.zeros_like(K))
-        noise = float(np.max(np.abs(ev0.real), initial=0.0))
-        r, c = linear_sum_assignment(np.abs(lam[:, None] - ev[None, :]))
-        lam = lam.copy()
-        lam[r[fine[r]]] = ev[c[fine[r]]]
-        r0, c0 = linear_sum_assignment(np.abs(lam[:, None] - ev0[None, :]))
-        base = np.empty(len(lam))
-        base[r0] = ev0[c0].real
-        res = res.copy()
-        res[fine] = 10 * noise
-        ok_reached[fine] = (lam.real[fine] < 0) & (lam.real[fine] - base[fine] < -10 * noise)
+    dm = damped(sys, K, V)
+    lam, res, fine, noise, ok_reached = dm.lam, dm.res, dm.fine, dm.noise, dm.damped
     bad = np.flatnonzero(~ok_reached)
     lam_u, res_u = resolution(U.T @ A @ U) if U.shape[1] else (lam[:0], res[:0])
     # the unreached roots: on the axis, at their K = 0 values (U is invariant, so A = A0 on
@@ -692,7 +731,9 @@ def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
         exc = (f'{n_un} roots not reached by the drive (their eigenvectors have no zdot '
                "part: Hagedorn's exclusion, PBH) stay on the imaginary axis at their K_D = 0 "
                'values, as the theory expects')
-    return Claim('b', "at the scene's K_D every root the drives reach in the open left half "
+    where = ("at the scene's K_D" if not zero.any() else
+             f"at K_D = {K[zero][0]:.3g} (the scene's K_D = 0 substituted)")
+    return Claim('b', f'{where} every root the drives reach in the open left half '
                  'plane, the unreached ones on the axis at their K_D = 0 values', holds,
                  detail, {'max_re_reached': worst, 'unreached': n_un,
                           'reached': len(lam), 'failing': [_fmt(lam[i]) for i in bad]}, exc)

@@ -12,10 +12,13 @@ coordinate psi, a shift to a neighbouring steady motion of the family, not an
 oscillation, and excluded from every verdict). From there the names follow the modes
 along any parameter path by eigenvector continuity (:func:`track`), never by sorting.
 
-Drive penetration (the paper's footnote, Hagedorn): the first-order sensitivity
-d lambda/d K_D = -(w^H b)(c^T v)/(w^H v) at K_D = 0 (left and right eigenvectors w, v).
-A mode is reached by the drive damping iff d Re(lambda)/d K_D < 0 beyond the numerical
-noise (:data:`TOL_SENS_REL` times the largest sensitivity).
+Drive penetration (the paper's footnote, Hagedorn) and damping are decided by one rule for
+every system (:func:`classify`): a mode is reached iff its root at K_D = 0 is not on the
+fixed (unobservable) subspace of :func:`gyro_rotor.linear.claims.fixed_subspace`, and a
+reached root is damped by :func:`gyro_rotor.linear.claims.damped` (the rule of claim (b)),
+so that ``eig``, the prediction and ``locus`` cannot disagree. The first-order sensitivity
+d lambda/d K_D = -(w^H b)(c^T v)/(w^H v) at K_D = 0 (left and right eigenvectors w, v) is
+printed beside it.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
 __all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'Verdict', 'judge', 'spectrum',
-           'analyze',
+           'analyze', 'classify', 'drive_system',
            'analyze_scene',
            'track', 'sweep', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
@@ -65,9 +68,13 @@ class Mode:
     """One mode: a conjugate pair (upper eigenvalue given) or a real root.
 
     ``freq_hz`` = |Im lambda|/(2 pi); ``zeta`` = -Re lambda/|lambda|; ``tau`` = -1/Re lambda
-    [s] (inf if Re >= 0); ``dRe_dKD`` = d Re(lambda)/d K_D at K_D = 0 [1/(N m s^2/rad)];
-    ``reached_by_drive``: that sensitivity is strictly negative; ``kind`` a
-    :class:`ModeKind` (ZERO: the structural zero root); ``resolution`` the eigenvalue's.
+    [s] (inf if Re >= 0); ``dRe_dKD`` = d Re(lambda)/d K_D at K_D = 0 [1/(N m s^2/rad)]
+    (nan: not defined, a root of a defective zero root); ``reached_by_drive``: its root at
+    K_D = 0 is not on the fixed subspace; ``damped``: the rule of
+    :func:`gyro_rotor.linear.claims.damped` (None: not classified, then Re < -resolution);
+    ``kind`` a :class:`ModeKind` (ZERO: a zero root); ``rotor_angle``: a zero root whose
+    eigenvector is a rotor angle z (no drive stiffness, K_S = 0: judged marginal);
+    ``resolution`` the eigenvalue's.
     """
 
     name: str
@@ -81,13 +88,40 @@ class Mode:
     eigenvalue_K_D0: complex
     #: a |Re| within this is 0 (round-off; :mod:`gyro_rotor.linear.roundoff`)
     resolution: float = 0.0
+    damped: bool | None = None
+    rotor_angle: bool = False
 
     def as_dict(self) -> dict:
-        """JSON-friendly dict."""
+        """JSON-friendly dict: plain bools, floats (nan as None), complex as [re, im]."""
         d = dataclasses.asdict(self)
-        for k in ('eigenvalue', 'eigenvalue_K_D0'):
-            d[k] = [d[k].real, d[k].imag]
+        for k, x in d.items():
+            if isinstance(x, (complex, np.complexfloating)):
+                d[k] = [float(x.real), float(x.imag)]
+            elif isinstance(x, (bool, np.bool_)):
+                d[k] = bool(x)
+            elif isinstance(x, enum.Enum):
+                d[k] = str(x)
+            elif isinstance(x, (float, np.floating)):
+                d[k] = float(x) if math.isfinite(x) or math.isinf(x) else None
         return d
+
+    @property
+    def is_damped(self) -> bool:
+        """Return True if the root is damped (:attr:`damped`; unclassified: Re < -res)."""
+        if self.damped is not None:
+            return bool(self.damped)
+        return self.eigenvalue.real < -self.resolution
+
+    @property
+    def is_marginal(self) -> bool:
+        """Return True if :func:`judge` calls the mode marginal.
+
+        A root (not a zero root) within its resolution of the axis or beyond it to the
+        left that is not damped (:attr:`is_damped`), or a zero root of a rotor angle.
+        """
+        if self.kind == ModeKind.ZERO:
+            return self.rotor_angle
+        return self.eigenvalue.real <= self.resolution and not self.is_damped
 
 
 @dataclasses.dataclass(frozen=True)
@@ -161,7 +195,7 @@ def _zero_cluster(lin, lam, V, W, Vw, d) -> None:
     d[idx] = mu
 
 
-def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
+def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
     """Mode objects: one per name (upper eigenvalue), or per real root of a split pair."""
     by_name: dict = {}
     for j, nm in enumerate(names):
@@ -185,14 +219,16 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens) -> list:
         for label, j, kind in groups:
             lamv = complex(lam_K[j])
             dre = float(d0[j].real)
-            reached = kind != ModeKind.ZERO and dre < -tol_sens
+            # provisional: :func:`classify` decides reach and damping (one rule)
+            reached = kind != ModeKind.ZERO
             re = lamv.real
             zeta = -re / abs(lamv) if abs(re) > tol_re and kind != ModeKind.ZERO else 0.0
             out.append(Mode(
                 name=label, eigenvalue=lamv, freq_hz=abs(lamv.imag) / (2 * math.pi),
                 zeta=zeta,
                 tau=(-1.0 / re) if re < -tol_re else math.inf, reached_by_drive=reached,
-                dRe_dKD=dre, kind=kind, eigenvalue_K_D0=complex(lam0[j]), resolution=tol_re))
+                dRe_dKD=dre, kind=kind, eigenvalue_K_D0=complex(lam0[j]), resolution=tol_re,
+                rotor_angle=nm == ZERO_ROOT_Z))
     out.sort(key=lambda m: (m.kind == ModeKind.ZERO, -m.eigenvalue.real))
     return out
 
@@ -221,39 +257,92 @@ def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
     return [0.0] + list(np.geomspace(lo, K_D, 6 * per_decade + 1))
 
 
+def classify(ms: Sequence[Mode], sys, K=None) -> list:
+    """Return the modes with reach and damping decided by the one rule of every system.
+
+    ``sys``: the :class:`~gyro_rotor.linear.claims.DriveSystem` of every drive (A0 with
+    every drive undamped), ``K`` each drive's damping (default its ``K_scene``). Reached
+    (judged at K = 0, the exact rule): the root is not one of A(K) on the fixed subspace
+    (:func:`~gyro_rotor.linear.claims.fixed_subspace`; it holds the structural zero
+    roots and the modes of Hagedorn's exclusion). Damped: :func:`gyro_rotor.linear.claims.
+    damped` (the rule of claim (b)); a reached root resolved only in 40 digits takes that
+    value and its resolution. Each mode is matched to the nearest root (one-to-one); a
+    reached root is never a zero root (kind REAL however small it is).
+    """
+    from scipy.optimize import linear_sum_assignment
+    from gyro_rotor.linear import claims as cl
+    K = np.asarray(sys.K_scene if K is None else K, dtype=float)
+    U, V = cl._split(sys.A0, sys.C)
+    dm = cl.damped(sys, K, V)
+    A = sys.A0 - (sys.B * K) @ sys.C
+    lam_u = np.linalg.eigvals(U.T @ A @ U) if U.shape[1] else np.zeros(0, complex)
+    roots = np.concatenate([dm.lam, lam_u])
+    n_v = len(dm.lam)
+    lam_m = np.array([m.eigenvalue for m in ms], dtype=complex)
+    r, c = linear_sum_assignment(np.abs(lam_m[:, None] - roots[None, :]))
+    out = list(ms)
+    for i, j in zip(r, c):
+        m = ms[i]
+        if j >= n_v:
+            out[i] = dataclasses.replace(m, reached_by_drive=False, damped=False)
+            continue
+        # a root that moves with K is never a structural zero root, however small (a slow
+        # root -K_S/K at a large K)
+        kind = ModeKind.REAL if m.kind == ModeKind.ZERO else m.kind
+        m = dataclasses.replace(m, kind=kind, rotor_angle=False)
+        lam, res = complex(m.eigenvalue), float(dm.res[j])
+        if dm.fine[j]:
+            z = complex(roots[j])
+            im = 0.0 if m.kind == ModeKind.REAL else abs(z.imag)
+            lam = complex(z.real, im if lam.imag >= 0 else -im)
+        ok = bool(dm.damped[j])
+        re = lam.real
+        out[i] = dataclasses.replace(
+            m, eigenvalue=lam, reached_by_drive=True, damped=ok, resolution=res,
+            zeta=-re / abs(lam) if abs(re) > res else 0.0,
+            tau=-1.0 / re if re < -res else math.inf)
+    return out
+
+
 def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
     """Judge modes: unstable, marginal or asymptotically stable, with the reason.
 
-    'unstable' if a root (other than a structural zero root) has Re beyond its
-    resolution; 'marginal' if one is on the imaginary axis within it (the reason names
-    the modes and whether the drive damping reaches them; ``undamped_drives``: every
-    K_D is 0); 'asymptotically stable' otherwise. A structural zero root (a cyclic
-    coordinate: a neighbouring steady motion of the family) is listed but not judged:
-    the paper's stability is in the velocities and the rotor angles. A complex pair
-    counts once (its root with Im >= 0).
+    'unstable' if a root (other than a zero root) has Re beyond its resolution;
+    'marginal' if one is not damped (:attr:`Mode.is_damped`, the one rule of
+    :func:`classify`; the reason names the modes and whether the drive damping reaches
+    them; ``undamped_drives``: every K_D is 0), or if a zero root's eigenvector is a rotor
+    angle (no drive stiffness, K_S = 0: the theorem needs self-stable drives and promises
+    stability in the rotor angles); 'asymptotically stable' otherwise. Any other zero root
+    (a cyclic coordinate: a neighbouring steady motion of the family) is listed but not
+    judged: the paper's stability is in the velocities and the rotor angles. A complex
+    pair counts once (its root with Im >= 0).
     """
     ms = [m for m in ms if m.eigenvalue.imag >= -m.resolution]
     judged = [m for m in ms if m.kind != ModeKind.ZERO]
+    neutral = [m for m in ms if m.kind == ModeKind.ZERO and m.is_marginal]
     top = max(judged, key=lambda m: m.eigenvalue.real, default=None)
     absc, slowest, res = ((top.eigenvalue.real, top.name, top.resolution) if top
                           else (-math.inf, '', 0.0))
     unstable = [m for m in judged if m.eigenvalue.real > m.resolution]
-    marginal = [m for m in judged if abs(m.eigenvalue.real) <= m.resolution]
+    marginal = [m for m in judged if m.is_marginal]
     if unstable:
         verdict, reason = Stability.UNSTABLE, 'growing: ' + ', '.join(
             f'{m.name} (Re = {m.eigenvalue.real:+.3e} 1/s)' for m in unstable)
-    elif marginal:
+    elif marginal or neutral:
         verdict, reason = Stability.MARGINAL, '; '.join(
-            f'{m.name}: ' + ('no drive damping (K_D = 0)' if m.reached_by_drive
-                             and undamped_drives else 'on the imaginary axis'
-                             if m.reached_by_drive else 'not reached by the drive damping '
-                             "(dRe/dK_D = 0 at K_D = 0; Hagedorn's exclusion)")
-            for m in marginal)
+            [f'{m.name}: ' + ('no drive damping (K_D = 0)' if m.reached_by_drive
+                              and undamped_drives else 'on the imaginary axis'
+                              if m.reached_by_drive else 'not reached by the drive damping '
+                              "(on the fixed subspace; Hagedorn's exclusion)")
+             for m in marginal]
+            + [f'{m.name}: rotor angle neutral (K_S = 0: no drive stiffness)'
+               for m in neutral])
     else:
         but = ' except the cyclic zero roots' if len(judged) < len(ms) else ''
         verdict, reason = (Stability.ASYMPTOTICALLY_STABLE, f'every root{but} has Re < 0; '
                            f'slowest: {slowest} (Re = {absc:.4g} 1/s)')
-    return Verdict(verdict, reason, float(absc), slowest, [m.name for m in marginal], res)
+    return Verdict(verdict, reason, float(absc), slowest,
+                   [m.name for m in marginal + neutral], res)
 
 
 def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
@@ -270,11 +359,18 @@ def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
     names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
     lam_K = lam_path[-1]
     tol_re = floor(lin.A0)
-    tol_sens = TOL_SENS_REL * max(np.max(np.abs(d0)), 1e-300)
-    ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re, tol_sens)
+    ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re)
+    ms = classify(ms, drive_system(lin), [K_D])
     return StabilityReport(**vars(judge(ms, K_D == 0)), scene=scene, model=model,
                            motion=motion, coords=lin.coords, state_names=lin.state_names,
                            K_D=K_D, modes=ms, A=lin.A)
+
+
+def drive_system(lin: LinearSystem):
+    """Return the centrifuge's :class:`~gyro_rotor.linear.claims.DriveSystem` (one drive)."""
+    from gyro_rotor.linear.claims import DriveSystem
+    return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
+                       K_scene=np.array([float(lin.params.K_D)]))
 
 
 def scene_operating_point(scene) -> tuple:

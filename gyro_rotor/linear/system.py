@@ -22,8 +22,10 @@ The claims (Magnus 1980, eqs. 13-17 and the footnote; docs MODEL.md section 8):
 
 (a) K = 0: every root on the imaginary axis; zero roots are structural (a cyclic
     coordinate) and named by their eigenvector.
-(b) K > 0: the roots of every mode the drives reach (PBH: its eigenvector at K = 0 has
-    a non-zero zdot part) lie in the open left half plane, and exactly the unreached ones
+(b) K > 0: the roots of every mode the drives reach (its root at K = 0 is not on the
+    unobservable subspace of (C, A0), :func:`gyro_rotor.linear.claims.fixed_subspace`: the
+    one rule of reach, :func:`gyro_rotor.linear.stability.classify`) lie in the open left
+    half plane, and exactly the unreached ones
     stay on the axis, at their K = 0 values (Hagedorn's exclusion).
 (c) K -> infinity: the roots tend to the spectrum of the locked system (z = 0 held,
     computed separately), plus m real roots to -infinity and m to 0.
@@ -53,8 +55,6 @@ __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess
 #: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
 #: labels and the predicted verdict; the claims use each root's own resolution)
 REL_AXIS = 1e-9
-#: a mode is reached when the zdot part of its unit eigenvector exceeds this
-REACH_TOL = 1e-7
 #: the coordinate of each state of the centrifuge's analytic linearizations (the rates'
 #: coordinates: thetadot is theta's, W_1 alpha's, ...)
 _CENTRIFUGE_COORDINATE = {'thetadot': 'theta', 'psidot': 'psi', 'chidot': 'chi', 'zdot': 'z',
@@ -268,42 +268,45 @@ def assess(lin: Linearization, K: float | None = None) -> tuple:
 def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     """Return every root of A(K), named by its dominant coordinate, with its reach.
 
-    A root is unreached when it is one of the K = 0 roots whose eigenvector has no zdot
-    part (the PBH test): those stay where they are for every K. ``eigenvalue_K_D0`` is
-    the root at K = 0 the root is followed from (eigenvector continuity), ``dRe_dKD`` its
-    sensitivity there to a common K, ``resolution`` its round-off
-    (:func:`gyro_rotor.linear.roundoff.resolutions`).
+    Reach and damping: :func:`~gyro_rotor.linear.stability.classify` (one rule for every
+    system: a root on the fixed subspace of A(0) is unreached and stays where it is for
+    every K). ``eigenvalue_K_D0`` is the root at K = 0 the root is followed from
+    (eigenvector continuity), ``dRe_dKD`` its sensitivity there to a common K (nan, not
+    defined, for a root of a defective zero root: a Jordan block), ``resolution`` its
+    round-off (:func:`gyro_rotor.linear.roundoff.resolutions`). A zero root whose
+    eigenvector is mostly a rotor angle z is ``rotor_angle`` (no drive stiffness).
     """
     from gyro_rotor.linear.roundoff import resolutions
+    from gyro_rotor.linear.stability import classify
     Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
     A = lin.A_scene() if K is None else lin.A_common(K)
-    un, zeros, scale = _unreached(lin)
+    scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A_cons)).max(initial=0.0)))
     lam, V = np.linalg.eig(A)
     lam0, dre = _followed(lin, Ks, lam)
     lam_r, res_r = resolutions(A, lin.A_cons)
     tol_im = 1e-9 * max(np.linalg.norm(lin.A_cons), 1.0)
+    angles = {lin.coordinate[i] for i in np.flatnonzero(np.any(lin.c_all != 0, axis=1))}
     out = []
     for i, value in enumerate(lam):
         v = V[:, i] / np.linalg.norm(V[:, i])
         zero = abs(value) <= 1e-7 * scale
-        unreached = bool(un.size) and float(np.min(np.abs(un - value))) <= 1e-7 * scale and \
-            float(np.abs(lin.c_all.T @ v).max()) <= REACH_TOL
-        if zero:
-            label = f'zero root (cyclic {dominant(lin, v)})'
-        else:
-            label = f'{"unreached mode" if unreached else "mode"} ({dominant(lin, v)})'
+        coord = dominant(lin, v)
         value = complex(value)
         re = value.real
         kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > tol_im
                 else ModeKind.REAL)
         res = float(res_r[int(np.argmin(np.abs(lam_r - value)))])
         on_axis = abs(re) <= res
-        out.append(Mode(name=label, eigenvalue=value, freq_hz=abs(value.imag) / (2 * math.pi),
+        out.append(Mode(name=coord, eigenvalue=value, freq_hz=abs(value.imag) / (2 * math.pi),
                         zeta=0.0 if zero or on_axis else -re / abs(value),
                         tau=-1.0 / re if re < 0 and not on_axis else math.inf,
-                        reached_by_drive=not (zero or unreached), dRe_dKD=float(dre[i]),
-                        kind=kind, eigenvalue_K_D0=complex(lam0[i]), resolution=res))
-    return out
+                        reached_by_drive=not zero, dRe_dKD=float(dre[i]),
+                        kind=kind, eigenvalue_K_D0=complex(lam0[i]), resolution=res,
+                        rotor_angle=zero and coord in angles))
+    out = classify(out, lin.drive_system(), Ks)
+    return [dataclasses.replace(m, name=(
+        f'zero root (cyclic {m.name})' if m.kind == ModeKind.ZERO else
+        f'{"mode" if m.reached_by_drive else "unreached mode"} ({m.name})')) for m in out]
 
 
 def _unit(A: np.ndarray) -> tuple:
@@ -335,21 +338,31 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     start = np.empty(len(lam), dtype=complex)
     d = np.empty(len(lam))
     d0 = drive_sensitivity(lin.A_cons, BC, lam0, W, V0).real
+    # a defective zero root (more zero roots than null vectors: a Jordan block) has no
+    # first-order sensitivity: not defined
+    scale = max(1.0, float(np.abs(lam0).max(initial=0.0)))
+    zero = np.abs(lam0) <= 1e-7 * scale
+    sv = np.linalg.svd(lin.A_cons, compute_uv=False)
+    nullity = int(np.sum(sv <= 1e-10 * max(float(sv[0]), 1e-300)))
+    if zero.sum() > nullity:
+        d0 = np.where(zero, math.nan, d0)
     start[cols], d[cols] = lam0[rows], d0[rows]
     return start, d
 
 
 def _unreached(lin: Linearization) -> tuple[np.ndarray, np.ndarray, float]:
-    """Non-zero roots at K = 0 whose eigenvectors have no zdot part, zero roots, scale."""
-    lam0, V0 = np.linalg.eig(lin.A_cons)
+    """Non-zero roots at K = 0 on the fixed subspace (unreached), the zero roots, the scale.
+
+    The one rule of reach (:func:`gyro_rotor.linear.claims.fixed_subspace`).
+    """
+    from gyro_rotor.linear.claims import fixed_subspace
+    lam0 = np.linalg.eigvals(lin.A_cons)
     scale = max(1.0, float(np.abs(lam0).max(initial=0.0)))
     zero = np.abs(lam0) <= 1e-7 * scale
-    un = []
-    for i in np.flatnonzero(~zero):
-        v = V0[:, i] / np.linalg.norm(V0[:, i])
-        if float(np.abs(lin.c_all.T @ v).max()) <= REACH_TOL:
-            un.append(lam0[i])
-    return np.array(un, dtype=complex), lam0[zero], scale
+    U = fixed_subspace(lin.A_cons, lin.c_all.T)
+    lam_u = np.linalg.eigvals(U.T @ lin.A_cons @ U) if U.shape[1] else np.zeros(0, complex)
+    un = lam_u[np.abs(lam_u) > 1e-7 * scale]
+    return np.asarray(un, dtype=complex), lam0[zero], scale
 
 
 def check_claims(lin: Linearization):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 
 from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
 from gyro_rotor.linear.roundoff import decay_text, fmt_re, shown
@@ -49,8 +50,10 @@ def run(args: argparse.Namespace) -> int:
             continue                     # a complex pair once, Im >= 0
         im = shown(abs(lam.imag), r)
         decay = '-' if m.kind == ModeKind.ZERO else decay_text(lam.real, r)
+        # a root of a defective (Jordan) zero root has no first-order sensitivity
+        dre = f'{m.dRe_dKD:+11.4e}' if math.isfinite(m.dRe_dKD) else f'{"not defined":>11s}'
         print(f'  {m.name:40s} {fmt_re(lam.real, r)} {im:12.6f} {im / (2 * np.pi):9.4f} '
-              f'{m.zeta:10.3e} {decay:>13s} {m.dRe_dKD:+11.4e}  '
+              f'{m.zeta:10.3e} {decay:>13s} {dre}  '
               f'{"yes" if m.reached_by_drive else "no"}')
     sa = shown(v.spectral_abscissa, v.slowest_resolution) if v.slowest_mode else 0.0
     if v.slowest_mode:
@@ -61,14 +64,21 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         doc = {'scene': scene.name, 'system': scene.system_name, 'about': lin.about,
                'K_D': lin.K_all.tolist(), 'state_names': list(lin.names),
-               'eigenvalues': [[x.real, x.imag] for x in np.linalg.eigvals(lin.A_scene())],
-               'modes': [{**m.as_dict(), 're': m.eigenvalue.real, 'im': m.eigenvalue.imag,
-                          'reached': m.reached_by_drive,
+               'eigenvalues': [[float(x.real), float(x.imag)]
+                               for x in np.linalg.eigvals(lin.A_scene())],
+               'modes': [{**m.as_dict(), 're': float(m.eigenvalue.real),
+                          'im': float(m.eigenvalue.imag),
+                          'reached': bool(m.reached_by_drive), 'damped': bool(m.is_damped),
                           'structural_zero': m.kind == ModeKind.ZERO,
-                          'undamped': abs(m.eigenvalue.real) <= m.resolution} for m in ms],
-               'spectral_abscissa': sa, 'slowest_mode': v.slowest_mode,
-               'verdict': v.verdict, 'marginal_modes': v.marginal_modes, 'reason': v.reason}
+                          'undamped': bool(abs(m.eigenvalue.real) <= m.resolution)}
+                         for m in ms],
+               # the number itself, with the resolution of its root beside it
+               'spectral_abscissa': float(v.spectral_abscissa),
+               'spectral_abscissa_resolution': float(v.slowest_resolution),
+               'slowest_mode': v.slowest_mode, 'verdict': str(v.verdict),
+               'marginal_modes': list(v.marginal_modes), 'reason': v.reason}
         with open(args.json, 'w', encoding='utf-8') as f:
-            json.dump(doc, f, indent=1, default=str)
+            # no default=: a value json cannot write is an error, never silently a string
+            json.dump(doc, f, indent=1)
         print(f'  wrote {args.json}')
     return 0
