@@ -47,12 +47,13 @@ import dataclasses
 import enum
 import math
 
+from gyro_rotor.linear.roundoff import floor, resolution
 import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import brentq, linear_sum_assignment
 
 __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
-           'fixed_subspace', 'locked_spectrum', 'track', 'check', 'resolution', 'Damping',
+           'fixed_subspace', 'locked_spectrum', 'track', 'check', 'Damping',
            'damped']
 
 _EPS = np.finfo(float).eps
@@ -230,23 +231,6 @@ def _structural_zeros(A_U: np.ndarray, scale: float) -> int:
         Qc = Q[:, Z.shape[1]:len(M)]
         M = Qc.T @ M @ Qc
     return count
-
-
-# -- resolution of an eigenvalue --------------------------------------------------------------
-def resolution(A: np.ndarray) -> tuple:
-    """Return (eigenvalues, resolution of each): 100 eps ||A|| times its condition number.
-
-    The condition number 1/|y^H x| (unit left and right eigenvectors) bounds how far round-off
-    in A moves the eigenvalue: a real part within it is not distinguishable from 0.
-    """
-    if len(A) == 0:
-        return np.zeros(0, complex), np.zeros(0)
-    lam, yl, xr = sla.eig(A, left=True, right=True)
-    yl = yl / np.linalg.norm(yl, axis=0)
-    xr = xr / np.linalg.norm(xr, axis=0)
-    s = np.abs(np.sum(yl.conj() * xr, axis=0))
-    kappa = 1.0 / np.maximum(s, 1e-300)
-    return lam, 100 * _EPS * np.linalg.norm(A) * np.minimum(kappa, 1e16)
 
 
 # -- the continuation ---------------------------------------------------------------------------
@@ -666,7 +650,6 @@ def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
     if V is None:
         V = _split(sys.A0, sys.C)[1]
     A0v, Bv, Cv = V.T @ sys.A0 @ V, V.T @ sys.B, sys.C @ V
-    from gyro_rotor.linear.roundoff import floor
     lam, res = resolution(V.T @ (sys.A0 - (sys.B * K) @ sys.C) @ V)
     res = np.maximum(res, floor(sys.A0))
     fine = (np.abs(lam.real) <= res) & bool(np.any(K > 0))

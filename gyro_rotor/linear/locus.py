@@ -120,7 +120,7 @@ def root_locus(lin: Linearization, K_D_grid) -> RootLocus:
     or that does not reach large K_D (roots further than REACH_TOL from their limits).
     """
     from scipy.optimize import linear_sum_assignment
-    from gyro_rotor.linear.claims import resolution
+    from gyro_rotor.linear.roundoff import resolution
     grid = check_grid(K_D_grid)
     if np.finfo(float).eps * grid[-1] * np.linalg.norm(lin.b @ lin.c.T) > np.linalg.norm(lin.A0):
         raise ParameterError(f'K_D = {float(grid[-1])!r} N m s/rad is too large for the linear '

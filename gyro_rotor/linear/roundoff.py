@@ -8,7 +8,7 @@ of ``1.8e-102``). The resolution of each eigenvalue is the larger of
   without drive damping: the floor of the eigen-solver (the centrifuge's spectrum keeps
   its roots to it at any K_D through the pencil form);
 - the eigenvalue's own round-off bound ``100 eps ||A|| kappa`` (condition number kappa,
-  :func:`gyro_rotor.linear.claims.resolution`) where it is computed from A itself (the
+  :func:`resolution`) where it is computed from A itself (the
   general systems' ``eig`` and ``campbell``).
 
 Every command that prints an eigenvalue (``eig``, ``campbell``, ``locus`` of either kind
@@ -21,8 +21,25 @@ import math
 
 from gyro_rotor.linear.spectrum import TOL_RE_REL
 import numpy as np
+import scipy.linalg as sla
 
-__all__ = ['floor', 'resolutions', 'shown', 'fmt_re', 'decay_text', 'TOL_RE_REL']
+__all__ = ['floor', 'resolution', 'resolutions', 'shown', 'fmt_re', 'decay_text', 'TOL_RE_REL']
+
+
+def resolution(A: np.ndarray) -> tuple:
+    """Return (eigenvalues, resolution of each): 100 eps ||A|| times its condition number.
+
+    The condition number 1/|y^H x| (unit left and right eigenvectors) bounds how far round-off
+    in A moves the eigenvalue: a real part within it is not distinguishable from 0.
+    """
+    if len(A) == 0:
+        return np.zeros(0, complex), np.zeros(0)
+    lam, yl, xr = sla.eig(A, left=True, right=True)
+    yl = yl / np.linalg.norm(yl, axis=0)
+    xr = xr / np.linalg.norm(xr, axis=0)
+    s = np.abs(np.sum(yl.conj() * xr, axis=0))
+    kappa = 1.0 / np.maximum(s, 1e-300)
+    return lam, 100 * np.finfo(float).eps * np.linalg.norm(A) * np.minimum(kappa, 1e16)
 
 
 def floor(A0: np.ndarray) -> float:
@@ -32,7 +49,6 @@ def floor(A0: np.ndarray) -> float:
 
 def resolutions(A: np.ndarray, A0: np.ndarray | None = None) -> tuple:
     """Eigenvalues of A and the resolution of each (module doc); A0 defaults to A."""
-    from gyro_rotor.linear.claims import resolution
     lam, res = resolution(np.asarray(A, dtype=float))
     return lam, np.maximum(res, floor(A if A0 is None else A0))
 
