@@ -51,7 +51,8 @@ import numpy as np
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
            'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
            'pack_params', 'tilt_twist_torque', 'drive_rates', 'full_rhs', 'upright_rhs',
-           'locked_rhs', 'numba_able', 'perturb_state', 'PERTURBATION_KEYS', 'AXIS_DOWN']
+           'locked_rhs', 'axial_momentum', 'numba_able', 'perturb_state',
+           'PERTURBATION_KEYS', 'AXIS_DOWN']
 
 #: why a run of the centrifuge can fail at a finite state: its one singular orientation
 AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
@@ -137,6 +138,13 @@ def tilt_twist_torque(qw, qx, qy, qz, Gs, c_theta, c_psi):
 
 
 @numba_able
+def axial_momentum(y, P):
+    """Return H_3 = C_M W_3 + C_R (W_3 + Omega0 + zdot) at state y of the full model."""
+    W3 = y[6]
+    return P[2] * W3 + P[1] * (W3 + P[8] + y[8])
+
+
+@numba_able
 def full_rhs(y, P, out):
     """dy/dt of the full model (module doc) at y into out; P from :func:`pack_params`."""
     I_ = P[0]
@@ -152,7 +160,7 @@ def full_rhs(y, P, out):
     zd = y[8]
     M1, M2, M3 = tilt_twist_torque(qw, qx, qy, qz, P[3], P[4], P[5])
     Q = drive_law(y[7], zd, P[6], P[7], P[9])
-    g = C_M * W3 + C_R * (W3 + P[8] + zd) - I_ * W3   # H_3 - I W_3
+    g = axial_momentum(y, P) - I_ * W3   # H_3 - I W_3
     dW3 = (M3 - Q) / C_M
     out[0] = 0.5 * (-qx * W1 - qy * W2 - qz * W3)
     out[1] = 0.5 * (qw * W1 + qy * W3 - qz * W2)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.core.model import drive_law, tilt_twist_torque
+from gyro_rotor.core.model import axial_momentum, drive_law, tilt_twist_torque
 from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, finish_run,
                                                         fixed_segment, njit, NONFINITE, OK)
 
@@ -72,19 +72,14 @@ def kick(P, y, t):
 @njit(cache=True, error_model='numpy')
 def drift(P, y, t):
     """Advance the state by the exact free-gyrostat flow over ``t`` (module doc), in place."""
+    H3 = axial_momentum(y, P)
     I_ = P[0]
-    C_R = P[1]
-    C_M = P[2]
     qw = y[0]
     qx = y[1]
     qy = y[2]
     qz = y[3]
-    W1 = y[4]
-    W2 = y[5]
-    W3 = y[6]
-    H1 = I_ * W1
-    H2 = I_ * W2
-    H3 = C_M * W3 + C_R * (W3 + P[8] + y[8])
+    H1 = I_ * y[4]
+    H2 = I_ * y[5]
     # spatial momentum h = q H q*  (v + 2 w (u x v) + 2 u x (u x v), u = (qx, qy, qz))
     cx = qy * H3 - qz * H2
     cy = qz * H1 - qx * H3
@@ -105,7 +100,7 @@ def drift(P, y, t):
         ax = 0.0
         ay = 0.0
         az = 0.0
-    phi = (W3 - H3 / I_) * t
+    phi = (y[6] - H3 / I_) * t
     bw = math.cos(0.5 * phi)
     bz = math.sin(0.5 * phi)
     # r = a * q
@@ -125,6 +120,8 @@ def drift(P, y, t):
     y[3] = nz * s
     c = math.cos(phi)
     sn = math.sin(phi)
+    W1 = y[4]
+    W2 = y[5]
     y[4] = c * W1 + sn * W2
     y[5] = -sn * W1 + c * W2
     y[7] += y[8] * t
