@@ -15,15 +15,13 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from gyro_rotor.core.params import RotorParams
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.spectrum import track
-from gyro_rotor.linear.stability import _K_ref
 from gyro_rotor.linear.system import Linearization, modes
 import numpy as np
 
 __all__ = ['RootLocus', 'root_locus', 'check_claims', 'regimes', 'name_roots', 'K_ref',
-           'default_grid', 'check_grid', 'REACH_TOL']
+           'check_grid', 'REACH_TOL']
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,12 +66,6 @@ def name_roots(lin: Linearization, lam, K: float | None = None) -> list:
 def K_ref(lin: Linearization) -> float:
     """Return the characteristic drive damping: the spectral radius of A0 over min eig(c'b)."""
     return max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max())) / float(lin.fast_rates.min())
-
-
-def default_grid(params: RotorParams, per_decade: int = 40) -> np.ndarray:
-    """[0] plus a log grid from 1e-4 to 1e3 times 2 sqrt(K_S C_R C_M/(C_R + C_M))."""
-    K = _K_ref(params)
-    return np.concatenate([[0.0], np.geomspace(1e-4 * K, 1e3 * K, 7 * per_decade + 1)])
 
 
 def check_grid(grid) -> np.ndarray:

@@ -20,7 +20,7 @@ from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
 __all__ = ['spectrum', 'track', 'drive_sensitivity', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL',
-           'TOL_RE_REL', 'TOL_SENS_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
+           'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
 #: without drive stiffness (K_S = 0) the lag z is cyclic too: a second structural zero root
@@ -32,8 +32,6 @@ MAX_BISECTIONS_PER_POINT = 16
 #: a real part with |Re| <= TOL_RE_REL ||A0||_F is on the imaginary axis (eig noise is
 #: ~1e-14 ||A0||; the pencil keeps it there for every K_D)
 TOL_RE_REL = 1e-12
-#: a sensitivity |d Re/d K_D| <= TOL_SENS_REL max_j |d lambda_j/d K_D| is zero
-TOL_SENS_REL = 1e-9
 #: names per coordinate system at K_D = 0: (name, coordinate group)
 SLOTS = {
     'II': (('nutation', 'tilt'), ('housing twist', 'twist'), ('rotor-field coupling', 'drive')),

@@ -35,7 +35,7 @@ from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
-                                        TOL_SENS_REL, track, ZERO_ROOT, ZERO_ROOT_Z)
+                                        track, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py

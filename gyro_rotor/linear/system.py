@@ -50,11 +50,8 @@ from gyro_rotor.linear.stability import analyze, judge, Mode, ModeKind
 import numpy as np
 
 __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
-           'dominant', 'REL_AXIS']
+           'dominant']
 
-#: roots with |Re| <= REL_AXIS * spectral radius count as on the imaginary axis (mode
-#: labels and the predicted verdict; the claims use each root's own resolution)
-REL_AXIS = 1e-9
 #: the coordinate of each state of the centrifuge's analytic linearizations (the rates'
 #: coordinates: thetadot is theta's, W_1 alpha's, ...)
 _CENTRIFUGE_COORDINATE = {'thetadot': 'theta', 'psidot': 'psi', 'chidot': 'chi', 'zdot': 'z',
