@@ -16,7 +16,7 @@ from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
                                          reduced_rhs_lagrange)
 from gyro_rotor.linear.locus import check_claims, regimes, root_locus
-from gyro_rotor.linear.stability import (analyze, analyze_scene, sensitivities, spectrum, sweep,
+from gyro_rotor.linear.stability import (analyze, analyze_scene, sensitivities, spectrum,
                                          ZERO_ROOT, ZERO_ROOT_Z)
 from gyro_rotor.linear.sysid import match_eigenvalues, matrix_pencil
 from gyro_rotor.linear.system import from_analytic, linearize_scene
@@ -273,19 +273,20 @@ def test_unstable_verdict():
 def test_names_follow_modes_through_a_frequency_crossing():
     # raising Omega0 moves the nutation (about C_R Omega0/I) from 61 rad/s up past the
     # rotor-field coupling (67 rad/s): sorting by frequency would swap the names;
-    # continuity must not
+    # continuity (campbell's, the one path over a parameter) must not
+    from gyro_rotor.linear.campbell import campbell
     values = np.geomspace(314.16, 1500.0, 60)
-    names, lam = sweep(P, 'Omega0', values, theta0=0.1, branch=1)
-    jc = names.index('rotor-field coupling')
-    jn = names.index('nutation')
-    f_c = np.abs(lam[:, jc].imag)
-    f_n = np.abs(lam[:, jn].imag)
+    cb = campbell(load_scene('precession'), values)
+    assert cb.Omega0[0] == 314.16 and not cb.skipped
+    label = {t.split(',')[0]: k for k, t in enumerate(cb.labels)}
+    jc, jn = label['rotor-field coupling'], label['nutation']
+    f_c, f_n = cb.frequencies[:, jc], cb.frequencies[:, jn]
     assert f_n[0] < f_c[0] and f_n[-1] > f_c[-1]
     # the branch called rotor-field coupling stays that mode: its frequency and its
     # damping hardly move, while the nutation's frequency rises with the spin
     assert np.max(np.abs(f_c - f_c[0])) < 0.05 * f_c[0]
     assert np.all(np.diff(f_n) > 0)
-    assert np.all(lam[:, jc].real < 0.5 * lam[0, jc].real)
+    assert np.all(cb.decay[:, jc] > 0.5 * cb.decay[0, jc])
 
 
 def test_scene_descriptions_quote_the_frequencies_eig_gives():

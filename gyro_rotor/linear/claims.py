@@ -53,7 +53,7 @@ import scipy.linalg as sla
 from scipy.optimize import brentq, linear_sum_assignment
 
 __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
-           'fixed_subspace', 'locked_spectrum', 'track', 'check', 'Damping',
+           'fixed_subspace', 'split', 'locked_spectrum', 'track', 'check', 'Damping',
            'damped']
 
 _EPS = np.finfo(float).eps
@@ -199,11 +199,15 @@ def fixed_subspace(A0: np.ndarray, C: np.ndarray) -> np.ndarray:
     return W
 
 
-def _split(sys_A0: np.ndarray, C: np.ndarray) -> tuple:
-    """Return (U, V): bases of the fixed subspace and its orthogonal complement."""
-    U = fixed_subspace(sys_A0, C)
-    Q, _ = np.linalg.qr(np.hstack([U, np.eye(len(sys_A0))]))
-    V = Q[:, U.shape[1]:len(sys_A0)]
+def split(A0: np.ndarray, C: np.ndarray) -> tuple:
+    """Return (U, V): orthonormal bases of the fixed subspace and its orthogonal complement.
+
+    U spans :func:`fixed_subspace` (the roots the drives do not reach), V the rest: the
+    roots of V' A(K) V are the reached ones for every K (U is invariant under A(K)).
+    """
+    U = fixed_subspace(A0, C)
+    Q, _ = np.linalg.qr(np.hstack([U, np.eye(len(A0))]))
+    V = Q[:, U.shape[1]:len(A0)]
     # Q's first columns span U; make them exactly U's span (QR keeps it)
     return Q[:, :U.shape[1]], V
 
@@ -648,7 +652,7 @@ def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
     """
     K = np.asarray(sys.K_scene if K is None else K, dtype=float)
     if V is None:
-        V = _split(sys.A0, sys.C)[1]
+        V = split(sys.A0, sys.C)[1]
     A0v, Bv, Cv = V.T @ sys.A0 @ V, V.T @ sys.B, sys.C @ V
     lam, res = resolution(V.T @ (sys.A0 - (sys.B * K) @ sys.C) @ V)
     res = np.maximum(res, floor(sys.A0))
@@ -807,7 +811,7 @@ def check(sys: DriveSystem) -> ClaimsResult:
     """Check claims (a) to (d) on a :class:`DriveSystem` (module doc)."""
     A0, C = sys.A0, sys.C
     # (a), (b): the fixed roots of all drives together
-    U, V = _split(A0, C)
+    U, V = split(A0, C)
     A_U = U.T @ A0 @ U
     n_zero = _structural_zeros(A_U, max(np.linalg.norm(A0, 2), 1e-300))
     lam_fixed = np.linalg.eigvals(A_U) if U.shape[1] else np.zeros(0, complex)
@@ -815,7 +819,7 @@ def check(sys: DriveSystem) -> ClaimsResult:
     b = _claim_b(sys, U, V, lam_fixed, n_zero)
     # (c), (d): the locus of the varied drives, on its moving part
     A0l, Bl, Cl = sys.locus_pieces()
-    Ul, Vl = _split(A0l, Cl)
+    Ul, Vl = split(A0l, Cl)
     A0v, Bv, Cv = Vl.T @ A0l @ Vl, Vl.T @ Bl, Cl @ Vl
     loc = track(A0v, Bv, Cv)
     scale = max(float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=0.0)), 1e-300)

@@ -29,8 +29,8 @@ import math
 from typing import Sequence
 
 from gyro_rotor.core.params import RotorParams
-from gyro_rotor.core.steady import steady_motion, SteadyMotion
-from gyro_rotor.errors import NoSteadyMotionError, ParameterError
+from gyro_rotor.core.steady import SteadyMotion
+from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
@@ -42,7 +42,7 @@ import numpy as np
 __all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'Verdict', 'judge', 'spectrum',
            'analyze', 'classify', 'drive_system',
            'analyze_scene',
-           'track', 'sweep', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
+           'track', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
 
 
@@ -272,7 +272,7 @@ def classify(ms: Sequence[Mode], sys, K=None) -> list:
     from scipy.optimize import linear_sum_assignment
     from gyro_rotor.linear import claims as cl
     K = np.asarray(sys.K_scene if K is None else K, dtype=float)
-    U, V = cl._split(sys.A0, sys.C)
+    U, V = cl.split(sys.A0, sys.C)
     dm = cl.damped(sys, K, V)
     A = sys.A0 - (sys.B * K) @ sys.C
     lam_u = np.linalg.eigvals(U.T @ A @ U) if U.shape[1] else np.zeros(0, complex)
@@ -389,39 +389,3 @@ def analyze_scene(scene) -> StabilityReport:
         scene = load_scene(scene)
     p, sm, model = scene_operating_point(scene)
     return analyze(p, sm, model, scene=scene.name)
-
-
-# -- parameter sweeps -------------------------------------------------------------------------
-def sweep(params: RotorParams, name: str, values: Sequence[float], *, theta0: float = 0.1,
-          branch: int = 1, model: str = 'full') -> tuple:
-    """Track the named modes while parameter ``name`` runs through ``values``.
-
-    The steady motion (theta0, branch) is recomputed at each value; names are given at
-    K_D = 0 for ``values[0]`` and followed by eigenvector continuity at the parameters'
-    K_D. Returns (labels, eigenvalues (len(values), n)).
-    """
-    values = [float(v) for v in values]
-
-    def lin_at(v):
-        p = params.replace(**{name: v})
-        try:
-            sm = steady_motion(p, theta0 if branch else 0.0, branch)
-        except NoSteadyMotionError as err:
-            raise NoSteadyMotionError(f'{name} = {v:g}: {err}') from None
-        return linearize(p, sm, model)
-
-    lin0 = lin_at(values[0])
-    names, _, _, path0 = _tracked_names(lin0, _path_to(lin0.params.K_D, lin0.params))
-    # start the parameter path from the tracked state at K_D
-    lam_start = path0[-1]
-    lam_s, V_s = spectrum(lin0, lin0.params.K_D)
-    perm = [int(np.argmin(np.abs(lam_s - x))) for x in lam_start]
-
-    def fn(v):
-        lin = lin_at(v)
-        lam, V = spectrum(lin, lin.params.K_D)
-        if v == values[0]:
-            return lam[perm], V[:, perm]
-        return lam, V
-
-    return names, track(fn, values, names)
