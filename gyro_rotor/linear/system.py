@@ -347,21 +347,6 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     return start, d
 
 
-def _unreached(lin: Linearization) -> tuple[np.ndarray, np.ndarray, float]:
-    """Non-zero roots at K = 0 on the fixed subspace (unreached), the zero roots, the scale.
-
-    The one rule of reach (:func:`gyro_rotor.linear.claims.fixed_subspace`).
-    """
-    from gyro_rotor.linear.claims import fixed_subspace
-    lam0 = np.linalg.eigvals(lin.A_cons)
-    scale = max(1.0, float(np.abs(lam0).max(initial=0.0)))
-    zero = np.abs(lam0) <= 1e-7 * scale
-    U = fixed_subspace(lin.A_cons, lin.c_all.T)
-    lam_u = np.linalg.eigvals(U.T @ lin.A_cons @ U) if U.shape[1] else np.zeros(0, complex)
-    un = lam_u[np.abs(lam_u) > 1e-7 * scale]
-    return np.asarray(un, dtype=complex), lam0[zero], scale
-
-
 def check_claims(lin: Linearization):
     """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`."""
     from gyro_rotor.linear.claims import check

@@ -3,7 +3,8 @@
 One objective on any :class:`~gyro_rotor.linear.system.Linearization`: the slowest decay
 rate -max Re(lambda) of A(K) = A_cons - K B C' (every drive at the same K) over the roots
 the drive damping reaches (not the structural zero roots, not the roots the drives do not
-reach: PBH, their rate is 0 for every K), maximized over K: a log grid scan, then the root
+reach: the fixed subspace, :func:`gyro_rotor.linear.claims.split`; their rate is 0 for
+every K), maximized over K: a log grid scan, then the root
 of the slowest root's d Re/d K = -(w^H B C' v)/(w^H v) (left and right eigenvectors).
 """
 
@@ -54,31 +55,26 @@ def tune(lin) -> TuneResult:
     """
     from scipy.linalg import eig
     from scipy.optimize import brentq
+    from gyro_rotor.linear.claims import split
     from gyro_rotor.linear.locus import K_ref
-    from gyro_rotor.linear.system import _unreached, modes
-    un, zeros, scale = _unreached(lin)
+    from gyro_rotor.linear.system import modes
     here = [m for m in modes(lin) if m.eigenvalue.imag >= -m.resolution]
     if all(m.kind == ModeKind.ZERO or not m.reached_by_drive for m in here):
         raise ParameterError('no mode is reached by the drive damping: K_D cannot be tuned')
-    BC = lin.b_all @ lin.c_all.T
-
-    def judged(lam: np.ndarray) -> np.ndarray:
-        keep = np.ones(len(lam), dtype=bool)
-        keep[np.argsort(np.abs(lam))[:zeros.size]] = False     # the structural zero roots
-        for u in un:
-            keep &= np.abs(lam - u) > 1e-7 * scale
-        return keep
+    # the judged roots: those of A(K) on the complement V of the fixed subspace, the one
+    # rule of reach (:func:`gyro_rotor.linear.stability.classify`), for every K
+    V = split(lin.A_cons, lin.c_all.T)[1]
+    A0v, BCv = V.T @ lin.A_cons @ V, V.T @ lin.b_all @ (lin.c_all.T @ V)
 
     def rate(K: float) -> float:
-        lam = np.linalg.eigvals(lin.A_common(K))
-        return float(-lam[judged(lam)].real.max())
+        return float(-np.linalg.eigvals(A0v - K * BCv).real.max())
 
     def slope(u: float) -> float:
         """Return d rate/d ln K = -K d Re/d K of the slowest judged root."""
-        A = lin.A_common(math.exp(u))
-        lam, W, V = eig(A, left=True, right=True)
-        j = [int(np.argmax(np.where(judged(lam), lam.real, -np.inf)))]
-        return -math.exp(u) * float(drive_sensitivity(A, BC, lam[j], W[:, j], V[:, j])[0].real)
+        A = A0v - math.exp(u) * BCv
+        lam, W, Vr = eig(A, left=True, right=True)
+        j = [int(np.argmax(lam.real))]
+        return -math.exp(u) * float(drive_sensitivity(A, BCv, lam[j], W[:, j], Vr[:, j])[0].real)
     grid = np.geomspace(1e-6 * K_ref(lin), 1e4 * K_ref(lin), 401)
     rates = np.array([rate(K) for K in grid])
     i = int(np.argmax(rates))
