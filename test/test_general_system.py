@@ -549,6 +549,10 @@ def test_locus_K_D_star_is_a_double_root_to_1e_8(tmp_path, drive):
     assert doc['drive'] == drive
     assert {k: c['holds'] for k, c in doc['claims'].items()} == dict.fromkeys('abcd', True)
     assert len(doc['K_D_star']) == (2 if drive is None else 1)
+    # (a) is about every drive at K_D = 0; the locus of one drive starts with the other
+    # damped, off the axis: the statement says which K_D = 0 it means
+    assert ('also those the locus does not vary' in doc['claims']['a']['statement']) == (
+        drive is not None)
     scale = float(np.abs(lin.eig(0.0)).max())
     for K, point in zip(doc['K_D_star'], doc['meeting_points']):
         assert point < 0

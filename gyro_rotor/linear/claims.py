@@ -582,7 +582,13 @@ def _fmt(z: complex) -> str:
     return f'{z.real:+.6g}{z.imag:+.6g}j'
 
 
-def _claim_a(A0: np.ndarray, U: np.ndarray, V: np.ndarray, n_zero: int) -> Claim:
+def _claim_a(A0: np.ndarray, U: np.ndarray, V: np.ndarray, n_zero: int,
+             others: bool = False) -> Claim:
+    """Check (a) on A0, every drive undamped; ``others``: the locus varies only some drives.
+
+    The locus then starts (its K = 0) with the others at their own K_D, off the axis: the
+    statement says that (a) is about every drive at K_D = 0.
+    """
     lam, res = resolution(V.T @ A0 @ V)
     lam_u, res_u = resolution(U.T @ A0 @ U) if U.shape[1] else (lam[:0], res[:0])
     # the structural zero roots (a Jordan block each pair) are on the axis by construction;
@@ -598,7 +604,9 @@ def _claim_a(A0: np.ndarray, U: np.ndarray, V: np.ndarray, n_zero: int) -> Claim
               f'coordinates, by their eigenvectors); max |Re| = {worst:.3e} 1/s, '
               + ('every one within its resolution' if holds else
                  f'{int(np.sum(excess > 0))} beyond their resolution'))
-    return Claim('a', 'at K_D = 0 every root on the imaginary axis (undamped oscillations '
+    where = ('at K_D = 0 of every drive (also those the locus does not vary)' if others
+             else 'at K_D = 0')
+    return Claim('a', f'{where} every root on the imaginary axis (undamped oscillations '
                  'and zero roots)', holds, detail,
                  {'oscillations': osc, 'zero_roots': n_zero, 'max_abs_re': worst,
                   'freq_hz': freqs})
@@ -815,7 +823,7 @@ def check(sys: DriveSystem) -> ClaimsResult:
     A_U = U.T @ A0 @ U
     n_zero = _structural_zeros(A_U, max(np.linalg.norm(A0, 2), 1e-300))
     lam_fixed = np.linalg.eigvals(A_U) if U.shape[1] else np.zeros(0, complex)
-    a = _claim_a(A0, U, V, n_zero)
+    a = _claim_a(A0, U, V, n_zero, sys.drives < len(sys.K_scene))
     b = _claim_b(sys, U, V, lam_fixed, n_zero)
     # (c), (d): the locus of the varied drives, on its moving part
     A0l, Bl, Cl = sys.locus_pieces()
