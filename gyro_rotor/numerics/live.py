@@ -493,7 +493,6 @@ class LiveSimulation:
     def diagnostics(self) -> tuple[Level, str, dict[str, Any]]:
         """Return (level, message, values) over the window since the last call."""
         w = self.pacer.take_window(self.clock())
-        self.last_window = w
         y = self.last[1]
         st = self.stepper
         level, msg = self._status(w)

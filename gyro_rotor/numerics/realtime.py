@@ -629,7 +629,6 @@ class EnergyBaseline:
     def __init__(self, energy: Callable[[np.ndarray], float], idiss: int, y0: np.ndarray):
         self.idiss = idiss
         self.restart(energy, y0)
-        self.jumps = 0
 
     def restart(self, energy: Callable[[np.ndarray], float], y0: np.ndarray) -> None:
         """Start a new baseline E_ref = E*(y0) + D(y0) (reset)."""
@@ -642,7 +641,6 @@ class EnergyBaseline:
         jump = float(energy_new(y_new)) - float(self.energy(y_old))
         self.E_ref += jump
         self.energy = energy_new
-        self.jumps += 1
         return jump
 
     def residual(self, y: np.ndarray, E: float | None = None) -> float:
@@ -751,9 +749,7 @@ class Deadlines:
         self.clock, self.sleep = clock, sleep
         self._t0: float | None = None
         self._k = 0
-        self.skipped_total = 0
         self.late_total = 0
-        self.ticks_total = 0
         self._current: float | None = None
         #: consecutive calls of :meth:`wait` that did not sleep
         self.busy_streak = 0
@@ -793,14 +789,12 @@ class Deadlines:
                 deadline = self._t0 + self._k * self.period
                 with self._lock:
                     self._skipped += behind
-                    self.skipped_total += behind
                     self._n_late += behind
                     self.late_total += behind
         self._k += 1
         self._current = deadline
         with self._lock:
             self._late.append(now - deadline)
-            self.ticks_total += 1
         return deadline, now
 
     def done(self, now: float | None = None) -> None:
