@@ -436,18 +436,7 @@ class Scene:
         if self.description:
             flat['description'] = self.description
         flat.update(self.params.to_mapping())
-        ic = self.initial
-        flat['initial.mode'] = ic.mode
-        if ic.mode == 'steady':
-            for k in ('theta0', 'branch', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz',
-                      'dzdot'):
-                flat[f'initial.{k}'] = getattr(ic, k)
-        else:
-            flat['initial.quaternion'] = list(ic.quaternion)
-            flat['initial.omega_body'] = list(ic.omega_body)
-            flat['initial.z'], flat['initial.zdot'] = ic.z, ic.zdot
-            if ic.chi is not None:
-                flat['initial.chi'] = ic.chi
+        flat.update({f'initial.{k}': v for k, v in self.initial_doc().items()})
         for k, v in self.perturbation.items():
             flat[f'perturbation.{k}'] = v
         return flat
