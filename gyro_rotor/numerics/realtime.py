@@ -279,29 +279,12 @@ class IntegratorStepper:
         return y
 
 
-def _integrators():
-    """Return METHODS and make_integrator of gyro_rotor.numerics.integrators, if present."""
-    try:
-        from gyro_rotor.numerics.integrators import make_integrator, METHODS
-    except ImportError:
-        return None, None
-    return METHODS, make_integrator
-
-
 def resolve_method(method: str, model, t_end: float = math.inf, y=None) -> tuple[str, str]:
-    """'auto' -> (method, reason) for ``model`` at the state y: the integrators' choice.
-
-    Without the compiled integrators (numba missing), scipy's Radau for a stiff drive
-    (the model's drive damping root above 1e4 1/s), DOP853 otherwise.
-    """
+    """'auto' -> (method, reason) for ``model`` at the state y: the integrators' choice."""
     if method != 'auto':
         return method, 'requested'
-    methods, _ = _integrators()
-    if methods is not None:
-        from gyro_rotor.numerics.integrators import choose_method
-        return choose_method(model, t_end, y0=y)
-    stiff = model.drive_rates(y)[0]
-    return ('Radau', 'stiff drive') if stiff > 1e4 else ('DOP853', 'non-stiff')
+    from gyro_rotor.numerics.integrators import choose_method
+    return choose_method(model, t_end, y0=y)
 
 
 def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: float = 0.0,
@@ -313,8 +296,8 @@ def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: floa
     ``Radau``, ...), scipy's OdeSolver with dense output; ``rk4`` falls back to
     :class:`RK4Stepper`. Zero tolerances or step size mean the method's default.
     """
-    methods, make_integrator = _integrators()
-    if model is not None and methods is not None and method in methods:
+    from gyro_rotor.numerics.integrators import make_integrator, METHODS
+    if model is not None and method in METHODS:
         try:
             integ = make_integrator(method, model, y0, t0, math.inf, rtol=rtol or None,
                                     atol=atol or None, step=step_size or None)
@@ -325,8 +308,8 @@ def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: floa
         return RK4Stepper(fun, t0, y0, step_size or DEFAULT_RK4_STEP)
     if method in SCIPY_METHODS:
         return DenseStepper(fun, t0, y0, method, rtol or DEFAULT_RTOL, atol or DEFAULT_ATOL)
-    valid = ['auto', *(methods or ['rk4']), *SCIPY_METHODS]
-    raise ParameterError(f"unknown integrator '{method}'; valid: {', '.join(valid)}")
+    raise ParameterError(f"unknown integrator '{method}'; valid: "
+                         f"{', '.join(['auto', *METHODS, *SCIPY_METHODS])}")
 
 
 @dataclasses.dataclass(frozen=True)
