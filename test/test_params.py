@@ -69,4 +69,4 @@ def test_immutable_and_replace_validates():
 
 def test_mapping_roundtrip():
     p = RotorParams(K_D=0.3, pole_pairs=2)
-    assert RotorParams.from_mapping(p.to_mapping()) == p
+    assert RotorParams(**p.to_mapping()) == p

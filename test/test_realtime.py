@@ -4,10 +4,11 @@ import math
 import os
 import subprocess
 import sys
+import time
 
 from gyro_rotor.errors import IntegrationError, ParameterError
 from gyro_rotor.numerics.realtime import (DenseStepper, EnergyBaseline, make_stepper, Pacer,
-                                          RK4Stepper)
+                                          WorkBudgetExceeded)
 import numpy as np
 import pytest
 
@@ -21,13 +22,31 @@ def exact(t):
     return np.array([math.cos(t), -math.sin(t)])
 
 
+class EulerStepper:
+    """A fixed-step stepper of :func:`oscillator` (explicit Euler) that checks its deadline."""
+
+    method = 'euler'
+
+    def __init__(self, h: float):
+        self.h, self.t, self.y, self.nfev = h, 0.0, np.array([1.0, 0.0]), 0
+
+    def advance_to(self, t_target, deadline=None):
+        while self.t < t_target:
+            h = min(self.h, t_target - self.t)
+            self.y, self.t, self.nfev = self.y + h * oscillator(self.t, self.y), self.t + h, \
+                self.nfev + 1
+            if self.t < t_target and deadline is not None and time.monotonic() > deadline:
+                raise WorkBudgetExceeded(self.method)
+        return self.y
+
+
 def oscillator_pacer(**options):
     """Return (stepper, pacer): a DenseStepper of :func:`oscillator` from (1, 0) at t = 0."""
     st = DenseStepper(oscillator, 0.0, np.array([1.0, 0.0]))
     return st, Pacer(st, **options)
 
 
-@pytest.mark.parametrize('method', ['DOP853', 'rk4', 'Radau'])
+@pytest.mark.parametrize('method', ['DOP853', 'Radau'])
 def test_advance_to_lands_exactly_on_target(method):
     st = make_stepper(method, oscillator, 0.0, np.array([1.0, 0.0]), rtol=1e-10, atol=1e-12,
                       step_size=1e-3)
@@ -82,8 +101,7 @@ def test_catch_up_is_capped_counted_and_reanchored():
 
 
 def test_rtf_zero_advances_a_fixed_chunk_per_tick():
-    st = RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3)
-    pacer = Pacer(st, sample_rate=200.0, rtf=0.0, chunk_samples=3)
+    st, pacer = oscillator_pacer(sample_rate=200.0, rtf=0.0, chunk_samples=3)
     pacer.tick(0.0)                                # wall time is irrelevant at rtf 0
     pacer.tick(0.0)
     samples = pacer.tick(0.0)
@@ -140,14 +158,6 @@ def test_overruns_count_ticks_longer_than_the_period():
 
 
 def test_nonfinite_state_raises_and_keeps_the_last_good_state():
-    def blow_up(t, y):
-        return np.array([np.inf if t > 0.05 else 1.0])
-    st = RK4Stepper(blow_up, 0.0, np.array([0.0]), 0.01)
-    st.advance_to(0.04)
-    good = st.y.copy()
-    with pytest.raises(IntegrationError, match='non-finite'):
-        st.advance_to(0.2)
-    assert np.all(np.isfinite(good))
     st2 = DenseStepper(lambda t, y: y * y, 0.0, np.array([1.0]))   # blows up at t = 1
     with pytest.raises(IntegrationError):
         st2.advance_to(2.0)
@@ -160,8 +170,6 @@ def test_bad_arguments_are_refused():
         make_stepper('euler', oscillator, 0.0, y0)
     with pytest.raises(ParameterError, match='rtol'):
         DenseStepper(oscillator, 0.0, y0, rtol=-1.0)
-    with pytest.raises(ParameterError, match='step_size'):
-        RK4Stepper(oscillator, 0.0, y0, 0.0)
     with pytest.raises(ParameterError, match='real_time_factor'):
         Pacer(DenseStepper(oscillator, 0.0, y0), 100.0, rtf=-1.0)
 
@@ -201,18 +209,17 @@ def test_integrators_package_methods_behind_the_same_interface():
 
 def test_restart_on_a_grid_point_does_not_repeat_its_sample():
     """At rtf 0 every tick ends on the grid; a change there must not publish k twice."""
-    st = RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3)
-    pacer = Pacer(st, sample_rate=100.0, rtf=0.0, chunk_samples=5)
+    st, pacer = oscillator_pacer(sample_rate=100.0, rtf=0.0, chunk_samples=5)
     first = pacer.tick(0.0)
     assert [s.k for s in first] == [0, 1, 2, 3, 4] and st.t == pytest.approx(0.04)
-    pacer.restart(RK4Stepper(oscillator, st.t, st.y, 1e-3))
+    pacer.restart(DenseStepper(oscillator, st.t, st.y))
     assert [s.k for s in pacer.tick(0.0)] == [5, 6, 7, 8, 9]
-    pacer.restart(RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3))   # back to 0
+    pacer.restart(DenseStepper(oscillator, 0.0, np.array([1.0, 0.0])))   # back to 0
     assert [s.k for s in pacer.tick(0.0)] == [0, 1, 2, 3, 4]
 
 
 def test_deadline_cuts_a_tick_keeps_the_grid_and_books_the_lost_time():
-    st = RK4Stepper(oscillator, 0.0, np.array([1.0, 0.0]), 1e-3)
+    st = EulerStepper(1e-3)
     pacer = Pacer(st, sample_rate=100.0, rtf=1.0)
     pacer.tick(0.0)
     out = pacer.tick(0.2, deadline=-1.0)            # a deadline already past: one step
@@ -224,7 +231,7 @@ def test_deadline_cuts_a_tick_keeps_the_grid_and_books_the_lost_time():
     assert pacer.take_window(0.25).budget_cuts == 1
 
 
-@pytest.mark.parametrize('method', ['DOP853', 'rk4'])
+@pytest.mark.parametrize('method', ['DOP853'])
 def test_an_arithmetic_error_of_the_rhs_is_an_integration_error(method):
     def divide(t, y):
         return np.array([1.0 / 0.0 if t > 0.05 else 1.0])   # Python floats: ZeroDivisionError

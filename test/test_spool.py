@@ -69,7 +69,7 @@ def test_full_fifo_makes_the_producer_wait_and_drops_nothing(tmp_path):
 
     def producer():
         for i in range(40):                     # 12 bytes each: 480 bytes > max_bytes
-            spool.put('/a', f64(i), 10**9 + i, 10**9 + i)
+            spool.put_many([('/a', f64(i), 10**9 + i, 10**9 + i)])
         done.set()
 
     threading.Thread(target=producer, daemon=True).start()
@@ -96,7 +96,7 @@ def test_failed_write_is_reported_once_and_close_raises(tmp_path):
     spool = BagSpool(writer, on_message=lambda t, d: seen.append(d), on_error=errors.append)
     spool.add_topic('/a', FLOAT64, qos_profile_dict())
     for i in range(5):
-        spool.put('/a', f64(i), 10**9 + i, 10**9 + i)
+        spool.put_many([('/a', f64(i), 10**9 + i, 10**9 + i)])
     assert spool.flush(timeout=DEADLINE)
     assert len(errors) == 1 and 'No space left' in errors[0]
     assert spool.not_written == 5 and len(seen) == 5     # the live consumer still got them
@@ -111,7 +111,7 @@ def test_consumer_exception_is_counted_and_recording_goes_on(tmp_path):
     spool = BagSpool(BagWriter(tmp_path / 'b'), on_message=bad_consumer)
     spool.add_topic('/a', FLOAT64, qos_profile_dict())
     for i in range(3):
-        spool.put('/a', f64(i), 10**9 + i, 10**9 + i)
+        spool.put_many([('/a', f64(i), 10**9 + i, 10**9 + i)])
     spool.close()
     assert spool.consumer_errors == 3 and 'bug in the consumer' in spool.consumer_error
     assert open_bag(tmp_path / 'b').topics['/a'].count == 3
@@ -122,6 +122,6 @@ def test_closed_spool_refuses_more(tmp_path):
     spool.close()
     spool.close()                                   # idempotent
     with pytest.raises(BagError, match='closing'):
-        spool.put('/a', f64(0), 1, 1)
+        spool.put_many([('/a', f64(0), 1, 1)])
     with pytest.raises(BagError, match='max_bytes'):
         BagSpool(BagWriter(tmp_path / 'c'), max_bytes=0)

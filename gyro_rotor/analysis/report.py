@@ -194,10 +194,7 @@ def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
     ax.set_ylabel('E* - E*_inf [J] (E*_inf fitted)')
     ax.set_title(f'{res.scene}: Lyapunov function (eq. 13), verdict {res.verdict}')
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    files.append(out / 'energy.png')
-    fig.savefig(files[-1], dpi=100)
-    plt.close(fig)
+    files.append(_save(plt, fig, out / 'energy.png'))
     # eigenvalues
     fig, ax = plt.subplots(figsize=(6, 5))
     for m in res.prediction.modes:
@@ -215,10 +212,7 @@ def plot_report(bag: BagAnalysis, out_dir: str | Path) -> list[Path]:
     ax.set_ylabel('Im lambda [rad/s]')
     ax.set_title('identified vs predicted eigenvalues')
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    files.append(out / 'eigenvalues.png')
-    fig.savefig(files[-1], dpi=100)
-    plt.close(fig)
+    files.append(_save(plt, fig, out / 'eigenvalues.png'))
     files.append(_plot_state(plt, res, S, t, out))
     return files
 
@@ -268,8 +262,12 @@ def _plot_state(plt, res, S, t, out: Path) -> Path:
         a.set_ylabel(lab, fontsize=8)
     axs[-1].set_xlabel('simulation time t [s]')
     axs[0].set_title(f'{res.scene}: state over time')
+    return _save(plt, fig, out / 'state.png')
+
+
+def _save(plt, fig, path: Path) -> Path:
+    """Write ``fig`` to ``path`` (100 dpi, tight layout), close it and return the path."""
     fig.tight_layout()
-    path = out / 'state.png'
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path

@@ -13,7 +13,7 @@ import math
 from gyro_rotor.analysis.decay import EnergyFit
 from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.verdict import (Criterion, CriterionName, decay_rate_bound, DECAY_RTOL,
-                                         ModeStatus, Status, SyncState, Verdict)
+                                         ModeStatus, SyncState, Verdict)
 
 __all__ = ['SegmentResult', 'AnalysisResult', 'ANALYSIS_FIELDS', 'ANALYSIS_LABEL',
            'MODE_FIELDS', 'MODE_LABEL', 'VERDICTS', 'MODE_STATUS', 'SYNC_STATES']
@@ -250,8 +250,3 @@ class AnalysisResult:
 
 def _none(x: float):
     return x if math.isfinite(x) else None
-
-
-def status_of(c: Criterion | None) -> Status | None:
-    """Return the status of a criterion, None if it does not apply."""
-    return c.status if c is not None else None

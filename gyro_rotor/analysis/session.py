@@ -131,7 +131,6 @@ class AnalysisSession:
         self.pairer = SamplePairer()
         self.pending: list[Sample] = []
         self.max_pending = max_pending
-        self.scene_docs = 0
         self.energy_fields: tuple = ()
         self._joint_names: tuple | None = None     # checked against the scene's once
         #: simulation time of the newest paired sample [s]: the time base of the stamps the
@@ -149,7 +148,6 @@ class AnalysisSession:
         """Feed a ``~/scene`` document (YAML text) of the simulation node."""
         from gyro_rotor.core.yamlio import load_yaml
         doc = load_yaml(text, 'scene document', AnalysisError)
-        self.scene_docs += 1
         scene = scene_from_sim_doc(doc, self.base)
         if self.base is None:
             self.base = scene

@@ -89,7 +89,6 @@ class McapContents:
     indexed: bool = False
     #: the file ends with a footer and the magic
     complete: bool = False
-    damaged_chunks: int = 0
 
     @property
     def damaged(self) -> bool:
@@ -197,7 +196,6 @@ class _Reader:
         try:
             records = _chunk_records(chunk)
         except Exception as err:    # noqa: B902 -- any failure to decode means damage
-            out.damaged_chunks += 1
             out.problems.append(f'chunk at byte {pos} ({length + 9} bytes) is damaged '
                                 f'({type(err).__name__}: {err}): its messages are lost')
             return False
@@ -341,7 +339,6 @@ class _Reader:
                                               or self.buf[nxt] == 0x07):
                     # the damaged record is one chunk: its message indexes (if they follow)
                     # count its loss exactly
-                    out.damaged_chunks += 1
                     lost_chunk = f'the damaged chunk at byte {pos}'
                 else:
                     out.unknown_loss.append(f'bytes {pos}..{nxt}')

@@ -181,9 +181,6 @@ class BagReader:
         self.unknown_loss.extend(f'before the recovery: {u}' for u in unknown)
         self.problems.append(f'{self.path}: recovered from a damaged bag '
                              f'({record.get("summary", "")})')
-        self.recovered = True
-
-    recovered = False
 
     def loss_text(self) -> str:
         """One line: the messages lost per topic and the losses of unknown size."""

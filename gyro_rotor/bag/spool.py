@@ -87,10 +87,6 @@ class BagSpool:
         self._thread.start()
 
     # -- producers ----------------------------------------------------------------------------
-    def put(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int) -> None:
-        """Queue one message; wait while the FIFO is full (never drops)."""
-        self.put_many([(topic, data, log_time_ns, publish_time_ns)])
-
     def put_many(self, items: list) -> None:
         """Queue ``(topic, data, log_time_ns, publish_time_ns)`` tuples in order."""
         size = sum(len(it[1]) for it in items)

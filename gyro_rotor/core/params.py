@@ -28,7 +28,7 @@ import dataclasses
 import enum
 import math
 import numbers
-from typing import Any, Mapping
+from typing import Any
 import warnings
 
 from gyro_rotor.errors import did_you_mean, ParameterError
@@ -145,10 +145,6 @@ class RotorParams:
         """Return the static tilt moment coefficient G s [N m]."""
         return self.G * self.s
 
-    def stiff_rate(self) -> float:
-        """Fast real root of the drive, K_D (1/C_R + 1/C_M) [1/s] (stiffness indicator)."""
-        return self.K_D * (1.0 / self.C_R + 1.0 / self.C_M)
-
     # -- conversions ---------------------------------------------------------------------
     def replace(self, **changes: Any) -> 'RotorParams':
         """Return a copy with some fields changed (validated again)."""
@@ -160,14 +156,6 @@ class RotorParams:
     def to_mapping(self) -> dict:
         """Return the parameters as a plain dict (name -> value)."""
         return dataclasses.asdict(self)
-
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any]) -> 'RotorParams':
-        """Build from a mapping; missing fields take the defaults, unknown keys are refused."""
-        for key in mapping:
-            if key not in PARAM_FIELDS:
-                raise ParameterError(_unknown_message(key))
-        return cls(**dict(mapping))
 
 
 PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(RotorParams))

@@ -436,18 +436,7 @@ class Scene:
         if self.description:
             flat['description'] = self.description
         flat.update(self.params.to_mapping())
-        ic = self.initial
-        flat['initial.mode'] = ic.mode
-        if ic.mode == 'steady':
-            for k in ('theta0', 'branch', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz',
-                      'dzdot'):
-                flat[f'initial.{k}'] = getattr(ic, k)
-        else:
-            flat['initial.quaternion'] = list(ic.quaternion)
-            flat['initial.omega_body'] = list(ic.omega_body)
-            flat['initial.z'], flat['initial.zdot'] = ic.z, ic.zdot
-            if ic.chi is not None:
-                flat['initial.chi'] = ic.chi
+        flat.update({f'initial.{k}': v for k, v in self.initial_doc().items()})
         for k, v in self.perturbation.items():
             flat[f'perturbation.{k}'] = v
         return flat
@@ -849,13 +838,9 @@ def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> Sce
     n, m = system.n, system.m
     coords = ', '.join(system.coordinates) or 'none'
     per_q, per_r = f'one per coordinate: {coords}', f'one per rotor: {", ".join(system.rotors)}'
-    q0 = _vector(vals, 'initial.q', n, per_q, where)
-    qd0 = _vector(vals, 'initial.qdot', n, per_q, where)
-    z0 = _vector(vals, 'initial.z', m, per_r, where)
-    zd0 = _vector(vals, 'initial.zdot', m, per_r, where)
-    sq = _vector(vals, 'steady.q', n, per_q, where)
-    sqd = _vector(vals, 'steady.qdot', n, per_q, where)
-    sz = _vector(vals, 'steady.z', m, per_r, where)
+    sizes = {'q': (n, per_q), 'qdot': (n, per_q), 'z': (m, per_r), 'zdot': (m, per_r)}
+    q0, qd0, z0, zd0 = (_vector(vals, f'initial.{k}', *sizes[k], where) for k in sizes)
+    sq, sqd, sz = (_vector(vals, f'steady.{k}', *sizes[k], where) for k in ('q', 'qdot', 'z'))
     locked = vals.get('locked', ())
     for i, name in enumerate(locked):
         if name not in system.coordinates:
@@ -871,9 +856,8 @@ def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> Sce
     t_end = vals.get('t_end', 10.0)
     if not t_end > 0:
         raise SceneError(f'{where}: t_end must be positive, got {t_end!r}')
-    for k, size, what in (('q', n, per_q), ('qdot', n, per_q), ('z', m, per_r),
-                          ('zdot', m, per_r)):
-        _vector(vals, f'perturbation.{k}', size, what, where)
+    kick = {k: _vector(vals, f'perturbation.{k}', *sizes[k], where) for k in sizes
+            if f'perturbation.{k}' in vals}
 
     def pick(v):
         return tuple(v[i] for i in keep)
@@ -882,11 +866,7 @@ def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> Sce
         system=lock(system, locked, sq), full_system=system, t_end=t_end, q0=pick(q0),
         qdot0=pick(qd0), z0=z0, zdot0=zd0, steady_q=pick(sq), steady_qdot=pick(sqd),
         steady_z=sz, locked=tuple(locked), description=vals.get('description', ''),
-        path=path, node={k: v for k, v in vals.items() if k in NODE_KEYS},
-        perturbation={k: _vector(vals, f'perturbation.{k}', size, what, where)
-                      for k, size, what in (('q', n, per_q), ('qdot', n, per_q),
-                                            ('z', m, per_r), ('zdot', m, per_r))
-                      if f'perturbation.{k}' in vals})
+        path=path, node={k: v for k, v in vals.items() if k in NODE_KEYS}, perturbation=kick)
 
 
 def _check_mass(scene: Scene, model: GeneralModel, y: np.ndarray, what: str,

@@ -50,11 +50,6 @@ class EnsembleResult:
     nsteps: int
     wall_time: float
 
-    @property
-    def us_per_trajectory_step(self) -> float:
-        """Wall microseconds per trajectory and step."""
-        return 1e6 * self.wall_time / max(1, self.nsteps * self.y.shape[1])
-
 
 @njit(cache=True)
 def _ens_run(kind, P, Y, t_eval, h_max, A, B, renorm, Y_out):

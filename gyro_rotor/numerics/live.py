@@ -16,8 +16,8 @@ messages. It holds the scene, its model, a stepper driven by a
 * **ticks** (:meth:`LiveSimulation.tick`) with a work budget: a tick stops after
   ``budget`` seconds of work (see the pacer's module doc); when that happens in
   ``CUTS_TO_SWITCH`` consecutive ticks of one stepper, the method that ``auto`` would
-  choose for the current parameters (:func:`auto_method`) takes over, if it is not the one
-  running already, and the diagnostics say so;
+  choose for the current parameters (:func:`~gyro_rotor.numerics.realtime.resolve_method`)
+  takes over, if it is not the one running already, and the diagnostics say so;
 * **the divergence guard**: an energy-balance residual r = E* + D - E_ref above
   ``max_residual``, a non-finite E*, or *any* exception raised by the model or the
   integrator (a diverging solution can make the right-hand side divide by zero) stops the
@@ -36,20 +36,16 @@ messages. It holds the scene, its model, a stepper driven by a
   the model's ``kick``; :meth:`pause`), the diagnostics (:meth:`diagnostics`) and the
   scene document (:meth:`scene_doc`).
 
-What the integrators need of a model lives here, since the models sit in the layer below
-(gyro_rotor.core may not import gyro_rotor.numerics): :func:`auto_method` (auto's one
-rule for every system, :func:`~gyro_rotor.numerics.integrators.methods.choose_method`, on
-what the model gives: its drive damping root and fastest oscillation at the current
-state) and :func:`live_stepper` (a system file integrates with the methods of
-:mod:`gyro_rotor.numerics.kernel_system` through its kernel handle, a single-dispatch function
-over the model's class).
+Auto's choice is :func:`~gyro_rotor.numerics.realtime.resolve_method` (one rule for every
+system, on what the model gives: its drive damping root and fastest oscillation at the
+current state); a system file integrates with the methods of
+:mod:`gyro_rotor.numerics.kernel_system` through its kernel handle (``kernel_model``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
-import functools
 import math
 import time
 from typing import Any, Callable, Mapping
@@ -59,13 +55,13 @@ from gyro_rotor.core.rotations import axis_from_quaternion, wrap_angles
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import GyroRotorError, IntegrationError, ParameterError
-from gyro_rotor.numerics.kernel_system import KernelSystem, SYSTEM_METHODS
+from gyro_rotor.numerics.kernel_system import kernel_model, SYSTEM_METHODS
 from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
                                           Stepper)
 import numpy as np
 
 __all__ = ['LiveSimulation', 'SampleBlock', 'Level', 'TICK_BUDGET', 'CUTS_TO_SWITCH', 'FAST_CHUNK',
-           'STEPPER_KEYS', 'ENERGY_COLUMNS', 'auto_method', 'live_stepper', 'wrap_angles']
+           'STEPPER_KEYS', 'ENERGY_COLUMNS', 'wrap_angles']
 
 #: most wall seconds of integration work in one tick; a tick that needs more is cut
 #: (services are answered between ticks, so this bounds their latency)
@@ -119,38 +115,6 @@ def _describe(err: BaseException) -> str:
     if isinstance(err, GyroRotorError):
         return str(err)
     return f'{type(err).__name__} in the model or integrator: {err}'
-
-
-# -- what the integrators need of a model (module doc) ---------------------------------------
-def auto_method(model, y: np.ndarray, t_end: float) -> tuple[str, str]:
-    """Return ``(method, reason)``: auto's choice for ``model`` at the state y, up to t_end.
-
-    The one rule of every system (:func:`~gyro_rotor.numerics.realtime.resolve_method`).
-    """
-    return resolve_method('auto', model, t_end, y)
-
-
-@functools.singledispatch
-def live_stepper(model, method: str, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
-    """Return a stepper of ``method`` for ``model`` from (t, y) with cfg's tolerances, step."""
-    raise TypeError(f'no stepper for {type(model).__name__}')
-
-
-@live_stepper.register
-def _centrifuge_stepper(model: Model, method: str, t: float, y: np.ndarray,
-                        cfg: Mapping) -> Stepper:
-    return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
-                        step_size=cfg['step_size'], model=model)
-
-
-@live_stepper.register
-def _system_stepper(model: GeneralModel, method: str, t: float, y: np.ndarray,
-                    cfg: Mapping) -> Stepper:
-    if method not in SYSTEM_METHODS:
-        raise ParameterError(f"integrator '{method}': general systems integrate with "
-                             f"auto, {', '.join(SYSTEM_METHODS)}")
-    return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
-                        step_size=cfg['step_size'], model=KernelSystem(model))
 
 
 class LiveSimulation:
@@ -229,11 +193,14 @@ class LiveSimulation:
     def _new_stepper(self, model, t: float, y: np.ndarray, cfg: Mapping) -> Stepper:
         t_end = self.scene.t_end if cfg['stop_at_t_end'] else math.inf
         method = 'auto' if self._auto else cfg['integrator']
-        method, self.method_reason = (auto_method(model, y, t_end) if method == 'auto'
-                                      else (method, 'requested'))
+        method, self.method_reason = resolve_method(method, model, t_end, y)
         if self._auto:
             self.method_reason = f'work budget: {self.method_reason}'
-        return live_stepper(model, method, t, y, cfg)
+        if isinstance(model, GeneralModel) and method not in SYSTEM_METHODS:
+            raise ParameterError(f"integrator '{method}': general systems integrate with "
+                                 f"auto, {', '.join(SYSTEM_METHODS)}")
+        return make_stepper(method, model.rhs, t, y, rtol=cfg['rtol'], atol=cfg['atol'],
+                            step_size=cfg['step_size'], model=kernel_model(model))
 
     def _restart_stepper(self, y: np.ndarray) -> None:
         self._use(self._new_stepper(self.model, self.stepper.t, y, self.cfg))
@@ -368,7 +335,7 @@ class LiveSimulation:
         """Switch to auto's method for the current parameters, or say that none is better."""
         cur = self.stepper.method
         t_end = self.scene.t_end if self.cfg['stop_at_t_end'] else math.inf
-        method, reason = auto_method(self.model, self.stepper.y, t_end)
+        method, reason = resolve_method('auto', self.model, t_end, self.stepper.y)
         what = (f'tick work budget {1e3 * self.budget:g} ms exceeded with {cur} at '
                 f't = {self.stepper.t:.6f} s')
         if method.lower() != cur.lower():
@@ -493,7 +460,6 @@ class LiveSimulation:
     def diagnostics(self) -> tuple[Level, str, dict[str, Any]]:
         """Return (level, message, values) over the window since the last call."""
         w = self.pacer.take_window(self.clock())
-        self.last_window = w
         y = self.last[1]
         st = self.stepper
         level, msg = self._status(w)

@@ -32,9 +32,8 @@ deadline.
 The integrators behind the pacer share the minimal interface of :class:`Stepper` (``t``,
 ``y``, ``nfev``, ``advance_to(t, deadline)``, ``method``): :class:`DenseStepper` wraps a scipy
 ``OdeSolver`` class (DOP853 by default) and reaches ``t_target`` with its dense output;
-:class:`RK4Stepper` is a fixed-step classical Runge-Kutta with a final partial step.
-:func:`make_stepper` picks one by name, and uses :mod:`gyro_rotor.numerics.integrators` when that
-module provides the method.
+:class:`IntegratorStepper` adapts a method of :mod:`gyro_rotor.numerics.integrators`;
+:func:`make_stepper` picks one by name.
 """
 
 from __future__ import annotations
@@ -51,14 +50,12 @@ from gyro_rotor.errors import IntegrationError, ParameterError
 from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 import numpy as np
 
-__all__ = ['Stepper', 'DenseStepper', 'RK4Stepper', 'IntegratorStepper', 'make_stepper',
+__all__ = ['Stepper', 'DenseStepper', 'IntegratorStepper', 'make_stepper',
            'resolve_method', 'Pacer', 'Sample', 'WorkBudgetExceeded',
-           'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL', 'DEFAULT_RK4_STEP',
+           'WindowStats', 'SCIPY_METHODS', 'DEFAULT_RTOL', 'DEFAULT_ATOL',
            'EnergyBaseline', 'Deadlines', 'LatenessStats', 'sleep_until', 'set_thread_priority',
            'set_timer_slack', 'set_threads_priority']
 
-#: default step of the fixed-step RK4 [s]
-DEFAULT_RK4_STEP = 2.5e-4
 #: relative slack when comparing grid times with a target time
 _GRID_EPS = 1e-9
 
@@ -184,51 +181,6 @@ class DenseStepper:
         return y
 
 
-class RK4Stepper:
-    """Classical fixed-step Runge-Kutta of order 4 with a final partial step to the target."""
-
-    def __init__(self, fun: Rhs, t0: float, y0: np.ndarray, step_size: float = DEFAULT_RK4_STEP):
-        if not (math.isfinite(step_size) and step_size > 0):
-            raise ParameterError(f'step_size must be positive and finite, got {step_size!r}')
-        self.method = 'rk4'
-        self.fun = fun
-        self.h = float(step_size)
-        self.t = float(t0)
-        self.y = np.array(y0, dtype=float)
-        _check_finite(self.t, self.y, self.method)
-        _check_rhs(self.t, self.fun(self.t, self.y), self.method)
-        self.nfev = 1
-
-    def _step(self, h: float) -> None:
-        f, t, y = self.fun, self.t, self.y
-        try:
-            k1 = f(t, y)
-            k2 = f(t + h / 2, y + h / 2 * k1)
-            k3 = f(t + h / 2, y + h / 2 * k2)
-            k4 = f(t + h, y + h * k3)
-        except ArithmeticError as err:
-            raise _arithmetic(self.method, t, err) from err
-        self.nfev += 4
-        y_new = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        _check_finite(t + h, y_new, self.method)
-        self.y = y_new
-
-    def advance_to(self, t_target: float, deadline: float | None = None) -> np.ndarray:
-        """Full steps of ``h`` while they fit, then one partial step landing on t_target."""
-        if t_target < self.t:
-            raise RuntimeError(f'advance_to({t_target}) is before t = {self.t}')
-        while t_target - self.t > self.h * (1 + _GRID_EPS):
-            self._step(self.h)
-            self.t += self.h
-            if _over(deadline):
-                raise WorkBudgetExceeded(self.method)
-        rest = t_target - self.t
-        if rest > 0:
-            self._step(rest)
-        self.t = float(t_target)
-        return self.y
-
-
 class IntegratorStepper:
     """Adapter of a :mod:`gyro_rotor.numerics.integrators` method to :class:`Stepper`.
 
@@ -279,29 +231,12 @@ class IntegratorStepper:
         return y
 
 
-def _integrators():
-    """Return METHODS and make_integrator of gyro_rotor.numerics.integrators, if present."""
-    try:
-        from gyro_rotor.numerics.integrators import make_integrator, METHODS
-    except ImportError:
-        return None, None
-    return METHODS, make_integrator
-
-
 def resolve_method(method: str, model, t_end: float = math.inf, y=None) -> tuple[str, str]:
-    """'auto' -> (method, reason) for ``model`` at the state y: the integrators' choice.
-
-    Without the compiled integrators (numba missing), scipy's Radau for a stiff drive
-    (the model's drive damping root above 1e4 1/s), DOP853 otherwise.
-    """
+    """'auto' -> (method, reason) for ``model`` at the state y: the integrators' choice."""
     if method != 'auto':
         return method, 'requested'
-    methods, _ = _integrators()
-    if methods is not None:
-        from gyro_rotor.numerics.integrators import choose_method
-        return choose_method(model, t_end, y0=y)
-    stiff = model.drive_rates(y)[0]
-    return ('Radau', 'stiff drive') if stiff > 1e4 else ('DOP853', 'non-stiff')
+    from gyro_rotor.numerics.integrators import choose_method
+    return choose_method(model, t_end, y0=y)
 
 
 def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: float = 0.0,
@@ -309,24 +244,22 @@ def make_stepper(method: str, fun: Rhs, t0: float, y0: np.ndarray, *, rtol: floa
     """Make a stepper by name.
 
     With ``model`` given, a method of :mod:`gyro_rotor.numerics.integrators` (``rk4``, ``rk8``,
-    ``dop853``, ``gauss6``, ``rodas4``); otherwise, or for the scipy names (``DOP853``,
-    ``Radau``, ...), scipy's OdeSolver with dense output; ``rk4`` falls back to
-    :class:`RK4Stepper`. Zero tolerances or step size mean the method's default.
+    ``dop853``, ``gauss6``, ``rodas4``); the scipy names (``DOP853``, ``Radau``, ...):
+    scipy's OdeSolver with dense output. Zero tolerances or step size mean the method's
+    default.
     """
-    methods, make_integrator = _integrators()
-    if model is not None and methods is not None and method in methods:
+    from gyro_rotor.numerics.integrators import make_integrator, METHODS
+    if model is not None and method in METHODS:
         try:
             integ = make_integrator(method, model, y0, t0, math.inf, rtol=rtol or None,
                                     atol=atol or None, step=step_size or None)
         except ValueError as err:
             raise ParameterError(str(err)) from err
         return IntegratorStepper(integ)
-    if method == 'rk4':
-        return RK4Stepper(fun, t0, y0, step_size or DEFAULT_RK4_STEP)
     if method in SCIPY_METHODS:
         return DenseStepper(fun, t0, y0, method, rtol or DEFAULT_RTOL, atol or DEFAULT_ATOL)
-    valid = ['auto', *(methods or ['rk4']), *SCIPY_METHODS]
-    raise ParameterError(f"unknown integrator '{method}'; valid: {', '.join(valid)}")
+    raise ParameterError(f"unknown integrator '{method}'; valid: "
+                         f"{', '.join(['auto', *METHODS, *SCIPY_METHODS])}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -629,7 +562,6 @@ class EnergyBaseline:
     def __init__(self, energy: Callable[[np.ndarray], float], idiss: int, y0: np.ndarray):
         self.idiss = idiss
         self.restart(energy, y0)
-        self.jumps = 0
 
     def restart(self, energy: Callable[[np.ndarray], float], y0: np.ndarray) -> None:
         """Start a new baseline E_ref = E*(y0) + D(y0) (reset)."""
@@ -642,7 +574,6 @@ class EnergyBaseline:
         jump = float(energy_new(y_new)) - float(self.energy(y_old))
         self.E_ref += jump
         self.energy = energy_new
-        self.jumps += 1
         return jump
 
     def residual(self, y: np.ndarray, E: float | None = None) -> float:
@@ -751,9 +682,7 @@ class Deadlines:
         self.clock, self.sleep = clock, sleep
         self._t0: float | None = None
         self._k = 0
-        self.skipped_total = 0
         self.late_total = 0
-        self.ticks_total = 0
         self._current: float | None = None
         #: consecutive calls of :meth:`wait` that did not sleep
         self.busy_streak = 0
@@ -793,14 +722,12 @@ class Deadlines:
                 deadline = self._t0 + self._k * self.period
                 with self._lock:
                     self._skipped += behind
-                    self.skipped_total += behind
                     self._n_late += behind
                     self.late_total += behind
         self._k += 1
         self._current = deadline
         with self._lock:
             self._late.append(now - deadline)
-            self.ticks_total += 1
         return deadline, now
 
     def done(self, now: float | None = None) -> None:

@@ -109,7 +109,6 @@ class RotorAnalysisNode(Node):
         scene = load_scene(scene_name) if scene_name else None
         self.session = AnalysisSession(scene, **self.options)
         self.errors: list[str] = []
-        self.last_result = None
         # the recorder feeds the session from its spool thread; results are read here
         self._lock = threading.Lock()
         self._pending: list = []
@@ -262,7 +261,6 @@ class RotorAnalysisNode(Node):
             self.pub_verdict.publish(String(data=text))
             self._publish_diag('STALE', text, self._input_values())
             return
-        self.last_result = res
         vec = res.analysis_vector()
         msg = Float64MultiArray()
         msg.layout.dim = [MultiArrayDimension(label=ANALYSIS_LABEL, size=len(vec),

@@ -23,11 +23,12 @@ import struct
 import subprocess
 import sys
 import tempfile
+import time
 from typing import Any, IO, Mapping
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
 
-__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'ros_param',
+__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'SideNode', 'ros_param',
            'energy_seq_from_cdr', 'make_output_dir']
 
 
@@ -178,6 +179,35 @@ LAUNCH_ARGUMENTS = {
                                   'subscribers (0: start at once)'),
     'wait_for_node': ('', '... and until this node subscribes to both'),
 }
+
+
+class SideNode:
+    """A node of this process in a context of its own on ``domain_id`` (demo, soak)."""
+
+    #: longest wait of one spin in :meth:`spin` [s]
+    SPIN_STEP = 0.05
+
+    def __init__(self, name: str, domain_id: int, **options: Any):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        self.ctx = rclpy.context.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = rclpy.create_node(name, context=self.ctx, **options)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+
+    def spin(self, seconds: float) -> None:
+        """Process callbacks for about ``seconds``."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.ex.spin_once(timeout_sec=min(self.SPIN_STEP, max(0.0, end - time.monotonic())))
+
+    def close(self) -> None:
+        """Shut the node down."""
+        import rclpy
+        self.ex.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
 
 
 def launch_arguments(*names: str, **own: tuple[str, str]) -> list:

@@ -19,8 +19,10 @@ import collections
 import dataclasses
 import math
 
-__all__ = ['TopicStats', 'array_values', 'known_values', 'system_topics', 'system_from_joints',
-           'Changes', 'CENTRIFUGE_ONLY']
+from gyro_rotor.bag.wire import array_labels
+
+__all__ = ['TopicStats', 'array_values', 'message_values', 'known_values', 'system_topics',
+           'system_from_joints', 'Changes', 'CENTRIFUGE_ONLY']
 
 #: topics only the centrifuge publishes (a 3-D pose): rotor_sim of a general system has
 #: no pose of its own and never publishes them
@@ -53,6 +55,11 @@ def array_values(labels: list[list[str]], data) -> dict:
             n = len(cols)
             return {r: dict(zip(cols, data[i * n:(i + 1) * n])) for i, r in enumerate(rows)}
     return {}
+
+
+def message_values(msg) -> dict:
+    """Name the numbers of a Float64MultiArray message by its labels (:func:`array_values`)."""
+    return array_values(array_labels(msg.layout.dim), msg.data)
 
 
 @dataclasses.dataclass

@@ -28,6 +28,9 @@ import time
 from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.tools.launch import (claim_domain_id, energy_seq_from_cdr, make_output_dir,
+                                     NodeProcess, SideNode)
+from gyro_rotor.tools.monitor import message_values
 
 __all__ = ['SoakResult', 'run_soak', 'find_max_rate', 'read_rss_kb', 'read_cpu_s', 'CpuLoad',
            'SIM_TOPICS']
@@ -211,20 +214,15 @@ class SoakResult:
         return '\n'.join(lines)
 
 
-class _Listener:
+class _Listener(SideNode):
     """A node in this process: the simulator's diagnostics and the analysis' sample count."""
 
+    SPIN_STEP = 0.1
+
     def __init__(self, domain_id: int):
-        import rclpy
-        from rclpy.executors import SingleThreadedExecutor
         from diagnostic_msgs.msg import DiagnosticArray
         from std_msgs.msg import Float64MultiArray
-        self.ctx = rclpy.context.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node('gyro_rotor_soak', context=self.ctx,
-                                      start_parameter_services=False)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
+        super().__init__('gyro_rotor_soak', domain_id, start_parameter_services=False)
         self.sim: dict = {}
         self.sim_message = ''
         self.rtf_windows: list[float] = []
@@ -245,19 +243,7 @@ class _Listener:
                     self.rtf_windows.append(r)
 
     def _on_analysis(self, msg) -> None:
-        labels = msg.layout.dim[0].label.split(',') if msg.layout.dim else []
-        self.analysis = dict(zip(labels, msg.data))
-
-    def spin(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=min(0.1, max(0.0, end - time.monotonic())))
-
-    def close(self) -> None:
-        import rclpy
-        self.ex.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
+        self.analysis = message_values(msg)
 
 
 def _published_from_log(log: Path) -> dict:
@@ -267,7 +253,6 @@ def _published_from_log(log: Path) -> dict:
 
 def _count_bag(bag: Path, res: SoakResult) -> None:
     from gyro_rotor.bag.bagio import open_bag
-    from gyro_rotor.tools.launch import energy_seq_from_cdr
     reader = open_bag(bag)
     for k, topic in SIM_TOPICS.items():
         info = reader.topics.get(topic)
@@ -322,7 +307,6 @@ def _check_soak_args(rate: float, duration: float, rtf: float, out: Path) -> Pat
     bag = out / 'bag'
     if bag.exists():
         raise ParameterError(f'{bag} exists already')
-    from gyro_rotor.tools.launch import make_output_dir
     make_output_dir(out)
     return bag
 
@@ -330,7 +314,6 @@ def _check_soak_args(rate: float, duration: float, rtf: float, out: Path) -> Pat
 def _start_nodes(res: SoakResult, scene_arg: str, bag: Path, domain_id: int, logs: dict,
                  env: dict):
     """Start rotor_analysis (recording) and rotor_sim; return (sim, analysis)."""
-    from gyro_rotor.tools.launch import NodeProcess
     ana = NodeProcess('gyro_rotor.ros.analysis_node', {
         'output': str(bag), 'scene': scene_arg}, domain_id=domain_id,
         stdout=logs['rotor_analysis'], stderr=logs['rotor_analysis'], env=env)
@@ -441,7 +424,6 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
         before the nodes, stopped after them.
     """
     from gyro_rotor.core.scene import load_scene
-    from gyro_rotor.tools.launch import claim_domain_id
     out = Path(out)
     bag = _check_soak_args(rate, duration, rtf, out)
     sc = load_scene(scene)

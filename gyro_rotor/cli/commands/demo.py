@@ -32,6 +32,8 @@ import time
 from gyro_rotor.core.scene import DEFAULT_SCENE
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.tools.launch import claim_domain_id, make_output_dir, NodeProcess, SideNode
+from gyro_rotor.tools.monitor import message_values
 
 HELP = ('live demo: simulation + analysis nodes, a kick, a live table, an MCAP bag, the '
         'verdict with report and plots')
@@ -83,20 +85,14 @@ def _on_grid(t: float, rate: float) -> float:
 SUBSCRIBERS = 2
 
 
-class _LiveView:
+class _LiveView(SideNode):
     """An rclpy node in the demo process: listens to energy and analysis, kicks."""
 
     def __init__(self, domain_id: int):
-        import rclpy
         from gyro_rotor.ros.qos import profile
-        from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import Float64MultiArray, String
         from std_srvs.srv import Trigger
-        self.ctx = rclpy.context.Context()
-        rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = rclpy.create_node('gyro_rotor_demo', context=self.ctx)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
+        super().__init__('gyro_rotor_demo', domain_id)
         self.energy: dict = {}
         self.analysis: dict = {}
         self.modes: list = []
@@ -120,34 +116,18 @@ class _LiveView:
         from rcl_interfaces.srv import SetParameters
         self.set_params = self.node.create_client(SetParameters, '/rotor_sim/set_parameters')
 
-    @staticmethod
-    def _labelled(msg) -> dict:
-        labels = msg.layout.dim[0].label.split(',') if msg.layout.dim else []
-        return dict(zip(labels, msg.data))
-
     def _on_energy(self, msg) -> None:
-        self.energy = self._labelled(msg)
+        self.energy = message_values(msg)
 
     def _on_analysis(self, msg) -> None:
-        self.analysis = self._labelled(msg)
+        self.analysis = message_values(msg)
 
     def _on_modes(self, msg) -> None:
-        if len(msg.layout.dim) < 2:
-            return
-        names = msg.layout.dim[0].label.split(',')
-        cols = msg.layout.dim[1].label.split(',')
-        n = len(cols)
-        self.modes = [(name, dict(zip(cols, msg.data[i * n:(i + 1) * n])))
-                      for i, name in enumerate(names)]
+        if len(msg.layout.dim) == 2:
+            self.modes = list(message_values(msg).items())
 
     def _on_verdict(self, msg) -> None:
         self.verdict = msg.data
-
-    def spin(self, seconds: float) -> None:
-        """Process callbacks for about ``seconds``."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
 
     def _call(self, client, request, timeout: float):
         """Call a service and spin until it answers; return the response (None: none)."""
@@ -174,13 +154,6 @@ class _LiveView:
         if res is None or not res.results[0].successful:
             raise GyroRotorError(f'rotor_sim did not take t_end = {t_end} s: '
                                  f'{res.results[0].reason if res else "no answer"}')
-
-    def close(self) -> None:
-        """Shut the node down."""
-        import rclpy
-        self.ex.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
 
 
 def _short(name: str) -> str:
@@ -269,12 +242,10 @@ def _out_dir(args: argparse.Namespace, scene) -> Path:
     out = Path(args.out)
     if out.exists() and any(out.iterdir()):
         raise ParameterError(f'output directory {out} exists and is not empty')
-    from gyro_rotor.tools.launch import make_output_dir
     return make_output_dir(out)
 
 
 def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) -> list:
-    from gyro_rotor.tools.launch import NodeProcess
     procs = [NodeProcess('gyro_rotor.ros.analysis_node', {
         'output': str(out / 'bag'), 'scene': str(scene_arg), 'use_sim_time': True},
         domain_id=domain_id, die_with_parent=True,
@@ -293,7 +264,6 @@ def _first_stop(args, kick_at: float) -> float:
 
 
 def _start_sim(args, scene_arg: str, domain_id: int, logs: dict, t_stop: float):
-    from gyro_rotor.tools.launch import NodeProcess
     return NodeProcess('gyro_rotor.ros.sim_node', {
         'scene': str(scene_arg), 'real_time_factor': float(args.rtf),
         'publish_rate': float(args.rate), 't_end': float(t_stop),
@@ -350,7 +320,6 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
     The nodes are stopped (SIGINT, then SIGTERM, then SIGKILL) however this ends; a second
     signal while they stop is ignored, so the stopping is not cut short.
     """
-    from gyro_rotor.tools.launch import claim_domain_id
     scene_arg = scene.path or args.scene
     stopping = [False]
 

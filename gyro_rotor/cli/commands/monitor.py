@@ -24,9 +24,8 @@ import math
 import sys
 import time
 
-from gyro_rotor.bag.wire import array_labels
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.tools.monitor import array_values, Changes, known_values, \
+from gyro_rotor.tools.monitor import Changes, known_values, message_values, \
     system_from_joints, system_topics, TopicStats
 
 HELP = 'monitor the rotor topics of a running system: rates, E*, residual, diagnostics'
@@ -107,7 +106,7 @@ class Monitor:
                     if self.system is None:
                         self.system = system_from_joints(msg.name)
                 elif name == 'Float64MultiArray' and msg.layout.dim:
-                    values = array_values(array_labels(msg.layout.dim), msg.data)
+                    values = message_values(msg)
                     self.latest[topic] = values
                     if 'seq' in values:
                         seq = int(values['seq'])
