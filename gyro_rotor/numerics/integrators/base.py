@@ -28,7 +28,7 @@ from typing import Any
 
 from gyro_rotor.core.model import drive_rates, Model
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.numerics.integrators import kernels
+from gyro_rotor.numerics.integrators import kernels, primitives
 import numpy as np
 
 __all__ = ['Integrator', 'LoopStepped', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate',
@@ -118,7 +118,7 @@ class Integrator:
         if y.shape != (model.n,):
             raise ParameterError(f'y0 must have {model.n} components for model {model.name}, '
                                  f'got shape {np.shape(y0)}')
-        if not np.all(np.isfinite(y)):
+        if not primitives.all_finite(y):
             raise ParameterError('all components of the initial state y0 must be finite, '
                                  f'got {y.tolist()}')
         t0 = float(t0)
@@ -226,7 +226,7 @@ class Integrator:
         if self.status != 'running':
             raise RuntimeError('Attempt to run a failed or finished solver.')
         te = np.asarray(t_eval, dtype=float).reshape(-1)
-        if te.size == 0 or not np.all(np.isfinite(te)) or np.any(np.diff(te) <= 0):
+        if not primitives.finite_increasing(te):
             raise ParameterError('t_eval must be a non-empty, finite, increasing array')
         if te[0] < self.t or te[-1] > self.t_bound:
             raise ParameterError(f't_eval must lie in [{self.t}, {self.t_bound}], got '

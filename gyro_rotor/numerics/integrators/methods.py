@@ -32,6 +32,7 @@ radau9 is :class:`~.radau_jac.Radau9Jac`: the same method with the generated exa
 
 from __future__ import annotations
 
+import bisect
 import math
 
 from gyro_rotor.core.model import Model
@@ -53,14 +54,14 @@ __all__ = ['RK4', 'RK8', 'DOP853', 'Vern7', 'Vern8', 'Vern9', 'Gauss6', 'Rodas4'
 STIFF_RATIO = 20.0
 #: relative E* drift of dop853 per period of the fastest oscillation, per unit of rtol: a
 #: non-symplectic method's E* error grows linearly, by about the same amount each period (its
-#: steps per period are set by the tolerance). Measured on conservative over 1000 s (8,700
-#: periods of 54.8 rad/s): 6.5e-11 at rtol 1e-10 and 7.4e-12 at 1e-11, i.e. 7.4e-5 and
-#: 8.5e-5 rtol per period (``gyro-rotor bench``, E* drift table)
-DRIFT_PER_PERIOD = 8e-5
+#: steps per period are set by the tolerance). Measured on conservative over 100 s and 1000 s
+#: (871 and 8,717 periods of 54.8 rad/s) with the PI step size control: 4.2e-5 rtol per period
+#: at rtol 1e-10 and 2.9e-5 at 1e-11, over both horizons (the plain control drifted 8e-5)
+DRIFT_PER_PERIOD = 3.6e-5
 #: 'auto' takes the structure-preserving method for K_D = 0 runs long enough that dop853's
 #: E* drift would reach this fraction of its tolerance, i.e. after
 #: CONSERVATIVE_DRIFT_LIMIT / DRIFT_PER_PERIOD = 1,250 periods of the fastest oscillation
-CONSERVATIVE_DRIFT_LIMIT = 0.1
+CONSERVATIVE_DRIFT_LIMIT = 0.045
 
 
 class FixedStepRK(Integrator):
@@ -474,6 +475,10 @@ STEP_OVERHEAD = 2.0
 #: with several steps per sample interval, steps land on the samples (kernels.land_step):
 #: the interpolant is then needed for about this fraction of the samples
 LANDED_DENSE = 0.25
+# the tables in log-log, once (auto's choice is part of every run's fixed cost)
+_LOG_ERRORS = tuple(math.log(e) for e in COST_ERRORS)
+_NEG_LOG_ERRORS = tuple(-e for e in _LOG_ERRORS)
+_LOG_STEPS = {m: tuple(math.log(v) for v in vals) for m, vals in STEPS_PER_RADIAN.items()}
 
 
 def method_cost(name: str, rate: float, tol: float, sample_rate: float = 0.0) -> float:
@@ -485,16 +490,15 @@ def method_cost(name: str, rate: float, tol: float, sample_rate: float = 0.0) ->
     steps are longer than the sample spacing (N < sample_rate), else on LANDED_DENSE of the
     samples.
     """
-    lev = np.log(COST_ERRORS)
-    val = np.log(STEPS_PER_RADIAN[name])
+    lev = _LOG_ERRORS
+    val = _LOG_STEPS[name]
     x = math.log(tol)
     if x > lev[0]:
         i = 0
     elif x < lev[-1]:
         i = len(lev) - 2
-    else:
-        i = min(int(np.searchsorted(-lev, -x)) - 1, len(lev) - 2)
-        i = max(i, 0)
+    else:   # the segment [lev[i], lev[i + 1]] (decreasing) that holds x
+        i = max(min(bisect.bisect_left(_NEG_LOG_ERRORS, -x) - 1, len(lev) - 2), 0)
     w = (x - lev[i]) / (lev[i + 1] - lev[i])
     steps = rate * math.exp(val[i] + w * (val[i + 1] - val[i]))
     s, rows, _ = METHODS[name].sizes()
@@ -526,8 +530,8 @@ def choose_method(model, t_end: float = 0.0, rtol: float | None = None,
       conservative runs (K_D = 0) long enough that dop853's secular E* drift,
       DRIFT_PER_PERIOD rtol per period of the fastest oscillation, would reach
       CONSERVATIVE_DRIFT_LIMIT rtol (1,250 periods: 143 s on the conservative scene): the
-      symplectic method keeps the E* error bounded. On shorter runs the drift stays below a
-      tenth of the tolerance, and dop853 reaches a given trajectory error at about half
+      symplectic method keeps the E* error bounded. On shorter runs the drift stays below
+      0.045 of the tolerance, and dop853 reaches a given trajectory error at about half
       split8's cost (over 100 s at one step per 10-ms sample: split8's error 3.4e-6, that
       of DOP853's formula at a fixed step 1.7e-7, and split8's step costs 1.5 times as much);
     - otherwise the cheapest of the explicit adaptive methods (dop853, vern7, vern8, vern9)
@@ -535,32 +539,49 @@ def choose_method(model, t_end: float = 0.0, rtol: float | None = None,
       ``rtol`` (default: dop853's default tolerance), with the samples at ``sample_rate`` Hz
       (0: no samples inside the steps, the stepping API), at the rate max(root, oscillation).
     """
+    name, reason = _choose(model, t_end, rtol, sample_rate, y0)
+    return name, reason()
+
+
+def _choose(model, t_end: float, rtol: float | None, sample_rate: float, y0) -> tuple:
+    """Return (auto's method, a function that returns the reason): :func:`choose_method`.
+
+    The reason's text is formatted only when asked for (:func:`make_integrator` does not: the
+    choice is part of every run's fixed cost).
+    """
     model = getattr(model, 'model', model)          # the kernels' view of a system file
     stiff, osc = model.drive_rates(y0)
     if stiff > STIFF_RATIO * osc:
-        return 'radau9', (f'stiff: the drive damping root {stiff:.3g} 1/s is '
-                          f'{stiff / osc:.3g} times the fastest oscillation ({osc:.3g} rad/s); '
-                          'an L-stable implicit method steps by accuracy')
+        return 'radau9', lambda: (
+            f'stiff: the drive damping root {stiff:.3g} 1/s is {stiff / osc:.3g} times the '
+            f'fastest oscillation ({osc:.3g} rad/s); an L-stable implicit method steps by '
+            'accuracy')
     periods = t_end * osc / (2.0 * math.pi)
     drift = DRIFT_PER_PERIOD * periods      # dop853's E* drift over the run, in units of rtol
-    if model.conservative and drift >= CONSERVATIVE_DRIFT_LIMIT:
+    conservative = model.conservative
+    if conservative and drift >= CONSERVATIVE_DRIFT_LIMIT:
         sym = model.symplectic_method
         what = ('a symplectic splitting keeps the E* error bounded at explicit cost'
                 if sym == 'split8' else 'a symplectic method keeps the E* error bounded')
-        return sym, (f'conservative (K_D = 0) over {t_end:g} s = {periods:.3g} periods of the '
-                     f'fastest oscillation ({osc:.3g} rad/s), where dop853 would drift E* by '
-                     f'about {drift:.2g} rtol: {what}')
+        return sym, lambda: (
+            f'conservative (K_D = 0) over {t_end:g} s = {periods:.3g} periods of the fastest '
+            f'oscillation ({osc:.3g} rad/s), where dop853 would drift E* by about {drift:.2g} '
+            f'rtol: {what}')
     tol = DOP853.default_rtol if rtol is None else float(rtol)
     best, costs = cheapest_explicit(max(stiff, osc), tol, sample_rate)
-    table = ', '.join(f'{m} {c:.3g}' for m, c in sorted(costs.items(), key=lambda kv: kv[1]))
-    cost = (f'the cheapest explicit pair at error {tol:.0e} by the measured cost model '
-            f'(evaluations per simulated second at {sample_rate:g}-Hz samples: {table})')
-    if model.conservative:
-        return best, (f'conservative (K_D = 0) but short: {periods:.3g} periods of the '
-                      f'fastest oscillation ({osc:.3g} rad/s), dop853 drifts E* by about '
-                      f'{drift:.2g} rtol only; {cost}')
-    return best, (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest oscillation '
-                  f'{osc:.3g} rad/s): {cost}')
+
+    def reason() -> str:
+        ranked = sorted(costs.items(), key=lambda kv: kv[1])
+        table = ', '.join(f'{m} {c:.3g}' for m, c in ranked)
+        cost = (f'the cheapest explicit pair at error {tol:.0e} by the measured cost model '
+                f'(evaluations per simulated second at {sample_rate:g}-Hz samples: {table})')
+        if conservative:
+            return (f'conservative (K_D = 0) but short: {periods:.3g} periods of the fastest '
+                    f'oscillation ({osc:.3g} rad/s), dop853 drifts E* by about {drift:.2g} '
+                    f'rtol only; {cost}')
+        return (f'non-stiff (drive damping root {stiff:.3g} 1/s, fastest oscillation '
+                f'{osc:.3g} rad/s): {cost}')
+    return best, reason
 
 
 def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
@@ -571,7 +592,7 @@ def make_integrator(method: str, model: Model, y0, t0: float = 0.0,
     ``sample_rate`` [Hz]: the samples 'auto' plans for (:func:`integrate` passes its own).
     """
     if method == 'auto':
-        method = choose_method(model, t_bound - t0, kwargs.get('rtol'), sample_rate, y0)[0]
+        method = _choose(model, t_bound - t0, kwargs.get('rtol'), sample_rate, y0)[0]
     try:
         cls = METHODS[method]
     except KeyError:

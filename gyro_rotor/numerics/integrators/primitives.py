@@ -37,8 +37,11 @@ except ImportError:  # pragma: no cover
 
 __all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind',
            'Status', 'OK', 'UNDERFLOW', 'NONFINITE', 'BUDGET', 'NOCONV', 'SAFETY',
-           'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'pack_params',
-           'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'initial_step',
+           'MIN_FACTOR', 'MAX_FACTOR', 'LAND_SHRINK', 'LAND_STRETCH', 'PI_BETA',
+           'PI_MIN_FACTOR', 'PI_MAX_FACTOR', 'PI_ERR_FLOOR', 'pi_accept_factor',
+           'pi_reject_factor', 'pack_params',
+           'rhs', 'state_size', 'normalize_quaternion', 'all_finite', 'finite_increasing',
+           'initial_step',
            'land_step', 'land_on_sample', 'equal_steps', 'fixed_segment', 'store_samples',
            'start_run', 'finish_run', 'too_small', 'clip_to_sample', 'lu_factor', 'lu_solve']
 
@@ -78,6 +81,15 @@ MAX_FACTOR = 10.0  # largest increase of the step in one go
 #: stretched step is still accepted only if its error estimate is within the tolerance.
 LAND_SHRINK = 2.0 / 3.0
 LAND_STRETCH = 1.1
+#: the PI (Lund-stabilised) step size control of Hairer's dop853.f (Hairer, Norsett, Wanner I,
+#: sec. II.4, eq. 4.13 with Gustafsson's stabilisation, IV.2): after an accepted step
+#: h_new = h SAFETY err^-(1/q - PI_BETA/5) err_old^PI_BETA, between PI_MIN_FACTOR and
+#: PI_MAX_FACTOR (dop853.f's fac1 = 0.333, fac2 = 6); err_old is the last accepted error, at
+#: least PI_ERR_FLOOR. The memory of err_old damps the grow-reject cycles of the plain control
+PI_BETA = 0.04
+PI_MIN_FACTOR = 0.333
+PI_MAX_FACTOR = 6.0
+PI_ERR_FLOOR = 1e-4
 
 
 class Status(enum.IntEnum):
@@ -219,6 +231,17 @@ def all_finite(y):
 
 
 @njit(cache=True, error_model='numpy')
+def finite_increasing(t):
+    """Return True if ``t`` is non-empty, finite and strictly increasing (a run's samples)."""
+    if t.shape[0] == 0:
+        return False
+    for i in range(t.shape[0]):
+        if not math.isfinite(t[i]) or (i > 0 and not t[i] > t[i - 1]):
+            return False
+    return True
+
+
+@njit(cache=True, error_model='numpy')
 def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
     """Return the starting step size.
 
@@ -251,6 +274,30 @@ def initial_step(kind, P, y, f, rtol, atol, order, h_max, ytmp, ftmp):
     else:
         h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
     return min(100.0 * h0, h1, h_max)
+
+
+@njit(cache=True, error_model='numpy')
+def pi_accept_factor(err, err_old, q):
+    """Return h_new / h after a step accepted with error norm ``err`` (PI control, above).
+
+    ``err_old`` is the error of the previous accepted step (PI_ERR_FLOOR at the start),
+    ``q`` the order of the error estimate (err ~ h^q).
+    """
+    if err == 0.0:
+        return PI_MAX_FACTOR
+    fac = SAFETY * err ** (0.2 * PI_BETA - 1.0 / q) * err_old ** PI_BETA
+    return min(PI_MAX_FACTOR, max(PI_MIN_FACTOR, fac))
+
+
+@njit(cache=True, error_model='numpy')
+def pi_reject_factor(err, q):
+    """Return h_new / h after a step rejected with error norm ``err`` > 1 (dop853.f).
+
+    A non-finite error (a diverging trial step) shrinks the step by MIN_FACTOR.
+    """
+    if not math.isfinite(err):
+        return MIN_FACTOR
+    return max(PI_MIN_FACTOR, SAFETY * err ** (0.2 * PI_BETA - 1.0 / q))
 
 
 @njit(cache=True, error_model='numpy')

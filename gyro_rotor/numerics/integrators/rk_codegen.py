@@ -37,11 +37,11 @@ argument conventions are those of the generic kernels (see :mod:`~.rk_codegen`).
 """
 
 from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, finish_run,
-                                                        land_on_sample, land_step, MAX_FACTOR,
-                                                        MIN_FACTOR, njit, NONFINITE,
-                                                        normalize_quaternion, OK, rhs, SAFETY,
-                                                        start_run, state_size, too_small,
-                                                        UNDERFLOW)
+                                                        land_on_sample, land_step, njit,
+                                                        NONFINITE, normalize_quaternion, OK,
+                                                        pi_accept_factor, PI_ERR_FLOOR,
+                                                        pi_reject_factor, rhs, start_run,
+                                                        state_size, too_small, UNDERFLOW)
 import numpy as np
 
 __all__ = [{names}]
@@ -196,6 +196,7 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
     nsteps = 0
     nrej = 0
     just_rejected = False
+    err_old = PI_ERR_FLOOR
     while status == OK and t < t_end:
         if too_small(t, h):
             status = UNDERFLOW
@@ -204,19 +205,15 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
             h = h_max
         if t + h > t_end:
             h = t_end - t
+        h_free = h                      # the controller's step, before any landing
         h_land = {land}
         landed = h_land > 0.0
         if landed:
             h = h_land
         err = {name}_step(kind, P, y, f, h, rtol, atol, K, ytmp, y_new, f_new)
         nfev += {s}
-        if not math.isfinite(err):
-            h *= MIN_FACTOR
-            nrej += 1
-            just_rejected = True
-            continue
-        if err > 1.0:
-            h *= max(MIN_FACTOR, SAFETY * err ** {expo})
+        if not err <= 1.0:              # also a non-finite error
+            h *= pi_reject_factor(err, {q})
             nrej += 1
             just_rejected = True
             continue
@@ -245,14 +242,14 @@ def {name}_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_s
         if nsteps >= max_steps:
             status = BUDGET
             break
-        if err == 0.0:
-            fac = MAX_FACTOR
-        else:
-            fac = min(MAX_FACTOR, SAFETY * err ** {expo})
+        fac = pi_accept_factor(err, err_old, {q})
+        err_old = max(err, PI_ERR_FLOOR)
         if just_rejected:           # no growth right after a rejection (Hairer's DOP853)
             fac = min(fac, 1.0)
             just_rejected = False
-        h *= fac
+        # a step shortened to land on a sample does not shorten the next one (the PI memory
+        # err_old would otherwise hold the steps below the spacing, off the samples)
+        h = max(h * fac, h_free) if landed else h * fac
     return finish_run(counts, status, nfev, nsteps, nrej, h)
 '''
 
@@ -267,7 +264,7 @@ def _run(name: str, title: str, *, s: int, nx: int, p: int, nf: int, tot: int, l
     after ``y``.
     """
     run = _RUN.format(name=name, title=title, pad=' ' * (len(name) + 9), s=s, s1=s - 1,
-                      nx=nx, p1=p - 1, nf=nf, tot=tot, expo=f'(-1.0 / {p}.0)', land=land,
+                      nx=nx, p1=p - 1, nf=nf, tot=tot, q=f'{p}.0', land=land,
                       rule=rule, dense_args=dense_args)
     return run.split('\n')[:-1]
 
