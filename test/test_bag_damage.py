@@ -203,6 +203,8 @@ def test_damage_keeps_every_intact_chunk_and_counts_the_loss(
     assert got == want, (f'{kind}/{place}: {len(got)} messages read, {len(want)} in the '
                          f'intact chunks')
     assert want_meta <= set(reader.metadata), sorted(reader.metadata)
+    # the records written when the file was closed are named when they went with its end
+    assert bool(reader.lost_records) == ('rosbag2' not in want_meta), reader.lost_records
     readable = {t: sum(1 for m in want if m[0] == t) for t in lay.total}
     lost = {t: n - readable[t] for t, n in lay.total.items() if n > readable[t]}
     assert reader.lost == lost, reader.problems
@@ -220,7 +222,9 @@ def test_damage_keeps_every_intact_chunk_and_counts_the_loss(
     assert report.was_damaged and report.lost == lost
     again, got2, warned2 = read_all(bag)
     assert got2 == want and again.lost == lost and not again.truncated
-    assert again.damaged == bool(lost)          # nothing lost: the repaired bag is whole
+    # nothing lost: the repaired bag is whole; lost records stay on record like messages
+    assert again.damaged == bool(lost or reader.lost_records)
+    assert again.lost_records == [f'before the recovery: {r}' for r in reader.lost_records]
     assert want_meta <= set(again.metadata)
     assert recover_bag(bag).rewritten == ()     # complete now: nothing more to do
 
@@ -268,3 +272,36 @@ def test_damaged_scene_record_loses_no_message(tmp_path):
     report = recover_bag(bag)
     assert report.messages_per_topic['/energy'] == 3001
     assert open_bag(bag).topics['/energy'].count == 3001
+
+
+def test_cut_after_the_last_chunk_names_the_lost_live_verdict(tmp_path, capsys):
+    """Review finding: a recorded bag cut after its last chunk, before the metadata records.
+
+    Every message is there and metadata.yaml accounts for them, but the live verdict
+    (``gyro_rotor.live_result``) and the ``rosbag2`` record went with the file's end. The
+    loss line said 'nothing lost'; it must name them, in analyze's line and after a recovery.
+    """
+    from pathlib import Path
+    from gyro_rotor.cli.main import main
+    src = Path(__file__).resolve().parent.parent / 'bags' / 'precession'
+    bag = tmp_path / 'precession'
+    shutil.copytree(src, bag)
+    mcap = bag / 'precession_0.mcap'
+    with open(mcap, 'rb') as f:
+        summary = SeekingReader(f).get_summary()
+    live = next(m for m in summary.metadata_indexes if m.name == 'gyro_rotor.live_result')
+    last_chunk = max(c.chunk_start_offset + c.chunk_length for c in summary.chunk_indexes)
+    assert last_chunk <= live.offset
+    mcap.write_bytes(mcap.read_bytes()[:live.offset])
+    reader, got, _ = read_all(bag)
+    assert reader.lost == {} and reader.unknown_loss == [] and len(got) == sum(
+        t.count for t in open_bag(src).topics.values())
+    assert 'gyro_rotor.live_result' not in reader.metadata
+    assert reader.lost_records and 'nothing lost' not in reader.loss_text()
+    assert main(['analyze', str(bag), '--no-plots']) == 0
+    result = capsys.readouterr().out.strip().splitlines()[-1]
+    assert result.startswith('RESULT: CONFIRMED') and 'records lost' in result, result
+    recover_bag(bag)
+    assert main(['analyze', str(bag), '--no-plots']) == 0
+    result = capsys.readouterr().out.strip().splitlines()[-1]
+    assert 'records lost: before the recovery' in result, result

@@ -18,13 +18,17 @@ from gyro_rotor.errors import BagError
 import mcap
 import yaml
 
-__all__ = ['BagWarning', 'METADATA_VERSION', 'MAGIC', 'LIBRARY', 'METADATA_YAML']
+__all__ = ['BagWarning', 'METADATA_VERSION', 'MAGIC', 'LIBRARY', 'METADATA_YAML',
+           'ROSBAG2_RECORD']
 
 #: rosbag2 metadata version written (Jazzy).
 METADATA_VERSION = 9
 MAGIC = b'\x89MCAP0\r\n'
 LIBRARY = f'gyro_rotor.bagio {__version__}; mcap-python {mcap.__version__}'
 METADATA_YAML = 'metadata.yaml'
+#: the MCAP metadata record rosbag2's writer adds when it closes a file (the bag's
+#: metadata.yaml, serialized); a file without it was not closed.
+ROSBAG2_RECORD = 'rosbag2'
 
 
 class BagWarning(UserWarning):

@@ -20,7 +20,8 @@ from typing import Any, NamedTuple
 import warnings
 
 from gyro_rotor.bag.mcapfile import iter_messages, McapContents, read_mcap
-from gyro_rotor.bag.metadata import BagWarning, load_metadata_yaml, METADATA_YAML
+from gyro_rotor.bag.metadata import (BagWarning, load_metadata_yaml, METADATA_YAML,
+                                     ROSBAG2_RECORD)
 from gyro_rotor.errors import BagError
 from mcap.records import Channel, Message, Schema
 
@@ -95,6 +96,9 @@ class BagReader:
         counts; the damaged chunks' message indexes otherwise.
     unknown_loss : list of str
         Losses whose size nothing in the bag tells (a cut file without recorded counts).
+    lost_records : list of str
+        Metadata records lost with the end of a file that was cut short (not messages: the
+        samples may all be there, but e.g. the live verdict is not).
     problems : list of str
         What was wrong (also emitted as :class:`BagWarning`).
     """
@@ -105,6 +109,7 @@ class BagReader:
         self._data: list[McapContents] = [read_mcap(f) for f in self.files]
         self.lost: dict[str, int] = {}
         self.unknown_loss: list[str] = []
+        self.lost_records: list[str] = []
         recorded_yaml = _yaml_counts(self.bag_metadata) if len(self._data) == 1 else None
         for data in self._data:
             for problem in data.problems:
@@ -129,9 +134,9 @@ class BagReader:
         self.topics = topics
         self._recovered_losses()
         self.lost = {t: n for t, n in sorted(self.lost.items()) if n}
-        self.damaged = bool(self.truncated or self.lost or self.unknown_loss or any(
-            d.damaged for d in self._data))
-        if self.lost or self.unknown_loss:
+        self.damaged = bool(self.truncated or self.lost or self.unknown_loss
+                            or self.lost_records or any(d.damaged for d in self._data))
+        if self.lost or self.unknown_loss or self.lost_records:
             self.problems.append(f'{self.path}: {self.loss_text()}')
         for problem in self.problems:
             warnings.warn(problem, BagWarning, stacklevel=3)
@@ -142,11 +147,18 @@ class BagReader:
             ch = data.channels.get(cid)
             return ch.topic if ch is not None else f'<channel {cid}>'
 
+        if not data.complete and ROSBAG2_RECORD not in data.metadata:
+            # the records a writer adds when it closes the file are not there: counts from
+            # metadata.yaml may account for every message, but not for these
+            self.lost_records.append(
+                f'{data.path.name}: the metadata records written at its end (the '
+                f'{ROSBAG2_RECORD!r} record, and the live verdict where one was recorded)')
+
         if data.recorded is None and (data.unknown_loss or data.lost):
             readable: dict[str, int] = {}
             for cid, n in data.counts.items():
                 readable[topic(cid)] = readable.get(topic(cid), 0) + n
-            rosbag2 = _yaml_counts(_rosbag2_record(data.metadata.get('rosbag2')))
+            rosbag2 = _yaml_counts(_rosbag2_record(data.metadata.get(ROSBAG2_RECORD)))
             for source, counts in (('the rosbag2 metadata record', rosbag2),
                                    ('metadata.yaml', recorded_yaml)):
                 if counts and sum(counts.values()) and all(
@@ -171,6 +183,7 @@ class BagReader:
             info = json.loads(record.get('json', '{}'))
             lost = {str(t): int(n) for t, n in dict(info.get('lost', {})).items()}
             unknown = [str(u) for u in info.get('unknown_loss', [])]
+            records = [str(r) for r in info.get('lost_records', [])]
         except (ValueError, TypeError, AttributeError) as err:
             self.problems.append(f'{self.path}: the {RECOVERY_RECORD} record is unreadable '
                                  f'({err}): the bag was recovered, its losses are unknown')
@@ -179,11 +192,12 @@ class BagReader:
         for t, n in lost.items():
             self.lost[t] = self.lost.get(t, 0) + n
         self.unknown_loss.extend(f'before the recovery: {u}' for u in unknown)
+        self.lost_records.extend(f'before the recovery: {r}' for r in records)
         self.problems.append(f'{self.path}: recovered from a damaged bag '
                              f'({record.get("summary", "")})')
 
     def loss_text(self) -> str:
-        """One line: the messages lost per topic and the losses of unknown size."""
+        """One line: the messages lost per topic, the losses of unknown size, the records."""
         parts = []
         if self.lost:
             parts.append(f'{sum(self.lost.values())} recorded messages lost ('
@@ -192,6 +206,8 @@ class BagReader:
             parts.append('loss of unknown size: ' + '; '.join(self.unknown_loss[:3])
                          + (f' and {len(self.unknown_loss) - 3} more'
                             if len(self.unknown_loss) > 3 else ''))
+        if self.lost_records:
+            parts.append('records lost: ' + '; '.join(self.lost_records))
         return '; '.join(parts) if parts else 'nothing lost'
 
     def __enter__(self) -> BagReader:

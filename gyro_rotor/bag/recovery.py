@@ -17,7 +17,7 @@ from typing import Any
 
 from gyro_rotor.bag.mcapfile import iter_messages, McapContents, read_mcap
 from gyro_rotor.bag.metadata import (_bag_metadata, _Topic, _write_metadata_yaml, LIBRARY,
-                                     METADATA_YAML)
+                                     METADATA_YAML, ROSBAG2_RECORD)
 from gyro_rotor.bag.qos import normalize_qos
 from gyro_rotor.bag.reader import _bag_files, BagReader, RECOVERY_RECORD
 from gyro_rotor.errors import BagError
@@ -41,6 +41,8 @@ class RecoveryReport:
     lost: dict[str, int] = dataclasses.field(default_factory=dict)
     #: losses whose size nothing in the bag tells
     unknown_loss: tuple[str, ...] = ()
+    #: metadata records lost with the end of a cut file (e.g. the live verdict)
+    lost_records: tuple[str, ...] = ()
 
     @property
     def message_count(self) -> int:
@@ -66,7 +68,7 @@ def _rewrite(data: McapContents, target: Path, loss: dict[str, Any]) -> None:
                                                     metadata=dict(c.metadata))
                        for cid, c in sorted(data.channels.items())}
         for name, meta in data.metadata.items():
-            if name not in ('rosbag2', RECOVERY_RECORD):
+            if name not in (ROSBAG2_RECORD, RECOVERY_RECORD):
                 writer.add_metadata(name, meta)
         writer.add_metadata(RECOVERY_RECORD, {'json': json.dumps(loss),
                                               'summary': loss['summary']})
@@ -74,7 +76,7 @@ def _rewrite(data: McapContents, target: Path, loss: dict[str, Any]) -> None:
             writer.add_message(channel_ids[msg.channel_id], msg.log_time, msg.data,
                                msg.publish_time, sequence=msg.sequence)
         info = _bag_metadata(_topics_of(data), target.name, data.start, data.end)
-        writer.add_metadata('rosbag2',
+        writer.add_metadata(ROSBAG2_RECORD,
                             {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)})
         writer.finish()
         stream.flush()
@@ -148,6 +150,7 @@ def recover_bag(path: str | os.PathLike[str]) -> RecoveryReport:
         if data.damaged:
             problems.extend(f'{file}: {p}' for p in data.problems)
             loss = {'lost': lost, 'unknown_loss': unknown,
+                    'lost_records': list(before.lost_records),
                     'problems': [p[:300] for p in data.problems][:50],
                     'summary': before.loss_text()}
             originals.append(_replace_file(data, file, loss))
@@ -183,4 +186,5 @@ def recover_bag(path: str | os.PathLike[str]) -> RecoveryReport:
             _write_metadata_yaml(path, new_info)
             metadata_rewritten = True
     return RecoveryReport(path, counts, tuple(rewritten), tuple(originals),
-                          metadata_rewritten, tuple(problems), lost, tuple(unknown))
+                          metadata_rewritten, tuple(problems), lost, tuple(unknown),
+                          tuple(before.lost_records))

@@ -11,7 +11,8 @@ from pathlib import Path
 import time
 from typing import Any
 
-from gyro_rotor.bag.metadata import (_bag_metadata, _Topic, _write_metadata_yaml, LIBRARY)
+from gyro_rotor.bag.metadata import (_bag_metadata, _Topic, _write_metadata_yaml, LIBRARY,
+                                     ROSBAG2_RECORD)
 from gyro_rotor.bag.msgdefs import message_definition, normalize_type_name, type_hash
 from gyro_rotor.bag.qos import normalize_qos, qos_yaml
 from gyro_rotor.errors import BagError
@@ -297,7 +298,8 @@ class BagWriter:
             try:
                 info = self._info()
                 self._writer.add_metadata(
-                    'rosbag2', {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)})
+                    ROSBAG2_RECORD,
+                    {'serialized_metadata': yaml.safe_dump(info, sort_keys=False)})
                 self._writer.finish()
                 self._stream.flush()
                 os.fsync(self._stream.fileno())

@@ -34,4 +34,6 @@ def run(args: argparse.Namespace) -> int:
               + ' (kept on record in the bag)')
     if rep.unknown_loss:
         print('loss of unknown size: ' + '; '.join(rep.unknown_loss))
+    if rep.lost_records:
+        print('records lost: ' + '; '.join(rep.lost_records) + ' (kept on record in the bag)')
     return 0
