@@ -46,7 +46,7 @@ from gyro_rotor.core.scene import check_steady, Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import ParameterError, SceneError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
-from gyro_rotor.linear.stability import analyze, judge, Mode, ModeKind
+from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
 __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
@@ -233,7 +233,7 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
                          about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
                                f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
-                         modes_at=lambda lin, K: analyze(p, sm, ls.model, K_D=K).modes)
+                         modes_at=lambda lin, K: named_modes(ls, K))
 
 
 def dominant(lin: Linearization, v: np.ndarray) -> str:
@@ -248,8 +248,8 @@ def dominant(lin: Linearization, v: np.ndarray) -> str:
 def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
     """Return the modes of A(K) (default: every drive at its own K_D) the linearization offers.
 
-    The centrifuge: its named modes, one per complex pair
-    (:func:`gyro_rotor.linear.stability.analyze`); a system file: every root
+    The centrifuge: its named modes, one per complex pair, from the analytic linearization
+    it carries (:func:`gyro_rotor.linear.stability.named_modes`); a system file: every root
     (:func:`_modes_by_coordinate`).
     """
     return lin.modes_at(lin, K)
