@@ -35,7 +35,7 @@ from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
-                                        track, ZERO_ROOT, ZERO_ROOT_Z)
+                                        track, unit, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
@@ -191,7 +191,7 @@ def _zero_cluster(lin, lam, V, W, Vw, d) -> None:
     M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
     mu, Y = np.linalg.eig(M)
     Vn = (N @ Y) * lin.weights[:, None]
-    Vw[:, idx] = Vn / np.maximum(np.linalg.norm(Vn, axis=0), 1e-300)
+    Vw[:, idx] = unit(Vn)
     d[idx] = mu
 
 
