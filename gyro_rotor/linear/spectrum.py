@@ -19,8 +19,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
-__all__ = ['spectrum', 'track', 'drive_sensitivity', 'unit', 'unit_eig', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL',
-           'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
+__all__ = ['spectrum', 'track', 'drive_sensitivity', 'unit', 'unit_eig', 'ZERO_ROOT',
+           'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
 #: without drive stiffness (K_S = 0) the lag z is cyclic too: a second structural zero root
