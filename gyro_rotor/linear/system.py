@@ -90,6 +90,9 @@ class Linearization:
     about: str = ''
     modes_at: Callable = dataclasses.field(
         default=lambda lin, K: _modes_by_coordinate(lin, K), repr=False, compare=False)
+    #: the modes already classified, by K (:func:`modes`: once per K and command)
+    classified: dict = dataclasses.field(default_factory=dict, init=False, repr=False,
+                                         compare=False)
 
     @property
     def m(self) -> int:
@@ -250,9 +253,12 @@ def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
 
     The centrifuge: its named modes, one per complex pair, from the analytic linearization
     it carries (:func:`gyro_rotor.linear.stability.named_modes`); a system file: every root
-    (:func:`_modes_by_coordinate`).
+    (:func:`_modes_by_coordinate`). Classified once per K (``lin.classified``).
     """
-    return lin.modes_at(lin, K)
+    key = None if K is None else float(K)
+    if key not in lin.classified:
+        lin.classified[key] = tuple(lin.modes_at(lin, K))
+    return list(lin.classified[key])
 
 
 def assess(lin: Linearization, K: float | None = None) -> tuple:
