@@ -107,8 +107,8 @@ def test_campbell_pairs_split_and_join_by_continuity():
     R = np.array(rows)
     # the tracks as continuity gives them: columns 0/1 swap their roles at the meeting
     res = np.full(R.shape, 1e-12)
-    cb = _assemble(zeta, R, res, lambda i, j: ['d', 'd', 'u', 'u'][j], orders=(1,),
-                   nominal=1.0)
+    cb = _assemble(zeta, R, res, lambda i, cols: [['d', 'd', 'u', 'u'][j] for j in cols],
+                   orders=(1,), nominal=1.0)
     assert len(cb.labels) == 2 and cb.frequencies.shape == (41, 2)
     k_u = [k for k, t in enumerate(cb.labels) if t.startswith('u')][0]
     k_d = 1 - k_u

@@ -131,8 +131,8 @@ def campbell(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
         for j, x in enumerate(R[i]):
             res[i, j] = r[int(np.argmin(np.abs(lam - x)))]
 
-    def name(i, j):
-        return name_roots(path.eig(float(values[i]))[3], [R[i, j]])[0]
+    def name(i, cols):
+        return name_roots(path.eig(float(values[i]))[3], R[i, cols])
     return _assemble(values, R, res, name, orders, skipped=tuple(sorted(failed)),
                      nominal=path.ref)
 
@@ -152,11 +152,11 @@ class _Speeds:
         """Return (eigenvalues, unit eigenvectors, resolutions, linearization) of A at W."""
         if W not in self.cache:
             from gyro_rotor.linear.roundoff import resolutions
+            from gyro_rotor.linear.spectrum import unit_eig
             from gyro_rotor.linear.system import linearize_scene
             lin = linearize_scene(self.at(W))
             A = lin.A_scene()
-            lam, V = np.linalg.eig(A)
-            V = V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+            lam, V = unit_eig(A)
             lam_r, res_r = resolutions(A, lin.A_cons)
             res = np.array([res_r[int(np.argmin(np.abs(lam_r - x)))] for x in lam])
             self.cache[W] = (lam, V, res, lin)
@@ -268,8 +268,9 @@ def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> 
     at = Campbell(Omega0=np.asarray(values, dtype=float), frequencies=None, decay=None,
                   critical=[], nominal=float(nominal)).named_at
     labels = []
-    for k, m in enumerate(modes):
-        dom = name(at, max(m, key=lambda c: R[at, c].imag))
+    # every mode named in one call: the linearization's modes classified once
+    doms = name(at, [max(m, key=lambda c: R[at, c].imag) for m in modes])
+    for k, (m, dom) in enumerate(zip(modes, doms)):
         if F[:, k].max() == 0:
             if np.all(np.abs(R[:, list(m)]) <= res[:, list(m)]):
                 text = dom if dom.startswith('zero root') else f'zero root ({dom})'

@@ -16,7 +16,7 @@ import dataclasses
 import math
 
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.spectrum import track
+from gyro_rotor.linear.spectrum import track, unit_eig
 from gyro_rotor.linear.system import Linearization, modes
 import numpy as np
 
@@ -129,8 +129,7 @@ def root_locus(lin: Linearization, K_D_grid) -> RootLocus:
             f'their K_D -> infinity limits; extend it to at least {need:.3g}')
 
     def eig(K):
-        lam, V = np.linalg.eig(lin.A(K))
-        return lam, V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+        return unit_eig(lin.A(K))
     names = name_roots(lin, eig(grid[0])[0], grid[0])
     path = track(eig, grid, names, log=True)
     rows, cols = linear_sum_assignment(np.abs(path[-1][:, None] - locked[None, :]))

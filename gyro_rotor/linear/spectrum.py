@@ -19,8 +19,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
-__all__ = ['spectrum', 'track', 'drive_sensitivity', 'ZERO_ROOT', 'ZERO_ROOT_Z', 'STRUCTURAL',
-           'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
+__all__ = ['spectrum', 'track', 'drive_sensitivity', 'unit', 'unit_eig', 'ZERO_ROOT',
+           'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
 #: without drive stiffness (K_S = 0) the lag z is cyclic too: a second structural zero root
@@ -48,6 +48,17 @@ def _cyclic_z(lin: LinearSystem) -> int | None:
         return None
     iz = lin.state_names.index('z')
     return iz if not np.any(lin.A0[:, iz]) else None
+
+
+def unit(V: np.ndarray) -> np.ndarray:
+    """Return the columns of ``V`` scaled to unit norm (a zero column stays zero)."""
+    return V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
+
+
+def unit_eig(A: np.ndarray) -> tuple:
+    """Return the eigenvalues of ``A`` and its right eigenvectors of unit norm."""
+    lam, V = np.linalg.eig(A)
+    return lam, unit(V)
 
 
 def spectrum(lin: LinearSystem, K_D: float, *, left: bool = False):
@@ -146,7 +157,7 @@ def _spectrum(lin: LinearSystem, K_D: float, left: bool):
         lam, V = lam[:nfin], V[:, :nfin]
         W = None
     Vw = V * lin.weights[:, None]
-    Vw = Vw / np.maximum(np.linalg.norm(Vw, axis=0), 1e-300)
+    Vw = unit(Vw)
     return (lam, Vw, W) if left else (lam, Vw)
 
 

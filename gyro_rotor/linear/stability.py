@@ -35,12 +35,12 @@ from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
-                                        track, ZERO_ROOT, ZERO_ROOT_Z)
+                                        track, unit, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
 __all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'Verdict', 'judge', 'spectrum',
-           'analyze', 'classify', 'drive_system',
+           'analyze', 'named_modes', 'classify', 'drive_system',
            'analyze_scene',
            'track', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
@@ -191,7 +191,7 @@ def _zero_cluster(lin, lam, V, W, Vw, d) -> None:
     M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
     mu, Y = np.linalg.eig(M)
     Vn = (N @ Y) * lin.weights[:, None]
-    Vw[:, idx] = Vn / np.maximum(np.linalg.norm(Vn, axis=0), 1e-300)
+    Vw[:, idx] = unit(Vn)
     d[idx] = mu
 
 
@@ -345,25 +345,35 @@ def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
                    [m.name for m in marginal + neutral], res)
 
 
+def named_modes(lin: LinearSystem, K_D: float | None = None) -> list:
+    """Return the named, classified modes of the analytic linearization ``lin`` at ``K_D``.
+
+    Named at K_D = 0 by modal energy and tracked to ``K_D`` (default ``lin``'s own) by
+    eigenvector continuity; reach and damping by :func:`classify` (the one rule).
+    """
+    K_D = lin.params.K_D if K_D is None else float(K_D)
+    if not (K_D >= 0 and math.isfinite(K_D)):
+        raise ParameterError(f'K_D must be finite and not negative, got {K_D!r} N m s/rad')
+    if K_D != lin.params.K_D:
+        lin = dataclasses.replace(lin, params=lin.params.replace(K_D=K_D), A=lin.with_K_D(K_D))
+    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
+    ms = _modes_from(lin, lam_path[-1], names, lam0, d0, floor(lin.A0))
+    return classify(ms, drive_system(lin), [K_D])
+
+
 def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
             K_D: float | None = None, scene: str = '') -> StabilityReport:
-    """Modes, spectral abscissa and verdict (:func:`judge`) about ``motion`` at ``K_D``.
+    """Modes (:func:`named_modes`), spectral abscissa and verdict (:func:`judge`) at ``K_D``.
 
     The structural zero root of solution II (a neighbouring steady motion of the family)
     is listed but not judged.
     """
+    lin = linearize(params, motion, model)
+    ms = named_modes(lin, K_D)
     K_D = params.K_D if K_D is None else float(K_D)
-    if not (K_D >= 0 and math.isfinite(K_D)):
-        raise ParameterError(f'K_D must be finite and not negative, got {K_D!r} N m s/rad')
-    lin = linearize(params.replace(K_D=K_D), motion, model)
-    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
-    lam_K = lam_path[-1]
-    tol_re = floor(lin.A0)
-    ms = _modes_from(lin, lam_K, names, lam0, d0, tol_re)
-    ms = classify(ms, drive_system(lin), [K_D])
     return StabilityReport(**vars(judge(ms, K_D == 0)), scene=scene, model=model,
                            motion=motion, coords=lin.coords, state_names=lin.state_names,
-                           K_D=K_D, modes=ms, A=lin.A)
+                           K_D=K_D, modes=ms, A=lin.with_K_D(K_D))
 
 
 def drive_system(lin: LinearSystem):

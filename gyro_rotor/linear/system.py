@@ -46,7 +46,7 @@ from gyro_rotor.core.scene import check_steady, Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import ParameterError, SceneError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
-from gyro_rotor.linear.stability import analyze, judge, Mode, ModeKind
+from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
 __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
@@ -90,6 +90,9 @@ class Linearization:
     about: str = ''
     modes_at: Callable = dataclasses.field(
         default=lambda lin, K: _modes_by_coordinate(lin, K), repr=False, compare=False)
+    #: the modes already classified, by K (:func:`modes`: once per K and command)
+    classified: dict = dataclasses.field(default_factory=dict, init=False, repr=False,
+                                         compare=False)
 
     @property
     def m(self) -> int:
@@ -233,7 +236,7 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
                          about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
                                f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
-                         modes_at=lambda lin, K: analyze(p, sm, ls.model, K_D=K).modes)
+                         modes_at=lambda lin, K: named_modes(ls, K))
 
 
 def dominant(lin: Linearization, v: np.ndarray) -> str:
@@ -248,11 +251,14 @@ def dominant(lin: Linearization, v: np.ndarray) -> str:
 def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
     """Return the modes of A(K) (default: every drive at its own K_D) the linearization offers.
 
-    The centrifuge: its named modes, one per complex pair
-    (:func:`gyro_rotor.linear.stability.analyze`); a system file: every root
-    (:func:`_modes_by_coordinate`).
+    The centrifuge: its named modes, one per complex pair, from the analytic linearization
+    it carries (:func:`gyro_rotor.linear.stability.named_modes`); a system file: every root
+    (:func:`_modes_by_coordinate`). Classified once per K (``lin.classified``).
     """
-    return lin.modes_at(lin, K)
+    key = None if K is None else float(K)
+    if key not in lin.classified:
+        lin.classified[key] = tuple(lin.modes_at(lin, K))
+    return list(lin.classified[key])
 
 
 def assess(lin: Linearization, K: float | None = None) -> tuple:
@@ -274,18 +280,19 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     eigenvector is mostly a rotor angle z is ``rotor_angle`` (no drive stiffness).
     """
     from gyro_rotor.linear.roundoff import resolutions
+    from gyro_rotor.linear.spectrum import unit_eig
     from gyro_rotor.linear.stability import classify
     Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
     A = lin.A_scene() if K is None else lin.A_common(K)
     scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A_cons)).max(initial=0.0)))
-    lam, V = np.linalg.eig(A)
+    lam, V = unit_eig(A)
     lam0, dre = _followed(lin, Ks, lam)
     lam_r, res_r = resolutions(A, lin.A_cons)
     tol_im = 1e-9 * max(np.linalg.norm(lin.A_cons), 1.0)
     angles = {lin.coordinate[i] for i in np.flatnonzero(np.any(lin.c_all != 0, axis=1))}
     out = []
     for i, value in enumerate(lam):
-        v = V[:, i] / np.linalg.norm(V[:, i])
+        v = V[:, i]
         zero = abs(value) <= 1e-7 * scale
         coord = dominant(lin, v)
         value = complex(value)
@@ -306,11 +313,6 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
         f'{"mode" if m.reached_by_drive else "unreached mode"} ({m.name})')) for m in out]
 
 
-def _unit(A: np.ndarray) -> tuple:
-    lam, V = np.linalg.eig(A)
-    return lam, V / np.maximum(np.linalg.norm(V, axis=0), 1e-300)
-
-
 def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     """Return, for each root ``lam`` of A at dampings ``Ks``, its K = 0 root and d Re/d K there.
 
@@ -320,15 +322,15 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     """
     from scipy.linalg import eig
     from scipy.optimize import linear_sum_assignment
-    from gyro_rotor.linear.spectrum import drive_sensitivity, track
+    from gyro_rotor.linear.spectrum import drive_sensitivity, track, unit, unit_eig
     BC = lin.b_all @ lin.c_all.T
     lam0, W, V0 = eig(lin.A_cons, left=True, right=True)
-    V0 = V0 / np.maximum(np.linalg.norm(V0, axis=0), 1e-300)
+    V0 = unit(V0)
 
     def fn(s):
         if s == 0:
             return lam0, V0
-        return _unit(lin.A_cons - lin.b_all @ np.diag(s * Ks) @ lin.c_all.T)
+        return unit_eig(lin.A_cons - lin.b_all @ np.diag(s * Ks) @ lin.c_all.T)
     path = [0.0] + list(np.geomspace(1e-6, 1.0, 49)) if np.any(Ks > 0) else [0.0]
     end = track(fn, path, [''] * len(lam0), log=True)[-1]
     rows, cols = linear_sum_assignment(np.abs(end[:, None] - lam[None, :]))
