@@ -122,6 +122,19 @@ def test_bad_output_and_sizes_are_refused_before_work(argv, match, capsys):
     assert match in capsys.readouterr().err
 
 
+def test_a_directory_given_as_scene_or_system_file_is_named_so(tmp_path, capsys):
+    # review finding: '... does not exist' for a path that exists as a directory
+    (tmp_path / 'sys.yaml').mkdir()
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text('/**:\n  ros__parameters:\n    system: sys.yaml\n')
+    for argv, what in ((['simulate', str(tmp_path)], 'scene file'),
+                       (['eig', str(scene)], 'system file')):
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert err.startswith('ERROR: ') and err.count('\n') == 1, err
+        assert f'{what} ' in err and 'is a directory, not a file' in err, err
+
+
 @pytest.mark.parametrize('argv, match', [
     (['locus', 'precession', '--csv', '/proc/x.csv'], 'cannot write /proc/x.csv'),
     (['locus', 'precession', '--json', '/proc/x.json'], 'cannot write /proc/x.json'),

@@ -459,7 +459,44 @@ def test_expression_undefined_at_the_state_is_one_error_line(tmp_path, capsys):
 def test_singular_coordinates_are_refused(capsys):
     assert main(['simulate', 'centrifuge_euler', '--set', 'initial.q=[0.0, 0.0, 0.0]']) == 1
     err = _errors(capsys.readouterr().err)
-    assert err.count('\n') == 1 and 'not positive definite at the initial state' in err
+    assert err.count('\n') == 1 and 'numerically singular' in err
+    assert 'at the initial state' in err
+
+
+ONE = """name: one
+coordinates: [x]
+rotors: [R]
+constants: {J: 0.1, C: 0.01, k: 10.0}
+mass_matrix: [["J"]]
+rotor_inertia: ["C"]
+guidance: [["1"]]
+potential: "k*x**2/2"
+drives:
+  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}
+"""
+
+
+@pytest.mark.parametrize('scale', [1e-15, 1.0, 1e6])
+def test_the_mass_check_has_no_unit_scale(tmp_path, capsys, scale):
+    # review finding: the check was absolute below 1 kg m^2 (1e-12 * max(1, |w|)): a
+    # micro-rotor with J = 1e-16 was refused, and C = 1e-30 beside J = 0.1 was called
+    # 'not positive definite' with both eigenvalues printed positive
+    (tmp_path / 'one.yaml').write_text(ONE)
+    scene = tmp_path / 's.yaml'
+    scene.write_text('/**:\n  ros__parameters:\n    system: one.yaml\n    t_end: 0.1\n'
+                     '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+
+    def run(C, out):
+        argv = ['simulate', str(scene), '--out', str(tmp_path / out)]
+        for c, v in (('J', 0.1 * scale), ('C', C), ('k', 10.0 * scale)):
+            argv += ['--set', f'constants.{c}={v!r}']
+        return main(argv)
+
+    assert run(0.01 * scale, 'a.csv') == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert run(1e-14 * scale, 'b.csv') == 1
+    err = _errors(capsys.readouterr().err)
+    assert err.count('\n') == 1 and 'is numerically singular' in err, err
 
 
 # -- scene keys ----------------------------------------------------------------------------------
@@ -800,3 +837,17 @@ def test_slow_roots_at_a_huge_K_D_are_reached_not_zero_roots():
     assert len(slow) == 2
     assert all(m.kind == ModeKind.REAL and m.reached_by_drive and m.is_damped
                and not m.rotor_angle for m in slow)
+
+
+def test_a_singular_potential_gives_one_error_line_and_no_warnings(tmp_path):
+    # review finding: numpy's RuntimeWarnings from the generated code came before the ERROR
+    import subprocess
+    import sys
+    (tmp_path / 'one.yaml').write_text(ONE.replace('k*x**2/2', 'k*sqrt(x)'))
+    scene = tmp_path / 's.yaml'
+    scene.write_text('/**:\n  ros__parameters:\n    system: one.yaml\n    t_end: 0.1\n'
+                     '    initial: {q: [0.0], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'simulate', str(scene)],
+                       capture_output=True, text=True)
+    assert r.returncode == 1 and r.stderr.count('\n') == 1, r.stderr
+    assert r.stderr.startswith('ERROR: ') and 'not finite' in r.stderr, r.stderr

@@ -509,7 +509,8 @@ def scene_path(name_or_path: str | os.PathLike) -> Path:
     p = Path(s)
     if s.endswith(('.yaml', '.yml')) or os.sep in s or p.is_file():
         if not p.is_file():
-            raise SceneError(f'scene file {s} does not exist')
+            raise SceneError(f'scene file {s} is a directory, not a file' if p.is_dir()
+                             else f'scene file {s} does not exist')
         return p
     for d in _scene_dirs():
         f = d / f'{s}.yaml'
@@ -824,12 +825,15 @@ def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
     scene = dataclasses.replace(scene, base_system=base, flat={
         k: list(v) if isinstance(v, tuple) else v for k, v in vals.items()})
     model = scene.make_model()
-    _check_mass(scene, model, scene.initial_state(model), 'initial', where)
-    _check_energy(scene, model, where)
-    if any(k.startswith('steady.') for k in vals):
-        _check_mass(scene, model, scene.steady_state(model), 'steady', where)
-        if check:
-            check_steady(scene, model, where)
+    # the checks test the values for finiteness and say so in one line: numpy's warnings
+    # on the way (a singular point of the generated code) would only add lines
+    with np.errstate(all='ignore'):
+        _check_mass(scene, model, scene.initial_state(model), 'initial', where)
+        _check_energy(scene, model, where)
+        if any(k.startswith('steady.') for k in vals):
+            _check_mass(scene, model, scene.steady_state(model), 'steady', where)
+            if check:
+                check_steady(scene, model, where)
     return scene
 
 
@@ -869,15 +873,23 @@ def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> Sce
         path=path, node={k: v for k, v in vals.items() if k in NODE_KEYS}, perturbation=kick)
 
 
+#: smallest mass-matrix eigenvalue over the largest below which a scene is refused
+MASS_CONDITION = 1e-12
+
+
 def _check_mass(scene: Scene, model: GeneralModel, y: np.ndarray, what: str,
                 where: str) -> None:
     Mbar = model.lin(y)[0]
     w = np.linalg.eigvalsh(Mbar) if Mbar.size else np.ones(1)
-    if not (np.all(np.isfinite(w)) and w.min() > 1e-12 * max(1.0, abs(w).max())):
+    # relative to the largest eigenvalue: the system's own scale, whatever its units
+    if not (np.all(np.isfinite(w)) and w.min() > MASS_CONDITION * abs(w).max()):
+        state = ('is not positive definite' if not w.min() > 0 else
+                 f'is numerically singular (smallest eigenvalue below {MASS_CONDITION:g} '
+                 f'times the largest)')
         raise SceneError(f'{where}: the mass matrix of system {scene.system.name} (with the '
-                         f'rotors) is not positive definite at the {what} state q = '
-                         f'{y[:model.n].tolist()} (eigenvalues {w.tolist()}): a singular point '
-                         f'of the coordinates or a bad constant')
+                         f'rotors) {state} at the {what} state q = {y[:model.n].tolist()} '
+                         f'(eigenvalues {w.tolist()}): a singular point of the coordinates or '
+                         f'a bad constant')
 
 
 def _check_energy(scene: Scene, model: GeneralModel, where: str) -> None:

@@ -343,7 +343,8 @@ def system_path(name_or_path: str | os.PathLike, relative_to: str | None = None)
         if not p.is_absolute() and relative_to is not None and not p.is_file():
             p = Path(relative_to).parent / p
         if not p.is_file():
-            raise SystemFileError(f'system file {s} does not exist')
+            raise SystemFileError(f'system file {s} is a directory, not a file'
+                                  if p.is_dir() else f'system file {s} does not exist')
         return p
     for d in systems_dirs():
         f = d / f'{s}.yaml'
