@@ -31,7 +31,7 @@ import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
 from gyro_rotor.analysis.results import ANALYSIS_FIELDS, MODE_FIELDS
-from gyro_rotor.analysis.session import AnalysisSession, scene_to_flat
+from gyro_rotor.analysis.session import AnalysisSession
 from gyro_rotor.bag.wire import (energy_from_cdr, joints_from_cdr,
                                  scene_doc_for_bag, scene_ref)
 from gyro_rotor.core.scene import load_scene
@@ -67,7 +67,7 @@ def _flat_text(scene) -> str:
     A general system's constants keep the order of its file, so that the offline analysis
     reuses the compiled equations.
     """
-    return yaml.safe_dump(scene_to_flat(scene), sort_keys=False)
+    return yaml.safe_dump(scene.to_flat(), sort_keys=False)
 
 
 def _float_range(lo: float, hi: float) -> list:
