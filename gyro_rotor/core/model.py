@@ -416,13 +416,6 @@ class Model:
         """State vector from 3-1-3 angles and rates of the stator and the rotor's z, zdot."""
         raise NotImplementedError
 
-    def to_full(self, Y) -> np.ndarray:
-        """Return the equivalent state(s) of the full model (for comparisons)."""
-        Y = np.atleast_2d(np.asarray(Y, dtype=float))
-        q = self.quaternion(Y)
-        W = self.body_rates(Y)
-        return np.column_stack([q, W, Y[:, self.iz], Y[:, self.izd], Y[:, self.idiss]])
-
     # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
     #: names of the joint_states columns (the wire layout, written here once; bag/wire.py's
     #: JOINT_NAMES is this): the 3-1-3 angles theta, psi, the rotor angle phi_R and phi_M
