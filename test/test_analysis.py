@@ -19,8 +19,7 @@ import subprocess
 import sys
 
 from gyro_rotor.analysis.checks import (ANALYSIS_FIELDS, MODE_FIELDS, RotorAnalyzer, Sample,
-                                        SamplePairer, samples_from_trajectory, scene_from_sim_doc,
-                                        scene_to_flat)
+                                        SamplePairer, samples_from_trajectory, scene_from_sim_doc)
 from gyro_rotor.core.scene import load_scene, perturb_state, scene_from_mapping
 from gyro_rotor.errors import AnalysisError, ParameterError
 from gyro_rotor.numerics.simulate import simulate
@@ -219,7 +218,7 @@ def test_pairer_pairs_in_any_order_and_gives_up_on_lost_partners():
 
 def test_scene_round_trip_and_sim_document():
     scene = load_scene('nutation')
-    again = scene_from_mapping(scene_to_flat(scene), strict_float=False)
+    again = scene_from_mapping(scene.to_flat(), strict_float=False)
     assert again.params == scene.params and again.initial == scene.initial
     doc = {'scene': 'nutation', 'model': 'full', 't_end': 10.0,
            'params': {**scene.params.to_mapping(), 'K_D': 0.2}, 'perturbation': {}}

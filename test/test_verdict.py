@@ -38,7 +38,6 @@ from gyro_rotor.analysis.modes import mode_tolerances
 from gyro_rotor.analysis.offline import analyze_bag
 from gyro_rotor.analysis.replay import run_like_demo, stream
 from gyro_rotor.analysis.samples import SamplePairer
-from gyro_rotor.analysis.session import scene_to_flat
 from gyro_rotor.analysis.sweep.metrics import decay_interval, fit_decay
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decide,
                                          fmt_against, fmt_interval, Measured, over_run, Status)
@@ -190,7 +189,7 @@ def write_bag(run, path: Path) -> None:
     fields = run.scene.make_model().energy_fields     # the layout rotor_sim publishes
     names = list(joint_names(run.scene))
     meta = {'gyro_rotor.scene': {'name': run.scene.name,
-                                 'flat': yaml.safe_dump(scene_to_flat(run.scene),
+                                 'flat': yaml.safe_dump(run.scene.to_flat(),
                                                         sort_keys=False)},
             'gyro_rotor.analysis': {'options': json.dumps({'window_s': 8.0,
                                                            'min_fit_s': 2.0})}}

@@ -14,11 +14,11 @@ from gyro_rotor.analysis.results import (ANALYSIS_FIELDS, ANALYSIS_LABEL, Analys
                                          SYNC_STATES, VERDICTS)
 from gyro_rotor.analysis.samples import (energy_sample_fields, Sample, SamplePairer,
                                          samples_from_trajectory)
-from gyro_rotor.analysis.session import AnalysisSession, scene_from_sim_doc, scene_to_flat
+from gyro_rotor.analysis.session import AnalysisSession, scene_from_sim_doc
 
 __all__ = ['RotorAnalyzer', 'Sample', 'SamplePairer', 'Prediction', 'PredictedMode',
            'ModeCheck', 'SegmentResult', 'AnalysisResult', 'predict', 'identify_modes',
            'ANALYSIS_FIELDS', 'ANALYSIS_LABEL', 'MODE_FIELDS', 'MODE_LABEL', 'VERDICTS',
-           'MODE_STATUS', 'SYNC_STATES', 'scene_to_flat', 'energy_sample_fields',
+           'MODE_STATUS', 'SYNC_STATES', 'energy_sample_fields',
            'samples_from_trajectory', 'scene_from_sim_doc', 'AnalysisSession',
            'analyze_bag', 'BagAnalysis', 'limit_blas_threads']

@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from gyro_rotor.analysis.samples import Sample
+from gyro_rotor.analysis.samples import make_sample
 
 __all__ = ['DemoRun', 'run_like_demo', 'default_kick_at', 'stream', 'LiveVerdict']
 
@@ -52,19 +52,10 @@ def _live(scene, rate: float):
 
 
 def _samples(block) -> list:
-    e = block.energy
-    general = 'z' not in e         # a system file's z and zdot are joints
-    out = []
-    for i in range(len(block)):
-        out.append(Sample(
-            t=float(e['t_sim'][i]), seq=int(e['seq'][i]), k=int(e['k'][i]),
-            E_star=float(e['E_star'][i]), dE_dt=float(e['dE_dt'][i]),
-            residual=float(e['residual'][i]),
-            z=math.nan if general else float(e['z'][i]),
-            zdot=math.nan if general else float(e['zdot'][i]), D=float(e['D'][i]),
-            positions=tuple(float(v) for v in block.position[i]),
-            velocities=tuple(float(v) for v in block.velocity[i])))
-    return out
+    cols = {k: v.tolist() for k, v in block.energy.items()}
+    pos, vel = block.position.tolist(), block.velocity.tolist()
+    return [make_sample({k: v[i] for k, v in cols.items()}, (tuple(pos[i]), tuple(vel[i])))
+            for i in range(len(block))]
 
 
 def run_like_demo(scene, duration: float, *, rate: float = 250.0,

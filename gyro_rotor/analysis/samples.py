@@ -13,7 +13,8 @@ from typing import Mapping, Sequence
 from gyro_rotor.errors import AnalysisError
 import numpy as np
 
-__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'samples_from_trajectory']
+__all__ = ['Sample', 'SamplePairer', 'energy_sample_fields', 'make_sample',
+           'samples_from_trajectory']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -128,7 +129,7 @@ class SamplePairer:
             else:
                 self.unpaired_energy += 1
             self._energy.popleft()
-            out.append(self._make(fields, joints))
+            out.append(make_sample(fields, joints))
         return out
 
     def flush(self) -> list[Sample]:
@@ -148,7 +149,7 @@ class SamplePairer:
                     self.cut += 1
                 else:
                     self.unpaired_energy += 1
-            out.append(self._make(fields, joints))
+            out.append(make_sample(fields, joints))
         for stamp in self._joints:
             if self._last_energy is None or stamp > self._last_energy:
                 self.cut += 1
@@ -157,15 +158,20 @@ class SamplePairer:
         self._joints.clear()
         return out
 
-    def _make(self, e: dict, joints: tuple | None) -> Sample:
-        pos, vel = joints if joints is not None else (None, None)
-        nan4 = (math.nan,) * 4
-        return Sample(t=e['t_sim'], seq=int(e['seq']), k=int(e.get('k', -1)),
-                      E_star=e['E_star'], dE_dt=e.get('dE_dt', math.nan),
-                      residual=e.get('residual', math.nan), z=e.get('z', math.nan),
-                      zdot=e.get('zdot', math.nan),
-                      D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4,
-                      joints=joints is not None)
+
+def make_sample(e: Mapping[str, float], joints: tuple | None) -> Sample:
+    """Return the sample of one energy message's fields ``e`` and its joint state.
+
+    ``joints``: (positions, velocities), None if it never came (NaN placeholders).
+    """
+    pos, vel = joints if joints is not None else (None, None)
+    nan4 = (math.nan,) * 4
+    return Sample(t=e['t_sim'], seq=int(e['seq']), k=int(e.get('k', -1)),
+                  E_star=e['E_star'], dE_dt=e.get('dE_dt', math.nan),
+                  residual=e.get('residual', math.nan), z=e.get('z', math.nan),
+                  zdot=e.get('zdot', math.nan),
+                  D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4,
+                  joints=joints is not None)
 
 
 def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:

@@ -1,7 +1,7 @@
 """Messages in, analysis out: the glue that the analysis node and the offline analysis share.
 
-Also the scene as a flat mapping (the bag's metadata) and the scene from the simulation
-node's ``~/scene`` document. Pure Python: messages are duck-typed.
+Also the scene from the simulation node's ``~/scene`` document. Pure Python: messages are
+duck-typed.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from gyro_rotor.analysis.samples import energy_sample_fields, Sample, SamplePair
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.errors import AnalysisError
 
-__all__ = ['AnalysisSession', 'scene_to_flat', 'scene_from_sim_doc', 'OtherSystemError']
+__all__ = ['AnalysisSession', 'scene_from_sim_doc', 'OtherSystemError']
 
 
 class OtherSystemError(AnalysisError):
@@ -24,15 +24,6 @@ class OtherSystemError(AnalysisError):
 
     A whole recording of another system, or one foreign message among the right ones.
     """
-
-
-def scene_to_flat(scene) -> dict[str, Any]:
-    """Return the flat dotted keys of a scene, so that ``scene_from_mapping`` rebuilds it.
-
-    A general scene: its keys with the system document embedded
-    (:meth:`~gyro_rotor.core.scene.Scene.to_flat`).
-    """
-    return scene.to_flat()
 
 
 def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] | None = None
@@ -57,7 +48,7 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
     if not isinstance(doc, Mapping) or 'params' not in doc:
         raise AnalysisError(f'not a scene document of rotor_sim: {str(doc)[:80]!r}')
     if isinstance(base, Scene):
-        flat = scene_to_flat(base)
+        flat = base.to_flat()
     elif base is not None:
         flat = dict(base)
     elif isinstance(doc.get('initial'), Mapping):     # documents since issue 8
@@ -65,11 +56,11 @@ def scene_from_sim_doc(doc: Mapping[str, Any], base: Scene | Mapping[str, Any] |
     else:
         path = doc.get('path')
         try:
-            flat = scene_to_flat(load_scene(path if path else doc.get('scene', '')))
+            flat = load_scene(path if path else doc.get('scene', '')).to_flat()
         except AnalysisError:
             raise
         except Exception:
-            flat = scene_to_flat(load_scene(doc.get('scene', '')))
+            flat = load_scene(doc.get('scene', '')).to_flat()
     flat['scene'] = str(doc.get('scene', flat.get('scene', 'custom')))
     for key in ('model', 't_end'):
         if key in doc:

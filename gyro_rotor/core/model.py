@@ -226,17 +226,6 @@ def _compiled(fn):
     return _COMPILED[fn]
 
 
-def _list_rhs(fn, params: RotorParams, n: int):
-    """Plain-float right-hand side ``f(t, y_list) -> list`` of one of the functions above."""
-    P = pack_params(params).tolist()
-
-    def f(t, y):
-        out = [0.0] * n
-        fn(y, P, out)
-        return out
-    return f
-
-
 def drive_rates(p: RotorParams) -> tuple[float, float]:
     """Return (the drive damping root, the fastest oscillation) of the centrifuge [1/s].
 
@@ -291,24 +280,22 @@ class Model:
     def make_rhs(self) -> Callable[[float, np.ndarray], np.ndarray]:
         """Return ``f(t, y) -> dy/dt`` (ndarray), compiled by numba where it is installed."""
         fn = _compiled(self.rhs_function)
-        if fn is None:
-            fl = self.make_rhs_list()
-
-            def rhs(t, y):
-                return np.array(fl(t, y.tolist()))
-            return rhs
         P = pack_params(self.params)
         n = self.n
+        if fn is None:          # plain floats: faster than numpy scalars in plain Python
+            fl, P_list = self.rhs_function, P.tolist()
+
+            def rhs(t, y):
+                out = [0.0] * n
+                fl(y.tolist(), P_list, out)
+                return np.array(out)
+            return rhs
 
         def rhs_c(t, y):
             out = np.empty(n)
             fn(np.asarray(y, dtype=float), P, out)
             return out
         return rhs_c
-
-    def make_rhs_list(self) -> Callable[[float, list], list]:
-        """Return a plain-float right-hand side ``f(t, y_list) -> list``."""
-        return _list_rhs(self.rhs_function, self.params, self.n)
 
     # -- energy ----------------------------------------------------------------------------
     def energy(self, Y) -> np.ndarray:  # pragma: no cover
@@ -428,13 +415,6 @@ class Model:
                          phi_M_dot=0.0, z=0.0, zdot=0.0) -> np.ndarray:  # pragma: no cover
         """State vector from 3-1-3 angles and rates of the stator and the rotor's z, zdot."""
         raise NotImplementedError
-
-    def to_full(self, Y) -> np.ndarray:
-        """Return the equivalent state(s) of the full model (for comparisons)."""
-        Y = np.atleast_2d(np.asarray(Y, dtype=float))
-        q = self.quaternion(Y)
-        W = self.body_rates(Y)
-        return np.column_stack([q, W, Y[:, self.iz], Y[:, self.izd], Y[:, self.idiss]])
 
     # -- the live simulation's interface (gyro_rotor.numerics.live) ------------------------
     #: names of the joint_states columns (the wire layout, written here once; bag/wire.py's

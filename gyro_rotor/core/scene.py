@@ -84,7 +84,7 @@ import sympy
 
 __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'scene_from_flat',
            'find_scene', 'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
-           'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE',
+           'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE', 'INITIAL_UNITS',
            'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs']
 
 DEFAULT_SCENE = 'precession'
@@ -93,15 +93,17 @@ CENTRIFUGE = 'centrifuge'
 #: key of the embedded system document in :meth:`Scene.to_flat`
 SYSTEM_DOC = 'system_doc'
 
-_FLOAT_INITIAL = ('theta0', 'dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot', 'z',
-                  'zdot', 'chi')
+#: SI units of the centrifuge's numeric initial-condition keys (module doc)
+INITIAL_UNITS = {'theta0': 'rad', 'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s',
+                 'dchi': 'rad', 'dz': 'rad', 'dzdot': 'rad/s', 'z': 'rad', 'zdot': 'rad/s',
+                 'chi': 'rad', 'branch': '-'}
 #: keys of a centrifuge scene
 SCENE_KEYS: dict[str, type] = {
     'scene': str, 'description': str, 'system': str, 'model': str, 't_end': float,
     **{name: (int if name == 'pole_pairs' else float) for name in PARAM_FIELDS},
     'initial.mode': str, 'initial.branch': int, 'initial.quaternion': list,
     'initial.omega_body': list,
-    **{f'initial.{k}': float for k in _FLOAT_INITIAL},
+    **{f'initial.{k}': float for k in INITIAL_UNITS if k != 'branch'},
     **{f'perturbation.{k}': float for k in PERTURBATION_KEYS},
     **{name: spec[0] for name, spec in NODE_KEYS.items()},
 }

@@ -30,8 +30,8 @@ import sys
 import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
-from gyro_rotor.analysis.results import ANALYSIS_FIELDS, ANALYSIS_LABEL, MODE_FIELDS, MODE_LABEL
-from gyro_rotor.analysis.session import AnalysisSession, scene_to_flat
+from gyro_rotor.analysis.results import ANALYSIS_FIELDS, MODE_FIELDS
+from gyro_rotor.analysis.session import AnalysisSession
 from gyro_rotor.bag.wire import (energy_from_cdr, joints_from_cdr,
                                  scene_doc_for_bag, scene_ref)
 from gyro_rotor.core.scene import load_scene
@@ -46,7 +46,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import Float64MultiArray, String
 import yaml
 
 __all__ = ['RotorAnalysisNode', 'main', 'OWN_TOPICS']
@@ -67,7 +67,7 @@ def _flat_text(scene) -> str:
     A general system's constants keep the order of its file, so that the offline analysis
     reuses the compiled equations.
     """
-    return yaml.safe_dump(scene_to_flat(scene), sort_keys=False)
+    return yaml.safe_dump(scene.to_flat(), sort_keys=False)
 
 
 def _float_range(lo: float, hi: float) -> list:
@@ -262,19 +262,10 @@ class RotorAnalysisNode(Node):
             self._publish_diag('STALE', text, self._input_values())
             return
         vec = res.analysis_vector()
-        msg = Float64MultiArray()
-        msg.layout.dim = [MultiArrayDimension(label=ANALYSIS_LABEL, size=len(vec),
-                                              stride=len(vec))]
-        msg.data = vec
-        self.pub_analysis.publish(msg)
+        self.pub_analysis.publish(ros_msgs.float_array(vec, ANALYSIS_FIELDS))
         names, rows = res.mode_matrix()
-        mm = Float64MultiArray()
-        ncol = len(MODE_FIELDS)
-        mm.layout.dim = [MultiArrayDimension(label=','.join(names), size=len(rows),
-                                             stride=len(rows) * ncol),
-                         MultiArrayDimension(label=MODE_LABEL, size=ncol, stride=ncol)]
-        mm.data = [float(v) for row in rows for v in row]
-        self.pub_modes.publish(mm)
+        self.pub_modes.publish(ros_msgs.float_array([v for row in rows for v in row], names,
+                                                    MODE_FIELDS))
         self.pub_verdict.publish(String(data=f'{res.verdict}: {res.reason}'))
         values = dict(zip(ANALYSIS_FIELDS, vec))
         values['verdict'] = str(res.verdict)

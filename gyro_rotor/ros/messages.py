@@ -33,7 +33,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
 from visualization_msgs.msg import Marker
 
-__all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'LEVELS', 'stamp', 'joint_state', 'energy_array',
+__all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'LEVELS', 'stamp', 'joint_state', 'float_array',
            'axis_vector', 'stator_pose', 'axis_marker', 'diagnostic_array', 'clock',
            'text', 'ENERGY_LABEL']
 
@@ -72,13 +72,18 @@ def joint_state(t: Time, positions, velocities, efforts, names=JOINT_NAMES,
     return msg
 
 
-def energy_array(values: Mapping[str, float], fields=ENERGY_FIELDS) -> Float64MultiArray:
-    """Float64MultiArray of ``fields`` (default ENERGY_FIELDS, see module doc), all given."""
+def float_array(data, *labels) -> Float64MultiArray:
+    """Build a Float64MultiArray of ``data`` (row major), a dimension per list of labels.
+
+    ``energy``: one dimension of ENERGY_FIELDS (see module doc); ``analysis_modes``: a row
+    per mode, a column per field.
+    """
     msg = Float64MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label=','.join(fields), size=len(fields),
-                                          stride=len(fields))]
-    msg.layout.data_offset = 0
-    msg.data = [float(values[f]) for f in fields]
+    sizes = [len(names) for names in labels]
+    msg.layout.dim = [MultiArrayDimension(label=','.join(names), size=n,
+                                          stride=math.prod(sizes[i:]))
+                      for i, (names, n) in enumerate(zip(labels, sizes))]
+    msg.data = [float(v) for v in data]
     return msg
 
 

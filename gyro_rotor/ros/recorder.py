@@ -164,8 +164,6 @@ class BagRecorder:
         #: why recording stopped (a failed write), None while all is well
         self.failed: str | None = None
         self._types: dict[str, str] = {}
-        #: per recorded topic: whether its type hash came from the graph
-        self.graph_hashes: dict[str, bool] = {}
         self.drain_max = DRAIN_MAX
         self.poll_period = float(poll_period)
         self._last_log: dict[str, int] = {}
@@ -227,7 +225,6 @@ class BagRecorder:
         digest = hashes.pop() if len(hashes) == 1 else None
         self.spool.add_topic(topic, self._types[topic], profiles, topic_type_hash=digest)
         self.received[topic] = 0
-        self.graph_hashes[topic] = digest is not None
 
     # -- the receiving thread -----------------------------------------------------------------
     def _receive(self) -> None:

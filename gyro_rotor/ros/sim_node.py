@@ -209,7 +209,7 @@ class RotorSimNode(Node):
         names, fields = self.sim.joint_names, self.sim.energy_fields
         self._msg_joints = ros_msgs.joint_state(ros_msgs.stamp(0), (0.0,) * len(names),
                                                 (0.0,) * len(names), (), names=names)
-        self._msg_energy = ros_msgs.energy_array(dict.fromkeys(fields, 0.0), fields)
+        self._msg_energy = ros_msgs.float_array([0.0] * len(fields), fields)
         #: messages published per topic over the node's life (in the diagnostics)
         self.published = dict.fromkeys(_TOPICS, 0)
         self.acks = AckWindow((self.pub['joint_states'], self.pub['energy']), self.get_logger())

@@ -16,7 +16,7 @@ import dataclasses
 import warnings
 
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import (CENTRIFUGE, DEFAULT_SCENE, load_scene,
+from gyro_rotor.core.scene import (CENTRIFUGE, DEFAULT_SCENE, INITIAL_UNITS, load_scene,
                                    PERTURBATION_KEYS, scene_from_mapping, SCENE_KEYS)
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.node_settings import NODE_KEYS, NODE_RANGES
@@ -54,8 +54,6 @@ _INITIAL_DOC = {
     'omega_body': 'stator body rates [rad/s]', 'z': 'rotor lag z [rad]',
     'zdot': 'rate of z [rad/s]', 'chi': 'twist chi [rad]',
 }
-_PERTURB_UNITS = {'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s', 'dchi': 'rad',
-                  'dz': 'rad', 'dzdot': 'rad/s'}
 
 
 def _range(name: str) -> tuple | None:
@@ -166,7 +164,7 @@ def declare_parameters(node: Node) -> tuple:
     for k in PERTURBATION_KEYS:
         flat[f'perturbation.{k}'] = _declare(
             node, f'perturbation.{k}', float(base.perturbation.get(k, 0.0)),
-            f'kick of ~/perturb [{_PERTURB_UNITS[k]}]; live')
+            f'kick of ~/perturb [{INITIAL_UNITS[k]}]; live')
     flat.update(_node_keys(node, base.node))
     try:           # the scene file loaded: what fails now comes from the parameters
         with warnings.catch_warnings():

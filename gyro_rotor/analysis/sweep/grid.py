@@ -23,7 +23,7 @@ import math
 from typing import Any, Mapping, Sequence
 
 from gyro_rotor.core.params import PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import load_scene, scene_from_mapping, SCENE_KEYS
+from gyro_rotor.core.scene import INITIAL_UNITS, load_scene, scene_from_mapping, SCENE_KEYS
 from gyro_rotor.errors import did_you_mean, GyroRotorError, ParameterError
 import numpy as np
 
@@ -33,12 +33,8 @@ __all__ = ['Spacing', 'GridAxis', 'SweepGrid', 'parse_axis', 'SWEEP_KEYS', 'key_
 #: most points of one sweep (the grid product)
 MAX_POINTS = 100_000_000
 
-#: units of the sweepable initial-condition keys (scene module doc)
-_INITIAL_UNITS = {'theta0': 'rad', 'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s',
-                  'dchi': 'rad', 'dz': 'rad', 'dzdot': 'rad/s', 'z': 'rad', 'zdot': 'rad/s',
-                  'chi': 'rad', 'branch': '-'}
 #: the scene keys a grid may run over: parameters and numeric initial conditions
-SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in _INITIAL_UNITS)
+SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in INITIAL_UNITS)
 #: the drive keys a system's grid may run over, for every rotor or as drive.ROTOR.KEY
 SYSTEM_DRIVE_KEYS = ('K_S', 'K_D', 'Omega0')
 
@@ -50,7 +46,7 @@ def key_unit(key: str) -> str:
         return PARAM_UNITS[last] or '-'
     if key.startswith('constants.'):
         return '-'                    # a constant of a system file carries no unit
-    return _INITIAL_UNITS.get(key.split('.', 1)[-1], '-')
+    return INITIAL_UNITS.get(key.split('.', 1)[-1], '-')
 
 
 class Spacing(enum.StrEnum):
@@ -206,7 +202,7 @@ class SweepGrid:
             if a.key not in SWEEP_KEYS:
                 hint = (' (use --t-end for the duration)' if a.key == 't_end' else '')
                 raise ParameterError(f"--grid: key '{a.key}' cannot be swept{hint}; sweepable: "
-                                     f"the parameters and initial.{{{', '.join(_INITIAL_UNITS)}}}")
+                                     f"the parameters and initial.{{{', '.join(INITIAL_UNITS)}}}")
             vals = a.values
             if a.is_int and not np.all(vals == np.round(vals)):
                 raise ParameterError(f'--grid {a.spec}: {a.key} takes integers; the grid gives '
