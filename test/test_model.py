@@ -151,3 +151,24 @@ def test_core_does_not_import_rclpy():
             '       if m.startswith(("rclpy", "sensor_msgs", "std_msgs"))]\n'
             'assert not bad, bad\n')
     subprocess.run([sys.executable, '-c', code], check=True)
+
+
+def test_compiled_scalar_forms_equal_the_blends():
+    # the kernels compile drive_law and tilt_ratio on floats as an if (core.model): the same
+    # numbers as the 0/1 blends, both laws, both sides of the series limit
+    numba = pytest.importorskip('numba')
+    from gyro_rotor.core.model import drive_law, tilt_ratio
+
+    @numba.njit
+    def compiled(z, zd, K_S, K_D, pp, th, st):
+        return drive_law(z, zd, K_S, K_D, pp), tilt_ratio(th, st)
+    blend_law, blend_ratio = numba.njit(drive_law), numba.njit(tilt_ratio)   # the blends
+    rng = np.random.default_rng(3)
+    for pp in (0.0, 1.0, 2.0, 4.0):
+        for th in (0.0, 3e-5, 9.99e-5, 1e-4, 0.3, 2.0, 3.1):
+            z, zd, K_S, K_D = rng.normal(size=4) * (3.0, 5.0, 10.0, 0.5)
+            st = float(np.sin(th))
+            got = compiled(z, zd, K_S, K_D, pp, th, st)
+            assert got == (blend_law(z, zd, K_S, K_D, pp), blend_ratio(th, st)), (pp, th)
+            assert np.allclose(got, (drive_law(z, zd, K_S, K_D, pp), tilt_ratio(th, st)),
+                               rtol=1e-15, atol=0.0)

@@ -51,22 +51,32 @@ import numpy as np
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
            'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
            'pack_params', 'tilt_twist_torque', 'drive_rates', 'full_rhs', 'upright_rhs',
-           'locked_rhs', 'axial_momentum', 'numba_able', 'perturb_state',
+           'locked_rhs', 'axial_momentum', 'numba_able', 'tilt_ratio',
+           'perturb_state',
            'PERTURBATION_KEYS', 'AXIS_DOWN']
 
 #: why a run of the centrifuge can fail at a finite state: its one singular orientation
 AXIS_DOWN = 'the axis reached theta = pi (pointing straight down), where the model is singular'
 
 try:  # pragma: no cover - exercised by whichever branch the install has
-    from numba.extending import register_jitable
+    from numba import types as _nb_types
+    from numba.extending import overload as _overload, register_jitable
 
     def numba_able(f):
         """Numba's register_jitable, inlined into the caller (the kernels call it per stage)."""
         return register_jitable(inline='always')(f)
+
+    def _all_scalars(*args):
+        """Return True if every numba type in ``args`` is a float or an integer."""
+        return all(isinstance(a, (_nb_types.Float, _nb_types.Integer)) for a in args)
+
+    _HAVE_NUMBA = True
 except ImportError:  # pragma: no cover
     def numba_able(f):
         """Stand-in for numba's register_jitable: the function as it is."""
         return f
+
+    _HAVE_NUMBA = False
 
 _SERIES_LIMIT = 1e-4
 #: the kick of a centrifuge scene (``perturbation.KEY``, :func:`perturb_state`)
@@ -100,7 +110,21 @@ def theta_over_sin(sin_t: float, cos_t: float) -> float:
 # backend: y of shape (n, N)) and compiled by numba inside the integrators' kernels
 # (``numba_able`` = numba's register_jitable). Branches on values are written as 0/1 blends
 # so that they hold elementwise on arrays; for floats they give the same bits as an if.
-@numba_able
+def _drive_law_scalar(z, zdot, K_S, K_D, pp):
+    """Return :func:`drive_law` for floats, with an ``if`` instead of its blends."""
+    if pp == 0:
+        return -K_S * z - K_D * zdot
+    return -(K_S / pp) * math.sin(pp * z) - K_D * zdot
+
+
+def _ratio_scalar(th, st):
+    """Return :func:`tilt_ratio` for floats, with an ``if`` instead of its blend."""
+    if th < _SERIES_LIMIT:
+        t2 = th * th
+        return 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
+    return th / st
+
+
 def drive_law(z, zdot, K_S, K_D, pp):
     """Drive torque Q on the rotor (eq. 23, or its sine law with pp = pole_pairs > 0).
 
@@ -112,6 +136,14 @@ def drive_law(z, zdot, K_S, K_D, pp):
     # takes the sine's value only where pp > 0, elementwise on arrays)
     sine = 1.0 - lin
     return lin * (-K_S * z) + sine * (-(K_S / ppn) * np.sin(ppn * z * sine)) - K_D * zdot
+
+
+def tilt_ratio(th, st):
+    """Return theta / sin theta from theta and sin theta, by its series below _SERIES_LIMIT."""
+    t2 = th * th
+    small = 1.0 * (th < _SERIES_LIMIT)
+    return (small * (1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0)
+            + (1.0 - small) * (th / (st + small)))
 
 
 @numba_able
@@ -127,14 +159,24 @@ def tilt_twist_torque(qw, qx, qy, qz, Gs, c_theta, c_psi):
     k3 = (qw * qw - qx * qx - qy * qy + qz * qz) * inv_n
     st = np.sqrt(k1 * k1 + k2 * k2)
     th = np.arctan2(st, k3)
-    t2 = th * th
-    small = 1.0 * (th < _SERIES_LIMIT)
-    ratio = (small * (1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0)
-             + (1.0 - small) * (th / (st + small)))
-    dV = Gs - c_theta * ratio
+    dV = Gs - c_theta * tilt_ratio(th, st)
     tw = c_psi * 2.0 * np.arctan2(qz, qw)
     tw_k = tw / (1.0 + k3)
     return dV * k2 - tw_k * k1, -dV * k1 - tw_k * k2, -tw
+
+
+if _HAVE_NUMBA:  # pragma: no branch
+    # the kernels compile drive_law and tilt_ratio on floats as their scalar forms above (an
+    # ``if`` where the blends compute both sides: a sine of 0, a division, about a tenth of
+    # the full model's evaluation; the same numbers for floats, test_model checks it); on
+    # arrays as themselves
+    @_overload(drive_law, inline='always')
+    def _drive_law_typed(z, zdot, K_S, K_D, pp):
+        return _drive_law_scalar if _all_scalars(z, zdot, K_S, K_D, pp) else drive_law
+
+    @_overload(tilt_ratio, inline='always')
+    def _tilt_ratio_typed(th, st):
+        return _ratio_scalar if _all_scalars(th, st) else tilt_ratio
 
 
 @numba_able

@@ -9,10 +9,10 @@ zeros skipped, and the error norm computed with one division per component. The 
 run loop of DOP853 and of the Verner pairs is one template (:data:`_RUN`).
 
 :func:`load` writes the generated module into the cache directory
-(:func:`gyro_rotor.core.cache.cache_root`, folder ``kernels``) under the hash of its text, the
-first time a machine imports the integrators, and imports it from there, so that numba's
-``cache=True`` keeps its machine code beside it; :mod:`~.kernels` holds the module as
-``kernels.rk_generated``.
+(:func:`gyro_rotor.core.cache.cache_root`, folder ``kernels``) under a hash of its text and
+of the modules compiled into it, the first time a machine imports the integrators, and
+imports it from there, so that numba's ``cache=True`` keeps its machine code beside it;
+:mod:`~.kernels` holds the module as ``kernels.rk_generated``.
 """
 
 from __future__ import annotations
@@ -24,8 +24,9 @@ import shutil
 import tempfile
 import textwrap
 
+from gyro_rotor.core import model
 from gyro_rotor.core.cache import cache_root, import_file, note, write_atomic
-from gyro_rotor.numerics.integrators import tableaux as tb
+from gyro_rotor.numerics.integrators import primitives, tableaux as tb
 
 __all__ = ['generate', 'load']
 
@@ -350,17 +351,29 @@ def _holds(path: Path, text: str) -> bool:
         return False
 
 
+def _inlined_sources() -> bytes:
+    """Return the text of the modules whose code numba inlines into the generated kernels.
+
+    numba's cache of a module is valid while that module's file is unchanged: it does not see
+    a changed right-hand side (:mod:`gyro_rotor.core.model`) or primitive (:mod:`~.primitives`)
+    compiled into it. They are part of the generated file's name, so a changed one gets a new
+    file and a fresh compilation, never machine code of the old equations.
+    """
+    return b''.join(Path(m.__file__).read_bytes() for m in (model, primitives))
+
+
 def load(progress=note):
     """Return the generated kernels' module, written into the cache on first use.
 
-    The file is ``kernels/rk_generated_<hash of its text>.py`` in the cache directory: a
-    changed generator or tableau writes a new one, and an unchanged one is imported as it
+    The file is ``kernels/rk_generated_<hash>.py`` in the cache directory, the hash of its
+    text and of the modules compiled into it (:func:`_inlined_sources`): a changed generator,
+    tableau, right-hand side or primitive writes a new one, and an unchanged one is imported as it
     is (its numba cache stays valid). Where the cache cannot be written (read-only, no home
     directory) the module goes to a temporary folder, removed at exit, and numba compiles
     its kernels in every process. ``progress(text)`` gets what a first use writes.
     """
     text = generate()
-    name = 'rk_generated_' + hashlib.sha256(text.encode()).hexdigest()[:16]
+    name = 'rk_generated_' + hashlib.sha256(text.encode() + _inlined_sources()).hexdigest()[:16]
     path = cache_root() / 'kernels' / f'{name}.py'
     if not _holds(path, text):
         try:
