@@ -2,7 +2,7 @@
 
 **The verdict matrix.** Every shipped scene and system is run once for 60 s as the demo
 runs it: rotor_sim's own LiveSimulation as fast as possible (real_time_factor 0), kicked
-through ``~/perturb`` at t = 2 s where the demo kicks (``analysis.replay``). Then
+through ``~/perturb`` at t = 2 s where the demo kicks (``demo_replay``). Then
 
 * *live*: the samples are streamed into the analyzer as rotor_analysis receives them, with
   a result every second of simulation time (as the node publishes at real_time_factor 1);
@@ -33,10 +33,10 @@ import math
 from pathlib import Path
 import random
 
+from demo_replay import run_like_demo, stream
 from gyro_rotor.analysis.analyzer import RotorAnalyzer
 from gyro_rotor.analysis.modes import mode_tolerances
 from gyro_rotor.analysis.offline import analyze_bag
-from gyro_rotor.analysis.replay import run_like_demo, stream
 from gyro_rotor.analysis.samples import SamplePairer
 from gyro_rotor.analysis.sweep.metrics import decay_interval, fit_decay
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decide,

@@ -253,6 +253,16 @@ def _start_nodes(args, scene_arg: str, out: Path, domain_id: int, logs: dict) ->
     return procs
 
 
+def default_kick_at(scene, duration: float) -> float:
+    """Return the demo's kick time: 2 s (a quarter of a shorter run); -1 for none.
+
+    None for a scene without a ``perturbation`` (its initial condition is the kick) and for
+    a sine-law drive (pole_slip: its start far off synchronism is the kick).
+    """
+    kicked = scene.kicked and not any(scene.pole_pairs)
+    return min(2.0, duration / 4) if kicked else -1.0
+
+
 def _first_stop(args, kick_at: float) -> float:
     """Return the simulation time where rotor_sim first stops: the kick's, else the end.
 
@@ -414,7 +424,6 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     kick_at = args.kick_at
     if kick_at is None:
-        from gyro_rotor.analysis.replay import default_kick_at
         kick_at = default_kick_at(scene, args.duration)
     if kick_at >= 0:
         kick_at = _on_grid(kick_at, args.rate)

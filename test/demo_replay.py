@@ -4,10 +4,9 @@
 (:class:`~gyro_rotor.numerics.live.LiveSimulation`, as fast as possible) on the node's
 sample grid, kicks it through the same ``~/perturb`` action at the demo's time, and
 returns the samples as the node publishes them (angles wrapped, the energy fields, ``seq``
-and ``k``). :func:`stream` feeds them to a :class:`~.analyzer.RotorAnalyzer` and evaluates
-it every ``period`` of simulation time, as the analysis node evaluates every second: the
-live verdicts over the run and the final result. Used by the verdict matrix of the tests
-and by ``gyro-rotor demo``'s expected outcome. Pure Python, no rclpy.
+and ``k``). :func:`stream` feeds them to a RotorAnalyzer and evaluates it every ``period``
+of simulation time, as the analysis node evaluates every second: the live verdicts over
+the run and the final result (the verdict matrix of test_verdict). Pure Python, no rclpy.
 """
 
 from __future__ import annotations
@@ -16,8 +15,7 @@ import dataclasses
 import math
 
 from gyro_rotor.analysis.samples import make_sample
-
-__all__ = ['DemoRun', 'run_like_demo', 'default_kick_at', 'stream', 'LiveVerdict']
+from gyro_rotor.cli.commands.demo import default_kick_at
 
 
 @dataclasses.dataclass
@@ -28,16 +26,6 @@ class DemoRun:
     samples: list
     kick_at: float
     kick: str
-
-
-def default_kick_at(scene, duration: float) -> float:
-    """Return the demo's kick time: 2 s (a quarter of a shorter run); -1 for none.
-
-    None for a scene without a ``perturbation`` (its initial condition is the kick) and for
-    a sine-law drive (pole_slip: its start far off synchronism is the kick).
-    """
-    kicked = scene.kicked and not any(scene.pole_pairs)
-    return min(2.0, duration / 4) if kicked else -1.0
 
 
 def _live(scene, rate: float):
@@ -63,8 +51,8 @@ def run_like_demo(scene, duration: float, *, rate: float = 250.0,
     """Run ``scene`` (a name, path or loaded scene) for ``duration`` s as the demo does.
 
     The kick (``~/perturb`` with the scene's ``perturbation``) lands on the first grid
-    sample at or after ``kick_at`` (default :func:`default_kick_at`; < 0: none), as the
-    demo's simulation holds at that time until it is kicked. Samples at t = k / rate for
+    sample at or after ``kick_at`` (default: the demo's ``default_kick_at``; < 0: none), as
+    the demo's simulation holds at that time until it is kicked. Samples at t = k / rate for
     k = 0 .. round(duration * rate).
     """
     from gyro_rotor.core.scene import load_scene
