@@ -305,3 +305,38 @@ def test_cut_after_the_last_chunk_names_the_lost_live_verdict(tmp_path, capsys):
     assert main(['analyze', str(bag), '--no-plots']) == 0
     result = capsys.readouterr().out.strip().splitlines()[-1]
     assert 'records lost: before the recovery' in result, result
+
+
+def test_a_bag_missing_samples_the_live_analysis_saw_is_not_confirmed(tmp_path, capsys):
+    """Review finding: half a split bag, its other file and metadata.yaml gone.
+
+    The remaining file is complete and its own counts match what it holds, so the reader
+    sees no loss; the live verdict recorded in it says how many samples the live analysis
+    saw (3001), and the bag holds fewer: the data criterion must count them as lost.
+    """
+    from pathlib import Path
+    from gyro_rotor.cli.main import main
+    src = Path(__file__).resolve().parent.parent / 'bags' / 'precession'
+    reader = open_bag(src)
+    assert reader.metadata['gyro_rotor.live_result']['samples'] == '3001'
+    bag = tmp_path / 'half'
+    with BagWriter(bag, metadata={k: v for k, v in reader.metadata.items()
+                                  if k != 'rosbag2'}) as w:
+        for topic, info in reader.topics.items():
+            w.add_topic(topic, info.type)
+        messages = list(reader.messages())
+        cut = [t for topic, t, _ in messages if topic == '/energy'][1500]
+        for topic, t, data in messages:
+            if t < cut:
+                w.write(topic, data, t)
+    (bag / 'metadata.yaml').unlink()
+    half = open_bag(bag)
+    assert half.lost == {} and half.unknown_loss == [] and not half.lost_records
+    assert main(['analyze', str(bag), '--no-plots']) != 0
+    out = capsys.readouterr().out
+    result = out.strip().splitlines()[-1]
+    assert 'NOT CONFIRMED' in result and 'data' in result, result
+    import re
+    n = int(re.search(r'^samples (\d+),', out, re.M).group(1))
+    assert n < 1600
+    assert f'{3001 - n} of the 3001 samples the live analysis saw are not in the bag' in out

@@ -98,9 +98,16 @@ def analyze_bag(path, *, scene: str | Scene | None = None, window_s: float | Non
     if session.analyzer.samples == 0:
         raise AnalysisError(f'{path}: the energy and joint_states topics hold no messages')
     live = _live_record(reader)
-    if reader.lost or reader.unknown_loss:
-        session.analyzer.bag_lost = sum(reader.lost.values())
-        session.analyzer.bag_loss = reader.loss_text()
+    losses = [reader.loss_text()] if reader.lost or reader.unknown_loss else []
+    session.analyzer.bag_lost = sum(reader.lost.values())
+    unseen = _unseen_live_samples(reader, session.analyzer.samples) if until is None else 0
+    if unseen:
+        # the files' own counts cannot tell a file of a split bag that is gone with its
+        # metadata.yaml: the live analysis recorded how many samples it saw
+        losses.append(f'{unseen} of the {session.analyzer.samples + unseen} samples the live '
+                      f'analysis saw are not in the bag')
+        session.analyzer.bag_lost += unseen
+    session.analyzer.bag_loss = '; '.join(losses)
     how = 'the recording is truncated' if reader.truncated else cut_note
     if how:
         cut_note = f'{how}: analysed up to the cut at t = {session.t_sim:.3f} s'
@@ -135,6 +142,15 @@ def _live_record(reader) -> dict | None:
     rec = reader.metadata['gyro_rotor.live_result']
     return _json_record(reader, 'gyro_rotor.live_result', 'json', None) or {
         'verdict': rec.get('verdict'), 'error': rec.get('error')}
+
+
+def _unseen_live_samples(reader, samples: int) -> int:
+    """Return how many more samples the live analysis saw than the bag holds (0 if unknown)."""
+    try:
+        seen = int(reader.metadata['gyro_rotor.live_result']['samples'])
+    except (KeyError, TypeError, ValueError):
+        return 0
+    return max(0, seen - samples)
 
 
 def _recorded_scene(reader, scene_topic):
