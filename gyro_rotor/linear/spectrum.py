@@ -19,7 +19,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
-__all__ = ['spectrum', 'track', 'drive_sensitivity', 'unit', 'unit_eig', 'ZERO_ROOT',
+__all__ = ['spectrum', 'track', 'drive_sensitivity', 'zero_K_sensitivities', 'resting_space',
+           'unit', 'unit_eig', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
@@ -124,6 +125,84 @@ def drive_sensitivity(A0: np.ndarray, BC: np.ndarray, lam: np.ndarray, W: np.nda
         lp, lm = (x[np.argmin(abs(x - lam[j]))] for x in near)
         d[j] = (lp - lm) / (2 * h)
     return d
+
+
+def resting_space(A0: np.ndarray, BC: np.ndarray) -> np.ndarray:
+    """Return an orthonormal basis of the states at rest for every K: A0 v = 0 = BC v.
+
+    On this space A(K) = A0 - K BC is zero for every K: its roots stay at 0 with the same
+    eigenvectors (d lambda/d K = 0 exactly). The coordinate axes whose column of A0 and of
+    BC is zero (a rotor angle z without drive stiffness, K_S = 0) come last, as themselves;
+    the rest of the space (e.g. a cyclic angle's direction) before them, orthogonal to them.
+    """
+    n = A0.shape[0]
+    axes = [i for i in range(n) if not np.any(A0[:, i]) and not np.any(BC[:, i])]
+    others = [i for i in range(n) if i not in axes]
+    S = np.vstack([A0, BC])[:, others]
+    if not others:
+        return np.eye(n)[:, axes]
+    _, sv, Vh = np.linalg.svd(S)
+    tol = 1e-10 * max(float(sv[0]) if sv.size else 0.0, 1e-300)
+    rank = int(np.sum(sv > tol))
+    N = np.zeros((n, len(others) - rank))
+    N[others] = Vh[rank:].conj().T
+    return np.hstack([N, np.eye(n)[:, axes]])
+
+
+def zero_K_sensitivities(A0: np.ndarray, BC: np.ndarray) -> tuple:
+    """Return the roots of A0, their d lambda/d K of A0 - K BC at K = 0, right eigenvectors.
+
+    The one rule of every system (the centrifuge's and a system file's): the resting space
+    (:func:`resting_space`, dimension k) is taken out first; its k roots stay at 0 for every
+    K (d = 0, returned last, eigenvectors its basis). The other roots are those of the
+    reduced matrix Q^H A(K) Q (Q an orthonormal basis of the complement; the resting space
+    is invariant, so A(K) is block triangular in (Q, N)): a simple root by perturbation
+    theory, d = -(w^H BCr v)/(w^H v); a repeated root (a cluster within 1e-6 of the
+    spectral scale) by first-order degenerate perturbation theory if it is semisimple
+    there (d the eigenvalues of the perturbation restricted to it, its vectors the ones
+    the perturbation diagonalizes), nan (not defined: the roots split like sqrt(K)) if it
+    is still defective. Eigenvectors of the reduced roots are returned as Q y (unit norm).
+    """
+    import scipy.linalg as sl
+    n = A0.shape[0]
+    N = resting_space(A0, BC)
+    k = N.shape[1]
+    if k:
+        Qf, _ = np.linalg.qr(np.hstack([N, np.eye(n)]))
+        Q = Qf[:, k:n]
+    else:
+        Q = np.eye(n)
+    Ar, Br = Q.conj().T @ A0 @ Q, Q.conj().T @ BC @ Q
+    lam, W, V = sl.eig(Ar, left=True, right=True)
+    V, W = unit(V).astype(complex), unit(W).astype(complex)
+    r = len(lam)
+    d = np.full(r, np.nan, dtype=complex)
+    scale = max(float(np.abs(lam).max(initial=0.0)), np.linalg.norm(A0), 1.0)
+    tol = 1e-6 * scale
+    done = np.zeros(r, dtype=bool)
+    for j in range(r):
+        if done[j]:
+            continue
+        idx = [i for i in range(r) if not done[i] and abs(lam[i] - lam[j]) <= tol]
+        done[idx] = True
+        if len(idx) == 1:
+            den = np.vdot(W[:, j], V[:, j])
+            if abs(den) > 1e-8:
+                d[j] = -np.vdot(W[:, j], Br @ V[:, j]) / den
+            continue
+        Nc, L = V[:, idx], W[:, idx]
+        G = L.conj().T @ Nc
+        sv = [np.linalg.svd(X, compute_uv=False) for X in (Nc, L)]
+        # still defective (the vectors of the cluster do not span it): not defined
+        if min(x[-1] / x[0] for x in sv) < 1e-6 or np.linalg.cond(G) > 1e8:
+            continue
+        M = -np.linalg.solve(G, L.conj().T @ Br @ Nc)
+        mu, Y = np.linalg.eig(M)
+        d[idx] = mu
+        V[:, idx] = unit(Nc @ Y)
+        lam[idx] = np.mean(lam[idx])
+    return (np.concatenate([lam, np.zeros(k)]), np.concatenate([d, np.zeros(k)]),
+            np.hstack([unit(Q @ V), N.astype(complex)]), Q, r)
 
 
 def _spectrum(lin: LinearSystem, K_D: float, left: bool):

@@ -35,7 +35,8 @@ from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
-                                        track, unit, ZERO_ROOT, ZERO_ROOT_Z)
+                                        track, unit, zero_K_sensitivities, ZERO_ROOT,
+                                        ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
@@ -69,8 +70,8 @@ class Mode:
 
     ``freq_hz`` = |Im lambda|/(2 pi); ``zeta`` = -Re lambda/|lambda|; ``tau`` = -1/Re lambda
     [s] (inf if Re >= 0); ``dRe_dKD`` = d Re(lambda)/d K_D at K_D = 0 [1/(N m s^2/rad)]
-    (nan: not defined, a root of a defective zero root); ``reached_by_drive``: its root at
-    K_D = 0 is not on the fixed subspace; ``damped``: the rule of
+    (nan: not defined, a root of a cluster still defective once the resting space is out);
+    ``reached_by_drive``: its root at K_D = 0 is not on the fixed subspace; ``damped``: the rule of
     :func:`gyro_rotor.linear.claims.damped` (None: not classified, then Re < -resolution);
     ``kind`` a :class:`ModeKind` (ZERO: a zero root); ``rotor_angle``: a zero root whose
     eigenvector is a rotor angle z (no drive stiffness, K_S = 0: judged marginal);
@@ -162,18 +163,37 @@ class StabilityReport(Verdict):
 def sensitivities(lin: LinearSystem) -> tuple:
     """(eigenvalues of A0, d lambda/d K_D at K_D = 0, weighted right eigenvectors).
 
-    :func:`~gyro_rotor.linear.spectrum.drive_sensitivity` (d lambda/d K_D =
-    -(w^H b)(c^T v)/(w^H v)). A semisimple cluster of zero roots
-    (K_S = 0 about solution II: the roots of psi and of the drive's slip) has no unique
-    eigenvectors: its basis is the one that the perturbation -K_D b c^T diagonalizes
-    (first-order degenerate perturbation theory), and d lambda/d K_D are the eigenvalues
-    of the perturbation restricted to it.
+    d lambda/d K_D by the one rule of every system (:func:`_one_rule`). A semisimple
+    cluster of zero roots (K_S = 0 about solution II: the roots of psi and of the drive's
+    slip) has no unique eigenvectors: its basis is the one that the perturbation
+    -K_D b c^T diagonalizes (first-order degenerate perturbation theory).
     """
     lam, Vw, W = spectrum(lin, 0.0, left=True)
     V = Vw / lin.weights[:, None]
     d = drive_sensitivity(lin.A0, np.outer(lin.b, lin.c), lam, W, V)
     _zero_cluster(lin, lam, V, W, Vw, d)
-    return lam, d, Vw
+    return lam, _one_rule(lin, lam, Vw), Vw
+
+
+def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
+    """Return d lambda/d K_D of the roots ``lam`` (vectors ``Vw``) by the one rule.
+
+    :func:`~gyro_rotor.linear.spectrum.zero_K_sensitivities` (the resting space out, the
+    rest by perturbation theory on the reduced matrix), its roots assigned to ``lam`` by
+    eigenvalue and eigenvector (energy-weighted; a state without energy, z at K_S = 0,
+    counted unweighted).
+    """
+    from scipy.optimize import linear_sum_assignment
+    lam1, d1, V1, _, _ = zero_K_sensitivities(lin.A0, np.outer(lin.b, lin.c))
+    w = np.where(lin.weights > 0, lin.weights, 1.0)
+    U1 = unit(V1 * w[:, None])
+    scale = max(float(np.abs(lam).max(initial=0.0)), 1.0)
+    cost = (np.abs(lam[:, None] - lam1[None, :]) / scale
+            + 1.0 - np.abs(Vw.conj().T @ U1))
+    rows, cols = linear_sum_assignment(cost)
+    d = np.empty(len(lam), dtype=complex)
+    d[rows] = d1[cols]
+    return d
 
 
 def _zero_cluster(lin, lam, V, W, Vw, d) -> None:

@@ -275,8 +275,9 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     system: a root on the fixed subspace of A(0) is unreached and stays where it is for
     every K). ``eigenvalue_K_D0`` is the root at K = 0 the root is followed from
     (eigenvector continuity), ``dRe_dKD`` its sensitivity there to a common K (nan, not
-    defined, for a root of a defective zero root: a Jordan block), ``resolution`` its
-    round-off (:func:`gyro_rotor.linear.roundoff.resolutions`). A zero root whose
+    defined, for a root of a cluster still defective once the resting space is out:
+    :func:`gyro_rotor.linear.spectrum.zero_K_sensitivities`), ``resolution`` its round-off
+    (:func:`gyro_rotor.linear.roundoff.resolutions`). A zero root whose
     eigenvector is mostly a rotor angle z is ``rotor_angle`` (no drive stiffness).
     """
     from gyro_rotor.linear.roundoff import resolutions
@@ -316,35 +317,32 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
 def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     """Return, for each root ``lam`` of A at dampings ``Ks``, its K = 0 root and d Re/d K there.
 
-    The roots are followed from K = 0 (every drive's K scaled by s in [0, 1], a log path)
-    by eigenvector continuity (:func:`gyro_rotor.linear.spectrum.track`); the sensitivity
-    to a common K by :func:`gyro_rotor.linear.spectrum.drive_sensitivity`.
+    The sensitivity to a common K, and the roots that stay at 0 for every K (the resting
+    space), by the one rule :func:`gyro_rotor.linear.spectrum.zero_K_sensitivities`; the
+    other roots are followed from K = 0 (every drive's K scaled by s in [0, 1], a log path)
+    by eigenvector continuity (:func:`gyro_rotor.linear.spectrum.track`) on the reduced
+    matrix.
     """
-    from scipy.linalg import eig
     from scipy.optimize import linear_sum_assignment
-    from gyro_rotor.linear.spectrum import drive_sensitivity, track, unit, unit_eig
+    from gyro_rotor.linear.spectrum import track, unit, unit_eig, zero_K_sensitivities
     BC = lin.b_all @ lin.c_all.T
-    lam0, W, V0 = eig(lin.A_cons, left=True, right=True)
-    V0 = unit(V0)
+    # the one rule (also the centrifuge's): the resting space out, the rest on Q^H A Q;
+    # its roots are followed there (their vectors stay apart where the full ones merge
+    # into a rotor angle's Jordan block)
+    lam0, d0, V0, Q, r = zero_K_sensitivities(lin.A_cons, BC)
+    d0 = d0.real
+    Qh = Q.conj().T
+    Vr = unit(Qh @ V0[:, :r])
 
     def fn(s):
         if s == 0:
-            return lam0, V0
-        return unit_eig(lin.A_cons - lin.b_all @ np.diag(s * Ks) @ lin.c_all.T)
+            return lam0[:r], Vr
+        return unit_eig(Qh @ (lin.A_cons - lin.b_all @ np.diag(s * Ks) @ lin.c_all.T) @ Q)
     path = [0.0] + list(np.geomspace(1e-6, 1.0, 49)) if np.any(Ks > 0) else [0.0]
-    end = track(fn, path, [''] * len(lam0), log=True)[-1]
+    end = np.concatenate([track(fn, path, [''] * r, log=True)[-1], lam0[r:]])
     rows, cols = linear_sum_assignment(np.abs(end[:, None] - lam[None, :]))
     start = np.empty(len(lam), dtype=complex)
     d = np.empty(len(lam))
-    d0 = drive_sensitivity(lin.A_cons, BC, lam0, W, V0).real
-    # a defective zero root (more zero roots than null vectors: a Jordan block) has no
-    # first-order sensitivity: not defined
-    scale = max(1.0, float(np.abs(lam0).max(initial=0.0)))
-    zero = np.abs(lam0) <= 1e-7 * scale
-    sv = np.linalg.svd(lin.A_cons, compute_uv=False)
-    nullity = int(np.sum(sv <= 1e-10 * max(float(sv[0]), 1e-300)))
-    if zero.sum() > nullity:
-        d0 = np.where(zero, math.nan, d0)
     start[cols], d[cols] = lam0[rows], d0[rows]
     return start, d
 
