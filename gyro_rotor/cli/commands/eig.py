@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
             continue                     # a complex pair once, Im >= 0
         im = shown(abs(lam.imag), r)
         decay = '-' if m.kind == ModeKind.ZERO else decay_text(lam.real, r)
-        # a root of a defective (Jordan) zero root has no first-order sensitivity
+        # a root of a zero cluster that stays defective once the resting states are out
+        # (spectrum.zero_K_sensitivities) splits like sqrt(K_D): no first-order sensitivity
         dre = f'{m.dRe_dKD:+11.4e}' if math.isfinite(m.dRe_dKD) else f'{"not defined":>11s}'
         print(f'  {m.name:40s} {fmt_re(lam.real, r)} {im:12.6f} {im / (2 * np.pi):9.4f} '
               f'{m.zeta:10.3e} {decay:>13s} {dre}  '
