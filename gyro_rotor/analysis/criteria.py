@@ -79,17 +79,27 @@ def lyapunov(segs: list[SegmentResult], tol: float, rtol: float) -> Criterion:
 
 
 def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
-    """Check that |E* + D - E_ref| stays below ``warn`` (interval: its rounding, 4 ulp)."""
-    worst = max((s.residual_max for s in segs), default=math.nan)
-    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
-    nums = {'residual_max_J': worst, 'tol_J': warn}
+    """Check that |E* + D - E_ref| stays below ``warn`` (interval: its rounding, 4 ulp).
+
+    E* + D - E_ref is computed from the recorded E* and D (E_ref: E* + D - residual at a
+    segment's first sample) and held together with the recorded residual: the larger of
+    the two, and their difference, must stay below ``warn``.
+    """
     name = CriterionName.ENERGY_BALANCE
+    recorded = max((s.residual_max for s in segs), default=math.nan)
+    computed = max((s.balance_max for s in segs), default=math.nan)
+    mismatch = max((s.balance_mismatch for s in segs), default=math.nan)
+    worst = max(computed, recorded, mismatch)
+    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
+    nums = {'residual_max_J': recorded, 'balance_max_J': computed, 'mismatch_J': mismatch,
+            'tol_J': warn}
     if not segs or not math.isfinite(worst):
         return Criterion(name, Status.NOT_YET, 'no residual yet', nums)
     status = decide(Measured.pm(worst, 4 * _EPS * max(E, 1.0)), warn, 'below')
     rel = {Status.PASS: '<=', Status.FAIL: '>', Status.NOT_YET: 'at'}[status]
-    return Criterion(name, status, f'max |E* + D - E_ref| = {worst:.3g} J ({rel} '
-                     f'{warn:.1g} J)', nums)
+    return Criterion(name, status, f'max |E* + D - E_ref| = {computed:.3g} J from the '
+                     f'recorded E* and D, recorded residual max {recorded:.3g} J, they differ '
+                     f'by up to {mismatch:.3g} J ({rel} {warn:.1g} J)', nums)
 
 
 def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
@@ -224,14 +234,16 @@ def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
 
 
 def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 0,
-         truncated: str = '', bag_lost: int = 0, bag_loss: str = '') -> Criterion:
+         truncated: str = '', bag_lost: int = 0, bag_loss: str = '',
+         non_finite_fields: tuple = ()) -> Criterion:
     """No message lost (sequence gaps, or in a damaged bag), no sample unpaired, all finite.
 
     ``cut``: messages past the end of the other topic at a cut recording (the one sample
     whose partner the cut took: not a loss the data show); ``truncated`` says where the
     recording was cut, if it was. ``bag_lost`` and ``bag_loss`` are the recorded messages a
     damaged bag lost (counted by its reader) and the line that says which; any of it fails
-    the criterion, so a damaged bag never gives a plain CONFIRMED.
+    the criterion, so a damaged bag never gives a plain CONFIRMED. ``non_finite_fields``:
+    the recorded fields that were NaN or infinite (named in the text).
     """
     nums = {'samples': samples, 'dropped': dropped, 'unpaired': unpaired,
             'non_finite': non_finite, 'cut': cut, 'bag_lost': bag_lost}
@@ -239,6 +251,8 @@ def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 
         return Criterion(CriterionName.DATA, Status.NOT_YET, 'no samples yet', nums)
     text = (f'{samples} samples, {dropped} messages lost (sequence gaps), {unpaired} '
             f'unpaired between energy and joint_states, {non_finite} with non-finite values')
+    if non_finite_fields:
+        text += f' ({", ".join(non_finite_fields)})'
     if cut:
         text += f' ({cut} at the cut of the recording without its partner: not counted)'
     if truncated:

@@ -1,0 +1,118 @@
+"""The verdict's numbers are what it computes from the recorded data (review findings).
+
+Small synthetic sample streams of the shipped precession scene (the nonlinear model,
+:func:`~gyro_rotor.analysis.samples.samples_from_trajectory`), altered the way a corrupt
+or an unusual recording would be.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from gyro_rotor.analysis.checks import RotorAnalyzer
+from gyro_rotor.analysis.samples import samples_from_trajectory
+from gyro_rotor.numerics.simulate import simulate
+from hypothesis import given, HealthCheck, settings, strategies as st
+import pytest
+
+
+@pytest.fixture(scope='module')
+def run():
+    tr = simulate('precession', t_end=4.0, rate=250.0)
+    return tr.scene, samples_from_trajectory(tr)
+
+
+def _status(res, name):
+    return {str(c.name): c for c in res.criteria}[name]
+
+
+def _feed(scene, samples, **kw):
+    a = RotorAnalyzer(scene, window_s=0, checkpoint_s=0, **kw)
+    a.add_many(samples)
+    return a
+
+
+# -- finding 1: the energy balance from the recorded E* and D, every field finite ---------------
+def test_a_jump_of_the_recorded_D_fails_the_energy_balance(run):
+    # D + 1 J in one message, the recorded residual untouched: E* + D - E_ref is 1 J there
+    scene, samples = run
+    bad = [dataclasses.replace(s, D=s.D + 1.0) if i == 500 else s
+           for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    res = a.result()
+    c = _status(res, 'energy balance')
+    assert str(c.status) == 'FAIL', c.detail
+    assert c.numbers['balance_max_J'] == pytest.approx(1.0, rel=1e-9)
+    assert c.numbers['residual_max_J'] < 1e-9
+    assert a.kicks == 0 and not res.confirmed
+
+
+@pytest.mark.parametrize('field', ['D', 'residual', 'dE_dt', 'zdot'])
+def test_a_non_finite_recorded_field_fails_data_and_is_named(run, field):
+    scene, samples = run
+    bad = [dataclasses.replace(s, **{field: math.nan}) if i == 500 else s
+           for i, s in enumerate(samples)]
+    res = _feed(scene, bad).result()
+    c = _status(res, 'data')
+    assert str(c.status) == 'FAIL' and c.numbers['non_finite'] == 1, c.detail
+    assert f'({field})' in c.detail
+    assert not res.confirmed
+
+
+# -- finding 4: a kick is a jump of E* + D in either direction ---------------------------------
+def _kicked(samples, i, jump):
+    """E* moved by ``jump`` from sample i on, D and the residual continuous (a ~/perturb)."""
+    return [dataclasses.replace(s, E_star=s.E_star + jump) if k >= i else s
+            for k, s in enumerate(samples)]
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(i=st.integers(10, 990), size=st.floats(1e-6, 1e-1), up=st.booleans())
+def test_a_kick_either_way_starts_a_segment(run, i, size, up):
+    scene, samples = run
+    jump = size if up else -size
+    a = _feed(scene, _kicked(samples[:1000], i, jump))
+    assert a.kicks == 1 and len(a.segments) == 2
+    assert a.segments[1].reason.startswith('kick')
+    assert a.segments[1].samples == 1000 - i
+    # each segment's balance holds against its own E_ref
+    assert max(s.balance_max for s in a.segments) < 1e-9
+
+
+def test_a_lowering_kick_is_no_energy_balance_failure(run):
+    scene, samples = run
+    res = _feed(scene, _kicked(samples, 600, -3.16e-7)).result()
+    assert res.kicks == 1
+    assert str(_status(res, 'energy balance').status) == 'PASS'
+
+
+def test_e_star_and_residual_jumping_together_is_no_kick(run):
+    # an integration error moves E* and the residual together: the Lyapunov criterion's
+    scene, samples = run
+    bad = [dataclasses.replace(s, E_star=s.E_star - 1e-4, residual=s.residual - 1e-4)
+           if i >= 600 else s for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    assert a.kicks == 0
+
+
+# -- finding 3: a cap on the samples kept never makes the shortest fitted window unreachable ----
+def test_the_sample_cap_thins_the_window_instead_of_shortening_it(run):
+    # 1001 samples at 250 Hz (4 s) kept in 300 rows: 1.2 s of them would be < min_fit_s 2 s
+    scene, samples = run
+    a = _feed(scene, samples, max_window_samples=300)
+    res = a.result()
+    seg = res.segments[-1]
+    assert seg.energy_fit is not None, seg.criteria[0].detail
+    assert seg.window_s >= 2.0 and a.segments[-1].stride == 4
+    assert str(_status(res, 'decay').status) != 'NOT YET'
+
+
+def test_a_lost_message_in_a_thinned_window_is_still_missing(run):
+    # a stride of 4 samples hides one lost message from the time grid; its seq does not
+    scene, samples = run
+    gap = [s for i, s in enumerate(samples) if i != 901]
+    a = _feed(scene, gap, max_window_samples=300)
+    seg = a.result().segments[-1]
+    assert a.dropped == 1 and seg.missing == 1 and seg.energy_fit is None
