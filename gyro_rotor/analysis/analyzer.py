@@ -610,7 +610,7 @@ class RotorAnalyzer:
 
 
 def _kick_jump(a: Sample, b: Sample, tol: float) -> float:
-    """Return the jump of E* between two consecutive samples if it is a kick, else 0.
+    """Return the jump of E* + D between two samples if it is a kick (E*'s jump), else 0.
 
     Between samples E* decreases only by the work D dissipates (eq. 17), so E* + D is
     constant up to the integration error, which the residual E* + D - E_ref shows as well.
@@ -626,7 +626,7 @@ def _kick_jump(a: Sample, b: Sample, tol: float) -> float:
     d_D = (b.D - a.D) + 0.5 * (b.t - a.t) * (a.dE_dt + b.dE_dt)
     if not (abs(d_res) < 0.5 * abs(jump) and abs(d_D) < 0.5 * abs(jump)):
         return 0.0
-    return b.E_star - a.E_star
+    return jump
 
 
 def _gone_after(pred: Prediction, dt: float | None) -> float:
