@@ -116,3 +116,27 @@ def test_a_lost_message_in_a_thinned_window_is_still_missing(run):
     a = _feed(scene, gap, max_window_samples=300)
     seg = a.result().segments[-1]
     assert a.dropped == 1 and seg.missing == 1 and seg.energy_fit is None
+
+
+# -- finding 2: a mode above the Nyquist frequency shows at its alias, which is explained ------
+@pytest.mark.parametrize('rate', [10.0, 20.0])
+def test_aliases_of_modes_above_nyquist_are_explained(rate):
+    tr = simulate('precession', t_end=12.0, rate=rate)
+    a = RotorAnalyzer(tr.scene, window_s=8.0)
+    a.add_many(samples_from_trajectory(tr))
+    res = a.result()
+    c = _status(res, 'modes')
+    assert c.numbers['unexplained_hz'] == [], c.detail
+    assert str(c.status) == 'PASS', c.detail
+    # the rotor-field coupling (10.73 Hz, tau 0.28 s) has died by the last windows; the
+    # nutation (9.709 Hz) is above Nyquist at 10 Hz only; their products show folded too
+    assert ('sampled alias of nutation' in c.detail) == (rate == 10.0)
+    assert 'sampled alias of the combination tone' in c.detail
+
+
+def test_alias_folds_into_half_the_sample_rate():
+    from gyro_rotor.analysis.modes import alias_hz
+    assert alias_hz(9.709, 10.0) == pytest.approx(0.291)
+    assert alias_hz(10.731, 20.0) == pytest.approx(9.269)
+    assert alias_hz(19.417, 10.0) == pytest.approx(0.583)
+    assert alias_hz(3.0, 10.0) == 3.0
