@@ -140,3 +140,53 @@ def test_alias_folds_into_half_the_sample_rate():
     assert alias_hz(10.731, 20.0) == pytest.approx(9.269)
     assert alias_hz(19.417, 10.0) == pytest.approx(0.583)
     assert alias_hz(3.0, 10.0) == 3.0
+
+
+# -- finding 6: a root predicted to grow is never "damped", never passes ------------------------
+_ONE = ('name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {{J: 0.1, C: 0.01, k: {k}}}\n'
+        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
+        'potential: "k*x**2/2"\n'
+        'drives:\n  - {{K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}}\n')
+
+
+def _one_scene(tmp_path, k):
+    from gyro_rotor.core.scene import load_scene
+    (tmp_path / 'one.yaml').write_text(_ONE.format(k=k))
+    (tmp_path / 'sc.yaml').write_text(
+        '/**:\n  ros__parameters:\n    system: one.yaml\n    t_end: 10.0\n'
+        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    return load_scene(str(tmp_path / 'sc.yaml'))
+
+
+@pytest.mark.parametrize('k', [-0.01, -1e-6])
+def test_a_mode_predicted_to_grow_is_never_damped_nor_a_pass(tmp_path, k):
+    scene = _one_scene(tmp_path, k)
+    tr = simulate(scene, t_end=6.0, rate=250.0)
+    a = RotorAnalyzer(scene, window_s=8.0)
+    a.add_many(samples_from_trajectory(tr))
+    res = a.result()
+    grow = {m.name for m in res.prediction.modes
+            if m.eigenvalue.real > 0 and not (m.marginal or m.structural)}
+    assert grow
+    for m in res.judged.modes:
+        if m.name in grow:
+            assert str(m.status) not in ('weakly damped', 'decaying as predicted'), m.status
+    for name in ('modes', 'decay'):
+        c = _status(res, name)
+        assert str(c.status) != 'PASS', c.detail
+    assert 'no decaying mode predicted' not in _status(res, 'decay').detail
+    assert not res.confirmed
+
+
+def test_a_constant_with_unresolved_slow_terms_is_not_called_the_limit(tmp_path):
+    # k = 10: a mode decaying at 2 x 0.00205 1/s is merged into the fitted constant over an
+    # 8 s window; that constant (4.8e-4 J, +- 5e-7) is not the limit E*_inf = 0 J
+    scene = _one_scene(tmp_path, 10.0)
+    tr = simulate(scene, t_end=8.0, rate=250.0)
+    a = RotorAnalyzer(scene, window_s=8.0)
+    a.add_many(samples_from_trajectory(tr))
+    res = a.result()
+    fit = res.judged.energy_fit
+    assert fit.slow and abs(fit.E_inf) > 100 * fit.E_inf_sigma
+    detail = _status(res, 'decay').detail
+    assert 'E*_inf =' not in detail and 'not the limit E*_inf' in detail

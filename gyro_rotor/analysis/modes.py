@@ -608,6 +608,8 @@ def _judge(m: PredictedMode, r: Root, span: float) -> ModeCheck:
         status = ModeStatus.STRUCTURAL_ZERO_ROOT
     elif m.marginal:
         status = ModeStatus.EXPECTED_MARGINAL
+    elif ev.real > 0:
+        status = ModeStatus.GROWING             # never "damped", however slow its growth
     elif -ev.real * span < RESOLVABLE:
         status = ModeStatus.WEAKLY_DAMPED       # its decay is below this window's resolution
     elif rate_status is None:
