@@ -42,8 +42,9 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
     'diagnostics_period': (float, 1.0, 'period of /diagnostics [s]'),
     'max_catch_up': (float, 0.25, 'most wall seconds of simulation one tick may catch up'),
     'stop_at_t_end': (bool, False, 'stop integrating (and idle) when t reaches t_end'),
-    'max_residual': (float, 1.0, 'divergence guard: |energy-balance residual| [J] above '
-                                 'which the node stops integrating'),
+    'max_residual': (float, 1.0, 'divergence guard: the node stops integrating when '
+                                 '|energy-balance residual| exceeds this [J] times '
+                                 'max(1, |E*|/J, |E_ref|/J)'),
     'wait_for_subscribers': (int, 0, 'hold simulation time at 0 until joint_states and '
                                      'energy each have this many subscribers (a recorder '
                                      'then gets every sample from t = 0; 0 = start at once)'),

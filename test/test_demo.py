@@ -99,3 +99,33 @@ def test_demo_of_a_general_system_at_its_default_duration(tmp_path, scene, verdi
     final = json.loads(bag.metadata['gyro_rotor.live_result']['json'])
     assert final['verdict'] == verdict
     assert 'not confirmed' not in r.stdout
+
+
+def test_demo_stops_watching_when_the_simulation_diverged(tmp_path, capsys):
+    """Review finding 7: rotor_sim stopped at t = 2.19 s; the demo waited ~2 min for 5 s.
+
+    The view (a stand-in for the demo's rclpy node) has the simulation's diagnostics say
+    'diverged: ...' while its time stays short of the duration: the watch returns at once
+    (the analysis of the bag then says what the data show), never waits for its deadline.
+    """
+    import argparse
+    from gyro_rotor.cli.commands import demo
+
+    class View:
+        energy = {'t_sim': 2.192}
+        diverged = 'diverged: energy-balance residual -1.09 J at t = 2.192 s'
+        spins = 0
+
+        def spin(self, _timeout):
+            self.spins += 1
+            assert self.spins < 100, 'the demo kept waiting after the divergence'
+
+    class Proc:
+        module = 'gyro_rotor.ros.sim_node'
+
+        def poll(self):
+            return None
+
+    args = argparse.Namespace(quiet=True, duration=5.0, rtf=0.0, rate=250.0)
+    assert demo._watch(args, View(), [Proc()], tmp_path, -1.0).startswith('diverged:')
+    assert 'the simulation stopped at t = 2.192 s: diverged:' in capsys.readouterr().out

@@ -275,3 +275,33 @@ def test_a_kick_the_model_cannot_evaluate_is_refused_and_changes_nothing():
     assert sim.stepper is stepper and np.array_equal(sim.stepper.y, y)
     assert sim.baseline.E_ref == E_ref and sim.diverged is None
     assert run_ticks(sim, clock, 2)
+
+
+def test_residual_guard_is_relative_to_the_energy_scale(tmp_path):
+    """Review finding 7: a statically unstable system's motion grows to |E*| ~ 1e14 J.
+
+    Its residual (1e-14 relative, about 1 J there) stopped the integration at
+    t = 2.19 s with an absolute bound of 1 J; the bound is max_residual x max(1 J, |E*|,
+    |E_ref|).
+    """
+    (tmp_path / 'one_neg.yaml').write_text(
+        'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
+        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
+        'potential: "k*x**2/2"\n'
+        'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
+    (tmp_path / 'sc_neg.yaml').write_text(
+        '/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: 10.0\n'
+        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    scene = load_scene(str(tmp_path / 'sc_neg.yaml'))
+    cfg = {k: scene.node.get(k, spec[1]) for k, spec in NODE_KEYS.items()
+           if k != 'use_sim_time'}
+    cfg.update({'publish_rate': RATE, 'real_time_factor': 1.0})
+    clock = FakeClock()
+    sim = LiveSimulation(scene, cfg, scene.perturbation, budget=None, clock=clock,
+                         log=lambda *a: None)
+    blocks = run_ticks(sim, clock, 150)
+    E = np.concatenate([b.energy['E_star'] for b in blocks])
+    r = np.concatenate([b.energy['residual'] for b in blocks])
+    assert sim.diverged is None and sim.last[0] >= 2.9
+    assert np.max(np.abs(E)) > 1e14 and np.max(np.abs(r)) > cfg['max_residual']
+    assert np.all(np.abs(r) <= 1e-9 * np.maximum(np.abs(E), 1.0))    # integration error

@@ -4,7 +4,8 @@ Fed with paired samples (:mod:`gyro_rotor.analysis.samples`) of the simulation n
 ``energy`` and ``joint_states`` topics, live by the analysis node and offline from a bag
 (:mod:`gyro_rotor.analysis.offline`): the same class, the same numbers. Data events start
 a new *segment* (fits never mix segments): resets (t_sim or the grid index going back),
-time jumps, kicks (E* rising with a continuous residual: the node's ``~/perturb``) and
+time jumps, kicks (E* jumping either way with D and the residual continuous: the node's
+``~/perturb``, :func:`_kick_jump`) and
 parameter changes; sequence gaps are counted. Over a sliding window of the last segment
 long enough to fit it measures E*_inf and the decay of E* (:mod:`~.decay`), the modes
 (:mod:`~.modes`), the deviation envelope and pole slips (sine law with p pole pairs:
@@ -72,19 +73,32 @@ def limit_blas_threads(n: int = 1) -> bool:
 
 
 class _Segment:
-    """Raw data of one segment (ring-buffered to ``max_samples``)."""
+    """Raw data of one segment (ring-buffered to ``max_samples``, decimated to keep a span).
+
+    The ring keeps every :attr:`stride`-th sample of the segment. When it is full and its
+    rows span less than the time the fits need (``keep_s`` of :meth:`add`: the window, at
+    least the shortest fitted one), every other row is dropped and the stride doubled: a
+    cap on samples thins the window, never shortens it below what a fit needs.
+    """
 
     def __init__(self, index: int, reason: str, scene: Scene, pred: Prediction,
                  max_samples: int):
         self.index, self.reason, self.scene, self.pred = index, reason, scene, pred
         self.max_samples = max_samples
         self.rows = RowRing(max_samples)
+        self.stride = 1
+        self.gaps: list = []          # (t, messages lost just before it) by sequence gaps
         self.samples = 0
         self.t_start = math.nan
         self.E_first = math.nan
         self.lyap_max = -math.inf
         self.lyap_violations = 0
         self.residual_max = 0.0
+        #: E_ref of the segment (E* + D - residual at its first finite sample), max |E* + D -
+        #: E_ref| from the recorded E* and D, and its largest difference from the residual
+        self.E_ref = math.nan
+        self.balance_max = 0.0
+        self.balance_mismatch = 0.0
         self.slips = 0
         self.last_slip_t = -math.inf
         self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
@@ -96,12 +110,24 @@ class _Segment:
         self.checkpoint = -1          # index k of the last checkpoint t = k * period
         self.last_nonlinear_t = -math.inf   # last sample with a drive beyond LINEAR_DRIVE
 
-    def add(self, s: Sample, row: tuple) -> None:
+    def add(self, s: Sample, row: tuple, keep_s: float = math.inf) -> None:
         if self.samples == 0:
             self.t_start, self.E_first = s.t, s.E_star
+        i = self.samples
         self.samples += 1
-        self.rows.append(row)
         self.last = s
+        if i % self.stride:
+            return
+        self.rows.append(row)
+        if len(self.rows) == self.rows.capacity and self.rows.capacity > 1:
+            R = self.rows.array()
+            if R[-1, 0] - R[0, 0] < keep_s:
+                # the rows' sample indices i - stride (n-1-j); keep those on the new grid
+                idx = i - self.stride * np.arange(len(R) - 1, -1, -1)
+                self.rows = RowRing(self.rows.capacity, R.shape[1])
+                for r in R[idx % (2 * self.stride) == 0]:
+                    self.rows.append(r)
+                self.stride *= 2
 
 
 def check_window(window_s) -> float:
@@ -139,7 +165,8 @@ class RotorAnalyzer:
     min_fit_s : float
         Shortest window for fits [s].
     max_window_samples : int
-        Samples kept per segment (older ones are dropped from the fits).
+        Samples kept per segment: beyond it the window is thinned (every other sample
+        dropped), never shortened below the window or ``min_fit_s`` (:class:`_Segment`).
     blas_threads : int
         Limit numpy's OpenBLAS to this many threads (0 = leave it), see
         :func:`limit_blas_threads`.
@@ -186,6 +213,8 @@ class RotorAnalyzer:
         self.time_jumps = 0
         self.param_changes = 0
         self.non_finite = 0
+        #: the recorded fields that were non-finite in some sample
+        self.non_finite_fields: set = set()
         #: samples left unpaired by the caller's SamplePairer (data loss; set by the session)
         self.unpaired = 0
         #: recorded messages a damaged bag lost, and the reader's line on it (set offline)
@@ -239,21 +268,25 @@ class RotorAnalyzer:
                     elif dt > 0 and s.seq == last.seq + 1:
                         self._dt = dt if self._dt is None else self._dt
             if reason is None:
-                rise = s.E_star - last.E_star
-                tol = self.lyapunov_tol + self.lyapunov_rtol * abs(s.E_star)
-                dres = s.residual - last.residual
-                if rise > tol and (not math.isfinite(dres) or abs(dres) < 0.5 * rise):
-                    # E* rose, and the residual (E* + D - E_ref) did not rise with it: an
-                    # external kick (~/perturb rebases E_ref), not a Lyapunov violation; an
-                    # integration error moves E* and the residual together
-                    reason = f'kick (E* rose by {rise:.6g} J)'
+                jump = _kick_jump(last, s, self.lyapunov_tol
+                                  + self.lyapunov_rtol * max(abs(s.E_star), abs(last.E_star)))
+                if jump:
+                    # E* jumped, in either direction, while D and the residual E* + D - E_ref
+                    # went on smoothly: an external kick (~/perturb rebases E_ref), not a
+                    # Lyapunov violation nor an integration error (which moves E* and the
+                    # residual together), nor a corrupted D (which jumps itself)
+                    reason = f'kick (E* changed by {jump:+.6g} J)'
                     self.kicks += 1
         self.samples += 1
-        if not all(math.isfinite(v) for v in (s.t, s.E_star, *self._lags(s))):
+        if not all(math.isfinite(v) for v in self._recorded(s).values()):
             self.non_finite += 1
+            self.non_finite_fields.update(k for k, v in self._recorded(s).items()
+                                          if not math.isfinite(v))
         if reason is not None:
             self._new_segment(reason)
         seg = self.segments[-1]
+        if reason is None and s.seq > last.seq + 1:
+            seg.gaps.append((s.t, s.seq - last.seq - 1))
         self._add_to_segment(seg, s, last if reason is None else None)
         self._last = s
         if reason is not None:
@@ -300,6 +333,14 @@ class RotorAnalyzer:
                 seg.lyap_violations += 1
         if math.isfinite(s.residual):
             seg.residual_max = max(seg.residual_max, abs(s.residual))
+        # the energy balance from the recorded E* and D themselves, not only the residual
+        if not math.isfinite(seg.E_ref):
+            seg.E_ref = s.E_star + s.D - s.residual
+        bal = s.E_star + s.D - seg.E_ref
+        if math.isfinite(bal):
+            seg.balance_max = max(seg.balance_max, abs(bal))
+            if math.isfinite(s.residual):
+                seg.balance_mismatch = max(seg.balance_mismatch, abs(bal - s.residual))
         # synchronism: passages of each z over the potential maxima (2k+1) pi / p
         # with hysteresis: the well index changes only once z is within pi/(2p) of the
         # bottom of another well, so jitter on a maximum counts nothing
@@ -317,7 +358,22 @@ class RotorAnalyzer:
                         seg.slips += abs(k - seg.wells[r])
                         seg.last_slip_t = s.t
                     seg.wells[r] = k
-        seg.add(s, self._row(s, pred))
+        seg.add(s, self._row(s, pred), max(self.window_s, self.min_fit_s))
+
+    def _recorded(self, s: Sample) -> dict:
+        """Return the recorded numbers of a sample that must be finite, by field name.
+
+        A general system's ``energy`` has no z, zdot (its lags are joints): those are left
+        out; so are the joints of a sample whose joint state never came (unpaired).
+        """
+        out = {'t_sim': s.t, 'E_star': s.E_star, 'dE_dt': s.dE_dt, 'residual': s.residual,
+               'D': s.D}
+        if self.prediction.coords != GENERAL_COORDS:
+            out['z'], out['zdot'] = s.z, s.zdot
+        if s.joints:
+            out.update({f'position[{i}]': v for i, v in enumerate(s.positions)})
+            out.update({f'velocity[{i}]': v for i, v in enumerate(s.velocities)})
+        return out
 
     def _lags(self, s: Sample) -> tuple:
         """Return the rotor lags z of a sample (a general system's are joints after q)."""
@@ -380,7 +436,8 @@ class RotorAnalyzer:
             out += [c for c in judged.criteria
                     if c.name in (CriterionName.DECAY, CriterionName.MODES)]
         out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite,
-                             self.cut, self.truncated, self.bag_lost, self.bag_loss))
+                             self.cut, self.truncated, self.bag_lost, self.bag_loss,
+                             non_finite_fields=sorted(self.non_finite_fields)))
         if judged is not None:
             sync = crit.synchronism(segs[-1], self.segments[-1].pred)
             if sync is not None:
@@ -395,7 +452,8 @@ class RotorAnalyzer:
             return Verdict.INSUFFICIENT_DATA, 'no samples yet'
         pred = judged_pred(self, judged)
         segs = self._done + [judged]
-        diverged = any(s.non_finite or s.residual_max > self.diverge_residual for s in segs)
+        diverged = any(s.non_finite or max(s.residual_max, s.balance_max)
+                       > self.diverge_residual for s in segs)
         return combine(criteria, pred.verdict, diverged=diverged,
                        unstable=bool(judged.growing),
                        marginal_modes=tuple(m.name for m in pred.marginal_modes))
@@ -419,18 +477,21 @@ class RotorAnalyzer:
             return SyncState.LOST, well
         return (SyncState.RESYNCHRONIZED if seg.slips else SyncState.SYNCHRONOUS), well
 
-    def _missing(self, R: np.ndarray) -> int:
+    def _missing(self, R: np.ndarray, seg: _Segment) -> int:
         """Return how many samples a window misses (lost messages) on the sample grid.
 
         The fits need equally spaced samples; a window with a gap is not fitted (the data
         criterion counts the loss; interpolating across it would put invented samples into
         the fits).
         """
-        dt = self._dt
-        if not dt or len(R) < 3:
+        if len(R) < 3:
             return 0
+        lost = sum(n for t, n in seg.gaps if R[0, 0] < t <= R[-1, 0])   # by sequence gaps
+        dt = self._dt * seg.stride if self._dt else None     # a thinned window's grid
+        if not dt:
+            return lost
         steps = np.round(np.diff(R[:, 0]) / dt).astype(int)
-        return int(np.sum(np.maximum(steps - 1, 0)))
+        return max(lost, int(np.sum(np.maximum(steps - 1, 0))))
 
     def _noise(self, R: np.ndarray) -> float:
         """Noise level of E* in a window [J]: the jitter of the energy-balance residual.
@@ -465,11 +526,11 @@ class RotorAnalyzer:
         # fit only data after the last slip, once the drive is back in its linear range,
         # and after the modes that die within a sample (a stiff drive's real root) are gone
         fit_from = max(seg.last_slip_t + 0.5, seg.last_nonlinear_t,
-                       seg.t_start + _gone_after(pred, self._dt))
+                       seg.t_start + _gone_after(pred, self._dt and self._dt * seg.stride))
         if R.size and math.isfinite(fit_from):
             R = R[R[:, 0] > fit_from]
         R = R[np.all(np.isfinite(R), axis=1)] if R.size else R
-        missing = self._missing(R)
+        missing = self._missing(R, seg)
         span = float(R[-1, 0] - R[0, 0]) if len(R) > 1 else 0.0
         e_fit, dev_rate = None, math.nan
         found = ModesFound([], [])
@@ -493,6 +554,7 @@ class RotorAnalyzer:
             E_inf=e_fit.E_inf if e_fit else math.nan,
             lyapunov_max_increase=seg.lyap_max if math.isfinite(seg.lyap_max) else math.nan,
             lyapunov_violations=seg.lyap_violations, residual_max=seg.residual_max,
+            balance_max=seg.balance_max, balance_mismatch=seg.balance_mismatch,
             energy_decay_rate=e_fit.rate if e_fit else math.nan,
             deviation_decay_rate=dev_rate, window_s=span, modes=modes,
             pole_slips=seg.slips, sync_state=sync_state, well=well,
@@ -515,7 +577,8 @@ class RotorAnalyzer:
             res.criteria.append(sync)
         res.verdict, reason = combine(res.criteria, pred.verdict,
                                       diverged=res.non_finite
-                                      or res.residual_max > self.diverge_residual,
+                                      or max(res.residual_max, res.balance_max)
+                                      > self.diverge_residual,
                                       unstable=bool(res.growing),
                                       marginal_modes=tuple(m.name for m in pred.marginal_modes))
         res.evidence = [reason] + [c.line() for c in res.criteria]
@@ -544,6 +607,26 @@ class RotorAnalyzer:
         # the numbers of the decay: the newest window that measured a rate
         if res.energy_fit is not None and not math.isfinite(res.energy_fit.rate):
             res.rate_fit = rec.rate_fit
+
+
+def _kick_jump(a: Sample, b: Sample, tol: float) -> float:
+    """Return the jump of E* + D between two samples if it is a kick (E*'s jump), else 0.
+
+    Between samples E* decreases only by the work D dissipates (eq. 17), so E* + D is
+    constant up to the integration error, which the residual E* + D - E_ref shows as well.
+    A kick moves E* (either way) and E_ref with it (:mod:`~gyro_rotor.numerics.live`
+    rebases it): E* + D jumps by more than ``tol`` while the residual and D go on smoothly
+    (D by about the step times the dissipation -dE*/dt, trapezoidal rule). A jump of D
+    itself, or of the residual with it, is no kick: the energy balance judges it.
+    """
+    jump = (b.E_star + b.D) - (a.E_star + a.D)
+    if not abs(jump) > tol:
+        return 0.0
+    d_res = b.residual - a.residual
+    d_D = (b.D - a.D) + 0.5 * (b.t - a.t) * (a.dE_dt + b.dE_dt)
+    if not (abs(d_res) < 0.5 * abs(jump) and abs(d_D) < 0.5 * abs(jump)):
+        return 0.0
+    return jump
 
 
 def _gone_after(pred: Prediction, dt: float | None) -> float:

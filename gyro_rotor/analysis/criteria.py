@@ -79,17 +79,44 @@ def lyapunov(segs: list[SegmentResult], tol: float, rtol: float) -> Criterion:
 
 
 def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
-    """Check that |E* + D - E_ref| stays below ``warn`` (interval: its rounding, 4 ulp)."""
-    worst = max((s.residual_max for s in segs), default=math.nan)
-    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
-    nums = {'residual_max_J': worst, 'tol_J': warn}
+    """Check that |E* + D - E_ref| stays below ``warn`` (interval: its rounding, 4 ulp).
+
+    E* + D - E_ref is computed from the recorded E* and D (E_ref: E* + D - residual at a
+    segment's first sample) and held together with the recorded residual: the larger of
+    the two, and their difference, must stay below ``warn``.
+    """
     name = CriterionName.ENERGY_BALANCE
+    recorded = max((s.residual_max for s in segs), default=math.nan)
+    computed = max((s.balance_max for s in segs), default=math.nan)
+    mismatch = max((s.balance_mismatch for s in segs), default=math.nan)
+    worst = max(computed, recorded, mismatch)
+    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
+    nums = {'residual_max_J': recorded, 'balance_max_J': computed, 'mismatch_J': mismatch,
+            'tol_J': warn}
     if not segs or not math.isfinite(worst):
         return Criterion(name, Status.NOT_YET, 'no residual yet', nums)
     status = decide(Measured.pm(worst, 4 * _EPS * max(E, 1.0)), warn, 'below')
     rel = {Status.PASS: '<=', Status.FAIL: '>', Status.NOT_YET: 'at'}[status]
-    return Criterion(name, status, f'max |E* + D - E_ref| = {worst:.3g} J ({rel} '
-                     f'{warn:.1g} J)', nums)
+    return Criterion(name, status, f'max |E* + D - E_ref| = {computed:.3g} J from the '
+                     f'recorded E* and D, recorded residual max {recorded:.3g} J, they differ '
+                     f'by up to {mismatch:.3g} J ({rel} {warn:.1g} J)', nums)
+
+
+def _limit_text(seg: SegmentResult, pred: Prediction) -> str:
+    """Return what the fitted constant of E*(t) is: E*_inf, or E* without its resolved terms.
+
+    Predicted terms too slow for the window are part of the fitted constant: it is then
+    E* at the window's end without the resolved terms, not the limit of E*.
+    """
+    fit = seg.energy_fit
+    if fit.slow:
+        return (f"E* without its resolved terms = {fmt_pm(fit.E_inf, fit.E_inf_sigma, 'J')} "
+                f"at the window's end (not the limit E*_inf: predicted terms slower than "
+                f'{RESOLVABLE / max(seg.window_s, 1e-9):.3g} 1/s, unresolved in this window, '
+                f"are part of it, trend {fit.trend:+.3g} J/s; E* on the scene's steady "
+                f'motion {pred.E_inf:.9g} J)')
+    return (f'E*_inf = {fmt_pm(fit.E_inf, fit.E_inf_sigma, "J")} (fitted; E* on the '
+            f"scene's steady motion {pred.E_inf:.9g} J, a kick moves the limit)")
 
 
 def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
@@ -109,6 +136,13 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
     name = CriterionName.DECAY
     if fit is None:
         return Criterion(name, Status.NOT_YET, _unfitted(seg, min_fit_s, 'fit'), nums)
+    grow = pred.growing_modes
+    if grow:
+        # E* of an unstable steady motion need not approach any limit: nothing to confirm
+        nums['growing'] = [m.name for m in grow]
+        return Criterion(name, Status.NOT_YET, 'predicted to grow: ' + ', '.join(
+            f'{m.name} (Re lambda = {m.eigenvalue.real:+.3g} 1/s)' for m in grow)
+            + ': E* of an unstable steady motion need not approach a limit', nums)
     nums.update(rate=fit.rate, rate_lo=fit.rate_lo, rate_hi=fit.rate_hi, E_inf=fit.E_inf,
                 spread=fit.spread, trend=fit.trend, E_inf_sigma=fit.E_inf_sigma,
                 rel_residual=fit.rel_residual, noise=fit.noise)
@@ -122,8 +156,7 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
                          'nothing left to measure here', nums)
     # the predicted E*_inf is E* on the scene's own steady motion; a kick or a drift along a
     # cyclic coordinate moves the motion the rotor settles on, and so the limit
-    parts = [f'E*_inf = {fmt_pm(fit.E_inf, fit.E_inf_sigma, "J")} (fitted; E* on the '
-             f"scene's steady motion {pred.E_inf:.9g} J, a kick moves the limit)"]
+    parts = [_limit_text(seg, pred)]
     rms = Measured(fit.residual_rms, fit.residual_rms * (1 - 1 / math.sqrt(fit.n_eff)),
                    fit.residual_rms * (1 + 1 / math.sqrt(fit.n_eff)))
     fit_bound = max(FIT_RTOL * fit.spread, NOISE_K * fit.noise, fit.remainder)
@@ -212,8 +245,19 @@ def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
     bad = [m for m in judged if m.status is ModeStatus.DISAGREES]
     straddle = [m for m in judged if Status.NOT_YET in (m.freq_status, m.rate_status)]
     agree = [m for m in judged if m.status in _AGREE]
-    if bad or seg.unexplained:
+    # a mode predicted to grow is an unstable steady motion: never a pass
+    growing = [m for m in judged if m.predicted.real > 0 and m.status not in (
+        ModeStatus.EXPECTED_MARGINAL, ModeStatus.STRUCTURAL_ZERO_ROOT)]
+    nums['growing'] = [m.name for m in growing]
+    if growing:
+        parts.append('predicted to grow: ' + ', '.join(
+            f'{m.name} (Re lambda = {m.predicted.real:+.3g} 1/s, '
+            f'{"identified" if m.status is ModeStatus.GROWING else str(m.status)})'
+            for m in growing))
+    if bad or seg.unexplained or any(m.status is ModeStatus.GROWING for m in growing):
         return Criterion(name, Status.FAIL, '; '.join(parts), nums)
+    if growing:
+        return Criterion(name, Status.NOT_YET, '; '.join(parts), nums)
     if straddle:
         return Criterion(name, Status.NOT_YET, '; '.join(parts) + '; not decided: '
                          + ', '.join(m.name for m in straddle), nums)
@@ -224,14 +268,16 @@ def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
 
 
 def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 0,
-         truncated: str = '', bag_lost: int = 0, bag_loss: str = '') -> Criterion:
+         truncated: str = '', bag_lost: int = 0, bag_loss: str = '',
+         non_finite_fields: tuple = ()) -> Criterion:
     """No message lost (sequence gaps, or in a damaged bag), no sample unpaired, all finite.
 
     ``cut``: messages past the end of the other topic at a cut recording (the one sample
     whose partner the cut took: not a loss the data show); ``truncated`` says where the
     recording was cut, if it was. ``bag_lost`` and ``bag_loss`` are the recorded messages a
     damaged bag lost (counted by its reader) and the line that says which; any of it fails
-    the criterion, so a damaged bag never gives a plain CONFIRMED.
+    the criterion, so a damaged bag never gives a plain CONFIRMED. ``non_finite_fields``:
+    the recorded fields that were NaN or infinite (named in the text).
     """
     nums = {'samples': samples, 'dropped': dropped, 'unpaired': unpaired,
             'non_finite': non_finite, 'cut': cut, 'bag_lost': bag_lost}
@@ -239,6 +285,8 @@ def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 
         return Criterion(CriterionName.DATA, Status.NOT_YET, 'no samples yet', nums)
     text = (f'{samples} samples, {dropped} messages lost (sequence gaps), {unpaired} '
             f'unpaired between energy and joint_states, {non_finite} with non-finite values')
+    if non_finite_fields:
+        text += f' ({", ".join(non_finite_fields)})'
     if cut:
         text += f' ({cut} at the cut of the recording without its partner: not counted)'
     if truncated:

@@ -69,6 +69,9 @@ class EnergyFit:
     residual_rms: float = 0.0
     n_eff: float = 1.0
     rate_note: str = ''
+    #: predicted terms too slow to resolve in the window were merged into E_inf and the
+    #: trend: E_inf is then their value at the window's end, not the limit of E*
+    slow: bool = False
 
     def curve(self, t: np.ndarray) -> np.ndarray:
         """Return the fitted E*(t) (E_inf plus the predicted terms)."""
@@ -219,7 +222,7 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
                      exponents=tuple(mus), coef=tuple(float(c) for c in coef[len(cols):]),
                      noise=noise, floor=floor, remainder=remainder, settled=settled,
                      residual_rms=rms,
-                     n_eff=n_eff, rate_note=note)
+                     n_eff=n_eff, rate_note=note, slow=bool(slow))
 
 
 def envelope_decay_rate(t: np.ndarray, D: np.ndarray, freqs_hz: Sequence[float]) -> float:

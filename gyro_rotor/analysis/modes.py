@@ -29,7 +29,7 @@ from gyro_rotor.errors import AnalysisError
 import numpy as np
 
 __all__ = ['identify_modes', 'identify_roots', 'check_modes', 'ModeCheck', 'ModesFound',
-           'Root', 'FREQ_RTOL', 'RATE_RTOL', 'RESOLVABLE', 'mode_tolerances']
+           'Root', 'FREQ_RTOL', 'RATE_RTOL', 'RESOLVABLE', 'mode_tolerances', 'alias_hz']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -373,8 +373,13 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
     for r in roots:
         if r.resolved and r.re.lo > res_re and r.share >= UNEXPLAINED_SHARE:
             growing.append(r)
-    for r in roots:
-        if id(r) in used or id(r) in combos or not r.resolved or abs(r.value.imag) <= fmin:
+    free = [r for r in roots if id(r) not in used and id(r) not in combos and r.resolved
+            and abs(r.value.imag) > fmin]
+    inband = [(modes[i], cand[b]) for i, b in pairs.items() if C[i] <= 1.0
+              and not modes[i].structural and abs(cand[b].value.imag) > 1e-9]
+    combos.update(_aliases(free, modes, dt, span, inband, combination_tones))
+    for r in free:
+        if id(r) in combos:
             continue
         if r.share >= UNEXPLAINED_SHARE and r.im.u <= FREQ_RTOL * abs(r.value.imag):
             unexplained.append((r, f'{fmt_interval(_hz(r.im), "Hz")}, share '
@@ -425,6 +430,81 @@ def _unobservable_note(m: PredictedMode, dt: float) -> str:
         return (f'{m.freq_hz:.4g} Hz is above the Nyquist frequency {0.5 / dt:.4g} Hz of '
                 'the samples')
     return f'it decays within a sample ({-1.0 / ev.real:.3g} s < {dt:.3g} s)'
+
+
+def alias_hz(f: float, fs: float) -> float:
+    """Return the frequency at which a sine of ``f`` Hz sampled at ``fs`` Hz appears.
+
+    The samples of f and of |f - k fs| are the same for every integer k: the apparent
+    frequency is f folded into [0, fs/2].
+    """
+    r = math.fmod(abs(f), fs)
+    return min(r, fs - r)
+
+
+def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
+             combination_tones: bool = True) -> dict:
+    """Name roots as aliases of lasting predicted modes above the Nyquist frequency.
+
+    Such a mode is not observable at its own frequency, but its samples are those of
+    its alias (:func:`alias_hz`). A root within the mode's frequency tolerance
+    (:func:`mode_tolerances`, unchanged by the folding) of its alias is that alias (the
+    nearest root, one per mode); a root that is the alias of a combination tone of those
+    (its parents' frequencies as measured, unfolded, combined as :func:`_combination`
+    does, and folded again; within twice their combined uncertainty) is named so, before
+    the looser match to a mode's predicted alias. ``inband``: (mode, root) of the modes
+    identified at their own frequency, parents too; ``combination_tones`` False: no
+    combination tones (:func:`check_modes`). Return {id(root): text}.
+    """
+    import itertools
+    fs = 1.0 / dt
+    nyq = [m for m in modes if not m.structural and abs(m.eigenvalue.imag) * dt >= math.pi * 0.999
+           and m.eigenvalue.real * dt > -5.0]
+    single: dict = {}                      # mode name -> (distance, root, text)
+    for m in nyq:
+        f = abs(m.eigenvalue.imag) / _TWO_PI
+        fa = alias_hz(f, fs)
+        tol_im, _ = mode_tolerances(m.eigenvalue, span)
+        for r in roots:
+            d = abs(r.freq_hz - fa) * _TWO_PI / (tol_im + 2.0 * r.im.u)
+            if d <= 1.0 and (m.name not in single or d < single[m.name][0]):
+                text = (f'sampled alias of {m.name}: |{f:.4g} - {round(f / fs)} x {fs:.4g}| = '
+                        f'{fa:.4g} Hz ({f:.4g} Hz is above the Nyquist frequency '
+                        f'{0.5 * fs:.4g} Hz)')
+                single[m.name] = (d, r, text)
+    # the parents: each aliased mode's true frequency from its measured alias
+    parents = [(m.name, r.freq_hz, r.im.u / _TWO_PI, r) for m, r in inband]
+    for m in nyq:
+        if m.name in single:
+            r = single[m.name][1]
+            f = abs(m.eigenvalue.imag) / _TWO_PI
+            k = round(f / fs)
+            true = min((k * fs + r.freq_hz, k * fs - r.freq_hz), key=lambda x: abs(x - f))
+            parents.append((m.name, true, r.im.u / _TWO_PI, r))
+    out = {id(r): text for _, r, text in single.values()}
+    for r in roots if combination_tones else ():
+        best = None
+        own = [p for p in parents if p[3] is not r]
+        for order in range(2, COMBINATION_ORDER + 1):
+            for combo in itertools.combinations_with_replacement(range(len(own)), order):
+                for signs in itertools.product((1, -1), repeat=order - 1):
+                    signs = (1,) + signs
+                    f = sum(sg * own[k][1] for sg, k in zip(signs, combo))
+                    if f <= 0:
+                        continue
+                    fa = alias_hz(f, fs)
+                    # a repeated parent's error repeats: the uncertainties add
+                    u = 2.0 * (r.im.u / _TWO_PI + sum(own[k][2] for k in combo))
+                    d = abs(r.freq_hz - fa)
+                    if d <= u and (best is None or d / u < best[0]):
+                        label = _combo_label([own[k][0] for k in combo], signs)
+                        best = (d / u, f'sampled alias of the combination tone {label}: '
+                                       f'|{f:.4g} - {round(f / fs)} x {fs:.4g}| = {fa:.4g} Hz')
+            if best is not None:
+                break
+        if best is not None:
+            out[id(r)] = best[1]
+    return out
 
 
 def _doublet(r: Root, parents: list, span: float) -> str | None:
@@ -528,6 +608,8 @@ def _judge(m: PredictedMode, r: Root, span: float) -> ModeCheck:
         status = ModeStatus.STRUCTURAL_ZERO_ROOT
     elif m.marginal:
         status = ModeStatus.EXPECTED_MARGINAL
+    elif ev.real > 0:
+        status = ModeStatus.GROWING             # never "damped", however slow its growth
     elif -ev.real * span < RESOLVABLE:
         status = ModeStatus.WEAKLY_DAMPED       # its decay is below this window's resolution
     elif rate_status is None:

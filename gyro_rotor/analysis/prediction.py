@@ -72,8 +72,15 @@ class Prediction:
     @property
     def decaying_abscissa(self) -> float:
         """Largest real part among the modes that decay (the rate bound for the fits)."""
-        re = [m.eigenvalue.real for m in self.modes if not (m.marginal or m.structural)]
+        re = [m.eigenvalue.real for m in self.modes
+              if not (m.marginal or m.structural) and m.eigenvalue.real < 0]
         return max(re) if re else math.nan
+
+    @property
+    def growing_modes(self) -> tuple:
+        """Modes predicted to grow (Re lambda > 0, not marginal): an unstable steady motion."""
+        return tuple(m for m in self.modes if not (m.marginal or m.structural)
+                     and m.eigenvalue.real > 0)
 
 
 #: :attr:`Prediction.coords` of a system file's linearization (deviations of q, qdot, z, zdot)

@@ -97,6 +97,10 @@ class SegmentResult:
     rate_fit: EnergyFit | None = None
     #: samples missing from the newest window (lost messages): it is not fitted
     missing: int = 0
+    #: max |E* + D - E_ref| computed from the recorded E* and D (E_ref = E* + D - residual
+    #: at the segment's first sample), and the largest difference from the recorded residual
+    balance_max: float = 0.0
+    balance_mismatch: float = 0.0
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""

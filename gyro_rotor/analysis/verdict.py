@@ -95,6 +95,9 @@ class ModeStatus(_Coded):
     NOT_RESOLVED = 'not resolved'
     #: faster than the sample grid can show (decays within a sample, or above Nyquist)
     UNOBSERVABLE = 'not observable at this sample rate'
+    #: identified and predicted to grow (Re lambda > 0): the steady motion is unstable; never
+    #: an agreement that passes
+    GROWING = 'growing as predicted (unstable)'
 
 
 class SyncState(_Coded):

@@ -18,8 +18,11 @@ messages. It holds the scene, its model, a stepper driven by a
   ``CUTS_TO_SWITCH`` consecutive ticks of one stepper, the method that ``auto`` would
   choose for the current parameters (:func:`~gyro_rotor.numerics.realtime.resolve_method`)
   takes over, if it is not the one running already, and the diagnostics say so;
-* **the divergence guard**: an energy-balance residual r = E* + D - E_ref above
-  ``max_residual``, a non-finite E*, or *any* exception raised by the model or the
+* **the divergence guard**: an energy-balance residual |r| = |E* + D - E_ref| above
+  ``max_residual`` x max(1 J, |E*|, |E_ref|) (a bound in joules for energies up to 1 J,
+  relative to the energy beyond: the round-off of E* grows with it, 1e-14 J of 1e14 J of
+  a statically unstable system's growing motion is no divergence of the integration), a
+  non-finite E*, or *any* exception raised by the model or the
   integrator (a diverging solution can make the right-hand side divide by zero) stops the
   integration; the last good state is kept, the diagnostics turn ERROR, and
   :meth:`LiveSimulation.reset` starts again;
@@ -364,14 +367,19 @@ class LiveSimulation:
             E = np.asarray(m.energy(Y), dtype=float)
         D = Y[:, m.idiss]
         resid = E + D - self.baseline.E_ref
-        bad = ~(np.isfinite(E) & (np.abs(resid) <= self.cfg['max_residual']))
+        scale = np.maximum(np.maximum(np.abs(E), abs(self.baseline.E_ref)), 1.0)
+        with np.errstate(invalid='ignore'):
+            bad = ~(np.isfinite(E) & (np.abs(resid) <= self.cfg['max_residual'] * scale))
         n_good = int(np.argmax(bad)) if bad.any() else n
         block = self._outputs(samples[:n_good], t[:n_good], Y[:n_good], E[:n_good],
                               resid[:n_good]) if n_good else None
         if n_good < n:
-            self._diverge(f'energy-balance residual {resid[n_good]:.6g} J at t = '
-                          f'{t[n_good]:.6f} s exceeds max_residual '
-                          f'{self.cfg["max_residual"]:g} J (or E* is not finite)')
+            at = f'at t = {t[n_good]:.6f} s'
+            self._diverge(f'energy-balance residual {resid[n_good]:.6g} J {at} exceeds '
+                          f'max_residual {self.cfg["max_residual"]:g} x max(1 J, |E*|, '
+                          f'|E_ref|) = {self.cfg["max_residual"] * scale[n_good]:.6g} J'
+                          if np.isfinite(E[n_good]) else
+                          f'E* = {E[n_good]:g} J {at} is not finite')
         return block
 
     def _outputs(self, samples, t, Y, E, resid) -> SampleBlock:

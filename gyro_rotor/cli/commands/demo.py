@@ -111,6 +111,11 @@ class _LiveView(SideNode):
         self.node.create_subscription(Float64MultiArray, 'analysis', self._on_analysis, 10)
         self.node.create_subscription(Float64MultiArray, 'analysis_modes', self._on_modes, 10)
         self.node.create_subscription(String, 'analysis_verdict', self._on_verdict, latched)
+        #: why rotor_sim stopped integrating (its diagnostics: 'diverged: ...'), '' if not
+        self.diverged = ''
+        from diagnostic_msgs.msg import DiagnosticArray
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                      10)
         self.perturb = self.node.create_client(Trigger, '/rotor_sim/perturb')
         self._trigger = Trigger
         from rcl_interfaces.srv import SetParameters
@@ -128,6 +133,11 @@ class _LiveView(SideNode):
 
     def _on_verdict(self, msg) -> None:
         self.verdict = msg.data
+
+    def _on_diagnostics(self, msg) -> None:
+        for st in msg.status:
+            if st.name.startswith('rotor_sim') and st.message.startswith('diverged:'):
+                self.diverged = st.message
 
     def _call(self, client, request, timeout: float):
         """Call a service and spin until it answers; return the response (None: none)."""
@@ -282,8 +292,11 @@ def _start_sim(args, scene_arg: str, domain_id: int, logs: dict, t_stop: float):
         stdout=logs['rotor_sim'], stderr=logs['rotor_sim'])
 
 
-def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> None:
-    """Show the live table and kick once, until the simulation reaches the duration."""
+def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> str:
+    """Show the live table and kick once, until the simulation reaches the duration.
+
+    Return why rotor_sim stopped integrating before the duration ('' if it did not).
+    """
     if not args.quiet:
         print(HEADER)
     kicked = kick_at < 0
@@ -304,6 +317,11 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
             last_t = t
         if t >= args.duration - 0.5 / args.rate:
             break
+        if view.diverged:
+            # the simulation stopped short of the duration: the bag holds the run up to
+            # there, and the analysis says what it shows (no wait for the deadline)
+            print(f'  the simulation stopped at t = {t:.3f} s: {view.diverged}', flush=True)
+            break
         for p in procs:
             if p.poll() is not None:
                 raise GyroRotorError(f'{p.module} exited early with status {p.poll()}; '
@@ -314,6 +332,7 @@ def _watch(args, view: _LiveView, procs: list, out: Path, kick_at: float) -> Non
     view.spin(1.5)     # let the analysis take the last samples
     if not args.quiet:
         print(_line(view))
+    return view.diverged
 
 
 class _Stop(KeyboardInterrupt):
@@ -324,8 +343,10 @@ class _Stop(KeyboardInterrupt):
         self.signum = signum
 
 
-def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
-    """Run both nodes with the live table; return (node exit codes, signal or 0).
+def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int, str]:
+    """Run both nodes with the live table; return (exit codes, signal or 0, divergence).
+
+    The divergence: why rotor_sim stopped integrating before the duration ('' if not).
 
     The nodes are stopped (SIGINT, then SIGTERM, then SIGKILL) however this ends; a second
     signal while they stop is ignored, so the stopping is not cut short.
@@ -348,6 +369,7 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
     procs: list = []
     view = None
     stopped_by = 0
+    diverged = ''
     codes: dict = {}
     try:
         print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {out / "bag"}\n'
@@ -358,7 +380,7 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
         view.spin(1.0)
         procs.append(_start_sim(args, scene_arg, claim.domain_id, logs,
                                 _first_stop(args, kick_at)))
-        _watch(args, view, procs, out, kick_at)
+        diverged = _watch(args, view, procs, out, kick_at)
     except KeyboardInterrupt as err:
         stopped_by = getattr(err, 'signum', signal.SIGINT)
         print(f'\n{"interrupted" if stopped_by == signal.SIGINT else "terminated"}: '
@@ -375,14 +397,16 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int]:
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-    return codes, int(stopped_by)
+    return codes, int(stopped_by), diverged
 
 
-def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False) -> bool:
+def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False,
+              diverged: str = '') -> bool:
     """Analyse the bag offline, print the report and the checks; return CONFIRMED.
 
     ``interrupted``: the run was stopped (Ctrl-C) before its duration; the verdict is
-    that of the data up to the cut, and says so.
+    that of the data up to the cut, and says so. ``diverged``: why rotor_sim stopped
+    integrating before the duration (a check that fails).
     """
     from gyro_rotor.analysis.offline import analyze_bag
     from gyro_rotor.analysis.report import text_report, write_report
@@ -403,6 +427,8 @@ def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False) -> b
         checks.append((res.pole_slips == exp['pole_slips'],
                        f'pole slips {res.pole_slips}, reference {exp["pole_slips"]}'))
     checks.append((not bad_exit, f'node exit codes {codes}'))
+    if diverged:
+        checks.append((False, f'rotor_sim stopped integrating: {diverged}'))
     print('checks:')
     for ok, text in checks:
         print(f'  [{"ok" if ok else "FAILED"}] {text}')
@@ -433,12 +459,12 @@ def run(args: argparse.Namespace) -> int:
     print(f'expected (linear stability): {exp["verdict"]}'
           + (f'; pole slips {exp["pole_slips"]} (reference simulation)'
              if exp['pole_slips'] is not None else ''))
-    codes, stopped_by = _run_live(args, scene, out, kick_at)
+    codes, stopped_by, diverged = _run_live(args, scene, out, kick_at)
     if stopped_by and stopped_by != signal.SIGINT:
         print(f'stopped by {signal.Signals(stopped_by).name}: nodes ended {codes}; bag '
               f'{out / "bag"}', file=sys.stderr)
         return 128 + stopped_by
-    ok = _conclude(out, exp, codes, bool(stopped_by))
+    ok = _conclude(out, exp, codes, bool(stopped_by), diverged)
     if stopped_by:
         return 130
     return 0 if ok else 1

@@ -1,0 +1,192 @@
+"""The verdict's numbers are what it computes from the recorded data (review findings).
+
+Small synthetic sample streams of the shipped precession scene (the nonlinear model,
+:func:`~gyro_rotor.analysis.samples.samples_from_trajectory`), altered the way a corrupt
+or an unusual recording would be.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from gyro_rotor.analysis.checks import RotorAnalyzer
+from gyro_rotor.analysis.samples import samples_from_trajectory
+from gyro_rotor.numerics.simulate import simulate
+from hypothesis import given, HealthCheck, settings, strategies as st
+import pytest
+
+
+@pytest.fixture(scope='module')
+def run():
+    tr = simulate('precession', t_end=4.0, rate=250.0)
+    return tr.scene, samples_from_trajectory(tr)
+
+
+def _status(res, name):
+    return {str(c.name): c for c in res.criteria}[name]
+
+
+def _feed(scene, samples, **kw):
+    a = RotorAnalyzer(scene, window_s=0, checkpoint_s=0, **kw)
+    a.add_many(samples)
+    return a
+
+
+# -- finding 1: the energy balance from the recorded E* and D, every field finite ---------------
+def test_a_jump_of_the_recorded_D_fails_the_energy_balance(run):
+    # D + 1 J in one message, the recorded residual untouched: E* + D - E_ref is 1 J there
+    scene, samples = run
+    bad = [dataclasses.replace(s, D=s.D + 1.0) if i == 500 else s
+           for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    res = a.result()
+    c = _status(res, 'energy balance')
+    assert str(c.status) == 'FAIL', c.detail
+    assert c.numbers['balance_max_J'] == pytest.approx(1.0, rel=1e-9)
+    assert c.numbers['residual_max_J'] < 1e-9
+    assert a.kicks == 0 and not res.confirmed
+
+
+@pytest.mark.parametrize('field', ['D', 'residual', 'dE_dt', 'zdot'])
+def test_a_non_finite_recorded_field_fails_data_and_is_named(run, field):
+    scene, samples = run
+    bad = [dataclasses.replace(s, **{field: math.nan}) if i == 500 else s
+           for i, s in enumerate(samples)]
+    res = _feed(scene, bad).result()
+    c = _status(res, 'data')
+    assert str(c.status) == 'FAIL' and c.numbers['non_finite'] == 1, c.detail
+    assert f'({field})' in c.detail
+    assert not res.confirmed
+
+
+# -- finding 4: a kick is a jump of E* + D in either direction ---------------------------------
+def _kicked(samples, i, jump):
+    """E* moved by ``jump`` from sample i on, D and the residual continuous (a ~/perturb)."""
+    return [dataclasses.replace(s, E_star=s.E_star + jump) if k >= i else s
+            for k, s in enumerate(samples)]
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(i=st.integers(10, 990), size=st.floats(1e-6, 1e-1), up=st.booleans())
+def test_a_kick_either_way_starts_a_segment(run, i, size, up):
+    scene, samples = run
+    jump = size if up else -size
+    a = _feed(scene, _kicked(samples[:1000], i, jump))
+    assert a.kicks == 1 and len(a.segments) == 2
+    assert a.segments[1].reason.startswith('kick')
+    assert a.segments[1].samples == 1000 - i
+    # each segment's balance holds against its own E_ref
+    assert max(s.balance_max for s in a.segments) < 1e-9
+
+
+def test_a_lowering_kick_is_no_energy_balance_failure(run):
+    scene, samples = run
+    res = _feed(scene, _kicked(samples, 600, -3.16e-7)).result()
+    assert res.kicks == 1
+    assert str(_status(res, 'energy balance').status) == 'PASS'
+
+
+def test_e_star_and_residual_jumping_together_is_no_kick(run):
+    # an integration error moves E* and the residual together: the Lyapunov criterion's
+    scene, samples = run
+    bad = [dataclasses.replace(s, E_star=s.E_star - 1e-4, residual=s.residual - 1e-4)
+           if i >= 600 else s for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    assert a.kicks == 0
+
+
+# -- finding 3: a cap on the samples kept never makes the shortest fitted window unreachable ----
+def test_the_sample_cap_thins_the_window_instead_of_shortening_it(run):
+    # 1001 samples at 250 Hz (4 s) kept in 300 rows: 1.2 s of them would be < min_fit_s 2 s
+    scene, samples = run
+    a = _feed(scene, samples, max_window_samples=300)
+    res = a.result()
+    seg = res.segments[-1]
+    assert seg.energy_fit is not None, seg.criteria[0].detail
+    assert seg.window_s >= 2.0 and a.segments[-1].stride == 4
+    assert str(_status(res, 'decay').status) != 'NOT YET'
+
+
+def test_a_lost_message_in_a_thinned_window_is_still_missing(run):
+    # a stride of 4 samples hides one lost message from the time grid; its seq does not
+    scene, samples = run
+    gap = [s for i, s in enumerate(samples) if i != 901]
+    a = _feed(scene, gap, max_window_samples=300)
+    seg = a.result().segments[-1]
+    assert a.dropped == 1 and seg.missing == 1 and seg.energy_fit is None
+
+
+# -- finding 2: a mode above the Nyquist frequency shows at its alias, which is explained ------
+@pytest.mark.parametrize('rate', [10.0, 20.0])
+def test_aliases_of_modes_above_nyquist_are_explained(rate):
+    tr = simulate('precession', t_end=12.0, rate=rate)
+    a = RotorAnalyzer(tr.scene, window_s=8.0)
+    a.add_many(samples_from_trajectory(tr))
+    res = a.result()
+    c = _status(res, 'modes')
+    assert c.numbers['unexplained_hz'] == [], c.detail
+    assert str(c.status) == 'PASS', c.detail
+    # the rotor-field coupling (10.73 Hz, tau 0.28 s) has died by the last windows; the
+    # nutation (9.709 Hz) is above Nyquist at 10 Hz only; their products show folded too
+    assert ('sampled alias of nutation' in c.detail) == (rate == 10.0)
+    assert 'sampled alias of the combination tone' in c.detail
+
+
+def test_alias_folds_into_half_the_sample_rate():
+    from gyro_rotor.analysis.modes import alias_hz
+    assert alias_hz(9.709, 10.0) == pytest.approx(0.291)
+    assert alias_hz(10.731, 20.0) == pytest.approx(9.269)
+    assert alias_hz(19.417, 10.0) == pytest.approx(0.583)
+    assert alias_hz(3.0, 10.0) == 3.0
+
+
+# -- finding 6: a root predicted to grow is never "damped", never passes ------------------------
+_ONE = ('name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {{J: 0.1, C: 0.01, k: {k}}}\n'
+        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
+        'potential: "k*x**2/2"\n'
+        'drives:\n  - {{K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}}\n')
+
+
+def _one_scene(tmp_path, k):
+    from gyro_rotor.core.scene import load_scene
+    (tmp_path / 'one.yaml').write_text(_ONE.format(k=k))
+    (tmp_path / 'sc.yaml').write_text(
+        '/**:\n  ros__parameters:\n    system: one.yaml\n    t_end: 10.0\n'
+        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    return load_scene(str(tmp_path / 'sc.yaml'))
+
+
+@pytest.mark.parametrize('k', [-0.01, -1e-6])
+def test_a_mode_predicted_to_grow_is_never_damped_nor_a_pass(tmp_path, k):
+    scene = _one_scene(tmp_path, k)
+    tr = simulate(scene, t_end=6.0, rate=250.0)
+    a = RotorAnalyzer(scene, window_s=8.0)
+    a.add_many(samples_from_trajectory(tr))
+    res = a.result()
+    grow = {m.name for m in res.prediction.modes
+            if m.eigenvalue.real > 0 and not (m.marginal or m.structural)}
+    assert grow
+    for m in res.judged.modes:
+        if m.name in grow:
+            assert str(m.status) not in ('weakly damped', 'decaying as predicted'), m.status
+    for name in ('modes', 'decay'):
+        c = _status(res, name)
+        assert str(c.status) != 'PASS', c.detail
+    assert 'no decaying mode predicted' not in _status(res, 'decay').detail
+    assert not res.confirmed
+
+
+def test_a_constant_with_unresolved_slow_terms_is_not_called_the_limit(tmp_path):
+    # k = 10: a mode decaying at 2 x 0.00205 1/s is merged into the fitted constant over an
+    # 8 s window; that constant (4.8e-4 J, +- 5e-7) is not the limit E*_inf = 0 J
+    scene = _one_scene(tmp_path, 10.0)
+    tr = simulate(scene, t_end=8.0, rate=250.0)
+    a = RotorAnalyzer(scene, window_s=8.0)
+    a.add_many(samples_from_trajectory(tr))
+    res = a.result()
+    fit = res.judged.energy_fit
+    assert fit.slow and abs(fit.E_inf) > 100 * fit.E_inf_sigma
+    detail = _status(res, 'decay').detail
+    assert 'E*_inf =' not in detail and 'not the limit E*_inf' in detail
