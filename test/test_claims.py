@@ -19,6 +19,7 @@ from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scen
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
+from random_systems import random_system_file
 
 
 def pieces(M, G, K, K_S, K_D):
@@ -222,33 +223,13 @@ def test_one_checker_on_every_centrifuge_scene(scene):
 
 
 # -- end to end: random systems written as system files ------------------------------------------
-def _system_file(seed, n, m):
-    """Return a random valid system file: constant M and guidance, a quadratic potential."""
-    rng = np.random.default_rng(seed)
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    M = Q @ np.diag(rng.uniform(0.5, 3.0, n)) @ Q.T
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    H = Q @ np.diag(rng.uniform(1.0, 30.0, n)) @ Q.T
-    q = [f'q{i}' for i in range(n)]
-    pot = ' + '.join(f'({float(H[i, j])!r})*{q[i]}*{q[j]}/2'
-                     for i in range(n) for j in range(n))
-    return {
-        'name': f'random{seed}', 'coordinates': q, 'rotors': [f'R{k}' for k in range(m)],
-        'constants': {}, 'mass_matrix': [[repr(float(x)) for x in row] for row in M],
-        'rotor_inertia': [repr(float(x)) for x in rng.uniform(0.01, 0.1, m)],
-        'guidance': [[repr(float(x)) for x in row] for row in rng.uniform(-1, 1, (m, n))],
-        'potential': pot,
-        'drives': [{'K_S': float(rng.uniform(1, 20)), 'K_D': float(rng.uniform(0.01, 1)),
-                    'Omega0': float(rng.uniform(50, 300))} for _ in range(m)]}
-
-
 @settings(max_examples=4, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 2), m=st.integers(1, 2))
 def test_random_system_files_end_to_end(seed, n, m, tmp_path_factory):
     """Through the system-file parser, code generation and linearization: (a)-(d) hold."""
     import yaml
     folder = tmp_path_factory.mktemp('sys')
-    (folder / 'sys.yaml').write_text(yaml.safe_dump(_system_file(seed, n, m)))
+    (folder / 'sys.yaml').write_text(yaml.safe_dump(random_system_file(seed, n, m)))
     (folder / 'scene.yaml').write_text(yaml.safe_dump(
         {'/**': {'ros__parameters': {'system': 'sys.yaml', 't_end': 1.0}}}))
     lin = linearize_scene(load_scene(str(folder / 'scene.yaml')))

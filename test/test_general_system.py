@@ -22,6 +22,7 @@ from gyro_rotor.numerics.simulate import integrate as integrate_general
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
+from random_systems import random_system_file
 import sympy
 import yaml
 
@@ -892,28 +893,6 @@ def load_scene_with_sets(name, sets):
     return load(name, sets)
 
 
-def _random_system_file(seed, n, m):
-    """Return a random valid system file, K_S = 0 on a random nonempty set of drives."""
-    rng = np.random.default_rng(seed)
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    M = Q @ np.diag(rng.uniform(0.5, 3.0, n)) @ Q.T
-    Q, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    H = Q @ np.diag(rng.uniform(1.0, 30.0, n)) @ Q.T
-    q = [f'q{i}' for i in range(n)]
-    zero = rng.random(m) < 0.5
-    zero[rng.integers(m)] = True
-    return {
-        'name': f'jordan{seed}', 'coordinates': q, 'rotors': [f'R{k}' for k in range(m)],
-        'constants': {}, 'mass_matrix': [[repr(float(x)) for x in row] for row in M],
-        'rotor_inertia': [repr(float(x)) for x in rng.uniform(0.01, 0.1, m)],
-        'guidance': [[repr(float(x)) for x in row] for row in rng.uniform(-1, 1, (m, n))],
-        'potential': ' + '.join(f'({float(H[i, j])!r})*{q[i]}*{q[j]}/2'
-                                for i in range(n) for j in range(n)),
-        'drives': [{'K_S': 0.0 if zero[k] else float(rng.uniform(1, 20)),
-                    'K_D': float(rng.uniform(0.01, 1)), 'Omega0': float(rng.uniform(50, 300))}
-                   for k in range(m)]}
-
-
 @settings(max_examples=5, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 3), m=st.integers(1, 2))
@@ -921,7 +900,7 @@ def test_sensitivity_with_no_drive_stiffness_is_the_finite_difference_slope(seed
                                                                             tmp_path_factory):
     """Random valid systems, K_S = 0 on some drives: printed d = FD slope, every root."""
     folder = tmp_path_factory.mktemp('jordan')
-    (folder / 'sys.yaml').write_text(yaml.safe_dump(_random_system_file(seed, n, m)))
+    (folder / 'sys.yaml').write_text(yaml.safe_dump(random_system_file(seed, n, m, zero_K_S=True)))
     (folder / 'scene.yaml').write_text(yaml.safe_dump(
         {'/**': {'ros__parameters': {'system': 'sys.yaml', 't_end': 1.0}}}))
     ms = _check_sensitivities_against_fd(linearize_scene(load_scene(str(folder / 'scene.yaml'))))
