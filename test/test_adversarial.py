@@ -567,6 +567,7 @@ def test_demo_with_a_duration_whose_kick_is_off_the_grid(tmp_path, capsys):
 @pytest.mark.parametrize('argv, message', [
     (['monitor', '--duration', 'nan'], '--duration must be finite'),
     (['monitor', '--duration', '-1'], '--duration must be finite and >= 0'),
+    (['monitor', '--namespace', 'bad name!'], "--namespace 'bad name!' is not a ROS namespace"),
     (['rt-bench', '--duration', '0'], '--duration must be finite and > 0'),
     (['rt-bench', '--rtf', 'nan'], '--rtf must be finite'),
     (['demo', '--kick-at', 'nan'], '--kick-at must be finite'),

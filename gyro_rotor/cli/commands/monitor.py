@@ -222,6 +222,20 @@ def _value_lines(topic: str, values) -> list[str]:
     return [f'{topic}: ' + ', '.join(f'{k} {known[k]:.6g}' for k in keys)]
 
 
+def _namespace(namespace: str) -> str:
+    """Return ``namespace`` made absolute; refuse one that is not a valid ROS namespace."""
+    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.validate_namespace import validate_namespace
+    ns = '/' + namespace.strip('/')
+    try:
+        validate_namespace(ns)
+    except InvalidNamespaceException as err:
+        reason = str(err).splitlines()[0].removeprefix('Invalid namespace: ').rstrip(':')
+        raise ParameterError(f'--namespace {namespace!r} is not a ROS namespace: {reason}'
+                             ) from None
+    return ns
+
+
 def run(args: argparse.Namespace) -> int:
     """Spin a monitoring node and print the table every period."""
     import rclpy
@@ -231,6 +245,7 @@ def run(args: argparse.Namespace) -> int:
     check_number('--duration', args.duration, low=0.0, what='[s] (0 = until Ctrl-C)')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError(f'--domain-id must be in 0..232, got {args.domain_id}')
+    args.namespace = _namespace(args.namespace)
     context = rclpy.context.Context()
     kwargs = {} if args.domain_id is None else {'domain_id': args.domain_id}
     rclpy.init(context=context, **kwargs)
