@@ -219,3 +219,12 @@ def test_a_neighbour_closer_than_one_over_the_window_is_named(f1, sep, span):
     assert bool(text) == (sep < 1.0 / span)
     if text:
         assert 'not separable from b' in text and f'{1.0 / span:.3g} Hz' in text
+
+
+def test_a_mode_seen_in_one_window_reads_in_the_window_once(run):
+    # review: 'weakly damped in the the window ending t = 3.00 s'
+    scene, samples = run
+    a = RotorAnalyzer(scene, window_s=3.0, checkpoint_s=10.0)
+    a.add_many(samples)
+    text = ' '.join(str(m.describe()) for m in a.result().judged.modes)
+    assert 'in the window ending t =' in text and 'the the' not in text
