@@ -48,7 +48,7 @@ def test_a_jump_of_the_recorded_D_fails_the_energy_balance(run):
     assert a.kicks == 0 and not res.confirmed
 
 
-@pytest.mark.parametrize('field', ['D', 'residual', 'dE_dt', 'zdot'])
+@pytest.mark.parametrize('field', ['D', 'residual', 'dE_dt', 'zdot', 'dissipation'])
 def test_a_non_finite_recorded_field_fails_data_and_is_named(run, field):
     scene, samples = run
     bad = [dataclasses.replace(s, **{field: math.nan}) if i == 500 else s
@@ -228,3 +228,14 @@ def test_a_mode_seen_in_one_window_reads_in_the_window_once(run):
     a.add_many(samples)
     text = ' '.join(str(m.describe()) for m in a.result().judged.modes)
     assert 'in the window ending t =' in text and 'the the' not in text
+
+
+def test_a_recorded_dissipation_other_than_minus_de_dt_fails_data(run):
+    # the review's bigE: dissipation + 1 W in one message (the simulation writes -dE_dt)
+    scene, samples = run
+    ok = [dataclasses.replace(s, dissipation=-s.dE_dt) for s in samples]
+    assert str(_status(_feed(scene, ok).result(), 'data').status) == 'PASS'
+    bad = [dataclasses.replace(s, dissipation=s.dissipation + 1.0) if i == 500 else s
+           for i, s in enumerate(ok)]
+    c = _status(_feed(scene, bad).result(), 'data')
+    assert str(c.status) == 'FAIL' and 'dissipation' in c.detail, c.detail

@@ -282,6 +282,10 @@ class RotorAnalyzer:
             self.non_finite += 1
             self.non_finite_fields.update(k for k, v in self._recorded(s).items()
                                           if not math.isfinite(v))
+        elif s.dissipation is not None and s.dissipation != -s.dE_dt:
+            # the simulation writes dissipation = -dE_dt exactly: one of them is corrupt
+            self.non_finite += 1
+            self.non_finite_fields.add('dissipation != -dE_dt')
         if reason is not None:
             self._new_segment(reason)
         seg = self.segments[-1]
@@ -368,6 +372,8 @@ class RotorAnalyzer:
         """
         out = {'t_sim': s.t, 'E_star': s.E_star, 'dE_dt': s.dE_dt, 'residual': s.residual,
                'D': s.D}
+        if s.dissipation is not None:
+            out['dissipation'] = s.dissipation
         if self.prediction.coords != GENERAL_COORDS:
             out['z'], out['zdot'] = s.z, s.zdot
         if s.joints:

@@ -41,6 +41,9 @@ class Sample:
     velocities: tuple = (0.0, 0.0, 0.0, 0.0)
     #: False for an energy message whose joint state never came (positions NaN placeholders)
     joints: bool = True
+    #: the ``dissipation`` field K_D zdot^2 [W] as recorded (None: the source has none);
+    #: the simulation writes it as -dE_dt exactly
+    dissipation: float | None = None
 
 
 def energy_sample_fields(values: Sequence[float], fields: Sequence[str]) -> dict:
@@ -165,7 +168,7 @@ class SamplePairer:
                       residual=e.get('residual', math.nan), z=e.get('z', math.nan),
                       zdot=e.get('zdot', math.nan),
                       D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4,
-                      joints=joints is not None)
+                      joints=joints is not None, dissipation=e.get('dissipation'))
 
 
 def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
