@@ -239,3 +239,10 @@ def test_a_recorded_dissipation_other_than_minus_de_dt_fails_data(run):
            for i, s in enumerate(ok)]
     c = _status(_feed(scene, bad).result(), 'data')
     assert str(c.status) == 'FAIL' and 'dissipation' in c.detail, c.detail
+
+
+def test_without_a_recorded_d_the_balance_says_it_is_the_residuals(run):
+    scene, samples = run
+    no_d = [dataclasses.replace(s, D=math.nan, absent=('D',)) for s in samples]
+    c = _status(_feed(scene, no_d).result(), 'energy balance')
+    assert 'D not recorded' in c.detail and str(c.status) == 'PASS', c.detail
