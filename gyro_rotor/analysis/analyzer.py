@@ -99,6 +99,7 @@ class _Segment:
         self.E_ref = math.nan
         self.balance_max = 0.0
         self.balance_mismatch = 0.0
+        self.balance_n = 0
         self.slips = 0
         self.last_slip_t = -math.inf
         self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
@@ -282,6 +283,10 @@ class RotorAnalyzer:
             self.non_finite += 1
             self.non_finite_fields.update(k for k, v in self._recorded(s).items()
                                           if not math.isfinite(v))
+        elif s.dissipation is not None and s.dissipation != -s.dE_dt:
+            # the simulation writes dissipation = -dE_dt exactly: one of them is corrupt
+            self.non_finite += 1
+            self.non_finite_fields.add('dissipation != -dE_dt')
         if reason is not None:
             self._new_segment(reason)
         seg = self.segments[-1]
@@ -338,6 +343,7 @@ class RotorAnalyzer:
             seg.E_ref = s.E_star + s.D - s.residual
         bal = s.E_star + s.D - seg.E_ref
         if math.isfinite(bal):
+            seg.balance_n += 1
             seg.balance_max = max(seg.balance_max, abs(bal))
             if math.isfinite(s.residual):
                 seg.balance_mismatch = max(seg.balance_mismatch, abs(bal - s.residual))
@@ -368,8 +374,12 @@ class RotorAnalyzer:
         """
         out = {'t_sim': s.t, 'E_star': s.E_star, 'dE_dt': s.dE_dt, 'residual': s.residual,
                'D': s.D}
+        if s.dissipation is not None:
+            out['dissipation'] = s.dissipation
         if self.prediction.coords != GENERAL_COORDS:
             out['z'], out['zdot'] = s.z, s.zdot
+        for f in s.absent:               # not carried by the message: not recorded as NaN
+            out.pop(f, None)
         if s.joints:
             out.update({f'position[{i}]': v for i, v in enumerate(s.positions)})
             out.update({f'velocity[{i}]': v for i, v in enumerate(s.velocities)})
@@ -555,6 +565,7 @@ class RotorAnalyzer:
             lyapunov_max_increase=seg.lyap_max if math.isfinite(seg.lyap_max) else math.nan,
             lyapunov_violations=seg.lyap_violations, residual_max=seg.residual_max,
             balance_max=seg.balance_max, balance_mismatch=seg.balance_mismatch,
+            balance_n=seg.balance_n,
             energy_decay_rate=e_fit.rate if e_fit else math.nan,
             deviation_decay_rate=dev_rate, window_s=span, modes=modes,
             pole_slips=seg.slips, sync_state=sync_state, well=well,

@@ -87,9 +87,10 @@ def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
     """
     name = CriterionName.ENERGY_BALANCE
     recorded = max((s.residual_max for s in segs), default=math.nan)
-    computed = max((s.balance_max for s in segs), default=math.nan)
-    mismatch = max((s.balance_mismatch for s in segs), default=math.nan)
-    worst = max(computed, recorded, mismatch)
+    computed = max((s.balance_max for s in segs if s.balance_n), default=math.nan)
+    mismatch = max((s.balance_mismatch for s in segs if s.balance_n), default=math.nan)
+    worst = max(v for v in (computed, recorded, mismatch) if not math.isnan(v)) \
+        if segs else math.nan
     E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
     nums = {'residual_max_J': recorded, 'balance_max_J': computed, 'mismatch_J': mismatch,
             'tol_J': warn}
@@ -97,6 +98,10 @@ def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
         return Criterion(name, Status.NOT_YET, 'no residual yet', nums)
     status = decide(Measured.pm(worst, 4 * _EPS * max(E, 1.0)), warn, 'below')
     rel = {Status.PASS: '<=', Status.FAIL: '>', Status.NOT_YET: 'at'}[status]
+    if math.isnan(computed):
+        return Criterion(name, status, f'max |E* + D - E_ref| = {recorded:.3g} J as the '
+                         f'recorded residual says (D not recorded: not computed) ({rel} '
+                         f'{warn:.1g} J)', nums)
     return Criterion(name, status, f'max |E* + D - E_ref| = {computed:.3g} J from the '
                      f'recorded E* and D, recorded residual max {recorded:.3g} J, they differ '
                      f'by up to {mismatch:.3g} J ({rel} {warn:.1g} J)', nums)

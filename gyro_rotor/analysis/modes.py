@@ -366,6 +366,20 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
                                     m.reached_by_drive, m.structural, window_s=span))
         else:
             checks.append(_judge(m, cand[pairs[i]], span))
+    ident = [(modes[i], cand[b]) for i, b in pairs.items() if not modes[i].structural
+             and abs(cand[b].value.imag) > 1e-9]
+    for i in pairs:
+        near = _unresolved_neighbour(modes[i], [modes[j] for j in obs if j != i],
+                                     [p for p in ident if p[0] is not modes[i]], span,
+                                     combination_tones)
+        # a disagreement is what a root that absorbed an unseparated neighbour shows (a
+        # blend: a frequency between the two, a beat read as decay): not the mode's own
+        # number, so undecided here; an agreement (frequency and rate within tolerance)
+        # stands, a blend with a neighbour of another rate does not mimic it
+        if near and checks[i].status is ModeStatus.DISAGREES:
+            checks[i] = dataclasses.replace(
+                checks[i], status=ModeStatus.NOT_RESOLVED, freq_status=None,
+                rate_status=None, note=near)
     used = {id(cand[b]) for b in pairs.values()}
     unexplained, growing = [], []
     fmin = _TWO_PI / max(span, 1e-9)        # slower than a cycle per window: an offset
@@ -505,6 +519,43 @@ def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
         if best is not None:
             out[id(r)] = best[1]
     return out
+
+
+def _unresolved_neighbour(m: PredictedMode, others: list, parents: list, span: float,
+                          combination_tones: bool = True) -> str:
+    """Say why a window cannot separate a mode from its nearest neighbour ('' if it can).
+
+    Used on a mode that disagrees (:func:`check_modes`): it is then not decided.
+
+    A window of T s resolves two frequencies about 1/T apart; closer, the root matched
+    to the mode absorbs its neighbour (an amplitude modulation the fit reads as a wrong
+    frequency or decay, with a narrow interval that excludes the truth). Neighbours: the
+    other observable predicted modes and the combination tones (up to
+    :data:`COMBINATION_ORDER`) of the other modes identified in the window (measured
+    frequencies).
+    """
+    import itertools
+    f = abs(m.eigenvalue.imag) / _TWO_PI
+    if m.structural or f <= 0:
+        return ''
+    res = 1.0 / max(span, 1e-9)
+    near = [(abs(f - abs(o.eigenvalue.imag) / _TWO_PI), o.name, abs(o.eigenvalue.imag) / _TWO_PI)
+            for o in others if not o.structural and abs(o.eigenvalue.imag) > 0]
+    if combination_tones:
+        items = [(o.name, r.freq_hz) for o, r in parents]
+        for order in range(2, COMBINATION_ORDER + 1):
+            for combo in itertools.combinations_with_replacement(range(len(items)), order):
+                for signs in itertools.product((1, -1), repeat=order - 1):
+                    signs = (1,) + signs
+                    fc = sum(sg * items[k][1] for sg, k in zip(signs, combo))
+                    if fc > 0:
+                        label = _combo_label([items[k][0] for k in combo], signs)
+                        near.append((abs(f - fc), f'combination tone {label}', fc))
+    close = min((n for n in near if n[0] < res), default=None)
+    if close is None:
+        return ''
+    return (f'not separable from {close[1]} at {close[2]:.4g} Hz in this window: '
+            f'{close[0]:.3g} Hz apart, the window resolves 1/T = {res:.3g} Hz')
 
 
 def _doublet(r: Root, parents: list, span: float) -> str | None:

@@ -101,6 +101,8 @@ class SegmentResult:
     #: at the segment's first sample), and the largest difference from the recorded residual
     balance_max: float = 0.0
     balance_mismatch: float = 0.0
+    #: samples whose recorded E* and D gave the balance (0: D not recorded)
+    balance_n: int = 0
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""

@@ -112,7 +112,7 @@ class RunRecord:
                 continue
             t1, c = m.good
             when = (f'windows ending t = {m.first:.2f} .. {t1:.2f} s' if t1 > m.first else
-                    f'the window ending t = {t1:.2f} s')
+                    f'window ending t = {t1:.2f} s')
             text = f'{c.status} in the {when}'
             if cur.status in (ModeStatus.NOT_EXCITED, ModeStatus.NOT_IDENTIFIED) and \
                     math.isfinite(m.gone):

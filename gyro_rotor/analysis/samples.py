@@ -42,6 +42,11 @@ class Sample:
     velocities: tuple = (0.0, 0.0, 0.0, 0.0)
     #: False for an energy message whose joint state never came (positions NaN placeholders)
     joints: bool = True
+    #: the ``dissipation`` field K_D zdot^2 [W] as recorded (None: the source has none);
+    #: the simulation writes it as -dE_dt exactly
+    dissipation: float | None = None
+    #: ``energy`` fields the message did not carry (NaN here, but not recorded as NaN)
+    absent: tuple = ()
 
 
 def energy_sample_fields(values: Sequence[float], fields: Sequence[str]) -> dict:
@@ -171,7 +176,9 @@ def make_sample(e: Mapping[str, float], joints: tuple | None) -> Sample:
                   residual=e.get('residual', math.nan), z=e.get('z', math.nan),
                   zdot=e.get('zdot', math.nan),
                   D=e.get('D', math.nan), positions=pos or nan4, velocities=vel or nan4,
-                  joints=joints is not None)
+                  joints=joints is not None, dissipation=e.get('dissipation'),
+                  absent=tuple(f for f in ('dE_dt', 'residual', 'z', 'zdot', 'D')
+                               if f not in e))
 
 
 def samples_from_trajectory(tr, seq0: int = 0) -> list[Sample]:
