@@ -18,6 +18,7 @@ of modes), and lists the oscillations nothing explains. Pure Python.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 import dataclasses
 import math
 
@@ -470,7 +471,6 @@ def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
     identified at their own frequency, parents too; ``combination_tones`` False: no
     combination tones (:func:`check_modes`). Return {id(root): text}.
     """
-    import itertools
     fs = 1.0 / dt
     nyq = [m for m in modes if not m.structural and abs(m.eigenvalue.imag) * dt >= math.pi * 0.999
            and m.eigenvalue.real * dt > -5.0]
@@ -499,23 +499,17 @@ def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
     for r in roots if combination_tones else ():
         best = None
         own = [p for p in parents if p[3] is not r]
-        for order in range(2, COMBINATION_ORDER + 1):
-            for combo in itertools.combinations_with_replacement(range(len(own)), order):
-                for signs in itertools.product((1, -1), repeat=order - 1):
-                    signs = (1,) + signs
-                    f = sum(sg * own[k][1] for sg, k in zip(signs, combo))
-                    if f <= 0:
-                        continue
-                    fa = alias_hz(f, fs)
-                    # a repeated parent's error repeats: the uncertainties add
-                    u = 2.0 * (r.im.u / _TWO_PI + sum(own[k][2] for k in combo))
-                    d = abs(r.freq_hz - fa)
-                    if d <= u and (best is None or d / u < best[0]):
-                        label = _combo_label([own[k][0] for k in combo], signs)
-                        best = (d / u, f'sampled alias of the combination tone {label}: '
-                                       f'|{f:.4g} - {round(f / fs)} x {fs:.4g}| = {fa:.4g} Hz')
-            if best is not None:
-                break
+        for order, combo, signs, f in _tones([p[1] for p in own]):
+            if best is not None and order > best[2]:
+                break                   # the lowest order that explains it
+            fa = alias_hz(f, fs)
+            # a repeated parent's error repeats: the uncertainties add
+            u = 2.0 * (r.im.u / _TWO_PI + sum(own[k][2] for k in combo))
+            d = abs(r.freq_hz - fa)
+            if d <= u and (best is None or d / u < best[0]):
+                label = _combo_label([own[k][0] for k in combo], signs)
+                best = (d / u, f'sampled alias of the combination tone {label}: '
+                               f'|{f:.4g} - {round(f / fs)} x {fs:.4g}| = {fa:.4g} Hz', order)
         if best is not None:
             out[id(r)] = best[1]
     return out
@@ -534,7 +528,6 @@ def _unresolved_neighbour(m: PredictedMode, others: list, parents: list, span: f
     :data:`COMBINATION_ORDER`) of the other modes identified in the window (measured
     frequencies).
     """
-    import itertools
     f = abs(m.eigenvalue.imag) / _TWO_PI
     if m.structural or f <= 0:
         return ''
@@ -542,15 +535,10 @@ def _unresolved_neighbour(m: PredictedMode, others: list, parents: list, span: f
     near = [(abs(f - abs(o.eigenvalue.imag) / _TWO_PI), o.name, abs(o.eigenvalue.imag) / _TWO_PI)
             for o in others if not o.structural and abs(o.eigenvalue.imag) > 0]
     if combination_tones:
-        items = [(o.name, r.freq_hz) for o, r in parents]
-        for order in range(2, COMBINATION_ORDER + 1):
-            for combo in itertools.combinations_with_replacement(range(len(items)), order):
-                for signs in itertools.product((1, -1), repeat=order - 1):
-                    signs = (1,) + signs
-                    fc = sum(sg * items[k][1] for sg, k in zip(signs, combo))
-                    if fc > 0:
-                        label = _combo_label([items[k][0] for k in combo], signs)
-                        near.append((abs(f - fc), f'combination tone {label}', fc))
+        names = [o.name for o, _ in parents]
+        for _, combo, signs, fc in _tones([r.freq_hz for _, r in parents]):
+            label = _combo_label([names[k] for k in combo], signs)
+            near.append((abs(f - fc), f'combination tone {label}', fc))
     close = min((n for n in near if n[0] < res), default=None)
     if close is None:
         return ''
@@ -590,33 +578,43 @@ def _combination(r: Root, parents: list, span: float) -> str | None:
     of modes decays at the sum of their rates) within twice theirs plus the window's
     resolution.
     """
-    import itertools
     res_re = RESOLVABLE / max(span, 1e-9)
     items = [(m.name, root.value.imag, root.im.u, root.value.real,
               root.re.u if root.re.bounded else res_re) for m, root in parents]
     best = None
-    for order in range(2, COMBINATION_ORDER + 1):
-        for combo in itertools.combinations_with_replacement(range(len(items)), order):
-            for signs in itertools.product((1, -1), repeat=order - 1):
-                signs = (1,) + signs
-                w = sum(sg * items[k][1] for sg, k in zip(signs, combo))
-                if w <= 0:
-                    continue
-                uw = 2.0 * math.sqrt(r.im.u ** 2 + sum(items[k][2] ** 2 for k in combo))
-                d = abs(r.value.imag - w)
-                if d > uw:
-                    continue
-                rate = sum(items[k][3] for k in combo)
-                ur = 2.0 * math.sqrt((r.re.u if r.re.bounded else 0.0) ** 2
-                                     + sum(items[k][4] ** 2 for k in combo)) + res_re
-                if abs(r.value.real - rate) > ur:
-                    continue
-                if best is None or d / uw < best[0]:
-                    label = _combo_label([items[k][0] for k in combo], signs)
-                    best = (d / uw, f'combination tone {label}: {w / _TWO_PI:.4g} Hz')
-        if best is not None:
-            break           # the lowest order that explains it
+    for order, combo, signs, w in _tones([it[1] for it in items]):
+        if best is not None and order > best[2]:
+            break               # the lowest order that explains it
+        uw = 2.0 * math.sqrt(r.im.u ** 2 + sum(items[k][2] ** 2 for k in combo))
+        d = abs(r.value.imag - w)
+        if d > uw:
+            continue
+        rate = sum(items[k][3] for k in combo)
+        ur = 2.0 * math.sqrt((r.re.u if r.re.bounded else 0.0) ** 2
+                             + sum(items[k][4] ** 2 for k in combo)) + res_re
+        if abs(r.value.real - rate) > ur:
+            continue
+        if best is None or d / uw < best[0]:
+            label = _combo_label([items[k][0] for k in combo], signs)
+            best = (d / uw, f'combination tone {label}: {w / _TWO_PI:.4g} Hz', order)
     return None if best is None else best[1]
+
+
+def _tones(values: list) -> Iterator[tuple[int, tuple, tuple, float]]:
+    """Yield the positive combinations sum_k s_k v_k of ``values``, order by order.
+
+    Orders 2 .. :data:`COMBINATION_ORDER` (repeats allowed: 2 v_i is a harmonic), the
+    first sign +1: (order, indices, signs, value). The one enumeration of combination
+    tones (:func:`_combination`, their aliases, the neighbours a window cannot resolve).
+    """
+    import itertools
+    for order in range(2, COMBINATION_ORDER + 1):
+        for combo in itertools.combinations_with_replacement(range(len(values)), order):
+            for tail in itertools.product((1, -1), repeat=order - 1):
+                signs = (1,) + tail
+                value = sum(sg * values[k] for sg, k in zip(signs, combo))
+                if value > 0:
+                    yield order, combo, signs, value
 
 
 def _combo_label(names: list, signs: tuple) -> str:
