@@ -342,10 +342,16 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
     modes = list(pred.modes)
     obs = [i for i, m in enumerate(modes) if _observable(m, dt)]
     pairs, C = _assign(modes, obs, cand, span)
+
+    def identified(within_tolerance: bool) -> list:
+        # (mode, root) of the oscillating modes matched, only those within tolerance
+        return [(modes[i], cand[b]) for i, b in pairs.items()
+                if (C[i] <= 1.0 or not within_tolerance) and not modes[i].structural
+                and abs(cand[b].value.imag) > 1e-9]
+
     combos: dict = {}
     if combination_tones:
-        parents = [(modes[i], cand[b]) for i, b in pairs.items() if C[i] <= 1.0
-                   and not modes[i].structural and abs(cand[b].value.imag) > 1e-9]
+        parents = identified(True)
         strong = {id(cand[b]) for i, b in pairs.items() if C[i] <= 1.0}
         for r in cand:
             if id(r) not in strong:
@@ -367,17 +373,16 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
                                     m.reached_by_drive, m.structural, window_s=span))
         else:
             checks.append(_judge(m, cand[pairs[i]], span))
-    ident = [(modes[i], cand[b]) for i, b in pairs.items() if not modes[i].structural
-             and abs(cand[b].value.imag) > 1e-9]
-    for i in pairs:
+    ident = identified(False)
+    # a disagreement is what a root that absorbed an unseparated neighbour shows (a blend:
+    # a frequency between the two, a beat read as decay): not the mode's own number, so
+    # undecided here; an agreement (frequency and rate within tolerance) stands, a blend
+    # with a neighbour of another rate does not mimic it
+    for i in (i for i in pairs if checks[i].status is ModeStatus.DISAGREES):
         near = _unresolved_neighbour(modes[i], [modes[j] for j in obs if j != i],
                                      [p for p in ident if p[0] is not modes[i]], span,
                                      combination_tones)
-        # a disagreement is what a root that absorbed an unseparated neighbour shows (a
-        # blend: a frequency between the two, a beat read as decay): not the mode's own
-        # number, so undecided here; an agreement (frequency and rate within tolerance)
-        # stands, a blend with a neighbour of another rate does not mimic it
-        if near and checks[i].status is ModeStatus.DISAGREES:
+        if near:
             checks[i] = dataclasses.replace(
                 checks[i], status=ModeStatus.NOT_RESOLVED, freq_status=None,
                 rate_status=None, note=near)
@@ -390,9 +395,7 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
             growing.append(r)
     free = [r for r in roots if id(r) not in used and id(r) not in combos and r.resolved
             and abs(r.value.imag) > fmin]
-    inband = [(modes[i], cand[b]) for i, b in pairs.items() if C[i] <= 1.0
-              and not modes[i].structural and abs(cand[b].value.imag) > 1e-9]
-    combos.update(_aliases(free, modes, dt, span, inband, combination_tones))
+    combos.update(_aliases(free, modes, dt, span, identified(True), combination_tones))
     for r in free:
         if id(r) in combos:
             continue
@@ -472,8 +475,9 @@ def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
     combination tones (:func:`check_modes`). Return {id(root): text}.
     """
     fs = 1.0 / dt
-    nyq = [m for m in modes if not m.structural and abs(m.eigenvalue.imag) * dt >= math.pi * 0.999
-           and m.eigenvalue.real * dt > -5.0]
+    # lasting (not gone within a sample) but not observable: above the Nyquist frequency
+    nyq = [m for m in modes if not m.structural and m.eigenvalue.real * dt > -5.0
+           and not _observable(m, dt)]
     single: dict = {}                      # mode name -> (distance, root, text)
     for m in nyq:
         f = abs(m.eigenvalue.imag) / _TWO_PI
