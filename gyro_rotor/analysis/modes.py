@@ -342,16 +342,9 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
     modes = list(pred.modes)
     obs = [i for i, m in enumerate(modes) if _observable(m, dt)]
     pairs, C = _assign(modes, obs, cand, span)
-
-    def identified(within_tolerance: bool) -> list:
-        # (mode, root) of the oscillating modes matched, only those within tolerance
-        return [(modes[i], cand[b]) for i, b in pairs.items()
-                if (C[i] <= 1.0 or not within_tolerance) and not modes[i].structural
-                and abs(cand[b].value.imag) > 1e-9]
-
     combos: dict = {}
     if combination_tones:
-        parents = identified(True)
+        parents = _identified(modes, cand, pairs, C)
         strong = {id(cand[b]) for i, b in pairs.items() if C[i] <= 1.0}
         for r in cand:
             if id(r) not in strong:
@@ -373,7 +366,7 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
                                     m.reached_by_drive, m.structural, window_s=span))
         else:
             checks.append(_judge(m, cand[pairs[i]], span))
-    ident = identified(False)
+    ident = _identified(modes, cand, pairs)
     # a disagreement is what a root that absorbed an unseparated neighbour shows (a blend:
     # a frequency between the two, a beat read as decay): not the mode's own number, so
     # undecided here; an agreement (frequency and rate within tolerance) stands, a blend
@@ -395,7 +388,8 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
             growing.append(r)
     free = [r for r in roots if id(r) not in used and id(r) not in combos and r.resolved
             and abs(r.value.imag) > fmin]
-    combos.update(_aliases(free, modes, dt, span, identified(True), combination_tones))
+    combos.update(_aliases(free, modes, dt, span, _identified(modes, cand, pairs, C),
+                           combination_tones))
     for r in free:
         if id(r) in combos:
             continue
@@ -404,6 +398,13 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
                                    f'{r.share:.2g} of the largest'))
     combinations = [(r, combos[id(r)]) for r in roots if id(r) in combos]
     return ModesFound(checks, unexplained, combinations, growing, roots)
+
+
+def _identified(modes: list, cand: list, pairs: dict, C: dict | None = None) -> list:
+    """Return (mode, root) of the oscillating modes matched (with ``C``: within tolerance)."""
+    return [(modes[i], cand[b]) for i, b in pairs.items()
+            if (C is None or C[i] <= 1.0) and not modes[i].structural
+            and abs(cand[b].value.imag) > 1e-9]
 
 
 def _assign(modes: list, obs: list, cand: list, span: float) -> tuple[dict, dict]:
