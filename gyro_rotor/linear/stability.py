@@ -34,9 +34,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
-                                        drive_sensitivity, spectrum, STRUCTURAL, TOL_RE_REL,
-                                        track, unit, zero_K_sensitivities, ZERO_ROOT,
-                                        ZERO_ROOT_Z)
+                                        spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
+                                        zero_K_sensitivities, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
@@ -169,9 +168,7 @@ def sensitivities(lin: LinearSystem) -> tuple:
     -K_D b c^T diagonalizes (first-order degenerate perturbation theory).
     """
     lam, Vw, W = spectrum(lin, 0.0, left=True)
-    V = Vw / lin.weights[:, None]
-    d = drive_sensitivity(lin.A0, np.outer(lin.b, lin.c), lam, W, V)
-    _zero_cluster(lin, lam, V, W, Vw, d)
+    _zero_cluster(lin, lam, Vw / lin.weights[:, None], W, Vw)
     return lam, _one_rule(lin, lam, Vw), Vw
 
 
@@ -196,8 +193,12 @@ def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
     return d
 
 
-def _zero_cluster(lin, lam, V, W, Vw, d) -> None:
-    """Resolve a semisimple cluster of zero roots in place: its ``Vw`` and ``d``."""
+def _zero_cluster(lin, lam, V, W, Vw) -> None:
+    """Rotate the vectors ``Vw`` of a semisimple cluster of zero roots in place.
+
+    To the basis the perturbation -K_D b c^T diagonalizes, which the mode names follow;
+    their d lambda/d K_D come from the one rule (:func:`_one_rule`).
+    """
     n = len(lam)
     iz = _cyclic_z(lin)
     tol = 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
@@ -209,10 +210,9 @@ def _zero_cluster(lin, lam, V, W, Vw, d) -> None:
     if np.linalg.cond(G) > 1e8:        # pragma: no cover -- a defective cluster
         return
     M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
-    mu, Y = np.linalg.eig(M)
+    _, Y = np.linalg.eig(M)
     Vn = (N @ Y) * lin.weights[:, None]
     Vw[:, idx] = unit(Vn)
-    d[idx] = mu
 
 
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
