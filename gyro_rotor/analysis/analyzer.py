@@ -279,10 +279,10 @@ class RotorAnalyzer:
                     reason = f'kick (E* changed by {jump:+.6g} J)'
                     self.kicks += 1
         self.samples += 1
-        if not all(math.isfinite(v) for v in self._recorded(s).values()):
+        bad = [k for k, v in self._recorded(s).items() if not math.isfinite(v)]
+        if bad:
             self.non_finite += 1
-            self.non_finite_fields.update(k for k, v in self._recorded(s).items()
-                                          if not math.isfinite(v))
+            self.non_finite_fields.update(bad)
         elif s.dissipation is not None and s.dissipation != -s.dE_dt:
             # the simulation writes dissipation = -dE_dt exactly: one of them is corrupt
             self.non_finite += 1
