@@ -443,3 +443,47 @@ def test_stiff_drive_decay_is_not_measurable_in_8_s_windows():
     assert str(decay.status) == 'NOT YET' and 'not measurable in this window' in decay.detail
     assert 'needs about' in decay.detail
     assert all(str(c.status) == 'PASS' for c in res.criteria if c is not decay)
+
+
+def test_unstable_growth_is_unstable_not_diverged(tmp_path):
+    """Review finding: V = k x^2 / 2 with k < 0 grows to |E*| ~ 1e21 J by t = 3 s.
+
+    Its residual, 1e-11 of |E*|, broke the absolute 1e-2 J limit: 'diverged' where the
+    linear theory says unstable. By the simulation guard's rule (relative to max(1 J,
+    |E*|, |E_ref|)) the identity is sound: the verdict is 'unstable' and says so.
+    """
+    (tmp_path / 'one_neg.yaml').write_text(
+        'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
+        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
+        'potential: "k*x**2/2"\n'
+        'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
+    (tmp_path / 'sc_neg.yaml').write_text(
+        '/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: 3.0\n'
+        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    tr = simulate(str(tmp_path / 'sc_neg.yaml'))
+    _, res = analyze(tr.scene, samples_from_trajectory(tr), window_s=0)
+    assert res.prediction.verdict == 'unstable'
+    assert res.current.residual_max > 1e3            # joules: beyond any absolute limit
+    assert res.verdict == 'unstable' and res.level == 'ERROR'
+    assert res.current.identity_rel < 1e-9           # relative: the integration error
+    assert res.reason.startswith('the motion grows, the energy identity sound (max |E* + D - '
+                                 'E_ref| / max(1 J, |E*|, |E_ref|) = '), res.reason
+    assert 'not a numerical divergence' in res.reason
+
+
+def test_divergence_is_the_guard_rule_relative_to_the_energy(precession):
+    """The same residual diverges a run of E* ~ 5 J or not by max(1 J, |E*|, |E_ref|)."""
+    tr, samples = precession
+
+    def doctored(dr):
+        return [dataclasses.replace(s, E_star=s.E_star + dr, residual=s.residual + dr)
+                if i >= 1000 else s for i, s in enumerate(samples)]
+    E = max(abs(s.E_star) for s in samples)
+    _, res = analyze(tr.scene, doctored(0.9e-2 * E), window_s=0)
+    assert res.verdict != 'diverged'
+    _, res = analyze(tr.scene, doctored(1.1e-2 * E), window_s=0)
+    assert res.verdict == 'diverged' and res.level == 'ERROR'
+    assert res.reason.startswith('the integration diverged: energy identity broken (max '
+                                 '|E* + D - E_ref| / max(1 J, |E*|, |E_ref|) = 0.01'), \
+        res.reason
+    assert res.reason.endswith(' s > 0.01)') and 0.01 < res.current.identity_rel < 0.011

@@ -4,6 +4,7 @@ import subprocess
 import sys
 
 from gyro_rotor.cli.main import main
+import numpy as np
 import pytest
 
 
@@ -207,3 +208,57 @@ def test_bench_writes_to_a_new_directory_unless_told_bench(argv):
     assert resolve_settings(args) is None and args.out == 'bench'
     args = build_parser().parse_args(argv + ['--scenes', 'no_such_scene'])
     assert resolve_settings(args).startswith('--scenes:')
+
+
+#: a statically unstable one-coordinate system (V = k x^2 / 2, k < 0) on a self-stable drive
+UNSTABLE_SYSTEM = (
+    'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
+    'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
+    'potential: "k*x**2/2"\n'
+    'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
+
+
+def _unstable_scene(tmp_path) -> str:
+    (tmp_path / 'one_neg.yaml').write_text(UNSTABLE_SYSTEM)
+    (tmp_path / 'sc_neg.yaml').write_text(
+        '/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: 10.0\n'
+        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    return str(tmp_path / 'sc_neg.yaml')
+
+
+def test_simulate_of_an_unstable_system_says_it_grew(tmp_path, capsys):
+    """Review finding: x grew to 1e39 and simulate exited 0 saying nothing.
+
+    The energy identity holds (the residual is 1e-11 of |E*|): growth, not a divergence;
+    the last line says so, the exit status is 2 and every sample is written.
+    """
+    out = tmp_path / 'neg.csv'
+    assert main(['simulate', _unstable_scene(tmp_path), '--out', str(out)]) == 2
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith('UNSTABLE: the motion grows, the energy identity sound'), last
+    assert 'not a numerical divergence' in last
+    assert len(out.read_text().splitlines()) == 1 + 1001
+
+
+def test_simulate_of_a_diverging_integration_says_so_and_keeps_the_samples(tmp_path, capsys):
+    """dop853 at rtol 0.9 blows up: the last line names the guard's numbers, exit 2.
+
+    The samples before the first one the live guard rejects are written (the integrator
+    went on to a non-finite state at t = 1.51 s; that used to be one ERROR line, exit 1 and
+    no file).
+    """
+    out = tmp_path / 'div.csv'
+    argv = ['simulate', 'precession', '--method', 'dop853', '--rtol', '0.9', '--atol', '1',
+            '--out', str(out)]
+    assert main(argv) == 2
+    text = capsys.readouterr().out
+    last = text.splitlines()[-1]
+    assert last.startswith('DIVERGED: the integration diverged: energy-balance residual '), last
+    assert 'exceeds max_residual 1 x max(1 J, |E*|, |E_ref|)' in last
+    rows = np.loadtxt(out, delimiter=',', skiprows=1)
+    t_break = float(last.split(' at t = ')[1].split(' s ')[0])
+    assert rows[-1, 0] < t_break and len(rows) == round(t_break * 100)
+    assert f'wrote {out} ({len(rows)} rows)' in text
+    head = out.read_text().splitlines()[0].split(',')
+    E, r = rows[:, head.index('E_star [J]')], rows[:, head.index('residual [J]')]
+    assert np.all(np.abs(r) <= np.maximum(np.maximum(np.abs(E), abs(E[0])), 1.0))

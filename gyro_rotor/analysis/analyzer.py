@@ -33,6 +33,7 @@ from gyro_rotor.analysis.verdict import (combine, CriterionName, ModeStatus, Sta
                                          Verdict)
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.errors import AnalysisError, ParameterError
+from gyro_rotor.numerics.guard import relative_residual
 import numpy as np
 
 __all__ = ['RotorAnalyzer', 'limit_blas_threads']
@@ -100,6 +101,9 @@ class _Segment:
         self.balance_max = 0.0
         self.balance_mismatch = 0.0
         self.balance_n = 0
+        #: the largest relative residual (:func:`relative_residual`) and when it was
+        self.identity_rel = 0.0
+        self.identity_t = math.nan
         self.slips = 0
         self.last_slip_t = -math.inf
         self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
@@ -160,7 +164,10 @@ class RotorAnalyzer:
     residual_warn : float
         |energy-balance residual| above which the result is WARN [J].
     diverge_residual : float
-        |residual| or deviation beyond which the run counts as diverged [J].
+        The run counts as diverged where |residual| (recorded, or computed from E* and D)
+        exceeds this times max(1 J, |E*|, |E_ref|): the rule of the simulation's guard
+        (:mod:`gyro_rotor.numerics.guard`), stricter than its default limit. Growth with
+        the identity sound is no divergence: the verdict is then ``unstable``.
     sync_hold_s : float
         A slip within this time keeps the state 'lost synchronism' [s].
     min_fit_s : float
@@ -347,6 +354,10 @@ class RotorAnalyzer:
             seg.balance_max = max(seg.balance_max, abs(bal))
             if math.isfinite(s.residual):
                 seg.balance_mismatch = max(seg.balance_mismatch, abs(bal - s.residual))
+        rel = max((float(relative_residual(r, s.E_star, seg.E_ref)) for r in (s.residual, bal)
+                   if math.isfinite(r)), default=0.0)
+        if rel > seg.identity_rel:
+            seg.identity_rel, seg.identity_t = rel, s.t
         # synchronism: passages of each z over the potential maxima (2k+1) pi / p
         # with hysteresis: the well index changes only once z is within pi/(2p) of the
         # bottom of another well, so jitter on a maximum counts nothing
@@ -461,12 +472,26 @@ class RotorAnalyzer:
         if judged is None:
             return Verdict.INSUFFICIENT_DATA, 'no samples yet'
         pred = judged_pred(self, judged)
-        segs = self._done + [judged]
-        diverged = any(s.non_finite or max(s.residual_max, s.balance_max)
-                       > self.diverge_residual for s in segs)
+        diverged, identity = self._identity(self._done + [judged])
         return combine(criteria, pred.verdict, diverged=diverged,
-                       unstable=bool(judged.growing),
+                       unstable=bool(judged.growing), identity=identity,
                        marginal_modes=tuple(m.name for m in pred.marginal_modes))
+
+    def _identity(self, segs: list) -> tuple[bool, str]:
+        """Return whether the integration diverged, and the energy identity's numbers.
+
+        Diverged: E* not finite at a segment's end, or the identity broken by the
+        simulation guard's rule (:func:`~gyro_rotor.numerics.guard.relative_residual`
+        beyond ``diverge_residual``).
+        """
+        worst = max(segs, key=lambda s: s.identity_rel)
+        nan = next((s for s in segs if s.non_finite), None)
+        if nan is not None:
+            return True, f'E* is not finite at t = {nan.t_end:.6g} s'
+        rel, lim = worst.identity_rel, self.diverge_residual
+        text = (f'max |E* + D - E_ref| / max(1 J, |E*|, |E_ref|) = {rel:.3g} at t = '
+                f'{worst.identity_t:.6g} s {">" if rel > lim else "<="} {lim:g}')
+        return rel > lim, text
 
     def _window(self, seg: _Segment) -> np.ndarray:
         R = seg.rows.array()
@@ -565,7 +590,7 @@ class RotorAnalyzer:
             lyapunov_max_increase=seg.lyap_max if math.isfinite(seg.lyap_max) else math.nan,
             lyapunov_violations=seg.lyap_violations, residual_max=seg.residual_max,
             balance_max=seg.balance_max, balance_mismatch=seg.balance_mismatch,
-            balance_n=seg.balance_n,
+            balance_n=seg.balance_n, identity_rel=seg.identity_rel, identity_t=seg.identity_t,
             energy_decay_rate=e_fit.rate if e_fit else math.nan,
             deviation_decay_rate=dev_rate, window_s=span, modes=modes,
             pole_slips=seg.slips, sync_state=sync_state, well=well,
@@ -586,11 +611,9 @@ class RotorAnalyzer:
         sync = crit.synchronism(res, pred)
         if sync is not None:
             res.criteria.append(sync)
-        res.verdict, reason = combine(res.criteria, pred.verdict,
-                                      diverged=res.non_finite
-                                      or max(res.residual_max, res.balance_max)
-                                      > self.diverge_residual,
-                                      unstable=bool(res.growing),
+        diverged, identity = self._identity([res])
+        res.verdict, reason = combine(res.criteria, pred.verdict, diverged=diverged,
+                                      unstable=bool(res.growing), identity=identity,
                                       marginal_modes=tuple(m.name for m in pred.marginal_modes))
         res.evidence = [reason] + [c.line() for c in res.criteria]
         return res

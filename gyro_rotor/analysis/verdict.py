@@ -320,20 +320,26 @@ def fmt_against(m: Measured, bound: float, unit: str = '') -> tuple[str, str]:
 
 
 def combine(criteria: list[Criterion], predicted: str, *, diverged: bool = False,
-            unstable: bool = False, marginal_modes: tuple = ()) -> tuple[Verdict, str]:
+            unstable: bool = False, marginal_modes: tuple = (),
+            identity: str = '') -> tuple[Verdict, str]:
     """Return the verdict of the criteria and a sentence naming what decided it.
 
     ``predicted`` is the verdict of the linear theory (``'asymptotically stable'`` or
     ``'marginal'`` can be confirmed); ``diverged``/``unstable`` are what the data showed
-    beyond any criterion (a non-finite E*, slips that keep coming, growing modes);
-    ``marginal_modes`` names the modes the drive does not reach (for a marginal verdict).
+    beyond any criterion: the integration diverged (a non-finite E*, or the energy identity
+    broken: numbers the simulation cannot be trusted with), or the motion grows with the
+    identity sound (growing modes: the steady motion is unstable); ``identity`` says the
+    identity's numbers; ``marginal_modes`` names the modes the drive does not reach (for a
+    marginal verdict).
     """
     failed = [c.name for c in criteria if c.status is Status.FAIL]
     missing = [c.name for c in criteria if c.status is Status.NOT_YET]
+    why = f' ({identity})' if identity else ''
     if diverged:
-        return Verdict.DIVERGED, 'the run diverged'
+        return Verdict.DIVERGED, f'the integration diverged: energy identity broken{why}'
     if unstable:
-        return Verdict.UNSTABLE, 'the data show growth' + (
+        return Verdict.UNSTABLE, (f'the motion grows, the energy identity sound{why}: an '
+                                  'unstable steady motion, not a numerical divergence') + (
             f'; failed: {", ".join(failed)}' if failed else '')
     if failed:
         return Verdict.NOT_CONFIRMED, f'failed: {", ".join(failed)}' + (

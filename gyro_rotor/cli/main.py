@@ -4,7 +4,8 @@ Subcommands live in :mod:`gyro_rotor.cli.commands` (``add_arguments`` and ``run`
 module only dispatches and turns a :class:`~gyro_rotor.errors.GyroRotorError`, or a bad
 command-line argument (argparse's usage errors, :class:`_Parser`), into one ``ERROR: ...``
 line on stderr and exit status 1 (``--help`` exits 0). Exit status 2 is left to the
-commands' own meaning (``locus``: a claim failed).
+commands' own meaning (``locus``: a claim failed; ``analyze``: a verdict not confirmed;
+``simulate``: the run diverged or grew).
 """
 
 from __future__ import annotations

@@ -58,6 +58,7 @@ from gyro_rotor.core.rotations import axis_from_quaternion, wrap_angles
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import GyroRotorError, IntegrationError, ParameterError
+from gyro_rotor.numerics.guard import describe_break, first_break
 from gyro_rotor.numerics.kernel_system import kernel_model, SYSTEM_METHODS
 from gyro_rotor.numerics.realtime import (EnergyBaseline, make_stepper, Pacer, resolve_method,
                                           Stepper)
@@ -366,20 +367,14 @@ class LiveSimulation:
         with np.errstate(all='ignore'):
             E = np.asarray(m.energy(Y), dtype=float)
         D = Y[:, m.idiss]
-        resid = E + D - self.baseline.E_ref
-        scale = np.maximum(np.maximum(np.abs(E), abs(self.baseline.E_ref)), 1.0)
-        with np.errstate(invalid='ignore'):
-            bad = ~(np.isfinite(E) & (np.abs(resid) <= self.cfg['max_residual'] * scale))
-        n_good = int(np.argmax(bad)) if bad.any() else n
+        E_ref, limit = self.baseline.E_ref, self.cfg['max_residual']
+        resid = E + D - E_ref
+        n_good = first_break(E, resid, E_ref, limit)
+        n_good = n if n_good is None else n_good
         block = self._outputs(samples[:n_good], t[:n_good], Y[:n_good], E[:n_good],
                               resid[:n_good]) if n_good else None
         if n_good < n:
-            at = f'at t = {t[n_good]:.6f} s'
-            self._diverge(f'energy-balance residual {resid[n_good]:.6g} J {at} exceeds '
-                          f'max_residual {self.cfg["max_residual"]:g} x max(1 J, |E*|, '
-                          f'|E_ref|) = {self.cfg["max_residual"] * scale[n_good]:.6g} J'
-                          if np.isfinite(E[n_good]) else
-                          f'E* = {E[n_good]:g} J {at} is not finite')
+            self._diverge(describe_break(t[n_good], E[n_good], resid[n_good], E_ref, limit))
         return block
 
     def _outputs(self, samples, t, Y, E, resid) -> SampleBlock:

@@ -93,6 +93,13 @@ class Trajectory:
         q = self.out.get('qnorm_error')
         return 0.0 if q is None else float(np.max(np.abs(q)))
 
+    def head(self, n: int) -> 'Trajectory':
+        """Return the trajectory of the first ``n`` samples (every output cut with them)."""
+        m = len(self.t)
+        out = {k: v[:n] if isinstance(v, np.ndarray) and v.ndim and len(v) == m else v
+               for k, v in self.out.items()}
+        return dataclasses.replace(self, t=self.t[:n], y=self.y[:n], out=out)
+
     def columns(self) -> dict:
         """Return the CSV columns as arrays, by name (those the model lists)."""
         o = self.out
@@ -161,7 +168,8 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
              rate: float = DEFAULT_RATE, method: str = DEFAULT_METHOD,
              rtol: float | None = None, atol: float | None = None,
              overrides: Mapping[str, Any] | None = None,
-             y0: np.ndarray | None = None, step: float | None = None) -> Trajectory:
+             y0: np.ndarray | None = None, step: float | None = None,
+             keep_failed: bool = False) -> Trajectory:
     """Integrate a scene and return its sampled trajectory.
 
     Parameters
@@ -187,6 +195,10 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         Flat scene keys to change (e.g. ``{'K_D': 0.1}``), validated like the file.
     y0 : ndarray, optional
         Initial state instead of the scene's.
+    keep_failed : bool
+        A run that stops early (a non-finite state, the model's singularity) raises
+        :class:`IntegrationError`; with ``keep_failed`` it returns its finite samples up to
+        there instead, ``success`` False and ``message`` saying why.
     """
     scene = _load(scene, overrides)
     t_end = scene.t_end if t_end is None else float(t_end)
@@ -214,12 +226,19 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
         run = _run_own(kernel_model(model), y_init, t_eval, method, rtol, atol, step)
     else:
         run = _run_scipy(scene, model, y_init, t_eval, method, rtol, atol)
-    if run.status < 0 or not np.all(np.isfinite(run.y)):
-        raise IntegrationError(_failure(scene, model, method, run))
+    success = not (run.status < 0 or not np.all(np.isfinite(run.y)))
+    message = run.message
+    if not success:
+        message = _failure(scene, model, method, run)
+        finite = np.all(np.isfinite(run.y), axis=1) if run.y.size else np.zeros(0, bool)
+        n = int(np.argmin(finite)) if not finite.all() else len(finite)
+        if not (keep_failed and n):
+            raise IntegrationError(message)
+        run.t, run.y = run.t[:n], run.y[:n]
     return Trajectory(scene=scene, model=model, t=run.t, y=run.y,
                       out=model.outputs(run.t, run.y), method=method, rtol=run.rtol,
                       atol=run.atol, nfev=int(run.nfev), nsteps=int(run.nsteps),
-                      wall_time=run.wall, success=True, message=run.message,
+                      wall_time=run.wall, success=success, message=message,
                       method_reason=reason, step=run.step)
 
 

@@ -1,13 +1,27 @@
-"""``gyro-rotor simulate SCENE``: integrate a scene and print its summary."""
+"""``gyro-rotor simulate SCENE``: integrate a scene and print its summary.
+
+Exit status: 0; :data:`DIVERGED_OR_UNSTABLE` (2) when the run diverged or grew, said in
+the last line: ``DIVERGED:`` where the energy identity broke by the live simulation's guard
+(:mod:`gyro_rotor.numerics.guard` with the scene's ``max_residual``) or the integration
+stopped early (a non-finite state): the samples before that are kept, summarized and
+written; or where the analysis of the samples finds the identity broken by its stricter
+limit; ``UNSTABLE:`` where it finds growing motion with the identity sound; 1 for bad input
+(``ERROR:``), as every command.
+"""
 
 from __future__ import annotations
 
 import argparse
 
 from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_output
+from gyro_rotor.node_settings import NODE_KEYS
+from gyro_rotor.numerics.guard import describe_break, first_break
 from gyro_rotor.numerics.simulate import DEFAULT_RATE, simulate
 
-HELP = 'simulate a scene (name or YAML path) and print a summary'
+HELP = ('simulate a scene (name or YAML path) and print a summary; exit 2 if the run '
+        'diverged or grew')
+#: exit status of a run that diverged (energy identity broken) or grew (unstable)
+DIVERGED_OR_UNSTABLE = 2
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,24 +39,46 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--force', action='store_true', help='overwrite an existing --out file')
 
 
-def _pole_slips(tr) -> str:
-    """Pole slips of a synchronous drive (z over a potential maximum), '' without poles."""
-    if not any(tr.scene.pole_pairs):
-        return ''
+def _analysis(tr):
+    """Return the analysis of the samples (whole run: pole slips, growth, divergence)."""
     from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
     ana = RotorAnalyzer(tr.scene, window_s=0)
     ana.add_many(samples_from_trajectory(tr))
-    r = ana.result()
-    return f'  pole slips:   {r.pole_slips} (z passed a maximum of the drive potential)'
+    return ana.result()
+
+
+def _guard(tr):
+    """Cut the run before the first sample the live guard rejects; return (run, why or '').
+
+    A run the integrator stopped early (:func:`simulate` ``keep_failed``) is cut there.
+    """
+    E, r = tr.out['E_star'], tr.out['residual']
+    E_ref = E[0] + tr.y[0, tr.model.idiss] - r[0]
+    limit = tr.scene.node.get('max_residual', NODE_KEYS['max_residual'][1])
+    i = first_break(E, r, E_ref, limit)
+    if i is None:
+        return tr, '' if tr.success else tr.message.rstrip('.')
+    return tr.head(max(i, 1)), describe_break(tr.t[i], E[i], r[i], E_ref, limit)
+
+
+def _verdict(guard: str, res) -> str:
+    """Return the last line of a run that diverged or grew ('' if it did neither)."""
+    from gyro_rotor.analysis.verdict import Verdict
+    if guard:
+        return (f'DIVERGED: the integration diverged: {guard}; the samples before it are '
+                'kept')
+    if res.verdict in (Verdict.DIVERGED, Verdict.UNSTABLE):
+        return f'{str(res.verdict).upper()}: {res.reason}'
+    return ''
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the simulation and print the summary."""
+    """Run the simulation and print the summary; 2 if it diverged or grew (module doc)."""
     if args.out:
         check_output_file(args.out, ('.csv', '.npz'), overwrite=args.force)
     scene = load_scene_with_sets(args.scene, args.set)
-    tr = simulate(scene, t_end=args.t_end, rate=args.rate, method=args.method,
-                  rtol=args.rtol, atol=args.atol)
+    tr, guard = _guard(simulate(scene, t_end=args.t_end, rate=args.rate, method=args.method,
+                                rtol=args.rtol, atol=args.atol, keep_failed=True))
     if args.out:
         write_output(args.out, tr.save)
     s = tr.summary()
@@ -54,11 +90,14 @@ def run(args: argparse.Namespace) -> int:
     print(f"  E*:           first {s['E_star_first']:.12g} J, last {s['E_star_last']:.12g} J")
     print(f"  max |residual| {s['max_abs_residual']:.3e} J, max ||q|-1| "
           f"{s['max_qnorm_drift']:.3e}")
-    slips = _pole_slips(tr)
-    if slips:
-        print(slips)
+    res = _analysis(tr)
+    if any(scene.pole_pairs):
+        print(f'  pole slips:   {res.pole_slips} (z passed a maximum of the drive potential)')
     print(f"  {s['method']}: steps {s['nsteps']}, {s['nfev']} RHS evaluations, "
           f"{s['samples']} samples, wall time {s['wall_time']:.3f} s")
     if args.out:
         print(f'  wrote {args.out} ({s["samples"]} rows)')
-    return 0
+    last = _verdict(guard, res)
+    if last:
+        print(last)
+    return DIVERGED_OR_UNSTABLE if last else 0
