@@ -322,8 +322,13 @@ def test_default_scene_confirmed_with_every_criterion_passing(kicked):
     assert fit.E_inf_sigma < 1e-6 and fit.rel_residual < 0.05
     assert fit.rate_lo >= -2 * res.prediction.decaying_abscissa
     vec = dict(zip(ANALYSIS_FIELDS, res.analysis_vector()))
-    # the topic carries the bound the rate is held against: (1 - 0.1) 2 |alpha|
-    assert vec['decay_rate_bound'] == pytest.approx(-2 * 0.9 * res.prediction.decaying_abscissa)
+    # the topic carries the bound the rate is held against: (1 - 0.1) x the slowest
+    # predicted term of E* that shows above the noise floor (2|alpha| = 0.0035 1/s, the
+    # nutation's, is too slow for an 8 s window: the housing twist's terms show)
+    decay = res.criterion('decay')
+    assert vec['decay_rate_bound'] == decay.numbers['rate_bound']
+    assert vec['decay_rate_bound'] > 50 * -2 * res.prediction.decaying_abscissa
+    assert decay.numbers['rate_lo'] >= decay.numbers['rate_bound']
     assert all(math.isfinite(vec[f]) for f in ('energy_decay_rate', 'E_inf', 'decay_status',
                                                'modes_status', 'data_status'))
 
@@ -487,3 +492,25 @@ def test_divergence_is_the_guard_rule_relative_to_the_energy(precession):
                                  '|E* + D - E_ref| / max(1 J, |E*|, |E_ref|) = 0.01'), \
         res.reason
     assert res.reason.endswith(' s > 0.01)') and 0.01 < res.current.identity_rel < 0.011
+
+
+def test_decay_rate_is_held_against_the_terms_it_shows():
+    """Review finding: the slowest mode too slow for the window made the rate test unfailable.
+
+    precession's nutation decays at 2|alpha| = 0.0035 1/s, unresolvable in 8 s: its term is
+    merged into E*_inf and the measured rate is that of the housing twist's terms (0.415
+    1/s), which the old check held against (1 - 0.1) 2|alpha| = 0.0031 1/s: it passed on
+    data with a quarter of the scene's drive damping (K_D = 0.0125, a slower decay). Held
+    against the terms the fit shows, it does not pass there, and still passes on the
+    scene's own data.
+    """
+    scene = load_scene('precession')
+    for K_D, status in ((0.0125, 'NOT YET'), (0.05, 'PASS')):
+        tr = simulate('precession', overrides={'K_D': K_D})
+        _, res = analyze(scene, samples_from_trajectory(tr))
+        decay = res.criterion('decay')
+        assert str(decay.status) == status, (K_D, decay.detail)
+        assert '2|alpha| = 0.003498 1/s, too slow to resolve in this 8 s window' in decay.detail
+        assert decay.numbers['bound'] == pytest.approx(0.003498, abs=1e-6)
+        assert decay.numbers['rate_bound'] > 0.18          # a housing twist's term
+    assert res.verdict == 'asymptotically stable'

@@ -51,8 +51,11 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 SCENES = tuple(list_scenes())
 DURATIONS = (10.0, 20.0, 60.0)
-#: scenes whose decay no 8 s window can resolve: 'insufficient data' is their honest verdict
-UNRESOLVABLE = {'stiff_drive'}
+#: scenes whose decay no 8 s window can resolve: 'insufficient data' is their honest verdict.
+#: twin_gimbal: the slowest term of E* that shows is the 6.11 Hz gimbal mode's (0.062 1/s),
+#: measured at 0.06 with an interval of about 0.03 .. 0.7 1/s across its bound; it passed
+#: against 2|alpha| = 0.00014 1/s of the 2.52 Hz mode, whose terms no window resolves
+UNRESOLVABLE = {'stiff_drive', 'twin_gimbal'}
 _RUNS: dict = {}
 
 
@@ -271,7 +274,12 @@ def _mutations(scene) -> dict:
 @pytest.mark.parametrize('name', ['precession', 'twin_gimbal', 'elastic_frame'])
 def test_mutations_of_the_prediction_never_confirm(name):
     scene, samples = _first(name)
-    assert _verdict(scene, samples).confirmed
+    res = _verdict(scene, samples)
+    if name in UNRESOLVABLE:        # every criterion but the undecided decay passes
+        assert [str(c.name) for c in res.criteria if c.status is not Status.PASS] == \
+            ['decay'] and str(res.verdict) == 'insufficient data', res.evidence
+    else:
+        assert res.confirmed
     for what, wrong in _mutations(scene).items():
         res = _verdict(wrong, samples)
         assert not res.confirmed, (name, what, res.evidence)

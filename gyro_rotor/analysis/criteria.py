@@ -130,8 +130,9 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
     Two tests, each by the rule: the fit of E*(t) with the predicted rates holds (its rms
     residual, with its interval from the number of independent residuals, below
     :data:`FIT_RTOL` of E*'s spread or the noise floor), and the rate of E* - E*_inf (its
-    interval from :func:`~gyro_rotor.analysis.decay.fit_energy`) is above
-    :func:`rate_bound`. E* settled within its noise floor decides nothing (NOT YET), unless
+    interval from :func:`~gyro_rotor.analysis.decay.fit_energy`) is above the bound of the
+    predicted terms it shows (:func:`_rate`; :func:`rate_bound` where the slowest mode's term
+    shows). E* settled within its noise floor decides nothing (NOT YET), unless
     no mode is predicted to decay (then it is as predicted).
     """
     full = decay_rate_bound(pred.decaying_abscissa)
@@ -171,31 +172,55 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
     parts.append(f'E*(t) {how} the predicted rates (rms residual '
                  f'{fit.rel_residual:.2g} of its spread, bound {fit_bound / fit.spread:.2g})')
     tests = [st_fit]
-    if math.isfinite(bound):
-        rate = Measured(fit.rate, fit.rate_lo, fit.rate_hi)
-        head = (f'bound (1 - {RATE_RTOL:g}) x 2|alpha| = {bound:.4g} 1/s (2|alpha| = '
-                f'{full:.4g} 1/s)')
-        if not rate.measured:
-            need = RESOLVABLE / full
-            tests.append(Status.NOT_YET)
-            why = fit.rate_note or 'E* - E*_inf not resolved'
-            parts.append(f'rate of E* - E*_inf not measurable in this window ({why}; the '
-                         f'slowest predicted decay needs about {need:.3g} s); {head}')
-        else:
-            st = decide(rate, bound, 'above')
-            tests.append(st)
-            shown, b = fmt_against(rate, bound, '1/s')
-            text = (f'E* - E*_inf decays at {shown}, bound (1 - {RATE_RTOL:g}) x 2|alpha| = '
-                    f'{b} 1/s (2|alpha| = {full:.4g} 1/s)')
-            if st is Status.FAIL:
-                text += ': slower than predicted'
-            elif st is Status.NOT_YET:
-                text += (': the interval straddles the bound (needs about '
-                         f'{needs_window(seg.window_s, rate.value - bound, rate.u):.3g} s)')
-            parts.append(text)
+    if math.isfinite(full):
+        st, text, nums['rate_bound'] = _rate(fit, full, seg.window_s)
+        tests.append(st)
+        parts.append(text)
     else:
         parts.append('no decaying mode predicted')
     return Criterion(name, conjoin(tests), '; '.join(parts), nums)
+
+
+def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
+    """Judge the rate of E* - E*_inf against the terms it shows; (status, text, bound).
+
+    Like with like: the rate is measured where E* - E*_inf is above the noise floor, so it
+    is held against (1 - RATE_RTOL) x the slowest predicted term of E* that shows there
+    (:meth:`~gyro_rotor.analysis.decay.EnergyFit.shown_decay`), which is 2|alpha| where
+    the slowest mode's term shows. A slowest mode too slow for the window is merged into
+    E*_inf (:func:`~gyro_rotor.analysis.decay.fit_energy`): the fast terms' rate is not
+    held against its bound, which it would pass whatever the data. No term showing: NOT YET.
+    """
+    slowest = fit.shown_decay()
+    ref = f'2|alpha| = {full:.4g} 1/s'
+    if full * window_s < RESOLVABLE:
+        ref += (f', too slow to resolve in this {window_s:.3g} s window: needs about '
+                f'{RESOLVABLE / full:.3g} s')
+    bound = (1.0 - RATE_RTOL) * slowest
+    factor = '2|alpha|' if slowest == full else (
+        f'{slowest:.4g} 1/s (the slowest predicted term of E* above its noise floor)')
+    rate = Measured(fit.rate, fit.rate_lo, fit.rate_hi)
+    if not rate.measured:
+        why = fit.rate_note or 'E* - E*_inf not resolved'
+        head = (f'bound (1 - {RATE_RTOL:g}) x {factor} = {bound:.4g} 1/s ({ref})'
+                if math.isfinite(bound) else ref)
+        return Status.NOT_YET, (f'rate of E* - E*_inf not measurable in this window ({why}; '
+                                f'the slowest predicted decay needs about '
+                                f'{RESOLVABLE / full:.3g} s); {head}'), bound
+    if not math.isfinite(slowest):
+        return Status.NOT_YET, (f'rate of E* - E*_inf not decided: no predicted decaying term '
+                                f'of E* above its noise floor ({fit.floor:.2g} J) decays '
+                                f'resolvably in this window ({ref})'), math.nan
+    st = decide(rate, bound, 'above')
+    shown, b = fmt_against(rate, bound, '1/s')
+    text = (f'E* - E*_inf decays at {shown}, bound (1 - {RATE_RTOL:g}) x {factor} = {b} 1/s '
+            f'({ref})')
+    if st is Status.FAIL:
+        text += ': slower than predicted'
+    elif st is Status.NOT_YET:
+        text += (': the interval straddles the bound (needs about '
+                 f'{needs_window(window_s, rate.value - bound, rate.u):.3g} s)')
+    return st, text, bound
 
 
 def mode_line(c) -> str:

@@ -73,6 +73,31 @@ class EnergyFit:
     #: trend: E_inf is then their value at the window's end, not the limit of E*
     slow: bool = False
 
+    def terms(self) -> list[tuple[complex, float]]:
+        """Return (exponent, amplitude at the window's start [J]) of each fitted term."""
+        out, i = [], 0
+        for mu in self.exponents:
+            if abs(mu.imag) <= 1e-12:
+                out.append((mu, abs(self.coef[i])))
+                i += 1
+            else:
+                out.append((mu, math.hypot(self.coef[i], self.coef[i + 1])))
+                i += 2
+        return out
+
+    def shown_decay(self) -> float:
+        """Return the slowest decay rate [1/s] of the terms that show in the measured rate.
+
+        The rate is measured where E* - E*_inf is above the noise floor (``floor``): a term
+        whose amplitude at the window's start is below the floor never shows there, nor
+        does a term whose decay the window cannot resolve (rate x span below
+        :data:`RESOLVABLE`: the slow terms merged into E_inf, an undamped one). NaN if no
+        term shows.
+        """
+        shown = [-mu.real for mu, a in self.terms()
+                 if a >= self.floor and -mu.real * self.span >= RESOLVABLE]
+        return min(shown, default=math.nan)
+
     def curve(self, t: np.ndarray) -> np.ndarray:
         """Return the fitted E*(t) (E_inf plus the predicted terms)."""
         tau = np.asarray(t, dtype=float) - self.t0

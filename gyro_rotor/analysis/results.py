@@ -206,6 +206,18 @@ class AnalysisResult:
             'segments': [s.as_dict() for s in self.segments],
         }
 
+    def _rate_bound(self) -> float:
+        """Return the bound the decay criterion held the rate against.
+
+        (1 - DECAY_RTOL) x the slowest predicted term of E* the fit shows; where the
+        criterion has none, (1 - DECAY_RTOL) 2|alpha| of the prediction.
+        """
+        decay = self.criterion(CriterionName.DECAY)
+        bound = decay.numbers.get('rate_bound', math.nan) if decay is not None else math.nan
+        if bound is not None and math.isfinite(bound):
+            return bound
+        return (1.0 - DECAY_RTOL) * decay_rate_bound(self.prediction.decaying_abscissa)
+
     def analysis_vector(self) -> list[float]:
         """Values of :data:`ANALYSIS_FIELDS` (NaN where not available)."""
         s = self.judged if self.judged is not None else self.current
@@ -230,8 +242,7 @@ class AnalysisResult:
             'fit_rel_residual': fit.rel_residual if fit else nan,
             'deviation_decay_rate': s.deviation_decay_rate if s else nan,
             'spectral_abscissa': self.prediction.spectral_abscissa,
-            'decay_rate_bound': (1.0 - DECAY_RTOL) * decay_rate_bound(
-                self.prediction.decaying_abscissa),
+            'decay_rate_bound': self._rate_bound(),
             'pole_slips': self.pole_slips,
             'sync_state': s.sync_state.code if s else nan,
             'well': s.well if s else nan, 'verdict': self.verdict.code,
