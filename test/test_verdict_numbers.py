@@ -250,3 +250,49 @@ def test_without_a_recorded_d_the_balance_says_it_is_the_residuals(run):
     no_d = [dataclasses.replace(s, D=math.nan, absent=('D',)) for s in samples]
     c = _status(_feed(scene, no_d).result(), 'energy balance')
     assert 'D not recorded' in c.detail and str(c.status) == 'PASS', c.detail
+
+
+# -- a combination tone is named with the tolerance it was matched within ------------------------
+_TONE = (r'(?P<f>[0-9.]+) \+- (?P<u>[0-9.e-]+) Hz is a combination tone (?P<label>[^:]+): '
+         r'(?P<w>[0-9.]+) Hz \((?P<d>[0-9.e-]+) Hz apart, within the tolerance '
+         r'(?P<tol>[0-9.e-]+) Hz: 2 x the combined uncertainty of the frequencies\)')
+
+
+def test_combination_tones_print_their_tolerance_and_hold_by_it():
+    """Review finding: 7.588 Hz was named 3 x 2.515 = 7.546 Hz with no tolerance shown.
+
+    Every tone the modes criterion names shows its measured frequency +- uncertainty, the
+    tone's frequency, how far apart they are and the tolerance it was matched within (2 x
+    the combined uncertainty); each named tone is within it, by the printed numbers.
+    """
+    import re
+    from pathlib import Path
+    from gyro_rotor.analysis.offline import analyze_bag
+    bag = Path(__file__).resolve().parents[1] / 'bags' / 'twin_gimbal'
+    res = analyze_bag(str(bag)).result
+    detail = _status(res, 'modes').detail
+    tones = list(re.finditer(_TONE, detail))
+    assert len(tones) == detail.count('is a combination tone') >= 5, detail
+    for m in tones:
+        f, w, d, tol = (float(m[k]) for k in ('f', 'w', 'd', 'tol'))
+        assert d <= tol, m[0]
+        assert abs(abs(f - w) - d) <= 0.5 * 10 ** -len(m['f'].split('.')[1]) + 0.05 * d, m[0]
+    seven = next(m for m in tones if m['label'] == '3 x mode (beta1) 2.52 Hz')
+    assert (seven['f'], seven['u'], seven['w']) == ('7.588', '0.046', '7.546'), seven[0]
+    assert (seven['d'], seven['tol']) == ('0.042', '0.093'), seven[0]
+
+
+def test_a_tone_beyond_its_tolerance_is_not_named():
+    """0.042 Hz from 3 x 2.515 Hz with a frequency known to +- 0.005 Hz: no combination tone."""
+    from gyro_rotor.analysis.modes import _combination, Root
+    from gyro_rotor.analysis.verdict import Measured
+
+    def root(f_hz, u_hz, re=-0.0002, u_re=0.003):
+        w, u = 2 * math.pi * f_hz, 2 * math.pi * u_hz
+        return Root(complex(re, w), Measured.pm(re, u_re), Measured.pm(w, u), 0.01)
+
+    parents = [('mode (beta1) 2.52 Hz', root(2.51526, 0.0005))]
+    parents = [(type('M', (), {'name': n})(), r) for n, r in parents]
+    near = _combination(root(7.5875, 0.04637), parents, 8.0)
+    assert near is not None and '(0.042 Hz apart, within the tolerance 0.093 Hz' in near
+    assert _combination(root(7.5875, 0.005), parents, 8.0) is None

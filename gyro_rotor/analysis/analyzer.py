@@ -23,7 +23,7 @@ from gyro_rotor.analysis import criteria as crit
 from gyro_rotor.analysis.decay import (envelope_decay_rate, fit_energy, MAX_EXPONENT,
                                        REMAINDER_SHARE)
 from gyro_rotor.analysis.fit import joint_names, SceneFit
-from gyro_rotor.analysis.modes import check_modes, ModeCheck, ModesFound
+from gyro_rotor.analysis.modes import check_modes, ModeCheck, ModesFound, tone_line
 from gyro_rotor.analysis.prediction import GENERAL_COORDS, predict, Prediction
 from gyro_rotor.analysis.results import AnalysisResult, SegmentResult
 from gyro_rotor.analysis.ring import RowRing
@@ -634,8 +634,7 @@ class RotorAnalyzer:
         if out[1].status is not Status.FAIL:
             # the modes as the whole run saw them (the newest window's combination tones)
             lines = [crit.mode_line(m) for m in res.modes if not m.structural]
-            lines += [f'{abs(r.value.imag) / _TWO_PI:.4g} Hz is a {text}'
-                      for r, text in res.combinations]
+            lines += [tone_line(r, text) for r, text in res.combinations]
             out[1] = dataclasses.replace(out[1], detail='; '.join(lines))
         res.criteria = out
         # the numbers of the decay: the newest window that measured a rate

@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.analysis.decay import NOISE_K, RESOLVABLE
-from gyro_rotor.analysis.modes import FREQ_RTOL, mode_tolerances, RATE_RTOL as MODE_RATE_RTOL
+from gyro_rotor.analysis.modes import (FREQ_RTOL, mode_tolerances, RATE_RTOL as MODE_RATE_RTOL,
+                                       tone_line)
 from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.results import SegmentResult
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decay_rate_bound,
@@ -268,8 +269,7 @@ def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
         return Criterion(name, Status.NOT_YET, _unfitted(seg, min_fit_s, 'identify'), nums)
     parts = [mode_line(m) for m in judged]
     if seg.combinations:
-        parts.append('; '.join(f'{abs(r.value.imag) / (2 * math.pi):.4g} Hz is a {text}'
-                               for r, text in seg.combinations))
+        parts.append('; '.join(tone_line(r, text) for r, text in seg.combinations))
     if seg.unexplained:
         parts.append('unexplained oscillations at ' + ', '.join(t for _, t in seg.unexplained))
     bad = [m for m in judged if m.status is ModeStatus.DISAGREES]

@@ -24,13 +24,14 @@ import math
 
 from gyro_rotor.analysis.decay import RESOLVABLE
 from gyro_rotor.analysis.prediction import PredictedMode, Prediction
-from gyro_rotor.analysis.verdict import (decide, fmt_interval, Measured, ModeStatus,
-                                         needs_window, Status)
+from gyro_rotor.analysis.verdict import (_digits, decide, fmt_interval, fmt_pm, Measured,
+                                         ModeStatus, needs_window, Status)
 from gyro_rotor.errors import AnalysisError
 import numpy as np
 
 __all__ = ['identify_modes', 'identify_roots', 'check_modes', 'ModeCheck', 'ModesFound',
-           'Root', 'FREQ_RTOL', 'RATE_RTOL', 'RESOLVABLE', 'mode_tolerances', 'alias_hz']
+           'Root', 'FREQ_RTOL', 'RATE_RTOL', 'RESOLVABLE', 'mode_tolerances', 'alias_hz',
+           'tone_line', 'TONE_SIGMAS']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -567,6 +568,9 @@ def _doublet(r: Root, parents: list, span: float) -> str | None:
     return None
 
 
+#: a combination tone matches within this many combined uncertainties of the frequencies
+#: (the tolerance printed with it)
+TONE_SIGMAS = 2.0
 #: combination tones up to this order (products of two modes: sums and differences of two
 #: frequencies, harmonics; of three: a cubic nonlinearity, such as a sine-law drive's)
 COMBINATION_ORDER = 3
@@ -590,7 +594,7 @@ def _combination(r: Root, parents: list, span: float) -> str | None:
     for order, combo, signs, w in _tones([it[1] for it in items]):
         if best is not None and order > best[2]:
             break               # the lowest order that explains it
-        uw = 2.0 * math.sqrt(r.im.u ** 2 + sum(items[k][2] ** 2 for k in combo))
+        uw = TONE_SIGMAS * math.sqrt(r.im.u ** 2 + sum(items[k][2] ** 2 for k in combo))
         d = abs(r.value.imag - w)
         if d > uw:
             continue
@@ -601,8 +605,17 @@ def _combination(r: Root, parents: list, span: float) -> str | None:
             continue
         if best is None or d / uw < best[0]:
             label = _combo_label([items[k][0] for k in combo], signs)
-            best = (d / uw, f'combination tone {label}: {w / _TWO_PI:.4g} Hz', order)
+            dec = _digits(r.im.u / _TWO_PI)      # the digits of the measured frequency
+            best = (d / uw, f'combination tone {label}: {w / _TWO_PI:.{dec}f} Hz '
+                            f'({d / _TWO_PI:.2g} Hz apart, within the tolerance '
+                            f'{uw / _TWO_PI:.2g} Hz: {TONE_SIGMAS:g} x the combined '
+                            'uncertainty of the frequencies)', order)
     return None if best is None else best[1]
+
+
+def tone_line(r: Root, text: str) -> str:
+    """Return an identified root named by ``text``: its frequency +- uncertainty, the name."""
+    return f'{fmt_pm(abs(r.value.imag) / _TWO_PI, r.im.u / _TWO_PI, "Hz")} is a {text}'
 
 
 def _tones(values: list) -> Iterator[tuple[int, tuple, tuple, float]]:

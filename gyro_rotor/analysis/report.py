@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from gyro_rotor.analysis.analyzer import windows_text
+from gyro_rotor.analysis.modes import tone_line
 from gyro_rotor.analysis.offline import BagAnalysis
 from gyro_rotor.analysis.results import AnalysisResult
 from gyro_rotor.analysis.verdict import (decay_rate_bound, fmt_interval, fmt_pm, fmt_re,
@@ -114,7 +115,7 @@ def _mode_table(cur) -> list:
         out.append('  ' + f'{r[0]:{w[0]}s}  {r[1]:>{w[1]}s}  {r[2]:>{w[2]}s}  '
                           f'{r[3]:>{w[3]}s}  {r[4]:>{w[4]}s}  {r[5]}')
     for r, text in cur.combinations:
-        out.append(f'  also identified: {abs(r.value.imag) / (2 * math.pi):.4g} Hz, {text}')
+        out.append(f'  also identified: {tone_line(r, text)}')
     for r, text in cur.unexplained:
         out.append(f'  UNEXPLAINED: {text}')
     return out
