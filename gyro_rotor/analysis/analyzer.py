@@ -354,8 +354,8 @@ class RotorAnalyzer:
             seg.balance_max = max(seg.balance_max, abs(bal))
             if math.isfinite(s.residual):
                 seg.balance_mismatch = max(seg.balance_mismatch, abs(bal - s.residual))
-        rel = max((float(relative_residual(r, s.E_star, seg.E_ref)) for r in (s.residual, bal)
-                   if math.isfinite(r)), default=0.0)
+        rel = max((relative_residual(float(r), float(s.E_star), float(seg.E_ref))
+                   for r in (s.residual, bal) if math.isfinite(r)), default=0.0)
         if rel > seg.identity_rel:
             seg.identity_rel, seg.identity_t = rel, s.t
         # synchronism: passages of each z over the potential maxima (2k+1) pi / p

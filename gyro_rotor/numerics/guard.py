@@ -16,6 +16,8 @@ the analysis calls a run diverged by it (:class:`~gyro_rotor.analysis.analyzer.R
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = ['ENERGY_FLOOR_J', 'energy_scale', 'relative_residual', 'breaks_identity',
@@ -26,13 +28,20 @@ ENERGY_FLOOR_J = 1.0
 
 
 def energy_scale(E_star, E_ref):
-    """Return max(1 J, |E*|, |E_ref|) (elementwise for arrays)."""
+    """Return max(1 J, |E*|, |E_ref|) (elementwise for arrays; NaN if either is NaN)."""
+    if isinstance(E_star, float) and isinstance(E_ref, float):
+        # one sample (the analysis, per sample): plain floats, no numpy call
+        if math.isnan(E_star) or math.isnan(E_ref):
+            return math.nan
+        return max(abs(E_star), abs(E_ref), ENERGY_FLOOR_J)
     with np.errstate(invalid='ignore'):
         return np.maximum(np.maximum(np.abs(E_star), np.abs(E_ref)), ENERGY_FLOOR_J)
 
 
 def relative_residual(residual, E_star, E_ref):
     """Return |r| / max(1 J, |E*|, |E_ref|): the number the guard holds against its limit."""
+    if isinstance(residual, float):
+        return abs(residual) / energy_scale(E_star, E_ref)
     with np.errstate(invalid='ignore'):
         return np.abs(residual) / energy_scale(E_star, E_ref)
 

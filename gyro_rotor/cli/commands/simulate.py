@@ -40,9 +40,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _analysis(tr):
-    """Return the analysis of the samples (whole run: pole slips, growth, divergence)."""
+    """Return the analysis of the samples: pole slips, growth, divergence.
+
+    Every sample counts for the slips and the energy identity; growth is judged on the
+    newest window of the live node's length only (no checkpoints): its cost does not grow
+    with the run's length.
+    """
     from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
-    ana = RotorAnalyzer(tr.scene, window_s=0)
+    ana = RotorAnalyzer(tr.scene, checkpoint_s=0)
     ana.add_many(samples_from_trajectory(tr))
     return ana.result()
 
