@@ -43,8 +43,8 @@ NODE_KEYS: dict[str, tuple[type, Any, str]] = {
     'max_catch_up': (float, 0.25, 'most wall seconds of simulation one tick may catch up'),
     'stop_at_t_end': (bool, False, 'stop integrating (and idle) when t reaches t_end'),
     'max_residual': (float, 1.0, 'divergence guard: the node stops integrating when '
-                                 '|energy-balance residual| exceeds this [J] times '
-                                 'max(1, |E*|/J, |E_ref|/J)'),
+                                 '|energy-balance residual| exceeds this [J] and '
+                                 '1e-6 x max(|E*|, |E_ref|)'),
     'wait_for_subscribers': (int, 0, 'hold simulation time at 0 until joint_states and '
                                      'energy each have this many subscribers (a recorder '
                                      'then gets every sample from t = 0; 0 = start at once)'),

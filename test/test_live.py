@@ -9,6 +9,7 @@ from gyro_rotor.core.model import drive_torque
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError
 from gyro_rotor.node_settings import NODE_KEYS
+from gyro_rotor.numerics import guard
 from gyro_rotor.numerics.live import ENERGY_COLUMNS, Level, LiveSimulation, wrap_angles
 from gyro_rotor.numerics.realtime import resolve_method
 import numpy as np
@@ -144,10 +145,12 @@ def test_a_kick_is_checked_by_the_scene_before_it_is_taken():
     assert sim.stepper.y[7] == pytest.approx(z + 0.25, abs=1e-15)
 
 
-def test_residual_guard_stops_keeps_the_last_good_state_and_reset_recovers():
+def test_residual_guard_stops_keeps_the_last_good_state_and_reset_recovers(monkeypatch):
     clock = FakeClock()
     sim, events = make_sim(clock)
     run_ticks(sim, clock, 3)
+    # a bound of zero (no relative term, no joules): the round-off of E* trips it
+    monkeypatch.setattr(guard, 'RELATIVE_LIMIT', 0.0)
     sim.apply({'max_residual': 0.0})
     run_ticks(sim, clock, 3)
     assert sim.diverged and 'residual' in sim.diverged
@@ -277,12 +280,31 @@ def test_a_kick_the_model_cannot_evaluate_is_refused_and_changes_nothing():
     assert run_ticks(sim, clock, 2)
 
 
+def test_guard_breaks_on_a_blow_up_at_any_energy():
+    """A blow-up makes |r| of the order of E* itself: broken at 1e45 J as at 10 J.
+
+    Found under load: the bound max_residual x max(1 J, |E*|, |E_ref|) let a sample with
+    E* ~ r ~ 1.7e45 J through (relative 1.0 <= 1.0) and rotor_sim published it. A growth
+    with the identity kept to 1e-11 of E* is sound at every energy.
+    """
+    from gyro_rotor.numerics.guard import breaks_identity, describe_break
+    E_ref, limit = 5e3, 1.0
+    for E in (10.0, 1e8, 1.7e45):
+        assert breaks_identity(E, 0.5 * E + 2.0 * limit, E_ref, limit)
+        assert not breaks_identity(E, 1e-11 * E, E_ref, limit)
+    assert breaks_identity(np.nan, 0.0, E_ref, limit)
+    assert not breaks_identity(10.0, 0.99, E_ref, limit)       # joules below 1e6 J
+    assert breaks_identity(10.0, 1.01, E_ref, limit)
+    assert describe_break(0.5, 1.7e45, 1.7e45, E_ref, limit).endswith(
+        'exceeds max(max_residual 1 J, 1e-06 x max(|E*|, |E_ref|)) = 1.7e+39 J')
+
+
 def test_residual_guard_is_relative_to_the_energy_scale(tmp_path):
     """Review finding 7: a statically unstable system's motion grows to |E*| ~ 1e14 J.
 
     Its residual (1e-14 relative, about 1 J there) stopped the integration at
-    t = 2.19 s with an absolute bound of 1 J; the bound is max_residual x max(1 J, |E*|,
-    |E_ref|).
+    t = 2.19 s with an absolute bound of 1 J; the bound is max(max_residual, 1e-6 x
+    max(|E*|, |E_ref|)).
     """
     (tmp_path / 'one_neg.yaml').write_text(
         'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'

@@ -33,7 +33,7 @@ from gyro_rotor.analysis.verdict import (combine, CriterionName, ModeStatus, Sta
                                          Verdict)
 from gyro_rotor.core.scene import Scene
 from gyro_rotor.errors import AnalysisError, ParameterError
-from gyro_rotor.numerics.guard import relative_residual
+from gyro_rotor.numerics.guard import bound, excess, RELATIVE_LIMIT
 import numpy as np
 
 __all__ = ['RotorAnalyzer', 'limit_blas_threads']
@@ -101,9 +101,12 @@ class _Segment:
         self.balance_max = 0.0
         self.balance_mismatch = 0.0
         self.balance_n = 0
-        #: the largest relative residual (:func:`relative_residual`) and when it was
-        self.identity_rel = 0.0
+        #: the sample with the largest |r| / bound (:func:`~gyro_rotor.numerics.guard.excess`):
+        #: that ratio, its time, |r| and the bound there
+        self.identity_excess = 0.0
         self.identity_t = math.nan
+        self.identity_r = 0.0
+        self.identity_bound = math.nan
         self.slips = 0
         self.last_slip_t = -math.inf
         self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
@@ -165,9 +168,9 @@ class RotorAnalyzer:
         |energy-balance residual| above which the result is WARN [J].
     diverge_residual : float
         The run counts as diverged where |residual| (recorded, or computed from E* and D)
-        exceeds this times max(1 J, |E*|, |E_ref|): the rule of the simulation's guard
-        (:mod:`gyro_rotor.numerics.guard`), stricter than its default limit. Growth with
-        the identity sound is no divergence: the verdict is then ``unstable``.
+        exceeds max(this, 1e-6 x max(|E*|, |E_ref|)) [J]: the rule of the simulation's
+        guard (:mod:`gyro_rotor.numerics.guard`), stricter than its default limit. Growth
+        with the identity sound is no divergence: the verdict is then ``unstable``.
     sync_hold_s : float
         A slip within this time keeps the state 'lost synchronism' [s].
     min_fit_s : float
@@ -354,10 +357,13 @@ class RotorAnalyzer:
             seg.balance_max = max(seg.balance_max, abs(bal))
             if math.isfinite(s.residual):
                 seg.balance_mismatch = max(seg.balance_mismatch, abs(bal - s.residual))
-        rel = max((relative_residual(float(r), float(s.E_star), float(seg.E_ref))
-                   for r in (s.residual, bal) if math.isfinite(r)), default=0.0)
-        if rel > seg.identity_rel:
-            seg.identity_rel, seg.identity_t = rel, s.t
+        for r in (s.residual, bal):
+            if math.isfinite(r):
+                x = excess(float(r), float(s.E_star), float(seg.E_ref), self.diverge_residual)
+                if x > seg.identity_excess:
+                    seg.identity_excess, seg.identity_t, seg.identity_r = x, s.t, abs(r)
+                    seg.identity_bound = bound(float(s.E_star), float(seg.E_ref),
+                                               self.diverge_residual)
         # synchronism: passages of each z over the potential maxima (2k+1) pi / p
         # with hysteresis: the well index changes only once z is within pi/(2p) of the
         # bottom of another well, so jitter on a maximum counts nothing
@@ -481,17 +487,18 @@ class RotorAnalyzer:
         """Return whether the integration diverged, and the energy identity's numbers.
 
         Diverged: E* not finite at a segment's end, or the identity broken by the
-        simulation guard's rule (:func:`~gyro_rotor.numerics.guard.relative_residual`
-        beyond ``diverge_residual``).
+        simulation guard's rule (:func:`~gyro_rotor.numerics.guard.excess` above 1 with
+        ``diverge_residual`` as its limit).
         """
-        worst = max(segs, key=lambda s: s.identity_rel)
+        worst = max(segs, key=lambda s: s.identity_excess)
         nan = next((s for s in segs if s.non_finite), None)
         if nan is not None:
             return True, f'E* is not finite at t = {nan.t_end:.6g} s'
-        rel, lim = worst.identity_rel, self.diverge_residual
-        text = (f'max |E* + D - E_ref| / max(1 J, |E*|, |E_ref|) = {rel:.3g} at t = '
-                f'{worst.identity_t:.6g} s {">" if rel > lim else "<="} {lim:g}')
-        return rel > lim, text
+        broken = worst.identity_excess > 1.0
+        text = (f'max |E* + D - E_ref| = {worst.identity_r:.3g} J at t = {worst.identity_t:.6g} '
+                f's {">" if broken else "<="} max({self.diverge_residual:g} J, '
+                f'{RELATIVE_LIMIT:g} x max(|E*|, |E_ref|)) = {worst.identity_bound:.3g} J')
+        return broken, text
 
     def _window(self, seg: _Segment) -> np.ndarray:
         R = seg.rows.array()
@@ -590,7 +597,9 @@ class RotorAnalyzer:
             lyapunov_max_increase=seg.lyap_max if math.isfinite(seg.lyap_max) else math.nan,
             lyapunov_violations=seg.lyap_violations, residual_max=seg.residual_max,
             balance_max=seg.balance_max, balance_mismatch=seg.balance_mismatch,
-            balance_n=seg.balance_n, identity_rel=seg.identity_rel, identity_t=seg.identity_t,
+            balance_n=seg.balance_n, identity_excess=seg.identity_excess,
+            identity_t=seg.identity_t, identity_r=seg.identity_r,
+            identity_bound=seg.identity_bound,
             energy_decay_rate=e_fit.rate if e_fit else math.nan,
             deviation_decay_rate=dev_rate, window_s=span, modes=modes,
             pole_slips=seg.slips, sync_state=sync_state, well=well,

@@ -103,11 +103,13 @@ class SegmentResult:
     balance_mismatch: float = 0.0
     #: samples whose recorded E* and D gave the balance (0: D not recorded)
     balance_n: int = 0
-    #: the energy identity: the largest |r| / max(1 J, |E*|, |E_ref|) of the recorded
-    #: residual and of the balance (:func:`~gyro_rotor.numerics.guard.relative_residual`),
-    #: and the time of that sample
-    identity_rel: float = 0.0
+    #: the energy identity: the largest |r| / bound of the recorded residual and of the
+    #: balance (:func:`~gyro_rotor.numerics.guard.excess`; above 1: diverged), the time of
+    #: that sample, its |r| and the bound there [J]
+    identity_excess: float = 0.0
     identity_t: float = math.nan
+    identity_r: float = 0.0
+    identity_bound: float = math.nan
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""

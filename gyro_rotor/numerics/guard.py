@@ -4,14 +4,14 @@ Along a solution E* + D is constant (eq. 17), so the energy-balance residual
 r = E* + D - E_ref measures the integration error. The integration counts as diverged
 where E* is not finite or
 
-    |r| > limit x max(1 J, |E*|, |E_ref|)
+    |r| > max(limit, RELATIVE_LIMIT x max(|E*|, |E_ref|))
 
-a bound in joules for energies up to 1 J and relative to the energy beyond: the rounding
-of E* grows with it, and 1e-14 J of 1e14 J of a statically unstable system's growing
-motion is no divergence of the integration but growth with a sound energy identity. The
-live simulation stops there (``max_residual``), ``gyro-rotor simulate`` reports it, and
-the analysis calls a run diverged by it (:class:`~gyro_rotor.analysis.analyzer.RotorAnalyzer`
-``diverge_residual``). Pure numpy.
+``limit`` is a bound in joules (``max_residual`` of the live simulation and of
+``gyro-rotor simulate``, ``diverge_residual`` of the analysis); the relative term takes
+over only where the energy has grown far beyond it: the error of E* grows with E*, and
+1e-5 J of 1e14 J of a statically unstable system's growing motion is no divergence of the
+integration but growth with a sound energy identity. A blow-up of the integration makes
+|r| of the order of |E*| itself and breaks the identity at every energy. Pure numpy.
 """
 
 from __future__ import annotations
@@ -20,37 +20,42 @@ import math
 
 import numpy as np
 
-__all__ = ['ENERGY_FLOOR_J', 'energy_scale', 'relative_residual', 'breaks_identity',
-           'first_break', 'describe_break']
+__all__ = ['RELATIVE_LIMIT', 'bound', 'excess', 'breaks_identity', 'first_break',
+           'describe_break']
 
-#: the guard's bound is in joules up to this energy, relative to |E*| or |E_ref| beyond
-ENERGY_FLOOR_J = 1.0
+#: the identity holds to this fraction of max(|E*|, |E_ref|) in every integration at the
+#: package's tolerances (rtol <= 1e-6; a statically unstable system grown to 1e14 J keeps it
+#: to 1e-11): beyond both it and the limit in joules, the integration has diverged
+RELATIVE_LIMIT = 1e-6
 
 
-def energy_scale(E_star, E_ref):
-    """Return max(1 J, |E*|, |E_ref|) (elementwise for arrays; NaN if either is NaN)."""
+def bound(E_star, E_ref, limit: float):
+    """Return the bound on |r|: max(limit, RELATIVE_LIMIT x max(|E*|, |E_ref|)) [J].
+
+    Elementwise for arrays; NaN where E* is NaN.
+    """
     if isinstance(E_star, float) and isinstance(E_ref, float):
         # one sample (the analysis, per sample): plain floats, no numpy call
         if math.isnan(E_star) or math.isnan(E_ref):
             return math.nan
-        return max(abs(E_star), abs(E_ref), ENERGY_FLOOR_J)
+        return max(limit, RELATIVE_LIMIT * max(abs(E_star), abs(E_ref)))
     with np.errstate(invalid='ignore'):
-        return np.maximum(np.maximum(np.abs(E_star), np.abs(E_ref)), ENERGY_FLOOR_J)
+        return np.maximum(limit, RELATIVE_LIMIT * np.maximum(np.abs(E_star), np.abs(E_ref)))
 
 
-def relative_residual(residual, E_star, E_ref):
-    """Return |r| / max(1 J, |E*|, |E_ref|): the number the guard holds against its limit."""
+def excess(residual, E_star, E_ref, limit: float):
+    """Return |r| / :func:`bound`: the identity is broken where it exceeds 1."""
     if isinstance(residual, float):
-        return abs(residual) / energy_scale(E_star, E_ref)
-    with np.errstate(invalid='ignore'):
-        return np.abs(residual) / energy_scale(E_star, E_ref)
+        return abs(residual) / bound(E_star, E_ref, limit)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        return np.abs(residual) / bound(E_star, E_ref, limit)
 
 
 def breaks_identity(E_star, residual, E_ref, limit: float):
     """Return where the energy identity is broken: E* not finite or |r| beyond the bound."""
     E_star, residual = np.asarray(E_star, dtype=float), np.asarray(residual, dtype=float)
     with np.errstate(invalid='ignore'):
-        return ~(np.isfinite(E_star) & (relative_residual(residual, E_star, E_ref) <= limit))
+        return ~(np.isfinite(E_star) & (excess(residual, E_star, E_ref, limit) <= 1.0))
 
 
 def first_break(E_star, residual, E_ref, limit: float) -> int | None:
@@ -65,5 +70,6 @@ def describe_break(t: float, E_star: float, residual: float, E_ref: float, limit
     at = f'at t = {t:.6f} s'
     if not np.isfinite(E_star):
         return f'E* = {E_star:g} J {at} is not finite'
-    return (f'energy-balance residual {residual:.6g} J {at} exceeds {name} {limit:g} x '
-            f'max(1 J, |E*|, |E_ref|) = {limit * float(energy_scale(E_star, E_ref)):.6g} J')
+    return (f'energy-balance residual {residual:.6g} J {at} exceeds max({name} {limit:g} J, '
+            f'{RELATIVE_LIMIT:g} x max(|E*|, |E_ref|)) = '
+            f'{float(bound(float(E_star), float(E_ref), limit)):.6g} J')

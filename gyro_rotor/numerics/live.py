@@ -19,10 +19,9 @@ messages. It holds the scene, its model, a stepper driven by a
   choose for the current parameters (:func:`~gyro_rotor.numerics.realtime.resolve_method`)
   takes over, if it is not the one running already, and the diagnostics say so;
 * **the divergence guard**: an energy-balance residual |r| = |E* + D - E_ref| above
-  ``max_residual`` x max(1 J, |E*|, |E_ref|) (a bound in joules for energies up to 1 J,
-  relative to the energy beyond: the round-off of E* grows with it, 1e-14 J of 1e14 J of
-  a statically unstable system's growing motion is no divergence of the integration), a
-  non-finite E*, or *any* exception raised by the model or the
+  max(``max_residual``, 1e-6 x max(|E*|, |E_ref|)) (:mod:`~gyro_rotor.numerics.guard`:
+  in joules, relative only where a statically unstable system's motion has grown far
+  beyond them), a non-finite E*, or *any* exception raised by the model or the
   integrator (a diverging solution can make the right-hand side divide by zero) stops the
   integration; the last good state is kept, the diagnostics turn ERROR, and
   :meth:`LiveSimulation.reset` starts again;
