@@ -34,7 +34,7 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import linearize, LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
-                                        spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
+                                        K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
                                         zero_K_sensitivities, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
@@ -262,18 +262,11 @@ def _tracked_names(lin: LinearSystem, K_values: Sequence[float]):
     return names, lam0, d0, lam_path
 
 
-def _K_ref(p: RotorParams) -> float:
-    """Characteristic drive damping 2 sqrt(K_S mu), mu = C_R C_M/(C_R + C_M)."""
-    mu = p.C_R * p.C_M / (p.C_R + p.C_M)
-    k = p.K_S if p.K_S > 0 else max(p.c_psi, 1e-12)
-    return 2.0 * math.sqrt(k * mu)
-
-
-def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
-    """0, then a log path to K_D that starts well below the characteristic K_D."""
+def _path_to(K_D: float, lin: LinearSystem, per_decade: int = 8) -> list:
+    """0, then a log path to K_D that starts well below the characteristic K_D (K_ref)."""
     if K_D <= 0:
         return [0.0]
-    lo = min(K_D * 1e-6, 1e-4 * _K_ref(params))
+    lo = min(K_D * 1e-6, 1e-4 * K_ref(lin))
     return [0.0] + list(np.geomspace(lo, K_D, 6 * per_decade + 1))
 
 
@@ -376,7 +369,7 @@ def named_modes(lin: LinearSystem, K_D: float | None = None) -> list:
         raise ParameterError(f'K_D must be finite and not negative, got {K_D!r} N m s/rad')
     if K_D != lin.params.K_D:
         lin = dataclasses.replace(lin, params=lin.params.replace(K_D=K_D), A=lin.with_K_D(K_D))
-    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
+    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin))
     ms = _modes_from(lin, lam_path[-1], names, lam0, d0, floor(lin.A0))
     return classify(ms, drive_system(lin), [K_D])
 

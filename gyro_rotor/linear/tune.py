@@ -56,7 +56,7 @@ def tune(lin) -> TuneResult:
     from scipy.linalg import eig
     from scipy.optimize import brentq
     from gyro_rotor.linear.claims import split
-    from gyro_rotor.linear.locus import K_ref
+    from gyro_rotor.linear.spectrum import K_ref
     from gyro_rotor.linear.system import modes
     here = [m for m in modes(lin) if m.eigenvalue.imag >= -m.resolution]
     if all(m.kind == ModeKind.ZERO or not m.reached_by_drive for m in here):
