@@ -165,10 +165,9 @@ def sensitivities(lin: LinearSystem) -> tuple:
     d lambda/d K_D by the one rule of every system (:func:`_one_rule`). A semisimple
     cluster of zero roots (K_S = 0 about solution II: the roots of psi and of the drive's
     slip) has no unique eigenvectors: its basis is the one that the perturbation
-    -K_D b c^T diagonalizes (first-order degenerate perturbation theory).
+    -K_D b c^T diagonalizes (first-order degenerate perturbation theory), the one rule's.
     """
-    lam, Vw, W = spectrum(lin, 0.0, left=True)
-    _zero_cluster(lin, lam, Vw / lin.weights[:, None], W, Vw)
+    lam, Vw = spectrum(lin, 0.0)
     return lam, _one_rule(lin, lam, Vw), Vw
 
 
@@ -178,7 +177,9 @@ def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
     :func:`~gyro_rotor.linear.spectrum.zero_K_sensitivities` (the resting space out, the
     rest by perturbation theory on the reduced matrix), its roots assigned to ``lam`` by
     eigenvalue and eigenvector (energy-weighted; a state without energy, z at K_S = 0,
-    counted unweighted).
+    counted unweighted). The vectors of a cluster of zero roots (but the cyclic z's,
+    appended last by :func:`spectrum`) are replaced in place by the rule's, the basis
+    the perturbation diagonalizes, which the mode names follow.
     """
     from scipy.optimize import linear_sum_assignment
     lam1, d1, V1, _, _ = zero_K_sensitivities(lin.A0, np.outer(lin.b, lin.c))
@@ -190,29 +191,12 @@ def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
     rows, cols = linear_sum_assignment(cost)
     d = np.empty(len(lam), dtype=complex)
     d[rows] = d1[cols]
-    return d
-
-
-def _zero_cluster(lin, lam, V, W, Vw) -> None:
-    """Rotate the vectors ``Vw`` of a semisimple cluster of zero roots in place.
-
-    To the basis the perturbation -K_D b c^T diagonalizes, which the mode names follow;
-    their d lambda/d K_D come from the one rule (:func:`_one_rule`).
-    """
-    n = len(lam)
-    iz = _cyclic_z(lin)
+    last = len(lam) - 1 if _cyclic_z(lin) is not None else None
     tol = 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
-    idx = [j for j in range(n) if abs(lam[j]) <= tol and not (iz is not None and j == n - 1)]
-    if len(idx) < 2:
-        return
-    N, L = V[:, idx], W[:, idx]
-    G = L.conj().T @ N
-    if np.linalg.cond(G) > 1e8:        # pragma: no cover -- a defective cluster
-        return
-    M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
-    _, Y = np.linalg.eig(M)
-    Vn = (N @ Y) * lin.weights[:, None]
-    Vw[:, idx] = unit(Vn)
+    zero = [k for k, j in enumerate(rows) if abs(lam[j]) <= tol and j != last]
+    if len(zero) > 1:
+        Vw[:, rows[zero]] = unit(V1[:, cols[zero]] * lin.weights[:, None])
+    return d
 
 
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
