@@ -28,10 +28,8 @@ import enum
 import math
 from typing import Sequence
 
-from gyro_rotor.core.params import RotorParams
-from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import linearize, LinearSystem
+from gyro_rotor.linear.linearize import LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
@@ -39,16 +37,14 @@ from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
-__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'Verdict', 'judge', 'spectrum',
-           'analyze', 'named_modes', 'classify', 'drive_system',
-           'analyze_scene',
-           'track', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
-           'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
+__all__ = ['Stability', 'ModeKind', 'Mode', 'Verdict', 'judge', 'spectrum', 'named_modes',
+           'classify', 'drive_system', 'track', 'sensitivities', 'ZERO_ROOT', 'ZERO_ROOT_Z',
+           'STRUCTURAL', 'TOL_RE_REL']
 
 
 # -- data -------------------------------------------------------------------------------------
 class Stability(enum.StrEnum):
-    """The linear theory's verdict about a steady motion (:func:`analyze`)."""
+    """The linear theory's verdict about a steady motion (:func:`judge`)."""
 
     ASYMPTOTICALLY_STABLE = 'asymptotically stable'
     MARGINAL = 'marginal'
@@ -135,27 +131,6 @@ class Verdict:
     marginal_modes: list
     #: the resolution of the slowest mode's root (its |Re| within it prints as 0)
     slowest_resolution: float
-
-
-@dataclasses.dataclass(frozen=True)
-class StabilityReport(Verdict):
-    """Modes about a steady motion and the verdict (see :func:`analyze`)."""
-
-    scene: str
-    model: str
-    motion: SteadyMotion
-    coords: str
-    state_names: tuple
-    K_D: float
-    modes: list
-    A: np.ndarray = dataclasses.field(repr=False)
-
-    def mode(self, name: str) -> Mode:
-        """Return the mode called ``name``."""
-        for m in self.modes:
-            if m.name == name:
-                return m
-        raise KeyError(f"no mode '{name}'; modes: {', '.join(m.name for m in self.modes)}")
 
 
 # -- modes at an operating point -------------------------------------------------------------
@@ -358,41 +333,8 @@ def named_modes(lin: LinearSystem, K_D: float | None = None) -> list:
     return classify(ms, drive_system(lin), [K_D])
 
 
-def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
-            K_D: float | None = None, scene: str = '') -> StabilityReport:
-    """Modes (:func:`named_modes`), spectral abscissa and verdict (:func:`judge`) at ``K_D``.
-
-    The structural zero root of solution II (a neighbouring steady motion of the family)
-    is listed but not judged.
-    """
-    lin = linearize(params, motion, model)
-    ms = named_modes(lin, K_D)
-    K_D = params.K_D if K_D is None else float(K_D)
-    return StabilityReport(**vars(judge(ms, K_D == 0)), scene=scene, model=model,
-                           motion=motion, coords=lin.coords, state_names=lin.state_names,
-                           K_D=K_D, modes=ms, A=lin.with_K_D(K_D))
-
-
 def drive_system(lin: LinearSystem):
     """Return the centrifuge's :class:`~gyro_rotor.linear.claims.DriveSystem` (one drive)."""
     from gyro_rotor.linear.claims import DriveSystem
     return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
                        K_scene=np.array([float(lin.params.K_D)]))
-
-
-def scene_operating_point(scene) -> tuple:
-    """(params, steady motion, model) that a scene's linear analysis uses.
-
-    A steady-mode scene: its steady motion (I or II on its branch); a body-mode scene:
-    solution I.
-    """
-    return scene.params, scene.steady(), scene.model
-
-
-def analyze_scene(scene) -> StabilityReport:
-    """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.core.scene.Scene`)."""
-    from gyro_rotor.core.scene import load_scene, Scene
-    if not isinstance(scene, Scene):
-        scene = load_scene(scene)
-    p, sm, model = scene_operating_point(scene)
-    return analyze(p, sm, model, scene=scene.name)
