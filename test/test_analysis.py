@@ -421,10 +421,10 @@ def test_pairer_counts_a_lost_joint_state(kicked):
     ('fast_spin', 'asymptotically stable'),
     ('upright', 'marginal'), ('pole_slip', 'marginal'), ('conservative', 'marginal')])
 def test_every_shipped_scene_confirmed_where_the_linear_theory_says(scene, verdict):
-    from gyro_rotor.linear.stability import analyze_scene
+    from gyro_rotor.linear.system import assess, linearize_scene
     tr = simulate(scene, t_end=14.0, rate=250.0)
     _, res = analyze(tr.scene, samples_from_trajectory(tr), window_s=8.0)
-    assert analyze_scene(tr.scene).verdict == verdict
+    assert assess(linearize_scene(tr.scene))[1].verdict == verdict
     assert res.verdict == verdict and res.confirmed, res.evidence
     if verdict == 'marginal' and scene != 'conservative':
         # solution I: the tilt modes stay undamped, as predicted

@@ -7,6 +7,7 @@ of the eigenvalues against the full nonlinear model.
 import math
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import gyro_rotor.cli.main as cli
 from gyro_rotor.core.params import RotorParams
@@ -16,16 +17,29 @@ from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
                                          reduced_rhs_lagrange)
 from gyro_rotor.linear.locus import check_claims, regimes, root_locus
-from gyro_rotor.linear.stability import (analyze, analyze_scene, sensitivities, spectrum,
-                                         ZERO_ROOT, ZERO_ROOT_Z)
+from gyro_rotor.linear.stability import sensitivities, spectrum, ZERO_ROOT, ZERO_ROOT_Z
 from gyro_rotor.linear.sysid import match_eigenvalues, matrix_pencil
-from gyro_rotor.linear.system import from_analytic, linearize_scene
-from gyro_rotor.linear.tune import best_K_D
+from gyro_rotor.linear.system import assess, from_analytic, linearize_scene
+from gyro_rotor.linear.tune import tune
 from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
 
 P = RotorParams()
+
+
+def analyze(p, sm, model='full', *, K_D=None) -> SimpleNamespace:
+    """Return the modes and verdict of the one path (linear.system.assess) as one record."""
+    lin = from_analytic(linearize(p, sm, model))
+    ms, v = assess(lin, K_D)
+    return SimpleNamespace(**vars(v), modes=ms, mode={m.name: m for m in ms}.__getitem__,
+                           A=lin.A(lin.K_D if K_D is None else K_D))
+
+
+def analyze_scene(scene) -> SimpleNamespace:
+    """Return :func:`analyze` of a scene (name or Scene) about its steady motion."""
+    sc = load_scene(scene) if isinstance(scene, str) else scene
+    return analyze(sc.params, sc.steady(), sc.model)
 
 
 @pytest.fixture(scope='module')
@@ -317,7 +331,7 @@ def test_scene_descriptions_quote_the_frequencies_eig_gives():
 # -- the best K_D -----------------------------------------------------------------------------
 def test_best_K_D_is_a_maximum():
     sm = steady_motion(P, 0.1, 1)
-    t = best_K_D(P, sm)
+    t = tune(from_analytic(linearize(P, sm)))
     assert t.rate_best > 0 and t.governing_modes
     for f, r in t.rate_at.items():
         assert r <= t.rate_best * (1 + 1e-9), f
@@ -326,8 +340,8 @@ def test_best_K_D_is_a_maximum():
     for f, r in t.relative_rate.items():
         assert r == t.rate_at[f] / t.rate_best and 0 < r < 0.99, (f, r)
     # a different K_S gives a different optimum
-    t2 = best_K_D(P, sm, K_S=80.0)
-    assert t2.K_S == 80.0 and t2.K_D_best != t.K_D_best
+    t2 = tune(from_analytic(linearize(P.replace(K_S=80.0), sm)))
+    assert t2.K_D_best != t.K_D_best
 
 
 # -- bad input ----------------------------------------------------------------------------------

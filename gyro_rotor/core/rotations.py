@@ -22,7 +22,7 @@ import numpy as np
 
 __all__ = ['quaternion_from_euler', 'euler_from_quaternion', 'axis_from_quaternion',
            'vertical_in_body', 'tilt', 'twist', 'body_rates_from_euler',
-           'euler_rates_from_body', 'quaternion_multiply', 'wrap_angles']
+           'euler_rates_from_body', 'wrap_angles']
 
 _wrap = np.frompyfunc(math.remainder, 2, 1)
 
@@ -32,18 +32,6 @@ def wrap_angles(a: np.ndarray) -> np.ndarray:
     w = _wrap(np.asarray(a, dtype=float), 2 * math.pi).astype(float)
     w[w == -math.pi] = math.pi
     return w
-
-
-def quaternion_multiply(a, b):
-    """Hamilton product a * b of quaternions (w, x, y, z)."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)
 
 
 def quaternion_from_euler(psi, theta, phi):

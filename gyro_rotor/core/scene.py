@@ -83,7 +83,7 @@ import numpy as np
 import sympy
 
 __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'scene_from_flat',
-           'find_scene', 'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
+           'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
            'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE', 'INITIAL_UNITS',
            'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs']
 
@@ -525,9 +525,6 @@ def unknown_scene_message(name: str) -> str:
     """``unknown scene 'X'; did you mean 'Y'? (scenes: ...)``: every shipped scene listed."""
     names = list_scenes()
     return f"unknown scene '{name}'{did_you_mean(name, names)} (scenes: {', '.join(names)})"
-
-
-find_scene = scene_path
 
 
 def _read(path: Path) -> dict[str, Any]:

@@ -16,7 +16,7 @@ import dataclasses
 import math
 
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.spectrum import track, unit_eig
+from gyro_rotor.linear.spectrum import K_ref, track, unit_eig
 from gyro_rotor.linear.system import Linearization, modes
 import numpy as np
 
@@ -61,11 +61,6 @@ def name_roots(lin: Linearization, lam, K: float | None = None) -> list:
     ms = modes(lin, K)
     return [min(ms, key=lambda m: min(abs(m.eigenvalue - z), abs(m.eigenvalue.conjugate() - z)))
             .name for z in lam]
-
-
-def K_ref(lin: Linearization) -> float:
-    """Return the characteristic drive damping: the spectral radius of A0 over min eig(c'b)."""
-    return max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max())) / float(lin.fast_rates.min())
 
 
 def check_grid(grid) -> np.ndarray:

@@ -113,9 +113,18 @@ def _closed_form(scene: Scene, theta0: float | None) -> SteadyMotions:
 
 
 def _from_guess(scene: Scene, theta0: float | None) -> SteadyMotions:
-    """Return the accelerations at the scene's guess and the steady motion Newton finds."""
+    """Return the accelerations at the scene's guess and the steady motion Newton finds.
+
+    Raises ParameterError for a ``theta0`` (the tilt of the centrifuge's solution II).
+    """
     import json
     from gyro_rotor.core.scene import steady_residual
+    from gyro_rotor.errors import ParameterError
+    if theta0 is not None:
+        raise ParameterError(
+            f'--theta0 applies to the centrifuge (its solution II, tilted by theta0); scene '
+            f'{scene.name} runs system {scene.system_name}, whose steady motion Newton solves '
+            "from the scene's steady guess: set that with --set steady.q=[...]")
     acc = steady_residual(scene)
     names = [f'{c}_ddot' for c in scene.system.coordinates] + [
         f'zddot_{r}' for r in scene.system.rotors]

@@ -19,8 +19,8 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
-__all__ = ['spectrum', 'track', 'drive_sensitivity', 'zero_K_sensitivities', 'resting_space',
-           'unit', 'unit_eig', 'ZERO_ROOT',
+__all__ = ['spectrum', 'K_ref', 'track', 'drive_sensitivity', 'zero_K_sensitivities',
+           'resting_space', 'unit', 'unit_eig', 'ZERO_ROOT',
            'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL', 'SLOTS', 'MAX_BISECTIONS_PER_POINT']
 
 ZERO_ROOT = 'zero root (cyclic psi)'
@@ -101,6 +101,18 @@ def spectrum(lin: LinearSystem, K_D: float, *, left: bool = False):
         raise ParameterError(f'K_D = {float(K_D)!r} N m s/rad is too large for the linear '
                              'analysis: the eigenvalues are not finite in double precision')
     return out
+
+
+def K_ref(lin) -> float:
+    """Return the characteristic drive damping: the spectral radius of A0 over min eig(c'b).
+
+    ``lin``: any linearization with A0, b, c (the centrifuge's analytic
+    :class:`~gyro_rotor.linear.linearize.LinearSystem`, b and c vectors, or a
+    :class:`~gyro_rotor.linear.system.Linearization`, one column a drive).
+    """
+    cb = np.atleast_2d(lin.c.T @ lin.b)
+    return (max(1.0, float(np.abs(np.linalg.eigvals(lin.A0)).max()))
+            / float(np.linalg.eigvalsh(cb).min()))
 
 
 def drive_sensitivity(A0: np.ndarray, BC: np.ndarray, lam: np.ndarray, W: np.ndarray,

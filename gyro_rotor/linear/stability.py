@@ -28,27 +28,23 @@ import enum
 import math
 from typing import Sequence
 
-from gyro_rotor.core.params import RotorParams
-from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import linearize, LinearSystem
+from gyro_rotor.linear.linearize import LinearSystem
 from gyro_rotor.linear.roundoff import floor
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
-                                        spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
+                                        K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
                                         zero_K_sensitivities, ZERO_ROOT, ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
-__all__ = ['Stability', 'ModeKind', 'Mode', 'StabilityReport', 'Verdict', 'judge', 'spectrum',
-           'analyze', 'named_modes', 'classify', 'drive_system',
-           'analyze_scene',
-           'track', 'sensitivities', 'scene_operating_point', 'ZERO_ROOT',
-           'ZERO_ROOT_Z', 'STRUCTURAL', 'TOL_RE_REL']
+__all__ = ['Stability', 'ModeKind', 'Mode', 'Verdict', 'judge', 'spectrum', 'named_modes',
+           'classify', 'drive_system', 'track', 'sensitivities', 'ZERO_ROOT', 'ZERO_ROOT_Z',
+           'STRUCTURAL', 'TOL_RE_REL']
 
 
 # -- data -------------------------------------------------------------------------------------
 class Stability(enum.StrEnum):
-    """The linear theory's verdict about a steady motion (:func:`analyze`)."""
+    """The linear theory's verdict about a steady motion (:func:`judge`)."""
 
     ASYMPTOTICALLY_STABLE = 'asymptotically stable'
     MARGINAL = 'marginal'
@@ -137,27 +133,6 @@ class Verdict:
     slowest_resolution: float
 
 
-@dataclasses.dataclass(frozen=True)
-class StabilityReport(Verdict):
-    """Modes about a steady motion and the verdict (see :func:`analyze`)."""
-
-    scene: str
-    model: str
-    motion: SteadyMotion
-    coords: str
-    state_names: tuple
-    K_D: float
-    modes: list
-    A: np.ndarray = dataclasses.field(repr=False)
-
-    def mode(self, name: str) -> Mode:
-        """Return the mode called ``name``."""
-        for m in self.modes:
-            if m.name == name:
-                return m
-        raise KeyError(f"no mode '{name}'; modes: {', '.join(m.name for m in self.modes)}")
-
-
 # -- modes at an operating point -------------------------------------------------------------
 def sensitivities(lin: LinearSystem) -> tuple:
     """(eigenvalues of A0, d lambda/d K_D at K_D = 0, weighted right eigenvectors).
@@ -165,10 +140,9 @@ def sensitivities(lin: LinearSystem) -> tuple:
     d lambda/d K_D by the one rule of every system (:func:`_one_rule`). A semisimple
     cluster of zero roots (K_S = 0 about solution II: the roots of psi and of the drive's
     slip) has no unique eigenvectors: its basis is the one that the perturbation
-    -K_D b c^T diagonalizes (first-order degenerate perturbation theory).
+    -K_D b c^T diagonalizes (first-order degenerate perturbation theory), the one rule's.
     """
-    lam, Vw, W = spectrum(lin, 0.0, left=True)
-    _zero_cluster(lin, lam, Vw / lin.weights[:, None], W, Vw)
+    lam, Vw = spectrum(lin, 0.0)
     return lam, _one_rule(lin, lam, Vw), Vw
 
 
@@ -178,7 +152,9 @@ def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
     :func:`~gyro_rotor.linear.spectrum.zero_K_sensitivities` (the resting space out, the
     rest by perturbation theory on the reduced matrix), its roots assigned to ``lam`` by
     eigenvalue and eigenvector (energy-weighted; a state without energy, z at K_S = 0,
-    counted unweighted).
+    counted unweighted). The vectors of a cluster of zero roots (but the cyclic z's,
+    appended last by :func:`spectrum`) are replaced in place by the rule's, the basis
+    the perturbation diagonalizes, which the mode names follow.
     """
     from scipy.optimize import linear_sum_assignment
     lam1, d1, V1, _, _ = zero_K_sensitivities(lin.A0, np.outer(lin.b, lin.c))
@@ -190,29 +166,12 @@ def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
     rows, cols = linear_sum_assignment(cost)
     d = np.empty(len(lam), dtype=complex)
     d[rows] = d1[cols]
-    return d
-
-
-def _zero_cluster(lin, lam, V, W, Vw) -> None:
-    """Rotate the vectors ``Vw`` of a semisimple cluster of zero roots in place.
-
-    To the basis the perturbation -K_D b c^T diagonalizes, which the mode names follow;
-    their d lambda/d K_D come from the one rule (:func:`_one_rule`).
-    """
-    n = len(lam)
-    iz = _cyclic_z(lin)
+    last = len(lam) - 1 if _cyclic_z(lin) is not None else None
     tol = 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
-    idx = [j for j in range(n) if abs(lam[j]) <= tol and not (iz is not None and j == n - 1)]
-    if len(idx) < 2:
-        return
-    N, L = V[:, idx], W[:, idx]
-    G = L.conj().T @ N
-    if np.linalg.cond(G) > 1e8:        # pragma: no cover -- a defective cluster
-        return
-    M = -np.linalg.solve(G, np.outer(L.conj().T @ lin.b, lin.c @ N))
-    _, Y = np.linalg.eig(M)
-    Vn = (N @ Y) * lin.weights[:, None]
-    Vw[:, idx] = unit(Vn)
+    zero = [k for k, j in enumerate(rows) if abs(lam[j]) <= tol and j != last]
+    if len(zero) > 1:
+        Vw[:, rows[zero]] = unit(V1[:, cols[zero]] * lin.weights[:, None])
+    return d
 
 
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
@@ -262,18 +221,11 @@ def _tracked_names(lin: LinearSystem, K_values: Sequence[float]):
     return names, lam0, d0, lam_path
 
 
-def _K_ref(p: RotorParams) -> float:
-    """Characteristic drive damping 2 sqrt(K_S mu), mu = C_R C_M/(C_R + C_M)."""
-    mu = p.C_R * p.C_M / (p.C_R + p.C_M)
-    k = p.K_S if p.K_S > 0 else max(p.c_psi, 1e-12)
-    return 2.0 * math.sqrt(k * mu)
-
-
-def _path_to(K_D: float, params: RotorParams, per_decade: int = 8) -> list:
-    """0, then a log path to K_D that starts well below the characteristic K_D."""
+def _path_to(K_D: float, lin: LinearSystem, per_decade: int = 8) -> list:
+    """0, then a log path to K_D that starts well below the characteristic K_D (K_ref)."""
     if K_D <= 0:
         return [0.0]
-    lo = min(K_D * 1e-6, 1e-4 * _K_ref(params))
+    lo = min(K_D * 1e-6, 1e-4 * K_ref(lin))
     return [0.0] + list(np.geomspace(lo, K_D, 6 * per_decade + 1))
 
 
@@ -376,24 +328,9 @@ def named_modes(lin: LinearSystem, K_D: float | None = None) -> list:
         raise ParameterError(f'K_D must be finite and not negative, got {K_D!r} N m s/rad')
     if K_D != lin.params.K_D:
         lin = dataclasses.replace(lin, params=lin.params.replace(K_D=K_D), A=lin.with_K_D(K_D))
-    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin.params))
+    names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin))
     ms = _modes_from(lin, lam_path[-1], names, lam0, d0, floor(lin.A0))
     return classify(ms, drive_system(lin), [K_D])
-
-
-def analyze(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
-            K_D: float | None = None, scene: str = '') -> StabilityReport:
-    """Modes (:func:`named_modes`), spectral abscissa and verdict (:func:`judge`) at ``K_D``.
-
-    The structural zero root of solution II (a neighbouring steady motion of the family)
-    is listed but not judged.
-    """
-    lin = linearize(params, motion, model)
-    ms = named_modes(lin, K_D)
-    K_D = params.K_D if K_D is None else float(K_D)
-    return StabilityReport(**vars(judge(ms, K_D == 0)), scene=scene, model=model,
-                           motion=motion, coords=lin.coords, state_names=lin.state_names,
-                           K_D=K_D, modes=ms, A=lin.with_K_D(K_D))
 
 
 def drive_system(lin: LinearSystem):
@@ -401,21 +338,3 @@ def drive_system(lin: LinearSystem):
     from gyro_rotor.linear.claims import DriveSystem
     return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
                        K_scene=np.array([float(lin.params.K_D)]))
-
-
-def scene_operating_point(scene) -> tuple:
-    """(params, steady motion, model) that a scene's linear analysis uses.
-
-    A steady-mode scene: its steady motion (I or II on its branch); a body-mode scene:
-    solution I.
-    """
-    return scene.params, scene.steady(), scene.model
-
-
-def analyze_scene(scene) -> StabilityReport:
-    """:func:`analyze` for a scene (name, path or loaded :class:`~gyro_rotor.core.scene.Scene`)."""
-    from gyro_rotor.core.scene import load_scene, Scene
-    if not isinstance(scene, Scene):
-        scene = load_scene(scene)
-    p, sm, model = scene_operating_point(scene)
-    return analyze(p, sm, model, scene=scene.name)

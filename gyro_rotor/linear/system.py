@@ -215,12 +215,14 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
 
 
 def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
-    """Return the built-in centrifuge's pieces: its analytic A0, b, c (one drive)."""
-    from gyro_rotor.linear.stability import scene_operating_point
+    """Return the built-in centrifuge's pieces: its analytic A0, b, c (one drive).
+
+    About the scene's steady motion (I or II on its branch; a body-mode scene: solution I).
+    """
     if drive is not None:
         raise ParameterError('--drive is for the scenes of system files; the centrifuge '
                              'has one drive')
-    return from_analytic(linearize(*scene_operating_point(scene)))
+    return from_analytic(linearize(scene.params, scene.steady(), scene.model))
 
 
 def from_analytic(ls: LinearSystem) -> Linearization:

@@ -13,15 +13,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from gyro_rotor.core.params import RotorParams
-from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.spectrum import drive_sensitivity
 from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 
-__all__ = ['TuneResult', 'tune', 'best_K_D']
+__all__ = ['TuneResult', 'tune']
 
 
 @dataclasses.dataclass(frozen=True)
@@ -30,7 +27,7 @@ class TuneResult:
 
     ``rate_at``: the rate at 0.5, 0.9, 1.1, 2 x the best K_D [1/s]; ``relative_rate``: the
     rate at 0.5 and 2 x the best K_D over the best (how flat the optimum is: 1 flat, near
-    0 sharp); ``K_D_current``: the drives' own K_D; ``K_S`` is set by :func:`best_K_D` only.
+    0 sharp); ``K_D_current``: the drives' own K_D.
     """
 
     K_D_best: float
@@ -43,7 +40,6 @@ class TuneResult:
     relative_rate: dict
     K_D_current: list
     rate_current: float
-    K_S: float = math.nan
 
 
 def tune(lin) -> TuneResult:
@@ -56,7 +52,7 @@ def tune(lin) -> TuneResult:
     from scipy.linalg import eig
     from scipy.optimize import brentq
     from gyro_rotor.linear.claims import split
-    from gyro_rotor.linear.locus import K_ref
+    from gyro_rotor.linear.spectrum import K_ref
     from gyro_rotor.linear.system import modes
     here = [m for m in modes(lin) if m.eigenvalue.imag >= -m.resolution]
     if all(m.kind == ModeKind.ZERO or not m.reached_by_drive for m in here):
@@ -132,13 +128,3 @@ def _refuse(lin, K: float, modes) -> None:
         f'no K_D makes every reached root decay: at the best K_D = {K:.4g} N m s/rad the root '
         f'{root} stays on the imaginary axis (|Re| within its resolution '
         f'{m.resolution:.2g} 1/s): K_D cannot be tuned')
-
-
-def best_K_D(params: RotorParams, motion: SteadyMotion, model: str = 'full', *,
-             K_S: float | None = None) -> TuneResult:
-    """:func:`tune` the centrifuge's analytic linearization about ``motion`` (at ``K_S``)."""
-    from gyro_rotor.linear.system import from_analytic
-    if K_S is not None:
-        params = params.replace(K_S=float(K_S))
-    return dataclasses.replace(tune(from_analytic(linearize(params, motion, model))),
-                               K_S=params.K_S)

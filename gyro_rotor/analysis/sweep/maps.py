@@ -3,7 +3,7 @@
 The pull-in map (column ``final_well``) is coloured by the well the rotor ends in, with
 the pole-slip count drawn over it (contour lines, and the numbers in each cell on small
 grids). A design map over (K_S, K_D) of ``settling_time`` carries the linear optimum
-K_D(K_S) of ``gyro-rotor tune`` (:func:`gyro_rotor.linear.tune.best_K_D`). Points that
+K_D(K_S) of ``gyro-rotor tune`` (:func:`gyro_rotor.linear.tune.tune`). Points that
 failed or diverged are grey. With more than two axes the others are held at their first
 value (said in the title); with one axis the metric is drawn as a curve.
 """
@@ -59,15 +59,15 @@ def metric_grid(table, spec: SweepSpec, column: str) -> tuple[np.ndarray, np.nda
 
 
 def linear_optimum(spec: SweepSpec, K_S_values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return K_S and :func:`~gyro_rotor.linear.tune.best_K_D` at each (scene's others)."""
+    """Return K_S and the best K_D of :func:`~gyro_rotor.linear.tune.tune` at each."""
     from gyro_rotor.core.scene import scene_from_mapping
-    from gyro_rotor.linear.stability import scene_operating_point
-    from gyro_rotor.linear.tune import best_K_D
-    p, sm, model = scene_operating_point(scene_from_mapping(dict(spec.base), strict_float=False))
+    from gyro_rotor.linear.system import linearize_scene
+    from gyro_rotor.linear.tune import tune
+    scene = scene_from_mapping(dict(spec.base), strict_float=False)
     ks, kd = [], []
     for k in K_S_values:
         try:
-            kd.append(best_K_D(p, sm, model, K_S=float(k)).K_D_best)
+            kd.append(tune(linearize_scene(scene.with_params(K_S=float(k)))).K_D_best)
             ks.append(float(k))
         except (GyroRotorError, ArithmeticError, np.linalg.LinAlgError):
             continue

@@ -257,23 +257,13 @@ def _centrifuge_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
     if not idx:
         return _Points(idx, msg)
     model_name = str(spec.base.get('model', 'full'))
-    model = make_model(model_name, scenes[idx[0]].params)
-    plist = [scenes[j].params for j in idx]
-    cache: dict = {}
 
-    def run(sel: slice):
-        return run_ensemble(model, Y[sel], spec.t_eval, method='rk4', step=spec.step,
-                            params=plist[sel])
-
-    def measure(j: int, y: np.ndarray) -> dict:
-        out = trajectory_metrics(make_model(model_name, scenes[j].params), spec.t_eval, y,
-                                 metrics, tol=spec.tol)
-        if Metric.ABSCISSA in metrics:
-            out['spectral_abscissa'] = _abscissa(scenes[j], cache)
-        return out
-
-    Y = np.array([Y0[j] for j in idx])
-    return _Points(idx, msg, Y, run, measure)
+    def measured(j: int, y: np.ndarray) -> dict:
+        return trajectory_metrics(make_model(model_name, scenes[j].params), spec.t_eval, y,
+                                  metrics, tol=spec.tol)
+    return _ensemble(spec, scenes, idx, msg, make_model(model_name, scenes[idx[0]].params),
+                     np.array([Y0[j] for j in idx]), [scenes[j].params for j in idx],
+                     measured, metrics)
 
 
 def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
@@ -293,22 +283,35 @@ def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
     if not idx:
         return _Points(idx, msg)
     model = scenes[idx[0]].make_model()
-    systems = [scenes[j].system for j in idx]
+
+    def measured(j: int, y: np.ndarray) -> dict:
+        bound = GeneralModel(scenes[j].system, compiled=model.compiled)
+        steady_q = np.asarray(scenes[j].steady_q, dtype=float)
+        return system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
+    return _ensemble(spec, scenes, idx, msg, model,
+                     np.array([scenes[j].initial_state(model) for j in idx]),
+                     [scenes[j].system for j in idx], measured, metrics)
+
+
+def _ensemble(spec: SweepSpec, scenes: list, idx: list, msg: list, model, Y: np.ndarray,
+              params: list, measured: Callable, metrics: set) -> _Points:
+    """Return the :class:`_Points` of any system: one ensemble, each point's parameters.
+
+    ``params``: the centrifuge's RotorParams or a system file's system of each point set
+    up; ``measured(j, y)``: point j's metrics of its kind, the spectral abscissa added
+    (:func:`_abscissa`, once per distinct linearization).
+    """
     cache: dict = {}
 
     def run(sel: slice):
         return run_ensemble(model, Y[sel], spec.t_eval, method='rk4', step=spec.step,
-                            params=systems[sel])
+                            params=params[sel])
 
     def measure(j: int, y: np.ndarray) -> dict:
-        bound = GeneralModel(scenes[j].system, compiled=model.compiled)
-        steady_q = np.asarray(scenes[j].steady_q, dtype=float)
-        out = system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
+        out = measured(j, y)
         if Metric.ABSCISSA in metrics:
             out['spectral_abscissa'] = _abscissa(scenes[j], cache)
         return out
-
-    Y = np.array([scenes[j].initial_state(model) for j in idx])
     return _Points(idx, msg, Y, run, measure)
 
 

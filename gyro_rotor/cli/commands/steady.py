@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 
 from gyro_rotor.cli.util import load_scene_with_sets
-from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.newton import steady_motions
 
 HELP = ('print the steady motions (the centrifuge: solution I; II on both branches, exact and '
@@ -24,11 +23,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Print the steady motions the scene's system offers; exit 1 if one is not found."""
     scene = load_scene_with_sets(args.scene, args.set, check=False)
-    if args.theta0 is not None and not scene.builtin:
-        raise ParameterError(
-            f'--theta0 applies to the centrifuge (its solution II, tilted by theta0); scene '
-            f'{scene.name} runs system {scene.system_name}, whose steady motion Newton solves '
-            "from the scene's steady guess: set that with --set steady.q=[...]")
     st = steady_motions(scene, args.theta0)
     print(f'scene {scene.name}: system {scene.system_name}; {st.head}')
     for line in st.lines:
