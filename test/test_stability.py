@@ -17,7 +17,8 @@ from gyro_rotor.errors import NoSteadyMotionError, ParameterError
 from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
                                          reduced_rhs_lagrange)
 from gyro_rotor.linear.locus import check_claims, regimes, root_locus
-from gyro_rotor.linear.stability import sensitivities, spectrum, ZERO_ROOT, ZERO_ROOT_Z
+from gyro_rotor.linear.stability import (ModeKind, sensitivities, spectrum, ZERO_ROOT,
+                                         ZERO_ROOT_Z)
 from gyro_rotor.linear.sysid import match_eigenvalues, matrix_pencil
 from gyro_rotor.linear.system import assess, from_analytic, linearize_scene
 from gyro_rotor.linear.tune import tune
@@ -329,6 +330,29 @@ def test_scene_descriptions_quote_the_frequencies_eig_gives():
 
 
 # -- the best K_D -----------------------------------------------------------------------------
+@pytest.mark.parametrize('scene', ['pole_slip', 'upright'])
+def test_best_K_D_of_a_peak_narrower_than_the_grid_has_its_90_percent_range(scene):
+    """Bracket K_best by the 90 % range where the peak is narrower than tune's grid.
+
+    At K_S = 4.1 two roots meet in a kink: no grid point has 90 % of the best rate, and the
+    range's edges raised IndexError (found by the review of the one path). The rate is 90 %
+    of the best on the range's edges.
+    """
+    t = tune(linearize_scene(load_scene(scene, {'K_S': 4.1})))
+    lo, hi = t.K_D_range_90
+    assert lo < t.K_D_best < hi
+    for K in (lo, hi):
+        r = tune_rate(scene, K)
+        assert r == pytest.approx(0.9 * t.rate_best, rel=1e-6), (K, r)
+
+
+def tune_rate(scene: str, K: float) -> float:
+    """Return the slowest judged rate of the scene at K_S = 4.1 and K_D = K (eig's)."""
+    lin = linearize_scene(load_scene(scene, {'K_S': 4.1, 'K_D': K}))
+    return -max(m.eigenvalue.real for m in assess(lin)[0]
+                if m.kind != ModeKind.ZERO and m.reached_by_drive)
+
+
 def test_best_K_D_is_a_maximum():
     sm = steady_motion(P, 0.1, 1)
     t = tune(from_analytic(linearize(P, sm)))

@@ -85,14 +85,18 @@ def tune(lin) -> TuneResult:
     gov = sorted({m.name for m in modes(lin, K_best)
                   if m.kind != ModeKind.ZERO and m.reached_by_drive
                   and -m.eigenvalue.real <= r_best * (1 + 1e-6)})
-    ok = np.flatnonzero(rates >= 0.9 * r_best)
+    # the 90 % range: from the outermost grid points at 90 % of the best (K_best itself
+    # where a peak is narrower than the grid: a kink where two roots meet) to the crossing
+    # towards the next grid point out, which is below 90 %
+    ok = grid[rates >= 0.9 * r_best]
+    K_lo, K_hi = min(ok.min(initial=K_best), K_best), max(ok.max(initial=K_best), K_best)
 
-    def edge(j: int, k: int) -> float:
-        """Return where the rate crosses 90% of the best between grid points j and k."""
-        if not 0 <= k < len(grid) or rates[k] >= 0.9 * r_best:
-            return float(grid[j])
-        return brentq(lambda K: rate(K) - 0.9 * r_best, *sorted((grid[j], grid[k])),
-                      xtol=1e-12 * grid[j])
+    def edge(K_in: float, out: np.ndarray) -> float:
+        """Return where the rate crosses 90% of the best between K_in and out's grid point."""
+        if not out.size:
+            return K_in
+        return brentq(lambda K: rate(K) - 0.9 * r_best, *sorted((K_in, float(out[0]))),
+                      xtol=1e-12 * K_in)
     rate_at = {f'{f:g}': rate(K_best * f) for f in (0.5, 0.9, 1.1, 2.0)}
     now = [m.eigenvalue.real for m in here if m.kind != ModeKind.ZERO and m.reached_by_drive]
     excluded = [m.name + (f' ({m.freq_hz:.4g} Hz)' if m.kind == ModeKind.OSCILLATORY else '')
@@ -102,7 +106,8 @@ def tune(lin) -> TuneResult:
                       governing_modes=gov, excluded_modes=excluded,
                       rate_at=rate_at,
                       relative_rate={f: rate_at[f] / r_best for f in ('0.5', '2')},
-                      K_D_range_90=(edge(ok[0], ok[0] - 1), edge(ok[-1], ok[-1] + 1)),
+                      K_D_range_90=(edge(K_lo, grid[grid < K_lo][::-1]),
+                                    edge(K_hi, grid[grid > K_hi])),
                       K_D_current=lin.K_all.tolist(),
                       rate_current=-max(now) if np.any(lin.K_all > 0) else 0.0)
 
