@@ -10,7 +10,7 @@ plot paths.
 Exit status 0 (CONFIRMED) only if the offline verdict of the bag is confirmed (every
 applicable criterion of :mod:`gyro_rotor.analysis.verdict` passed: Lyapunov, energy
 balance, decay, modes, data, synchronism), it is the verdict the linear theory expects
-(:func:`gyro_rotor.linear.stability.analyze_scene`: asymptotically stable for the
+(:func:`gyro_rotor.linear.system.assess`: asymptotically stable for the
 default scene, marginal tilt modes for ``upright``), for a sine drive law the pole-slip
 count equals that of an offline reference simulation, and both nodes exited cleanly;
 else 1 (NOT CONFIRMED, naming why), 130 after Ctrl-C (the bag is finalized and
