@@ -914,6 +914,23 @@ def test_centrifuge_euler_sensitivities_are_the_finite_difference_slopes():
         linearize_scene(load_scene_with_sets('centrifuge_euler', ['K_S=0'])))
 
 
+@pytest.mark.parametrize('K_S', ['1e-7', '1e-8'])
+def test_a_tiny_drive_stiffness_keeps_two_simple_roots_on_both_paths(K_S):
+    """Review finding: K_S = 1e-7 / 1e-8 (> 0: inside the theorem) on the centrifuge.
+
+    The rotor-field pair +-i sqrt(K_S/C) is two simple roots, d = -25.004 each (the FD
+    slope at 40 digits). A cluster tolerance of 1e-6 of the spectral scale merged them with
+    the cyclic root (0 and -50.007, the K_S = 0 answer) at 1e-8 on the centrifuge and at
+    1e-7 on centrifuge_euler, and resting_space's rank cutoff 1e-10 counted z at rest.
+    """
+    ms = _check_sensitivities_against_fd(
+        linearize_scene(load_scene_with_sets('centrifuge_euler', [f'K_S={K_S}'])))
+    ref = modes(linearize_scene(load_scene_with_sets('precession', [f'K_S={K_S}'])))
+    for paths in (ms, ref):
+        slip = sorted(m.dRe_dKD for m in paths if 'z_R' in m.name or 'rotor-field' in m.name)
+        assert len(slip) == 2 and all(abs(d + 25.0036) < 1e-3 for d in slip), slip
+
+
 def test_centrifuge_and_its_euler_twin_agree_without_drive_stiffness():
     # issue 25, one path: at K_S = 0 the roots (1e-9) and every root's dRe/dK_D agree, the
     # slip root's -50.0072 on both (the built-in prints it, the system file did not)

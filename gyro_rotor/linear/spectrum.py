@@ -154,11 +154,34 @@ def resting_space(A0: np.ndarray, BC: np.ndarray) -> np.ndarray:
     if not others:
         return np.eye(n)[:, axes]
     _, sv, Vh = np.linalg.svd(S)
-    tol = 1e-10 * max(float(sv[0]) if sv.size else 0.0, 1e-300)
+    # the numerical rank: singular values within round-off of the largest are zero
+    # (numpy's matrix_rank rule; K_S = 1e-8 N m/rad is a stiffness, not a rest)
+    tol = max(S.shape) * np.finfo(float).eps * max(float(sv[0]) if sv.size else 0.0, 1e-300)
     rank = int(np.sum(sv > tol))
     N = np.zeros((n, len(others) - rank))
     N[others] = Vh[rank:].conj().T
     return np.hstack([N, np.eye(n)[:, axes]])
+
+
+#: roots closer than this many times their round-off radii are one (repeated) root
+ROUND_OFF_MARGIN = 100.0
+
+
+def _round_off_radius(A: np.ndarray, W: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Return how far round-off can move each computed root of A: n eps ||A|| kappa_j.
+
+    The computed roots are exact for a matrix within n eps ||A|| of A (backward
+    stability of the QR algorithm); to first order a root moves by at most its condition
+    number kappa_j = ||w|| ||v|| / |w^H v| times that (Bauer-Fike, per root). A defective
+    root's computed pieces lie within it of each other (kappa grows as they approach); a
+    semisimple repeated root's lie within n eps ||A||.
+    """
+    n = max(A.shape[0], 1)
+    den = np.abs(np.einsum('ij,ij->j', W.conj(), V))
+    norms = np.linalg.norm(W, axis=0) * np.linalg.norm(V, axis=0)
+    with np.errstate(divide='ignore'):
+        kappa = np.where(den > 0, norms / np.maximum(den, 1e-300), np.inf)
+    return n * np.finfo(float).eps * max(np.linalg.norm(A), 1e-300) * kappa
 
 
 def zero_K_sensitivities(A0: np.ndarray, BC: np.ndarray) -> tuple:
@@ -169,11 +192,16 @@ def zero_K_sensitivities(A0: np.ndarray, BC: np.ndarray) -> tuple:
     K (d = 0, returned last, eigenvectors its basis). The other roots are those of the
     reduced matrix Q^H A(K) Q (Q an orthonormal basis of the complement; the resting space
     is invariant, so A(K) is block triangular in (Q, N)): a simple root by perturbation
-    theory, d = -(w^H BCr v)/(w^H v); a repeated root (a cluster within 1e-6 of the
-    spectral scale) by first-order degenerate perturbation theory if it is semisimple
-    there (d the eigenvalues of the perturbation restricted to it, its vectors the ones
-    the perturbation diagonalizes), nan (not defined: the roots split like sqrt(K)) if it
-    is still defective. Eigenvectors of the reduced roots are returned as Q y (unit norm).
+    theory, d = -(w^H BCr v)/(w^H v); a repeated root by first-order degenerate
+    perturbation theory if it is semisimple there (d the eigenvalues of the perturbation
+    restricted to it, its vectors the ones the perturbation diagonalizes), nan (not
+    defined: the roots split like sqrt(K)) if it is still defective. Roots are one repeated
+    root where they lie within the reach of round-off (:func:`_round_off_radius`: n eps
+    ||A|| times their condition numbers), distinct where double precision resolves them:
+    the rotor-field pair +-i sqrt(K_S/C) of a tiny K_S > 0 is two simple roots, each with
+    its own d (a threshold on the spectral scale merged them by size, K_S = 1e-8 on the
+    centrifuge, 1e-7 on its system file). Eigenvectors of the reduced roots are returned
+    as Q y (unit norm).
     """
     import scipy.linalg as sl
     n = A0.shape[0]
@@ -189,13 +217,13 @@ def zero_K_sensitivities(A0: np.ndarray, BC: np.ndarray) -> tuple:
     V, W = unit(V).astype(complex), unit(W).astype(complex)
     r = len(lam)
     d = np.full(r, np.nan, dtype=complex)
-    scale = max(float(np.abs(lam).max(initial=0.0)), np.linalg.norm(A0), 1.0)
-    tol = 1e-6 * scale
+    rho = _round_off_radius(Ar, W, V)
     done = np.zeros(r, dtype=bool)
     for j in range(r):
         if done[j]:
             continue
-        idx = [i for i in range(r) if not done[i] and abs(lam[i] - lam[j]) <= tol]
+        idx = [i for i in range(r)
+               if not done[i] and abs(lam[i] - lam[j]) <= ROUND_OFF_MARGIN * (rho[i] + rho[j])]
         done[idx] = True
         if len(idx) == 1:
             den = np.vdot(W[:, j], V[:, j])
