@@ -931,6 +931,21 @@ def test_a_tiny_drive_stiffness_keeps_two_simple_roots_on_both_paths(K_S):
         assert len(slip) == 2 and all(abs(d + 25.0036) < 1e-3 for d in slip), slip
 
 
+@pytest.mark.parametrize('scene', ['precession', 'conservative'])
+def test_a_repeated_zero_root_is_reached_where_it_moves_with_K(scene):
+    """K_S = K_D = 0: three roots at 0; the one that moves with K (d = -50.007) is reached.
+
+    Found by the one-path helper: classify matched modes to roots by eigenvalue alone, so
+    in the cluster at 0 the reach labels followed list order (the moving root 'not
+    reached', the cyclic psi root 'reached'). A root on the fixed subspace has d = 0.
+    """
+    ms = modes(linearize_scene(load_scene_with_sets(scene, ['K_S=0', 'K_D=0'])))
+    at0 = [m for m in ms if abs(m.eigenvalue) <= 1e-9]
+    assert len(at0) == 3
+    for m in at0:
+        assert m.reached_by_drive == (abs(m.dRe_dKD) > 1.0), m
+
+
 def test_centrifuge_and_its_euler_twin_agree_without_drive_stiffness():
     # issue 25, one path: at K_S = 0 the roots (1e-9) and every root's dRe/dK_D agree, the
     # slip root's -50.0072 on both (the built-in prints it, the system file did not)

@@ -251,7 +251,16 @@ def classify(ms: Sequence[Mode], sys, K=None) -> list:
     roots = np.concatenate([dm.lam, lam_u])
     n_v = len(dm.lam)
     lam_m = np.array([m.eigenvalue for m in ms], dtype=complex)
-    r, c = linear_sum_assignment(np.abs(lam_m[:, None] - roots[None, :]))
+    cost = np.abs(lam_m[:, None] - roots[None, :])
+    # a repeated root (two zero roots at K_S = K_D = 0) is told apart by d lambda/d K: a
+    # root on the fixed subspace stays for every K (d = 0), so a mode that moves is never
+    # matched to one there while a root of V with its eigenvalue is free
+    d = np.array([m.dRe_dKD for m in ms], dtype=float)
+    d_scale = max(1.0, float(np.nanmax(np.abs(d), initial=0.0)))
+    moves = np.isfinite(d) & (np.abs(d) > 1e-9 * d_scale)
+    scale = max(1.0, float(np.abs(roots).max(initial=0.0)))
+    cost[np.ix_(moves, np.arange(len(roots)) >= n_v)] += 1e-6 * scale
+    r, c = linear_sum_assignment(cost)
     out = list(ms)
     for i, j in zip(r, c):
         m = ms[i]
