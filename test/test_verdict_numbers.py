@@ -81,6 +81,41 @@ def test_a_kick_either_way_starts_a_segment(run, i, size, up):
     assert max(s.balance_max for s in a.segments) < 1e-9
 
 
+def test_a_kick_the_drive_dissipates_within_a_sample_starts_a_segment(run):
+    # stiff_drive (K_D = 1e4) after --kick-at 1.08: the kicked lag rate is dissipated
+    # within one sample: D jumps by 0.0033 J while E* falls by 0.0007 J, the residual
+    # continuous. E* + D jumped by 0.0026 J: a kick (it was taken for a corrupt D)
+    scene, samples = run
+    kicked = [dataclasses.replace(s, E_star=s.E_star - 0.0007, D=s.D + 0.0033) if i >= 600
+              else s for i, s in enumerate(samples)]
+    a = _feed(scene, kicked)
+    res = a.result()
+    assert a.kicks == 1 and a.segments[1].reason == 'kick (E* + D changed by +0.0026 J)'
+    assert str(_status(res, 'energy balance').status) == 'PASS'
+
+
+@pytest.mark.parametrize('field', ['E_star', 'D'])
+def test_one_corrupt_message_is_no_kick(run, field):
+    # E* + D jumps there and back, the residual untouched: the next sample takes it back
+    scene, samples = run
+    bad = [dataclasses.replace(s, **{field: getattr(s, field) + 1e-3}) if i == 500 else s
+           for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    res = a.result()
+    assert a.kicks == 0 and len(a.segments) == 1 and a.segments[0].samples == len(samples)
+    c = _status(res, 'energy balance')
+    assert str(c.status) == 'FAIL' and c.numbers['balance_max_J'] == pytest.approx(1e-3)
+
+
+def test_a_falling_D_is_no_kick(run):
+    # D is the integral of K_D zdot^2 >= 0: E* + D dropping with D is a corrupt D
+    scene, samples = run
+    bad = [dataclasses.replace(s, D=s.D - 1e-3) if i >= 600 else s
+           for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    assert a.kicks == 0 and str(_status(a.result(), 'energy balance').status) == 'FAIL'
+
+
 def test_a_lowering_kick_is_no_energy_balance_failure(run):
     scene, samples = run
     res = _feed(scene, _kicked(samples, 600, -3.16e-7)).result()
