@@ -132,6 +132,34 @@ def test_e_star_and_residual_jumping_together_is_no_kick(run):
     assert a.kicks == 0
 
 
+# -- samples lost before the first recorded one (a bag begun late) -------------------------------
+def test_samples_lost_before_the_first_are_counted(run):
+    # the simulation numbers its samples from 0: a stream that begins at seq 500 lost 500
+    scene, samples = run
+    res = _feed(scene, samples[500:]).result()
+    c = _status(res, 'data')
+    assert res.dropped == 500 and str(c.status) == 'FAIL' and not res.confirmed
+    assert '500 of them before the first sample' in c.detail
+    # the run's start is not in the data: the scene criterion does not claim to check it
+    fit = _status(res, 'scene')
+    assert fit.numbers['starts'] == 0 and "the run's start not in the data" in fit.detail
+
+
+def test_a_restarted_simulation_counts_what_it_lost_before_its_first(run):
+    # a new node numbers from 0 again: its first received sample at seq 3 lost 3
+    scene, samples = run
+    a = _feed(scene, samples[:200] + samples[3:200])
+    assert a.resets == 1 and a.dropped == 3 and a.lost_first == 3
+
+
+def test_a_whole_run_checks_its_start_once(run):
+    scene, samples = run
+    fit = _status(_feed(scene, samples[:1]).result(), 'scene')
+    assert fit.numbers['starts'] == 1
+    assert fit.detail.endswith('(2 checks: E* from the recorded joints, 1 start of a run '
+                               'against its initial state)')
+
+
 # -- finding 3: a cap on the samples kept never makes the shortest fitted window unreachable ----
 def test_the_sample_cap_thins_the_window_instead_of_shortening_it(run):
     # 1001 samples at 250 Hz (4 s) kept in 300 rows: 1.2 s of them would be < min_fit_s 2 s

@@ -217,8 +217,12 @@ class RotorAnalyzer:
         #: what differed between the data and the scene (the ``scene`` criterion)
         self.fit_problems: list[str] = []
         self.fit_checks = 0
+        #: of those, the samples that began a run (checked against the scene's initial state)
+        self.fit_starts = 0
         self.samples = 0
         self.dropped = 0
+        #: of the dropped, those before the first sample of a simulation (:meth:`_lost_before`)
+        self.lost_first = 0
         self.resets = 0
         self.kicks = 0
         self.time_jumps = 0
@@ -259,12 +263,14 @@ class RotorAnalyzer:
         reason = None
         if last is None:
             reason = 'start'
+            self._lost_before(s)
         else:
             if s.seq > last.seq + 1:
                 self.dropped += s.seq - last.seq - 1
             elif s.seq <= last.seq:
                 reason = 'simulation restarted (sequence went back)'
                 self.resets += 1
+                self._lost_before(s)
             if reason is None:
                 dt = s.t - last.t
                 if s.t < last.t or (s.k >= 0 and 0 <= s.k < last.k):
@@ -317,14 +323,26 @@ class RotorAnalyzer:
                 if res.energy_fit is not None:
                     seg.record.add(res)
 
+    def _lost_before(self, s: Sample) -> None:
+        """Count the messages lost before the first sample of a simulation (seq from 0).
+
+        The simulation numbers its samples from 0 over its life (a reset goes on counting,
+        a restarted node starts at 0 again): a first sample with seq n > 0 comes after n
+        that were published and never received (a recording or an analysis begun late).
+        """
+        if s.seq > 0:
+            self.dropped += s.seq
+            self.lost_first += s.seq
+
     def _check_fit(self, s: Sample, start: bool) -> None:
         """Hold a sample against the scene (:mod:`~gyro_rotor.analysis.fit`)."""
         fit = self._fit
-        before = fit.starts + fit.energies
+        starts, energies = fit.starts, fit.energies
         if start:
             fit.on_start(s)
         fit.on_sample(s)
-        self.fit_checks += fit.starts + fit.energies - before
+        self.fit_starts += fit.starts - starts
+        self.fit_checks += fit.starts + fit.energies - starts - energies
         for p in fit.problems:
             if p not in self.fit_problems:
                 self.fit_problems.append(p)
@@ -486,12 +504,13 @@ class RotorAnalyzer:
                     if c.name in (CriterionName.DECAY, CriterionName.MODES)]
         out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite,
                              self.cut, self.truncated, self.bag_lost, self.bag_loss,
-                             non_finite_fields=sorted(self.non_finite_fields)))
+                             non_finite_fields=sorted(self.non_finite_fields),
+                             lost_first=self.lost_first))
         if judged is not None:
             sync = crit.synchronism(segs[-1], self.segments[-1].pred)
             if sync is not None:
                 out.append(sync)
-        fit = crit.scene(self.scene.name, self.fit_problems, self.fit_checks)
+        fit = crit.scene(self.scene.name, self.fit_problems, self.fit_checks, self.fit_starts)
         if fit is not None:
             out.append(fit)
         return out
