@@ -359,3 +359,69 @@ def test_a_tone_beyond_its_tolerance_is_not_named():
     near = _combination(root(7.5875, 0.04637), parents, 8.0)
     assert near is not None and '(0.042 Hz apart, within the tolerance 0.093 Hz' in near
     assert _combination(root(7.5875, 0.005), parents, 8.0) is None
+
+
+# -- a root at the Nyquist frequency; what the aliases and tones are called ----------------------
+def _root(f_hz, u_hz, share=0.1):
+    from gyro_rotor.analysis.modes import Root
+    from gyro_rotor.analysis.verdict import Measured
+    w, u = 2 * math.pi * f_hz, 2 * math.pi * u_hz
+    return Root(complex(-0.01, w), Measured.pm(-0.01, 0.003), Measured.pm(w, u), share)
+
+
+def _mode(name):
+    return type('M', (), {'name': name, 'structural': False})()
+
+
+def test_a_root_at_the_nyquist_frequency_is_the_fold_of_the_tone_near_it():
+    # twin_gimbal at --rate 17.3: 6.1088 + 2.5153 = 8.624 Hz, 0.026 Hz below fs/2 = 8.65 Hz;
+    # the window (5.03 s) pinned it to 8.65000 +- 0.00078 Hz, which matched nothing
+    from gyro_rotor.analysis.modes import _aliases
+    fs, span = 17.3, 5.03
+    inband = [(_mode('a'), _root(6.1088, 0.002)), (_mode('b'), _root(2.5153, 0.0008))]
+    at = _root(0.5 * fs, 0.00078)
+    text = _aliases([at], [], 1.0 / fs, span, inband)[id(at)]
+    assert text.startswith('combination tone a + b: 8.624 Hz'), text
+    assert 'a root at the Nyquist frequency 8.65 Hz is any tone within 1/(2T) = 0.099 Hz' in text
+    # 0.2 Hz below, farther than the window's resolution 1/(2T) = 0.099 Hz: no fold of it
+    inband = [(_mode('a'), _root(5.9088, 0.002)), (_mode('b'), _root(2.5153, 0.0008))]
+    assert _aliases([at], [], 1.0 / fs, span, inband) == {}
+
+
+def test_twin_gimbal_at_a_rate_whose_nyquist_frequency_holds_a_tone_is_confirmed():
+    from demo_replay import run_like_demo
+    run = run_like_demo('twin_gimbal', 20.0, rate=17.3)
+    a = RotorAnalyzer(run.scene, window_s=8.0)
+    a.add_many(run.samples)
+    res = a.result()
+    c = _status(res, 'modes')
+    assert c.numbers['unexplained_hz'] == [] and str(c.status) == 'PASS', c.detail
+
+
+def test_a_tone_is_no_term_and_its_negative():
+    # nutation + housing twist - housing twist is the nutation: no tone of order 3
+    from gyro_rotor.analysis.modes import _tones
+    values = [9.699, 4.082]
+    tones = [(order, combo, signs) for order, combo, signs, v in _tones(values)
+             if min(abs(v - x) for x in values) < 1e-9]
+    assert tones == []
+
+
+def test_a_tone_below_nyquist_is_no_sampled_alias():
+    from gyro_rotor.analysis.modes import _folded
+    assert _folded('the combination tone a - b', 6.375, 62.5) == 'combination tone a - b: 6.375 Hz'
+    assert _folded('nutation', 9.709, 13.0) == ('sampled alias of nutation: |9.709 - 1 x 13| = '
+                                                '3.291 Hz')
+
+
+def test_the_alias_of_a_mode_above_nyquist_is_named_so_not_a_second_root():
+    # precession at --rate 13: 3.291 Hz = |9.709 - 13| lies within housing twist's (3.334 Hz)
+    # tolerance; it was named "a second root of housing twist"
+    from demo_replay import run_like_demo
+    run = run_like_demo('precession', 20.0, rate=13.0)
+    a = RotorAnalyzer(run.scene, window_s=8.0)
+    a.add_many(run.samples)
+    res = a.result()
+    detail = _status(res, 'modes').detail
+    assert 'Hz is a sampled alias of nutation: |9.709 - 1 x 13| = 3.291 Hz' in detail, detail
+    assert 'second root' not in detail, detail
