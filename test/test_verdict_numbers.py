@@ -81,6 +81,41 @@ def test_a_kick_either_way_starts_a_segment(run, i, size, up):
     assert max(s.balance_max for s in a.segments) < 1e-9
 
 
+def test_a_kick_the_drive_dissipates_within_a_sample_starts_a_segment(run):
+    # stiff_drive (K_D = 1e4) after --kick-at 1.08: the kicked lag rate is dissipated
+    # within one sample: D jumps by 0.0033 J while E* falls by 0.0007 J, the residual
+    # continuous. E* + D jumped by 0.0026 J: a kick (it was taken for a corrupt D)
+    scene, samples = run
+    kicked = [dataclasses.replace(s, E_star=s.E_star - 0.0007, D=s.D + 0.0033) if i >= 600
+              else s for i, s in enumerate(samples)]
+    a = _feed(scene, kicked)
+    res = a.result()
+    assert a.kicks == 1 and a.segments[1].reason == 'kick (E* + D changed by +0.0026 J)'
+    assert str(_status(res, 'energy balance').status) == 'PASS'
+
+
+@pytest.mark.parametrize('field', ['E_star', 'D'])
+def test_one_corrupt_message_is_no_kick(run, field):
+    # E* + D jumps there and back, the residual untouched: the next sample takes it back
+    scene, samples = run
+    bad = [dataclasses.replace(s, **{field: getattr(s, field) + 1e-3}) if i == 500 else s
+           for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    res = a.result()
+    assert a.kicks == 0 and len(a.segments) == 1 and a.segments[0].samples == len(samples)
+    c = _status(res, 'energy balance')
+    assert str(c.status) == 'FAIL' and c.numbers['balance_max_J'] == pytest.approx(1e-3)
+
+
+def test_a_falling_D_is_no_kick(run):
+    # D is the integral of K_D zdot^2 >= 0: E* + D dropping with D is a corrupt D
+    scene, samples = run
+    bad = [dataclasses.replace(s, D=s.D - 1e-3) if i >= 600 else s
+           for i, s in enumerate(samples)]
+    a = _feed(scene, bad)
+    assert a.kicks == 0 and str(_status(a.result(), 'energy balance').status) == 'FAIL'
+
+
 def test_a_lowering_kick_is_no_energy_balance_failure(run):
     scene, samples = run
     res = _feed(scene, _kicked(samples, 600, -3.16e-7)).result()
@@ -95,6 +130,34 @@ def test_e_star_and_residual_jumping_together_is_no_kick(run):
            if i >= 600 else s for i, s in enumerate(samples)]
     a = _feed(scene, bad)
     assert a.kicks == 0
+
+
+# -- samples lost before the first recorded one (a bag begun late) -------------------------------
+def test_samples_lost_before_the_first_are_counted(run):
+    # the simulation numbers its samples from 0: a stream that begins at seq 500 lost 500
+    scene, samples = run
+    res = _feed(scene, samples[500:]).result()
+    c = _status(res, 'data')
+    assert res.dropped == 500 and str(c.status) == 'FAIL' and not res.confirmed
+    assert '500 of them before the first sample' in c.detail
+    # the run's start is not in the data: the scene criterion does not claim to check it
+    fit = _status(res, 'scene')
+    assert fit.numbers['starts'] == 0 and "the run's start not in the data" in fit.detail
+
+
+def test_a_restarted_simulation_counts_what_it_lost_before_its_first(run):
+    # a new node numbers from 0 again: its first received sample at seq 3 lost 3
+    scene, samples = run
+    a = _feed(scene, samples[:200] + samples[3:200])
+    assert a.resets == 1 and a.dropped == 3 and a.lost_first == 3
+
+
+def test_a_whole_run_checks_its_start_once(run):
+    scene, samples = run
+    fit = _status(_feed(scene, samples[:1]).result(), 'scene')
+    assert fit.numbers['starts'] == 1
+    assert fit.detail.endswith('(2 checks: E* from the recorded joints, 1 start of a run '
+                               'against its initial state)')
 
 
 # -- finding 3: a cap on the samples kept never makes the shortest fitted window unreachable ----
@@ -296,3 +359,69 @@ def test_a_tone_beyond_its_tolerance_is_not_named():
     near = _combination(root(7.5875, 0.04637), parents, 8.0)
     assert near is not None and '(0.042 Hz apart, within the tolerance 0.093 Hz' in near
     assert _combination(root(7.5875, 0.005), parents, 8.0) is None
+
+
+# -- a root at the Nyquist frequency; what the aliases and tones are called ----------------------
+def _root(f_hz, u_hz, share=0.1):
+    from gyro_rotor.analysis.modes import Root
+    from gyro_rotor.analysis.verdict import Measured
+    w, u = 2 * math.pi * f_hz, 2 * math.pi * u_hz
+    return Root(complex(-0.01, w), Measured.pm(-0.01, 0.003), Measured.pm(w, u), share)
+
+
+def _mode(name):
+    return type('M', (), {'name': name, 'structural': False})()
+
+
+def test_a_root_at_the_nyquist_frequency_is_the_fold_of_the_tone_near_it():
+    # twin_gimbal at --rate 17.3: 6.1088 + 2.5153 = 8.624 Hz, 0.026 Hz below fs/2 = 8.65 Hz;
+    # the window (5.03 s) pinned it to 8.65000 +- 0.00078 Hz, which matched nothing
+    from gyro_rotor.analysis.modes import _aliases
+    fs, span = 17.3, 5.03
+    inband = [(_mode('a'), _root(6.1088, 0.002)), (_mode('b'), _root(2.5153, 0.0008))]
+    at = _root(0.5 * fs, 0.00078)
+    text = _aliases([at], [], 1.0 / fs, span, inband)[id(at)]
+    assert text.startswith('combination tone a + b: 8.624 Hz'), text
+    assert 'a root at the Nyquist frequency 8.65 Hz is any tone within 1/(2T) = 0.099 Hz' in text
+    # 0.2 Hz below, farther than the window's resolution 1/(2T) = 0.099 Hz: no fold of it
+    inband = [(_mode('a'), _root(5.9088, 0.002)), (_mode('b'), _root(2.5153, 0.0008))]
+    assert _aliases([at], [], 1.0 / fs, span, inband) == {}
+
+
+def test_twin_gimbal_at_a_rate_whose_nyquist_frequency_holds_a_tone_is_confirmed():
+    from demo_replay import run_like_demo
+    run = run_like_demo('twin_gimbal', 20.0, rate=17.3)
+    a = RotorAnalyzer(run.scene, window_s=8.0)
+    a.add_many(run.samples)
+    res = a.result()
+    c = _status(res, 'modes')
+    assert c.numbers['unexplained_hz'] == [] and str(c.status) == 'PASS', c.detail
+
+
+def test_a_tone_is_no_term_and_its_negative():
+    # nutation + housing twist - housing twist is the nutation: no tone of order 3
+    from gyro_rotor.analysis.modes import _tones
+    values = [9.699, 4.082]
+    tones = [(order, combo, signs) for order, combo, signs, v in _tones(values)
+             if min(abs(v - x) for x in values) < 1e-9]
+    assert tones == []
+
+
+def test_a_tone_below_nyquist_is_no_sampled_alias():
+    from gyro_rotor.analysis.modes import _folded
+    assert _folded('the combination tone a - b', 6.375, 62.5) == 'combination tone a - b: 6.375 Hz'
+    assert _folded('nutation', 9.709, 13.0) == ('sampled alias of nutation: |9.709 - 1 x 13| = '
+                                                '3.291 Hz')
+
+
+def test_the_alias_of_a_mode_above_nyquist_is_named_so_not_a_second_root():
+    # precession at --rate 13: 3.291 Hz = |9.709 - 13| lies within housing twist's (3.334 Hz)
+    # tolerance; it was named "a second root of housing twist"
+    from demo_replay import run_like_demo
+    run = run_like_demo('precession', 20.0, rate=13.0)
+    a = RotorAnalyzer(run.scene, window_s=8.0)
+    a.add_many(run.samples)
+    res = a.result()
+    detail = _status(res, 'modes').detail
+    assert 'Hz is a sampled alias of nutation: |9.709 - 1 x 13| = 3.291 Hz' in detail, detail
+    assert 'second root' not in detail, detail

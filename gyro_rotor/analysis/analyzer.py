@@ -4,7 +4,7 @@ Fed with paired samples (:mod:`gyro_rotor.analysis.samples`) of the simulation n
 ``energy`` and ``joint_states`` topics, live by the analysis node and offline from a bag
 (:mod:`gyro_rotor.analysis.offline`): the same class, the same numbers. Data events start
 a new *segment* (fits never mix segments): resets (t_sim or the grid index going back),
-time jumps, kicks (E* jumping either way with D and the residual continuous: the node's
+time jumps, kicks (E* + D jumping either way, the residual continuous: the node's
 ``~/perturb``, :func:`_kick_jump`) and
 parameter changes; sequence gaps are counted. Over a sliding window of the last segment
 long enough to fit it measures E*_inf and the decay of E* (:mod:`~.decay`), the modes
@@ -217,8 +217,12 @@ class RotorAnalyzer:
         #: what differed between the data and the scene (the ``scene`` criterion)
         self.fit_problems: list[str] = []
         self.fit_checks = 0
+        #: of those, the samples that began a run (checked against the scene's initial state)
+        self.fit_starts = 0
         self.samples = 0
         self.dropped = 0
+        #: of the dropped, those before the first sample of a simulation (:meth:`_lost_before`)
+        self.lost_first = 0
         self.resets = 0
         self.kicks = 0
         self.time_jumps = 0
@@ -259,12 +263,14 @@ class RotorAnalyzer:
         reason = None
         if last is None:
             reason = 'start'
+            self._lost_before(s)
         else:
             if s.seq > last.seq + 1:
                 self.dropped += s.seq - last.seq - 1
             elif s.seq <= last.seq:
                 reason = 'simulation restarted (sequence went back)'
                 self.resets += 1
+                self._lost_before(s)
             if reason is None:
                 dt = s.t - last.t
                 if s.t < last.t or (s.k >= 0 and 0 <= s.k < last.k):
@@ -279,14 +285,15 @@ class RotorAnalyzer:
                     elif dt > 0 and s.seq == last.seq + 1:
                         self._dt = dt if self._dt is None else self._dt
             if reason is None:
-                jump = _kick_jump(last, s, self.lyapunov_tol
-                                  + self.lyapunov_rtol * max(abs(s.E_star), abs(last.E_star)))
+                tol = self.lyapunov_tol + self.lyapunov_rtol * max(abs(s.E_star),
+                                                                   abs(last.E_star))
+                # a kick's sample that this one undoes was one corrupt message
+                jump = 0.0 if self._undo_kick(s, tol) else _kick_jump(last, s, tol)
                 if jump:
-                    # E* jumped, in either direction, while D and the residual E* + D - E_ref
-                    # went on smoothly: an external kick (~/perturb rebases E_ref), not a
-                    # Lyapunov violation nor an integration error (which moves E* and the
-                    # residual together), nor a corrupted D (which jumps itself)
-                    reason = f'kick (E* changed by {jump:+.6g} J)'
+                    # E* + D jumped, in either direction, and the residual E* + D - E_ref
+                    # did not: an external kick (~/perturb rebases E_ref), not a Lyapunov
+                    # violation nor an integration error (which moves the residual with it)
+                    reason = f'kick (E* + D changed by {jump:+.6g} J)'
                     self.kicks += 1
         self.samples += 1
         bad = [k for k, v in self._recorded(s).items() if not math.isfinite(v)]
@@ -316,14 +323,26 @@ class RotorAnalyzer:
                 if res.energy_fit is not None:
                     seg.record.add(res)
 
+    def _lost_before(self, s: Sample) -> None:
+        """Count the messages lost before the first sample of a simulation (seq from 0).
+
+        The simulation numbers its samples from 0 over its life (a reset goes on counting,
+        a restarted node starts at 0 again): a first sample with seq n > 0 comes after n
+        that were published and never received (a recording or an analysis begun late).
+        """
+        if s.seq > 0:
+            self.dropped += s.seq
+            self.lost_first += s.seq
+
     def _check_fit(self, s: Sample, start: bool) -> None:
         """Hold a sample against the scene (:mod:`~gyro_rotor.analysis.fit`)."""
         fit = self._fit
-        before = fit.starts + fit.energies
+        starts, energies = fit.starts, fit.energies
         if start:
             fit.on_start(s)
         fit.on_sample(s)
-        self.fit_checks += fit.starts + fit.energies - before
+        self.fit_starts += fit.starts - starts
+        self.fit_checks += fit.starts + fit.energies - starts - energies
         for p in fit.problems:
             if p not in self.fit_problems:
                 self.fit_problems.append(p)
@@ -332,6 +351,27 @@ class RotorAnalyzer:
         """Feed several samples."""
         for s in samples:
             self.add(s)
+
+    def _undo_kick(self, s: Sample, tol: float) -> bool:
+        """Take back a kick that ``s``, the next sample, undoes; return whether it did.
+
+        A kick rebases E_ref = E* + D - residual for good; a single corrupt message (E* or
+        D) moves it there and back. If the newest segment is a kick's with one sample and
+        ``s`` is back on the previous segment's E_ref, that sample joins the previous
+        segment again (where the energy balance judges it) and the kick is not counted.
+        """
+        seg = self.segments[-1]
+        if len(self.segments) < 2 or seg.samples != 1 or not seg.reason.startswith('kick'):
+            return False
+        old = self.segments[-2]
+        if not abs(s.E_star + s.D - s.residual - old.E_ref) <= tol:
+            return False
+        self.segments.pop()
+        self._done.pop()
+        self.kicks -= 1
+        old.gaps += seg.gaps
+        self._add_to_segment(old, seg.last, old.last)
+        return True
 
     def _new_segment(self, reason: str) -> None:
         if self.segments:
@@ -464,12 +504,13 @@ class RotorAnalyzer:
                     if c.name in (CriterionName.DECAY, CriterionName.MODES)]
         out.append(crit.data(self.samples, self.dropped, self.unpaired, self.non_finite,
                              self.cut, self.truncated, self.bag_lost, self.bag_loss,
-                             non_finite_fields=sorted(self.non_finite_fields)))
+                             non_finite_fields=sorted(self.non_finite_fields),
+                             lost_first=self.lost_first))
         if judged is not None:
             sync = crit.synchronism(segs[-1], self.segments[-1].pred)
             if sync is not None:
                 out.append(sync)
-        fit = crit.scene(self.scene.name, self.fit_problems, self.fit_checks)
+        fit = crit.scene(self.scene.name, self.fit_problems, self.fit_checks, self.fit_starts)
         if fit is not None:
             out.append(fit)
         return out
@@ -652,21 +693,22 @@ class RotorAnalyzer:
 
 
 def _kick_jump(a: Sample, b: Sample, tol: float) -> float:
-    """Return the jump of E* + D between two samples if it is a kick (E*'s jump), else 0.
+    """Return the jump of E* + D between two samples if it is a kick, else 0.
 
-    Between samples E* decreases only by the work D dissipates (eq. 17), so E* + D is
-    constant up to the integration error, which the residual E* + D - E_ref shows as well.
-    A kick moves E* (either way) and E_ref with it (:mod:`~gyro_rotor.numerics.live`
-    rebases it): E* + D jumps by more than ``tol`` while the residual and D go on smoothly
-    (D by about the step times the dissipation -dE*/dt, trapezoidal rule). A jump of D
-    itself, or of the residual with it, is no kick: the energy balance judges it.
+    Along a solution E* + D is constant (eq. 17) up to the integration error, which the
+    residual E* + D - E_ref carries. A kick changes the state, and
+    :mod:`~gyro_rotor.numerics.live` rebases E_ref by E*'s jump: E* + D jumps by more
+    than ``tol`` (either way) and the residual does not carry the jump (it moves by less
+    than half of it). Where the kicked energy goes afterwards does not matter: a stiff
+    drive dissipates a kick of its lag rate within one sample, so D jumps with E* + D
+    (D is the integral of K_D zdot^2 >= 0: it never decreases, not at a kick either).
+    A jump the residual carries is no kick (the energy balance judges it); a single
+    corrupt message is taken back by the next sample (:meth:`RotorAnalyzer._undo_kick`).
     """
     jump = (b.E_star + b.D) - (a.E_star + a.D)
     if not abs(jump) > tol:
         return 0.0
-    d_res = b.residual - a.residual
-    d_D = (b.D - a.D) + 0.5 * (b.t - a.t) * (a.dE_dt + b.dE_dt)
-    if not (abs(d_res) < 0.5 * abs(jump) and abs(d_D) < 0.5 * abs(jump)):
+    if not (abs(b.residual - a.residual) < 0.5 * abs(jump) and b.D - a.D >= -tol):
         return 0.0
     return jump
 

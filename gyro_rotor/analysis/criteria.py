@@ -299,7 +299,7 @@ def modes(seg: SegmentResult, min_fit_s: float) -> Criterion:
 
 def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 0,
          truncated: str = '', bag_lost: int = 0, bag_loss: str = '',
-         non_finite_fields: tuple = ()) -> Criterion:
+         non_finite_fields: tuple = (), lost_first: int = 0) -> Criterion:
     """No message lost (sequence gaps, or in a damaged bag), no sample unpaired, all finite.
 
     ``cut``: messages past the end of the other topic at a cut recording (the one sample
@@ -307,14 +307,20 @@ def data(samples: int, dropped: int, unpaired: int, non_finite: int, cut: int = 
     recording was cut, if it was. ``bag_lost`` and ``bag_loss`` are the recorded messages a
     damaged bag lost (counted by its reader) and the line that says which; any of it fails
     the criterion, so a damaged bag never gives a plain CONFIRMED. ``non_finite_fields``:
-    the recorded fields that were NaN or infinite (named in the text).
+    the recorded fields that were NaN or infinite (named in the text). ``lost_first``: of
+    the ``dropped``, those before the first sample of a simulation (its seq; the
+    simulation numbers them from 0).
     """
     nums = {'samples': samples, 'dropped': dropped, 'unpaired': unpaired,
             'non_finite': non_finite, 'cut': cut, 'bag_lost': bag_lost}
     if samples == 0:
         return Criterion(CriterionName.DATA, Status.NOT_YET, 'no samples yet', nums)
-    text = (f'{samples} samples, {dropped} messages lost (sequence gaps), {unpaired} '
-            f'unpaired between energy and joint_states, {non_finite} with non-finite values')
+    text = f'{samples} samples, {dropped} messages lost (sequence gaps'
+    if lost_first:
+        text += (f', {lost_first} of them before the first sample: the simulation numbers '
+                 'its samples from 0')
+    text += (f'), {unpaired} unpaired between energy and joint_states, {non_finite} with '
+             'non-finite values')
     if non_finite_fields:
         text += f' ({", ".join(non_finite_fields)})'
     if cut:
@@ -344,18 +350,28 @@ def synchronism(seg: SegmentResult, pred: Prediction) -> Criterion | None:
     return Criterion(CriterionName.SYNCHRONISM, Status.PASS, text, nums)
 
 
-def scene(name: str, problems: list, checks: int) -> Criterion | None:
+def scene(name: str, problems: list, checks: int, starts: int = 0) -> Criterion | None:
     """Check that the data are the scene's (:mod:`~gyro_rotor.analysis.fit`); None: unchecked.
 
-    ``checks``: how many samples were compared (E* and run starts); ``problems``: what
-    differed. Each comparison is exact to rounding: the interval of a difference is its
-    rounding (:data:`~gyro_rotor.analysis.fit.TOL`), so one difference beyond it fails.
+    ``checks``: how many comparisons were made (E* from the recorded joints, and
+    ``starts`` of them the first sample of a run against the scene's initial state: none
+    when the data begin after it); ``problems``: what differed. Each comparison is exact
+    to rounding: the interval of a difference is its rounding
+    (:data:`~gyro_rotor.analysis.fit.TOL`), so one difference beyond it fails.
     """
-    nums = {'checks': checks, 'problems': list(problems)}
+    nums = {'checks': checks, 'starts': starts, 'problems': list(problems)}
     if problems:
         return Criterion(CriterionName.SCENE, Status.FAIL, '; '.join(problems)
                          + ': a recording of another scene, or with other constants', nums)
     if not checks:
         return None
-    return Criterion(CriterionName.SCENE, Status.PASS, f"the data fit scene '{name}' ({checks} "
-                     "samples checked: E* from the recorded joints, the run's start)", nums)
+    what = (f'{_count(starts, "start")} of a run against its initial state' if starts
+            else "the run's start not in the data")
+    return Criterion(CriterionName.SCENE, Status.PASS,
+                     f"the data fit scene '{name}' ({_count(checks, 'check')}: E* from the "
+                     f'recorded joints, {what})', nums)
+
+
+def _count(n: int, noun: str) -> str:
+    """Return '1 check', '2 checks'."""
+    return f'{n} {noun}' if n == 1 else f'{n} {noun}s'

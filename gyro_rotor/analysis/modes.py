@@ -345,13 +345,7 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
     pairs, C = _assign(modes, obs, cand, span)
     combos: dict = {}
     if combination_tones:
-        parents = _identified(modes, cand, pairs, C)
-        strong = {id(cand[b]) for i, b in pairs.items() if C[i] <= 1.0}
-        for r in cand:
-            if id(r) not in strong:
-                text = _doublet(r, parents, span) or _combination(r, parents, span)
-                if text is not None:
-                    combos[id(r)] = text
+        combos = _products(modes, cand, pairs, C, dt, span)
         if combos:
             keep = [r for r in cand if id(r) not in combos]
             pairs, C = _assign(modes, obs, keep, span)
@@ -399,6 +393,27 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
                                    f'{r.share:.2g} of the largest'))
     combinations = [(r, combos[id(r)]) for r in roots if id(r) in combos]
     return ModesFound(checks, unexplained, combinations, growing, roots)
+
+
+def _products(modes: list, cand: list, pairs: dict, C: dict, dt: float, span: float) -> dict:
+    """Name the roots that are products of the modes matched within tolerance: {id: text}.
+
+    Second roots of a drifting mode (:func:`_doublet`) and combination tones
+    (:func:`_combination`); not the roots matched within tolerance, nor a root at the
+    alias of a mode above the Nyquist frequency (that mode's: :func:`_aliases` names it).
+    """
+    parents = _identified(modes, cand, pairs, C)
+    taken = {id(cand[b]) for i, b in pairs.items() if C[i] <= 1.0}
+    taken |= {id(r) for _, r, _ in
+              _mode_aliases([r for r in cand if id(r) not in taken], modes, dt,
+                            span)[1].values()}
+    out = {}
+    for r in cand:
+        if id(r) not in taken:
+            text = _doublet(r, parents, span) or _combination(r, parents, span)
+            if text is not None:
+                out[id(r)] = text
+    return out
 
 
 def _identified(modes: list, cand: list, pairs: dict, C: dict | None = None) -> list:
@@ -462,6 +477,62 @@ def alias_hz(f: float, fs: float) -> float:
     return min(r, fs - r)
 
 
+def _fold_u(r: Root, fs: float, span: float) -> float:
+    """Return the uncertainty [Hz] of a root's frequency as the folding sees it.
+
+    Sampled at ``fs``, a tone at f and its mirror fs - f, 2 |fs/2 - f| apart, are one
+    pair of roots; a window of T s separates them only when they are more than 1/T
+    apart. A root at the Nyquist frequency (within its uncertainty) is therefore any
+    tone within 1/(2T) of fs/2, however narrow its own interval (the pencil pins the
+    unresolved pair to z = -1, and each half of the window does the same).
+    """
+    u = r.im.u / _TWO_PI
+    if abs(r.freq_hz - 0.5 * fs) <= u:
+        u = max(u, 0.5 / max(span, 1e-9))
+    return u
+
+
+def _folded(what: str, f: float, fs: float) -> str:
+    """Say where a tone of ``f`` Hz shows sampled at ``fs``: at f below fs/2, else its alias."""
+    k = round(f / fs)
+    if k == 0:
+        return f'{what.removeprefix("the ")}: {f:.4g} Hz'
+    return f'sampled alias of {what}: |{f:.4g} - {k} x {fs:.4g}| = {alias_hz(f, fs):.4g} Hz'
+
+
+def _nyquist_note(r: Root, fs: float, span: float) -> str:
+    """Say that a root at the Nyquist frequency stands for the tones near it ('' if not)."""
+    if _fold_u(r, fs, span) <= r.im.u / _TWO_PI:
+        return ''
+    return (f'; a root at the Nyquist frequency {0.5 * fs:.4g} Hz is any tone within 1/(2T) '
+            f'= {0.5 / span:.2g} Hz of it')
+
+
+def _mode_aliases(roots: list, modes: list, dt: float, span: float) -> tuple[list, dict]:
+    """Return the lasting modes above the Nyquist frequency and the roots at their aliases.
+
+    A root within the mode's frequency tolerance (:func:`mode_tolerances`, unchanged by
+    the folding) of its alias is that alias (the nearest root, one per mode): {mode name:
+    (distance, root, text)}.
+    """
+    fs = 1.0 / dt
+    # lasting (not gone within a sample) but not observable: above the Nyquist frequency
+    nyq = [m for m in modes if not m.structural and m.eigenvalue.real * dt > -5.0
+           and not _observable(m, dt)]
+    single: dict = {}
+    for m in nyq:
+        f = abs(m.eigenvalue.imag) / _TWO_PI
+        fa = alias_hz(f, fs)
+        tol_im, _ = mode_tolerances(m.eigenvalue, span)
+        for r in roots:
+            d = abs(r.freq_hz - fa) / (tol_im / _TWO_PI + 2.0 * _fold_u(r, fs, span))
+            if d <= 1.0 and (m.name not in single or d < single[m.name][0]):
+                text = (_folded(m.name, f, fs) + f' ({f:.4g} Hz is above the Nyquist '
+                        f'frequency {0.5 * fs:.4g} Hz)' + _nyquist_note(r, fs, span))
+                single[m.name] = (d, r, text)
+    return nyq, single
+
+
 def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
              combination_tones: bool = True) -> dict:
     """Name roots as aliases of lasting predicted modes above the Nyquist frequency.
@@ -472,28 +543,17 @@ def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
     nearest root, one per mode); a root that is the alias of a combination tone of those
     (its parents' frequencies as measured, unfolded, combined as :func:`_combination`
     does, and folded again; within twice their combined uncertainty) is named so, before
-    the looser match to a mode's predicted alias. ``inband``: (mode, root) of the modes
-    identified at their own frequency, parents too; ``combination_tones`` False: no
-    combination tones (:func:`check_modes`). Return {id(root): text}.
+    the looser match to a mode's predicted alias. A root at the Nyquist frequency is the
+    fold of any tone within the window's resolution of it (:func:`_fold_u`). ``inband``:
+    (mode, root) of the modes identified at their own frequency, parents too;
+    ``combination_tones`` False: no combination tones (:func:`check_modes`). Return
+    {id(root): text}.
     """
     fs = 1.0 / dt
-    # lasting (not gone within a sample) but not observable: above the Nyquist frequency
-    nyq = [m for m in modes if not m.structural and m.eigenvalue.real * dt > -5.0
-           and not _observable(m, dt)]
-    single: dict = {}                      # mode name -> (distance, root, text)
-    for m in nyq:
-        f = abs(m.eigenvalue.imag) / _TWO_PI
-        fa = alias_hz(f, fs)
-        tol_im, _ = mode_tolerances(m.eigenvalue, span)
-        for r in roots:
-            d = abs(r.freq_hz - fa) * _TWO_PI / (tol_im + 2.0 * r.im.u)
-            if d <= 1.0 and (m.name not in single or d < single[m.name][0]):
-                text = (f'sampled alias of {m.name}: |{f:.4g} - {round(f / fs)} x {fs:.4g}| = '
-                        f'{fa:.4g} Hz ({f:.4g} Hz is above the Nyquist frequency '
-                        f'{0.5 * fs:.4g} Hz)')
-                single[m.name] = (d, r, text)
+    nyq, single = _mode_aliases(roots, modes, dt, span)
     # the parents: each aliased mode's true frequency from its measured alias
     parents = [(m.name, r.freq_hz, r.im.u / _TWO_PI, r) for m, r in inband]
+    unfolded = {id(r) for _, r in inband}
     for m in nyq:
         if m.name in single:
             r = single[m.name][1]
@@ -508,14 +568,18 @@ def _aliases(roots: list, modes: list, dt: float, span: float, inband: list,
         for order, combo, signs, f in _tones([p[1] for p in own]):
             if best is not None and order > best[2]:
                 break                   # the lowest order that explains it
+            if (round(f / fs) == 0 and all(id(own[k][3]) in unfolded for k in combo)
+                    and not _nyquist_note(r, fs, span)):
+                continue        # in-band modes' tone, not folded: :func:`_combination` names it
             fa = alias_hz(f, fs)
             # a repeated parent's error repeats: the uncertainties add
-            u = 2.0 * (r.im.u / _TWO_PI + sum(own[k][2] for k in combo))
+            u = 2.0 * (_fold_u(r, fs, span) + sum(own[k][2] for k in combo))
             d = abs(r.freq_hz - fa)
             if d <= u and (best is None or d / u < best[0]):
                 label = _combo_label([own[k][0] for k in combo], signs)
-                best = (d / u, f'sampled alias of the combination tone {label}: '
-                               f'|{f:.4g} - {round(f / fs)} x {fs:.4g}| = {fa:.4g} Hz', order)
+                best = (d / u, _folded(f'the combination tone {label}', f, fs)
+                        + f' ({d:.2g} Hz apart, within {u:.2g} Hz: 2 x the sum of the '
+                        'uncertainties of the frequencies)' + _nyquist_note(r, fs, span), order)
         if best is not None:
             out[id(r)] = best[1]
     return out
@@ -622,7 +686,8 @@ def _tones(values: list) -> Iterator[tuple[int, tuple, tuple, float]]:
     """Yield the positive combinations sum_k s_k v_k of ``values``, order by order.
 
     Orders 2 .. :data:`COMBINATION_ORDER` (repeats allowed: 2 v_i is a harmonic), the
-    first sign +1: (order, indices, signs, value). The one enumeration of combination
+    first sign +1, no term cancelling another (v_i + v_j - v_j is v_i, no tone of order
+    3): (order, indices, signs, value). The one enumeration of combination
     tones (:func:`_combination`, their aliases, the neighbours a window cannot resolve).
     """
     import itertools
@@ -630,6 +695,9 @@ def _tones(values: list) -> Iterator[tuple[int, tuple, tuple, float]]:
         for combo in itertools.combinations_with_replacement(range(len(values)), order):
             for tail in itertools.product((1, -1), repeat=order - 1):
                 signs = (1,) + tail
+                if any(a == b and sa != sb for a, sa, b, sb in
+                       zip(combo, signs, combo[1:], signs[1:])):
+                    continue        # v_i - v_i cancels: a lower order (or the mode itself)
                 value = sum(sg * values[k] for sg, k in zip(signs, combo))
                 if value > 0:
                     yield order, combo, signs, value
