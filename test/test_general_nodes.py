@@ -160,8 +160,16 @@ def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_pat
     assert 'Traceback' not in r.stderr, r.stderr[-3000:]
     scene = load_scene(name)
     expected = predict(scene).verdict
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    assert f'RESULT: CONFIRMED: {expected}' in r.stdout
+    # twin_gimbal: E*'s slowest showing term (the 6.11 Hz gimbal mode, 0.062 1/s) is not
+    # decided in the 8 s window, the decay criterion alone stays NOT YET: not confirmed
+    undecided = name == 'twin_gimbal'
+    if undecided:
+        expected = 'insufficient data'
+        assert r.returncode == 1, r.stdout[-3000:] + r.stderr[-3000:]
+        assert 'RESULT: NOT CONFIRMED: insufficient data' in r.stdout
+    else:
+        assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+        assert f'RESULT: CONFIRMED: {expected}' in r.stdout
     bag = out / 'bag'
     counts = _readers(bag)
     joints = list(joint_names(scene.system))
@@ -175,8 +183,9 @@ def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_pat
     assert live['verdict'] == str(offline.result.verdict) == expected
     assert offline.result.samples == 2501 and offline.result.unpaired == 0
     assert {c.name: str(c.status) for c in offline.result.criteria} == {
-        'Lyapunov': 'PASS', 'energy balance': 'PASS', 'decay': 'PASS', 'modes': 'PASS',
-        'data': 'PASS', 'scene': 'PASS'}
+        'Lyapunov': 'PASS', 'energy balance': 'PASS',
+        'decay': 'NOT YET' if undecided else 'PASS', 'modes': 'PASS', 'data': 'PASS',
+        'scene': 'PASS'}
     assert math.isfinite(offline.result.judged.E_last)
     # the analysis of a recording of another system is refused with one line
     r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'analyze', str(bag), '--scene',
@@ -248,7 +257,11 @@ def test_the_committed_general_bag_gives_the_live_verdict_offline():
     bag = Path(__file__).resolve().parents[1] / 'bags' / 'twin_gimbal'
     ana = analyze_bag(bag)
     assert ana.live is not None and ana.live['verdict'] == str(ana.result.verdict)
-    assert str(ana.result.verdict) == 'asymptotically stable'
+    # E*'s slowest showing term (the 6.11 Hz gimbal mode, 0.062 1/s) is not decided in 8 s
+    # windows: the decay criterion alone is NOT YET, every other one passes
+    assert str(ana.result.verdict) == 'insufficient data'
+    assert {c.name.value: str(c.status) for c in ana.result.criteria
+            if str(c.status) != 'PASS'} == {'decay': 'NOT YET'}
     assert ana.result.samples == ana.live['samples'] == 3001
     assert ana.result.dropped == 0 and ana.result.unpaired == 0 and not ana.truncated
     live_modes = {m['name']: m['status'] for m in ana.live['segments'][-1]['modes']}
