@@ -33,3 +33,20 @@ def random_system_file(seed: int, n: int, m: int, *, zero_K_S: bool = False) -> 
         'drives': [{'K_S': 0.0 if zero[k] else float(rng.uniform(1, 20)),
                     'K_D': float(rng.uniform(0.01, 1)), 'Omega0': float(rng.uniform(50, 300))}
                    for k in range(m)]}
+
+
+def unstable_scene(folder, t_end: float = 10.0) -> str:
+    """Write a statically unstable system (V = k x^2 / 2, k < 0) and its scene; its path.
+
+    Outside the theorem's premise (V not positive definite): the motion grows like
+    exp(10 t) with the energy identity sound (the residual 1e-11 of |E*|).
+    """
+    (folder / 'one_neg.yaml').write_text(
+        'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
+        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
+        'potential: "k*x**2/2"\n'
+        'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
+    (folder / 'sc_neg.yaml').write_text(
+        f'/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: {t_end!r}\n'
+        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
+    return str(folder / 'sc_neg.yaml')

@@ -25,6 +25,7 @@ from gyro_rotor.errors import AnalysisError, ParameterError
 from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
+from random_systems import unstable_scene
 
 REPO = Path(__file__).resolve().parents[1]
 FREQ_RTOL = 0.005
@@ -457,15 +458,7 @@ def test_unstable_growth_is_unstable_not_diverged(tmp_path):
     linear theory says unstable. By the simulation guard's rule (max(1e-2 J, 1e-6 x
     max(|E*|, |E_ref|))) the identity is sound: the verdict is 'unstable' and says so.
     """
-    (tmp_path / 'one_neg.yaml').write_text(
-        'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
-        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
-        'potential: "k*x**2/2"\n'
-        'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
-    (tmp_path / 'sc_neg.yaml').write_text(
-        '/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: 3.0\n'
-        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
-    tr = simulate(str(tmp_path / 'sc_neg.yaml'))
+    tr = simulate(unstable_scene(tmp_path, 3.0))
     _, res = analyze(tr.scene, samples_from_trajectory(tr), window_s=0)
     assert res.prediction.verdict == 'unstable'
     assert res.current.residual_max > 1e3            # joules: beyond any absolute limit

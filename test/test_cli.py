@@ -6,6 +6,7 @@ import sys
 from gyro_rotor.cli.main import main
 import numpy as np
 import pytest
+from random_systems import unstable_scene
 
 
 def test_simulate_prints_summary_and_writes_csv(tmp_path, capsys):
@@ -211,21 +212,6 @@ def test_bench_writes_to_a_new_directory_unless_told_bench(argv):
 
 
 #: a statically unstable one-coordinate system (V = k x^2 / 2, k < 0) on a self-stable drive
-UNSTABLE_SYSTEM = (
-    'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
-    'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
-    'potential: "k*x**2/2"\n'
-    'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
-
-
-def _unstable_scene(tmp_path) -> str:
-    (tmp_path / 'one_neg.yaml').write_text(UNSTABLE_SYSTEM)
-    (tmp_path / 'sc_neg.yaml').write_text(
-        '/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: 10.0\n'
-        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
-    return str(tmp_path / 'sc_neg.yaml')
-
-
 def test_simulate_of_an_unstable_system_says_it_grew(tmp_path, capsys):
     """Review finding: x grew to 1e39 and simulate exited 0 saying nothing.
 
@@ -233,7 +219,7 @@ def test_simulate_of_an_unstable_system_says_it_grew(tmp_path, capsys):
     the last line says so, the exit status is 2 and every sample is written.
     """
     out = tmp_path / 'neg.csv'
-    assert main(['simulate', _unstable_scene(tmp_path), '--out', str(out)]) == 2
+    assert main(['simulate', unstable_scene(tmp_path), '--out', str(out)]) == 2
     last = capsys.readouterr().out.splitlines()[-1]
     assert last.startswith('UNSTABLE: the motion grows, the energy identity sound'), last
     assert 'not a numerical divergence' in last

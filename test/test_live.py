@@ -14,6 +14,7 @@ from gyro_rotor.numerics.live import ENERGY_COLUMNS, Level, LiveSimulation, wrap
 from gyro_rotor.numerics.realtime import resolve_method
 import numpy as np
 import pytest
+from random_systems import unstable_scene
 
 RATE = 250.0
 
@@ -306,15 +307,7 @@ def test_residual_guard_is_relative_to_the_energy_scale(tmp_path):
     t = 2.19 s with an absolute bound of 1 J; the bound is max(max_residual, 1e-6 x
     max(|E*|, |E_ref|)).
     """
-    (tmp_path / 'one_neg.yaml').write_text(
-        'name: one\ncoordinates: [x]\nrotors: [R]\nconstants: {J: 0.1, C: 0.01, k: -10.0}\n'
-        'mass_matrix:\n  - ["J"]\nrotor_inertia: ["C"]\nguidance: [["1"]]\n'
-        'potential: "k*x**2/2"\n'
-        'drives:\n  - {K_S: 5.0, K_D: 0.01, Omega0: 100.0, pole_pairs: 0}\n')
-    (tmp_path / 'sc_neg.yaml').write_text(
-        '/**:\n  ros__parameters:\n    system: one_neg.yaml\n    t_end: 10.0\n'
-        '    initial: {q: [0.01], qdot: [0.0], z: [0.0], zdot: [0.1]}\n')
-    scene = load_scene(str(tmp_path / 'sc_neg.yaml'))
+    scene = load_scene(unstable_scene(tmp_path, 10.0))
     cfg = {k: scene.node.get(k, spec[1]) for k, spec in NODE_KEYS.items()
            if k != 'use_sim_time'}
     cfg.update({'publish_rate': RATE, 'real_time_factor': 1.0})
