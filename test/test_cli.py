@@ -262,3 +262,24 @@ def test_simulate_of_a_diverging_integration_says_so_and_keeps_the_samples(tmp_p
     head = out.read_text().splitlines()[0].split(',')
     E, r = rows[:, head.index('E_star [J]')], rows[:, head.index('residual [J]')]
     assert np.all(np.abs(r) <= np.maximum(np.maximum(np.abs(E), abs(E[0])), 1.0))
+
+
+def _strict_json(path):
+    """Parse ``path`` as strict JSON: the bare Infinity / NaN of Python's json is refused."""
+    import json
+
+    def refuse(name):
+        raise ValueError(f'{path.name}: {name} is not JSON')
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_every_json_file_is_strict_json_with_null_for_non_finite(tmp_path, capsys):
+    """Review finding: eig's "tau": Infinity, locus's "K_D_to": Infinity (jq refuses them)."""
+    eig, loc, camp = (tmp_path / f'{n}.json' for n in ('eig', 'locus', 'campbell'))
+    assert main(['eig', 'precession', '--json', str(eig)]) == 0
+    assert main(['locus', 'precession', '--points', '20', '--json', str(loc)]) == 0
+    assert main(['campbell', 'precession', '--points', '5', '--json', str(camp)]) == 0
+    modes = _strict_json(eig)['modes']
+    assert any(m['tau'] is None for m in modes)          # the undamped zero root
+    assert _strict_json(loc)['regimes'][-1]['K_D_to'] is None     # runs on to infinity
+    _strict_json(camp)

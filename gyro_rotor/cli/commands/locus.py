@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_output
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_json, write_output
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.locus import check_claims, K_ref, regimes, root_locus
 from gyro_rotor.linear.roundoff import shown
@@ -106,11 +105,7 @@ def run(args: argparse.Namespace) -> int:
                'meeting_points': [mt.lam for mt in cr.meetings],
                'structural_zero_roots': cr.structural_zero_roots, 'regimes': regimes(cr),
                **loc.as_dict()}
-
-        def write_json(path):
-            with open(path, 'w') as f:
-                json.dump(doc, f, indent=1, default=str)
-        write_output(args.json, write_json)
+        write_json(args.json, doc)
         print(f'  wrote {args.json}')
     if args.out:
         from gyro_rotor.linear.locus_plot import plot_root_locus
