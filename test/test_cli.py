@@ -283,3 +283,35 @@ def test_every_json_file_is_strict_json_with_null_for_non_finite(tmp_path, capsy
     assert any(m['tau'] is None for m in modes)          # the undamped zero root
     assert _strict_json(loc)['regimes'][-1]['K_D_to'] is None     # runs on to infinity
     _strict_json(camp)
+
+
+def test_campbell_critical_speeds_are_exact_whatever_the_grid(tmp_path, capsys):
+    """Review finding: --points 2 gave nutation x 1 at 39.95 rad/s, the default 37.69.
+
+    A crossing is solved (brentq on the tracked mode's frequency minus order x speed) to
+    CROSSING_RTOL, not interpolated between grid points; eig at the reported speed has the
+    crossing's frequency.
+    """
+    import json
+    from gyro_rotor.linear.campbell import CROSSING_RTOL
+    crit = {}
+    for n in (2, 7, 200):
+        out = tmp_path / f'c{n}.json'
+        assert main(['campbell', 'precession', '--points', str(n), '--json', str(out)]) == 0
+        crit[n] = {(c['mode'], c['order']): c for c in json.loads(out.read_text())[
+            'critical_speeds']}
+    capsys.readouterr()
+    assert crit[2].keys() == crit[200].keys() == crit[7].keys() and len(crit[200]) >= 3
+    for key, c in crit[200].items():
+        for n in (2, 7):
+            assert abs(crit[n][key]['Omega0'] - c['Omega0']) <= 10 * CROSSING_RTOL * 628.32, (
+                n, key, crit[n][key]['Omega0'], c['Omega0'])
+    nut = next(c for c in crit[200].values() if c['label'].startswith('nutation')
+               and c['order'] == 1)
+    eig = tmp_path / 'eig.json'
+    assert main(['eig', 'precession', '--set', f'Omega0={nut["Omega0"]!r}',
+                 '--json', str(eig)]) == 0
+    f = [abs(m['im']) / (2 * np.pi) for m in json.loads(eig.read_text())['modes']
+         if m['name'].startswith('nutation')]
+    assert min(abs(x - nut['frequency_hz']) for x in f) <= 1e-7 * nut['frequency_hz'], (
+        f, nut)
