@@ -59,7 +59,7 @@ def test_steady_prints_both_branches(capsys):
     (['simulate', 'precession', '--set', 'pole_pairs=1.5'], 'pole_pairs'),
     (['simulate', 'precession', '--set', 'Kd=1'], "did you mean 'K_D'"),
     (['simulate', 'precession', '--set', 'oops'], 'NAME=VALUE'),
-    (['simulate', 'precession', '--rtol', '-1'], 'rtol must be positive'),
+    (['simulate', 'precession', '--rtol', '-1'], '--rtol must be finite and > 0'),
     (['simulate', 'precession', '--t-end', '0.1', '--out', 'x.txt'], '.csv or .npz'),
     (['steady', 'precession', '--set', 'c_theta=1.0', '--set', 'Omega0=10.0',
       '--theta0', '0.5'], 'discriminant'),
@@ -315,3 +315,123 @@ def test_campbell_critical_speeds_are_exact_whatever_the_grid(tmp_path, capsys):
          if m['name'].startswith('nutation')]
     assert min(abs(x - nut['frequency_hz']) for x in f) <= 1e-7 * nut['frequency_hz'], (
         f, nut)
+
+
+_NUMBERS = ('0', '-1', 'inf', '-inf', 'nan', '1e300')
+#: (command and its fixed arguments, option, the values refused, the message they get); a
+#: value left out of a row is valid there (0 = until Ctrl-C, K_S = 0, ...). Every numeric
+#: option of every command, with 0, negative, inf, -inf, nan, huge and the empty string.
+_REFUSED = [
+    (['demo', 'precession'], '--duration', _NUMBERS,
+     '--duration must be finite and > 0 and <= 1e+09 s, got'),
+    (['demo', 'precession'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--rtf must be finite and >= 0 and <= 1000 (0 = as fast as possible), got'),
+    (['demo', 'precession'], '--rate', _NUMBERS,
+     '--rate must be finite and >= 10 and <= 10000 Hz, got'),
+    (['demo', 'precession'], '--kick-at', ('inf', '-inf', 'nan'),
+     '--kick-at must be finite (a time in s; any finite negative value: no kick), got'),
+    (['demo', 'precession'], '--kick-at', ('0', '1e300'),
+     '--kick-at must be at least one sample (1/250 s) and before --duration (20 s)'),
+    (['simulate', 'precession'], '--t-end', _NUMBERS[:5], 't_end must be positive and finite'),
+    (['simulate', 'precession'], '--t-end', ('1e300',), 'samples is more than 5e+07'),
+    (['simulate', 'precession'], '--rate', _NUMBERS[:5], 'rate must be positive and finite'),
+    (['simulate', 'precession'], '--rate', ('1e300',), 'samples is more than 5e+07'),
+    (['simulate', 'precession'], '--rtol', _NUMBERS, '--rtol must be finite and > 0 and <= 1,'),
+    (['simulate', 'precession'], '--atol', _NUMBERS, '--atol must be finite and > 0 and <= 1,'),
+    (['steady', 'precession'], '--theta0', ('0', '-1', '1e300'),
+     'solution II needs 0 < theta0 < pi'),
+    (['steady', 'precession'], '--theta0', ('inf', '-inf', 'nan'), 'theta0 must be finite'),
+    (['steady', 'precession'], '--theta0', ('3.14159',),
+     'scene precession (--theta0 3.14159): no steady motion II at theta0 = 3.14159 rad: the '
+     'discriminant'),
+    (['locus', 'precession'], '--kd-min', _NUMBERS[:5],
+     '--kd-min must be finite and > 0 N m s/rad (the log grid; K_D = 0 is always included)'),
+    (['locus', 'precession'], '--kd-min', ('1e300',), '--kd-max (4502.89) must exceed'),
+    (['locus', 'precession'], '--kd-max', _NUMBERS[:5], '--kd-max must be finite and > 0 N m'),
+    (['locus', 'precession'], '--kd-max', ('1e300',), 'too large for the linear analysis'),
+    (['locus', 'precession'], '--points', ('0', '-1'), '--points must be from 2 to 100000'),
+    (['tune', 'precession'], '--K-S', ('-1',), 'K_S must not be negative'),
+    (['tune', 'precession'], '--K-S', ('inf', '-inf', 'nan'), 'K_S must be finite'),
+    (['tune', 'precession'], '--K-S', ('1e300',), 'outside the supported range'),
+    (['bench'], '--repeats', ('0', '-1'), '--repeats must be >= 1'),
+    (['bench'], '--drift-t-end', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--drift-t-end must be finite and >= 0 and <= 10000 s (0 = no drift run), got'),
+    (['bench'], '--t-end', _NUMBERS, '--t-end must be finite and > 0 and <= 10000 s, got'),
+    (['bench'], '--level', _NUMBERS,
+     '--level must be finite and > 0 and <= 1 (a relative error), got'),
+    (['analyze', 'bags/precession'], '--window', ('-1', '-inf', 'nan'),
+     '--window must be >= 0 s (0 = whole segments)'),
+    (['monitor'], '--duration', ('-1', 'inf', '-inf', 'nan'),
+     '--duration must be finite and >= 0 [s] (0 = until Ctrl-C)'),
+    (['monitor'], '--period', _NUMBERS[:5], '--period must be finite and > 0 [s]'),
+    (['monitor'], '--domain-id', ('-1',), '--domain-id must be in 0..232'),
+    (['soak'], '--rate', _NUMBERS, '--rate must be finite and >= 1 and <= 10000 Hz, got'),
+    (['soak'], '--duration', _NUMBERS, '--duration must be finite and > 0 and <= 1e+09 s, got'),
+    (['soak'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--rtf must be finite and >= 0 and <= 1000 (0 = as fast as possible), got'),
+    (['soak'], '--run-seconds', _NUMBERS,
+     '--run-seconds must be finite and > 0 and <= 1e+09 s, got'),
+    (['soak'], '--load', ('-1',), '--load must be >= 0 busy processes'),
+    (['rt-bench'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--rtf must be finite and >= 0 and <= 1000'),
+    (['rt-bench'], '--duration', _NUMBERS[:5], '--duration must be finite and > 0 [s]'),
+    (['rt-bench'], '--publish-rate', _NUMBERS,
+     '--publish-rate must be finite and >= 1 and <= 10000 [Hz]'),
+    (['campbell', 'precession'], '--omega-min', _NUMBERS[1:5], '--omega-min must be >= 0 rad/s '
+     '(finite,'),
+    (['campbell', 'precession'], '--omega-min', ('1e300',), '--omega-max (628.32) must exceed'),
+    (['campbell', 'precession'], '--omega-max', ('0',), '--omega-max (0) must exceed'),
+    (['campbell', 'precession'], '--omega-max', _NUMBERS[1:5], '--omega-max must be >= 0 rad/s '
+     '(finite,'),
+    (['campbell', 'precession'], '--omega-max', ('1e300',), 'outside the supported range'),
+    (['campbell', 'precession'], '--points', ('0', '-1'), '--points must be 2..20000'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--t-end',
+     _NUMBERS[:5], '--t-end must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--t-end',
+     ('1e300',), 'samples per trajectory is more than 5e+07'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--rate',
+     _NUMBERS[:5], '--rate must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--rate',
+     ('1e300',), 'samples per trajectory is more than 5e+07'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--tol',
+     _NUMBERS[:5], '--tol must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--step',
+     _NUMBERS[:5], '--step must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--workers',
+     ('0', '-1'), '--workers must be positive'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--block',
+     ('0', '-1'), '--block must be a positive number of points'),
+    (['sweep-bench', '--out', 'sb'], '--t-end', _NUMBERS[:5], '--t-end must be positive and '
+     'finite'),
+    (['sweep-bench', '--out', 'sb'], '--t-end', ('1e300',), 'samples per trajectory is more'),
+    (['sweep-bench', '--out', 'sb'], '--workers', ('0', '-1'), '--workers must be positive'),
+]
+_INTS = {'--points', '--repeats', '--domain-id', '--load', '--workers', '--block',
+         '--realtime-priority'}
+_CASES = [(cmd, opt, v, match) for cmd, opt, values, match in _REFUSED for v in values]
+# every option once more: not a number at all (inf, nan, 1e300 of an integer option too)
+_CASES += [(cmd, opt, v, f'argument {opt}: invalid {"int" if opt in _INTS else "float"} '
+            f'value: {v!r}')
+           for cmd, opt in dict.fromkeys((tuple(c), o) for c, o, _, _ in _REFUSED)
+           for v in ([''] + (['inf', 'nan', '1e300'] if opt in _INTS else []))]
+
+
+@pytest.mark.parametrize('cmd, opt, value, match', _CASES,
+                         ids=[f'{c[0]}{o}={v}' for c, o, v, _ in _CASES])
+def test_every_numeric_argument_refused_with_one_clear_error_line(cmd, opt, value, match,
+                                                                  tmp_path, monkeypatch,
+                                                                  capsys):
+    """Refuse every bad number with one ERROR line that is right about the value.
+
+    Review finding: "must be positive (K_D >= 0)" for 0, "must be positive, got inf",
+    "must be finite ... or < 0" for -inf, no ERROR line (steady), tracebacks (sweep).
+    """
+    from pathlib import Path
+    argv = [str(Path(__file__).resolve().parents[1] / a) if a.startswith('bags/') else a
+            for a in cmd]
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, f'{opt}={value}']) == 1
+    cap = capsys.readouterr()
+    err = ''.join(x for x in cap.err.splitlines(True) if not x.startswith('gyro_rotor: '))
+    assert err.startswith('ERROR: ') and err.count('\n') == 1, err
+    assert match in err and 'Traceback' not in err, err
