@@ -372,6 +372,9 @@ _REFUSED = [
     (['soak'], '--run-seconds', _NUMBERS,
      '--run-seconds must be finite and > 0 and <= 1e+09 s, got'),
     (['soak'], '--load', ('-1',), '--load must be >= 0 busy processes'),
+    (['soak', '--find-max-rate'], '--rates', ('250,inf', '250,nan', '0', '250,-1', '1e300'),
+     '--rates must be finite and >= 1 and <= 10000 Hz (each of them), got'),
+    (['soak', '--find-max-rate'], '--rates', ('', ','), '--rates is empty'),
     (['rt-bench'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
      '--rtf must be finite and >= 0 and <= 1000'),
     (['rt-bench'], '--duration', _NUMBERS[:5], '--duration must be finite and > 0 [s]'),
@@ -412,7 +415,8 @@ _CASES = [(cmd, opt, v, match) for cmd, opt, values, match in _REFUSED for v in 
 # every option once more: not a number at all (inf, nan, 1e300 of an integer option too)
 _CASES += [(cmd, opt, v, f'argument {opt}: invalid {"int" if opt in _INTS else "float"} '
             f'value: {v!r}')
-           for cmd, opt in dict.fromkeys((tuple(c), o) for c, o, _, _ in _REFUSED)
+           for cmd, opt in dict.fromkeys((tuple(c), o) for c, o, _, _ in _REFUSED
+                                         if o != '--rates')      # a list in one string
            for v in ([''] + (['inf', 'nan', '1e300'] if opt in _INTS else []))]
 
 

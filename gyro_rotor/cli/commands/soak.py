@@ -66,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
                 from err
         if not rates:
             raise ParameterError('--rates is empty')
+        for r in rates:         # every rate before the first run, not when its turn comes
+            check_number('--rates', r, low=1.0, high=10000.0, what='Hz (each of them)')
         print(f'searching the highest rate without loss: {rates} Hz, {args.run_seconds:g} s '
               f'each, scene {args.scene}, output {out}')
         best, results = find_max_rate(rates, duration=args.run_seconds, scene=args.scene,
