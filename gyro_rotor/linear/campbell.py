@@ -137,9 +137,14 @@ def campbell(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
 
     def name(i, cols):
         return name_roots(path.eig(float(values[i]))[3], R[i, cols])
+
+    def refine(i, cols, order):
+        try:
+            return _crossing(path, values[i], values[i + 1], R[i, cols], order)
+        except (NoSteadyMotionError, ParameterError):      # none inside the bracket
+            return None
     return _assemble(values, R, res, name, orders, skipped=tuple(sorted(failed)),
-                     nominal=path.ref, refine=lambda i, cols, order: _crossing(
-                         path, values[i], values[i + 1], R[i, cols], order))
+                     nominal=path.ref, refine=refine)
 
 
 #: critical speeds are refined to this relative tolerance (of the larger bracket end)
@@ -153,7 +158,8 @@ def _crossing(path, a: float, b: float, z0: np.ndarray, order: int) -> float | N
     (:func:`~gyro_rotor.linear.spectrum.track`, bisecting where ambiguous); the first sign
     change of its frequency minus ``order`` x the rotor speed is solved by ``brentq`` to
     :data:`CROSSING_RTOL` (the mode there: the roots nearest those tracked at the ends of
-    that interval). None: the tracked mode does not cross (the grid's tracks jumped).
+    that interval). None: the tracked mode does not cross (the grid's tracks jumped);
+    the caller interpolates then, as it does where the steady motion fails in the bracket.
     """
     from scipy.optimize import brentq
 
