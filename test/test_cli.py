@@ -439,3 +439,16 @@ def test_every_numeric_argument_refused_with_one_clear_error_line(cmd, opt, valu
     err = ''.join(x for x in cap.err.splitlines(True) if not x.startswith('gyro_rotor: '))
     assert err.startswith('ERROR: ') and err.count('\n') == 1, err
     assert match in err and 'Traceback' not in err, err
+
+
+def test_campbell_keeps_a_crossing_whose_bracket_loses_the_steady_motion(monkeypatch, capsys):
+    """No steady motion inside a bracket (a system file's Newton): the grid's speed, no crash."""
+    import gyro_rotor.linear.campbell as cb
+    from gyro_rotor.errors import NoSteadyMotionError
+
+    def fails(*args):
+        raise NoSteadyMotionError('none in the bracket')
+    monkeypatch.setattr(cb, '_crossing', fails)
+    assert main(['campbell', 'precession', '--points', '200']) == 0
+    out = capsys.readouterr().out
+    assert 'nutation, 9.71 Hz) crosses 1 x rotor speed at Omega0 = 37.694' in out, out
