@@ -60,7 +60,7 @@ def test_steady_prints_both_branches(capsys):
     (['simulate', 'precession', '--set', 'pole_pairs=1.5'], 'pole_pairs'),
     (['simulate', 'precession', '--set', 'Kd=1'], "did you mean 'K_D'"),
     (['simulate', 'precession', '--set', 'oops'], 'NAME=VALUE'),
-    (['simulate', 'precession', '--rtol', '-1'], 'rtol must be positive'),
+    (['simulate', 'precession', '--rtol', '-1'], '--rtol must be finite and > 0'),
     (['simulate', 'precession', '--t-end', '0.1', '--out', 'x.txt'], '.csv or .npz'),
     (['steady', 'precession', '--set', 'c_theta=1.0', '--set', 'Omega0=10.0',
       '--theta0', '0.5'], 'discriminant'),
@@ -248,3 +248,193 @@ def test_simulate_of_a_diverging_integration_says_so_and_keeps_the_samples(tmp_p
     head = out.read_text().splitlines()[0].split(',')
     E, r = rows[:, head.index('E_star [J]')], rows[:, head.index('residual [J]')]
     assert np.all(np.abs(r) <= np.maximum(np.maximum(np.abs(E), abs(E[0])), 1.0))
+
+
+def _strict_json(path):
+    """Parse ``path`` as strict JSON: the bare Infinity / NaN of Python's json is refused."""
+    import json
+
+    def refuse(name):
+        raise ValueError(f'{path.name}: {name} is not JSON')
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_every_json_file_is_strict_json_with_null_for_non_finite(tmp_path, capsys):
+    """Review finding: eig's "tau": Infinity, locus's "K_D_to": Infinity (jq refuses them)."""
+    eig, loc, camp = (tmp_path / f'{n}.json' for n in ('eig', 'locus', 'campbell'))
+    assert main(['eig', 'precession', '--json', str(eig)]) == 0
+    assert main(['locus', 'precession', '--points', '20', '--json', str(loc)]) == 0
+    assert main(['campbell', 'precession', '--points', '5', '--json', str(camp)]) == 0
+    modes = _strict_json(eig)['modes']
+    assert any(m['tau'] is None for m in modes)          # the undamped zero root
+    assert _strict_json(loc)['regimes'][-1]['K_D_to'] is None     # runs on to infinity
+    _strict_json(camp)
+
+
+def test_campbell_critical_speeds_are_exact_whatever_the_grid(tmp_path, capsys):
+    """Review finding: --points 2 gave nutation x 1 at 39.95 rad/s, the default 37.69.
+
+    A crossing is solved (brentq on the tracked mode's frequency minus order x speed) to
+    CROSSING_RTOL, not interpolated between grid points; eig at the reported speed has the
+    crossing's frequency.
+    """
+    import json
+    from gyro_rotor.linear.campbell import CROSSING_RTOL
+    crit = {}
+    for n in (2, 7, 200):
+        out = tmp_path / f'c{n}.json'
+        assert main(['campbell', 'precession', '--points', str(n), '--json', str(out)]) == 0
+        crit[n] = {(c['mode'], c['order']): c for c in json.loads(out.read_text())[
+            'critical_speeds']}
+    capsys.readouterr()
+    assert crit[2].keys() == crit[200].keys() == crit[7].keys() and len(crit[200]) >= 3
+    for key, c in crit[200].items():
+        for n in (2, 7):
+            assert abs(crit[n][key]['Omega0'] - c['Omega0']) <= 10 * CROSSING_RTOL * 628.32, (
+                n, key, crit[n][key]['Omega0'], c['Omega0'])
+    nut = next(c for c in crit[200].values() if c['label'].startswith('nutation')
+               and c['order'] == 1)
+    eig = tmp_path / 'eig.json'
+    assert main(['eig', 'precession', '--set', f'Omega0={nut["Omega0"]!r}',
+                 '--json', str(eig)]) == 0
+    f = [abs(m['im']) / (2 * np.pi) for m in json.loads(eig.read_text())['modes']
+         if m['name'].startswith('nutation')]
+    assert min(abs(x - nut['frequency_hz']) for x in f) <= 1e-7 * nut['frequency_hz'], (
+        f, nut)
+
+
+_NUMBERS = ('0', '-1', 'inf', '-inf', 'nan', '1e300')
+#: (command and its fixed arguments, option, the values refused, the message they get); a
+#: value left out of a row is valid there (0 = until Ctrl-C, K_S = 0, ...). Every numeric
+#: option of every command, with 0, negative, inf, -inf, nan, huge and the empty string.
+_REFUSED = [
+    (['demo', 'precession'], '--duration', _NUMBERS,
+     '--duration must be finite and > 0 and <= 1e+09 s, got'),
+    (['demo', 'precession'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--rtf must be finite and >= 0 and <= 1000 (0 = as fast as possible), got'),
+    (['demo', 'precession'], '--rate', _NUMBERS,
+     '--rate must be finite and >= 10 and <= 10000 Hz, got'),
+    (['demo', 'precession'], '--kick-at', ('inf', '-inf', 'nan'),
+     '--kick-at must be finite (a time in s; any finite negative value: no kick), got'),
+    (['demo', 'precession'], '--kick-at', ('0', '1e300'),
+     '--kick-at must be at least one sample (1/250 s) and before --duration (20 s)'),
+    (['simulate', 'precession'], '--t-end', _NUMBERS[:5], 't_end must be positive and finite'),
+    (['simulate', 'precession'], '--t-end', ('1e300',), 'samples is more than 5e+07'),
+    (['simulate', 'precession'], '--rate', _NUMBERS[:5], 'rate must be positive and finite'),
+    (['simulate', 'precession'], '--rate', ('1e300',), 'samples is more than 5e+07'),
+    (['simulate', 'precession'], '--rtol', _NUMBERS, '--rtol must be finite and > 0 and <= 1,'),
+    (['simulate', 'precession'], '--atol', _NUMBERS, '--atol must be finite and > 0 and <= 1,'),
+    (['steady', 'precession'], '--theta0', ('0', '-1', '1e300'),
+     'solution II needs 0 < theta0 < pi'),
+    (['steady', 'precession'], '--theta0', ('inf', '-inf', 'nan'), 'theta0 must be finite'),
+    (['steady', 'precession'], '--theta0', ('3.14159',),
+     'scene precession (--theta0 3.14159): no steady motion II at theta0 = 3.14159 rad: the '
+     'discriminant'),
+    (['locus', 'precession'], '--kd-min', _NUMBERS[:5],
+     '--kd-min must be finite and > 0 N m s/rad (the log grid; K_D = 0 is always included)'),
+    (['locus', 'precession'], '--kd-min', ('1e300',), '--kd-max (4502.89) must exceed'),
+    (['locus', 'precession'], '--kd-max', _NUMBERS[:5], '--kd-max must be finite and > 0 N m'),
+    (['locus', 'precession'], '--kd-max', ('1e300',), 'too large for the linear analysis'),
+    (['locus', 'precession'], '--points', ('0', '-1'), '--points must be from 2 to 100000'),
+    (['tune', 'precession'], '--K-S', ('-1',), 'K_S must not be negative'),
+    (['tune', 'precession'], '--K-S', ('inf', '-inf', 'nan'), 'K_S must be finite'),
+    (['tune', 'precession'], '--K-S', ('1e300',), 'outside the supported range'),
+    (['bench'], '--repeats', ('0', '-1'), '--repeats must be >= 1'),
+    (['bench'], '--drift-t-end', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--drift-t-end must be finite and >= 0 and <= 10000 s (0 = no drift run), got'),
+    (['bench'], '--t-end', _NUMBERS, '--t-end must be finite and > 0 and <= 10000 s, got'),
+    (['bench'], '--level', _NUMBERS,
+     '--level must be finite and > 0 and <= 1 (a relative error), got'),
+    (['analyze', 'bags/precession'], '--window', ('-1', '-inf', 'nan'),
+     '--window must be >= 0 s (0 = whole segments)'),
+    (['monitor'], '--duration', ('-1', 'inf', '-inf', 'nan'),
+     '--duration must be finite and >= 0 [s] (0 = until Ctrl-C)'),
+    (['monitor'], '--period', _NUMBERS[:5], '--period must be finite and > 0 [s]'),
+    (['monitor'], '--domain-id', ('-1',), '--domain-id must be in 0..232'),
+    (['soak'], '--rate', _NUMBERS, '--rate must be finite and >= 1 and <= 10000 Hz, got'),
+    (['soak'], '--duration', _NUMBERS, '--duration must be finite and > 0 and <= 1e+09 s, got'),
+    (['soak'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--rtf must be finite and >= 0 and <= 1000 (0 = as fast as possible), got'),
+    (['soak'], '--run-seconds', _NUMBERS,
+     '--run-seconds must be finite and > 0 and <= 1e+09 s, got'),
+    (['soak'], '--load', ('-1',), '--load must be >= 0 busy processes'),
+    (['soak', '--find-max-rate'], '--rates', ('250,inf', '250,nan', '0', '250,-1', '1e300'),
+     '--rates must be finite and >= 1 and <= 10000 Hz (each of them), got'),
+    (['soak', '--find-max-rate'], '--rates', ('', ','), '--rates is empty'),
+    (['rt-bench'], '--rtf', ('-1', 'inf', '-inf', 'nan', '1e300'),
+     '--rtf must be finite and >= 0 and <= 1000'),
+    (['rt-bench'], '--duration', _NUMBERS[:5], '--duration must be finite and > 0 [s]'),
+    (['rt-bench'], '--publish-rate', _NUMBERS,
+     '--publish-rate must be finite and >= 1 and <= 10000 [Hz]'),
+    (['campbell', 'precession'], '--omega-min', _NUMBERS[1:5], '--omega-min must be >= 0 rad/s '
+     '(finite,'),
+    (['campbell', 'precession'], '--omega-min', ('1e300',), '--omega-max (628.32) must exceed'),
+    (['campbell', 'precession'], '--omega-max', ('0',), '--omega-max (0) must exceed'),
+    (['campbell', 'precession'], '--omega-max', _NUMBERS[1:5], '--omega-max must be >= 0 rad/s '
+     '(finite,'),
+    (['campbell', 'precession'], '--omega-max', ('1e300',), 'outside the supported range'),
+    (['campbell', 'precession'], '--points', ('0', '-1'), '--points must be 2..20000'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--t-end',
+     _NUMBERS[:5], '--t-end must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--t-end',
+     ('1e300',), 'samples per trajectory is more than 5e+07'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--rate',
+     _NUMBERS[:5], '--rate must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--rate',
+     ('1e300',), 'samples per trajectory is more than 5e+07'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--tol',
+     _NUMBERS[:5], '--tol must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--step',
+     _NUMBERS[:5], '--step must be positive and finite'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--workers',
+     ('0', '-1'), '--workers must be positive'),
+    (['sweep', 'precession', '--grid', 'K_D=0.05:0.1:2', '--out', 'sw', '--yes'], '--block',
+     ('0', '-1'), '--block must be a positive number of points'),
+    (['sweep-bench', '--out', 'sb'], '--t-end', _NUMBERS[:5], '--t-end must be positive and '
+     'finite'),
+    (['sweep-bench', '--out', 'sb'], '--t-end', ('1e300',), 'samples per trajectory is more'),
+    (['sweep-bench', '--out', 'sb'], '--workers', ('0', '-1'), '--workers must be positive'),
+]
+_INTS = {'--points', '--repeats', '--domain-id', '--load', '--workers', '--block',
+         '--realtime-priority'}
+_CASES = [(cmd, opt, v, match) for cmd, opt, values, match in _REFUSED for v in values]
+# every option once more: not a number at all (inf, nan, 1e300 of an integer option too)
+_CASES += [(cmd, opt, v, f'argument {opt}: invalid {"int" if opt in _INTS else "float"} '
+            f'value: {v!r}')
+           for cmd, opt in dict.fromkeys((tuple(c), o) for c, o, _, _ in _REFUSED
+                                         if o != '--rates')      # a list in one string
+           for v in ([''] + (['inf', 'nan', '1e300'] if opt in _INTS else []))]
+
+
+@pytest.mark.parametrize('cmd, opt, value, match', _CASES,
+                         ids=[f'{c[0]}{o}={v}' for c, o, v, _ in _CASES])
+def test_every_numeric_argument_refused_with_one_clear_error_line(cmd, opt, value, match,
+                                                                  tmp_path, monkeypatch,
+                                                                  capsys):
+    """Refuse every bad number with one ERROR line that is right about the value.
+
+    Review finding: "must be positive (K_D >= 0)" for 0, "must be positive, got inf",
+    "must be finite ... or < 0" for -inf, no ERROR line (steady), tracebacks (sweep).
+    """
+    from pathlib import Path
+    argv = [str(Path(__file__).resolve().parents[1] / a) if a.startswith('bags/') else a
+            for a in cmd]
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, f'{opt}={value}']) == 1
+    cap = capsys.readouterr()
+    err = ''.join(x for x in cap.err.splitlines(True) if not x.startswith('gyro_rotor: '))
+    assert err.startswith('ERROR: ') and err.count('\n') == 1, err
+    assert match in err and 'Traceback' not in err, err
+
+
+def test_campbell_keeps_a_crossing_whose_bracket_loses_the_steady_motion(monkeypatch, capsys):
+    """No steady motion inside a bracket (a system file's Newton): the grid's speed, no crash."""
+    import gyro_rotor.linear.campbell as cb
+    from gyro_rotor.errors import NoSteadyMotionError
+
+    def fails(*args):
+        raise NoSteadyMotionError('none in the bracket')
+    monkeypatch.setattr(cb, '_crossing', fails)
+    assert main(['campbell', 'precession', '--points', '200']) == 0
+    out = capsys.readouterr().out
+    assert 'nutation, 9.71 Hz) crosses 1 x rotor speed at Omega0 = 37.694' in out, out

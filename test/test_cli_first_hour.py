@@ -428,8 +428,8 @@ def test_bench_table_general_writes_bench_general_md_only_when_asked(tmp_path, m
 @pytest.mark.parametrize('argv, message', [
     (['--table', 'general', '--scenes', 'precession'], 'scene precession is the built-in'),
     (['--table', 'stiff', '--scenes', 'twin_gimbal,elastic_frame'], 'takes one scene, got 2'),
-    (['--table', 'stiff', '--level', '0'], '--level must be positive'),
-    (['--table', 'general', '--t-end', 'nan'], '--t-end must be positive'),
+    (['--table', 'stiff', '--level', '0'], '--level must be finite and > 0'),
+    (['--table', 'general', '--t-end', 'nan'], '--t-end must be finite and > 0'),
     (['--scenes', 'no_such_scene'], '--scenes: '),
 ])
 def test_bench_refuses_bad_settings_with_one_error_line(argv, message, tmp_path, monkeypatch,

@@ -22,6 +22,10 @@ the label are those there). The centrifuge's steady motion
 keeps its non-moving coordinates and the pattern of its rates, whose size and the drive
 lags are solved at each speed (Gauss-Newton, continued from the scene's speed outwards).
 Speeds where the steady motion does not exist are left out and reported.
+
+A critical speed (a mode's frequency = 1 or 2 x the rotor speed) is bracketed by the grid,
+then solved there (:func:`_crossing`: the mode followed into the bracket, ``brentq``) to
+:data:`CROSSING_RTOL` of the speed: the same speed whatever the number of grid points.
 """
 
 from __future__ import annotations
@@ -133,8 +137,52 @@ def campbell(scene, Omega0_values, *, orders=(1, 2)) -> Campbell:
 
     def name(i, cols):
         return name_roots(path.eig(float(values[i]))[3], R[i, cols])
+
+    def refine(i, cols, order):
+        try:
+            return _crossing(path, values[i], values[i + 1], R[i, cols], order)
+        except (NoSteadyMotionError, ParameterError):      # none inside the bracket
+            return None
     return _assemble(values, R, res, name, orders, skipped=tuple(sorted(failed)),
-                     nominal=path.ref)
+                     nominal=path.ref, refine=refine)
+
+
+#: critical speeds are refined to this relative tolerance (of the larger bracket end)
+CROSSING_RTOL = 1e-10
+
+
+def _crossing(path, a: float, b: float, z0: np.ndarray, order: int) -> float | None:
+    """Return the speed in (a, b) where the mode of roots ``z0`` (at ``a``) crosses order x.
+
+    The mode is followed from ``a`` to ``b`` by eigenvector continuity on a sub-grid
+    (:func:`~gyro_rotor.linear.spectrum.track`, bisecting where ambiguous); the first sign
+    change of its frequency minus ``order`` x the rotor speed is solved by ``brentq`` to
+    :data:`CROSSING_RTOL` (the mode there: the roots nearest those tracked at the ends of
+    that interval). None: the tracked mode does not cross (the grid's tracks jumped);
+    the caller interpolates then, as it does where the steady motion fails in the bracket.
+    """
+    from scipy.optimize import brentq
+
+    from gyro_rotor.linear.spectrum import track
+    sub = np.linspace(a, b, 17)
+    T = track(lambda W: path.eig(W)[:2], sub, [''] * len(path.eig(float(a))[0]))
+    cols = [int(np.argmin(np.abs(T[0] - z))) for z in z0]
+
+    def h(W, za, zb, wa, wb):
+        lam, _, r, _ = path.eig(float(W))
+        t = (W - wa) / (wb - wa)
+        near = [int(np.argmin(np.abs(lam - (za[j] + t * (zb[j] - za[j])))))
+                for j in range(len(za))]
+        im = max(abs(lam[n].imag) if abs(lam[n].imag) > r[n] else 0.0 for n in near)
+        return (im - order * abs(W)) / (2 * math.pi)
+    for j in range(len(sub) - 1):
+        za, zb = T[j, cols], T[j + 1, cols]
+        ha, hb = (h(sub[j + k], za, zb, sub[j], sub[j + 1]) for k in (0, 1))
+        if ha == 0 or hb == 0 or np.sign(ha) == np.sign(hb):
+            continue
+        return float(brentq(h, sub[j], sub[j + 1], args=(za, zb, sub[j], sub[j + 1]),
+                            xtol=CROSSING_RTOL * max(abs(a), abs(b)), rtol=1e-14))
+    return None
 
 
 class _Speeds:
@@ -251,7 +299,8 @@ def _pairs(R: np.ndarray, res: np.ndarray) -> list:
     return modes
 
 
-def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> Campbell:
+def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan,
+              refine=None) -> Campbell:
     re = np.where(np.abs(R.real) <= res, 0.0, R.real)
     im = np.where(np.abs(R.imag) <= res, 0.0, np.abs(R.imag))
 
@@ -300,7 +349,9 @@ def _assemble(values, R, res, name, orders, *, skipped=(), nominal=math.nan) -> 
             for i in np.flatnonzero(np.sign(g[:-1]) * np.sign(g[1:]) < 0):
                 if F[i, k] == 0 or F[i + 1, k] == 0:
                     continue
-                w = values[i] + (values[i + 1] - values[i]) * g[i] / (g[i] - g[i + 1])
+                w = None if refine is None else refine(i, list(modes[k]), order_k)
+                if w is None:       # not refined: between the grid points, linearly
+                    w = values[i] + (values[i + 1] - values[i]) * g[i] / (g[i] - g[i + 1])
                 crit.append({'order': order_k, 'mode': k, 'label': labels[k],
                              'Omega0': float(w),
                              'frequency_hz': float(order_k * abs(w) / (2 * math.pi))})

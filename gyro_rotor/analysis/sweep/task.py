@@ -38,6 +38,7 @@ from gyro_rotor.errors import GyroRotorError, ParameterError, SceneError
 from gyro_rotor.node_settings import NODE_NAMES
 from gyro_rotor.numerics.ensemble import run_ensemble
 from gyro_rotor.numerics.integrators.base import model_rate
+from gyro_rotor.numerics.simulate import MAX_SAMPLES
 import numpy as np
 
 __all__ = ['SweepSpec', 'make_spec', 'run_block', 'BlockResult', 'scene_flat',
@@ -185,6 +186,9 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
     if t_end * rate < 1:
         raise ParameterError(f'--t-end x --rate = {t_end * rate:g}: at least one sample '
                              'interval is needed')
+    if t_end * rate > MAX_SAMPLES:      # the samples of one trajectory (as simulate's limit)
+        raise ParameterError(f'--t-end x --rate = {t_end * rate:g} samples per trajectory is '
+                             f'more than {MAX_SAMPLES:g}: lower --rate or --t-end')
     h = float(step) if step is not None else STEP_FACTOR / max(fastest, 1.0)
     if not (math.isfinite(h) and h > 0):
         raise ParameterError(f'--step must be positive and finite, got {step!r}')

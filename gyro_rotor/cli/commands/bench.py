@@ -40,8 +40,8 @@ import platform
 import sys
 import time
 
-from gyro_rotor.cli.util import make_unique_dir, RUNS_DIR
-from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.cli.util import check_number, make_unique_dir, RUNS_DIR
+from gyro_rotor.errors import GyroRotorError, ParameterError
 import gyro_rotor.numerics.bench as bench
 
 HELP = ('benchmark any scene: work precision of the integrators against scipy and the '
@@ -61,6 +61,9 @@ class BenchTable(enum.StrEnum):
         return {'work_precision': 'work_precision.md', 'general': 'general.md',
                 'stiff': 'general_stiff.md'}[self.value]
 
+
+#: the longest --t-end and --drift-t-end [s] (10 x the full drift run's 1000 s)
+MAX_T_END_S = 1e4
 
 #: per table: the default scenes, repeats and error level (the full sweep's)
 _DEFAULT_SCENES = {BenchTable.WORK_PRECISION: bench.DEFAULT_SCENES,
@@ -323,12 +326,15 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
         args.out_is_default = True
     if args.repeats < 1:
         return f'--repeats must be >= 1, got {args.repeats}'
-    if not (math.isfinite(args.drift_t_end) and args.drift_t_end >= 0):
-        return f'--drift-t-end must be >= 0, got {args.drift_t_end}'
-    if not (math.isfinite(args.t_end) and args.t_end > 0):
-        return f'--t-end must be positive and finite, got {args.t_end}'
-    if not (math.isfinite(args.level) and args.level > 0):
-        return f'--level must be positive and finite, got {args.level}'
+    try:        # the benchmark's range: an error level of 1 or more is no bench
+        check_number('--drift-t-end', args.drift_t_end, low=0.0, high=MAX_T_END_S,
+                     what='s (0 = no drift run)')
+        check_number('--t-end', args.t_end, low=0.0, low_open=True, high=MAX_T_END_S,
+                     what='s')
+        check_number('--level', args.level, low=0.0, low_open=True, high=1.0,
+                     what='(a relative error)')
+    except ParameterError as err:
+        return str(err)
     specs = [s.strip() for s in args.scenes.split(',') if s.strip()]
     try:
         scenes = [bench.parse_scene_spec(spec)[0] for spec in specs]

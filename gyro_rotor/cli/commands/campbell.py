@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, write_output
+from gyro_rotor.cli.util import check_output_file, write_json, write_output
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
@@ -99,10 +98,7 @@ def run(args: argparse.Namespace) -> int:
     if not cb.critical:
         print('  no critical speed in this range')
     if args.json:
-        def write_json(path):
-            with open(path, 'w', encoding='utf-8') as f:
-                json.dump({'scene': scene.name, **cb.as_dict()}, f, indent=1)
-        write_output(args.json, write_json)
+        write_json(args.json, {'scene': scene.name, **cb.as_dict()})
         print(f'  wrote {args.json}')
     if args.out:
         fig = campbell_figure(cb, scene.name)

@@ -29,6 +29,7 @@ import signal
 import sys
 import time
 
+from gyro_rotor.cli.util import check_number
 from gyro_rotor.core.scene import DEFAULT_SCENE
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.errors import GyroRotorError, ParameterError
@@ -56,17 +57,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _check(args: argparse.Namespace) -> None:
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ParameterError(f'--duration must be positive, got {args.duration}')
-    if not (math.isfinite(args.rtf) and args.rtf >= 0):
-        raise ParameterError(f'--rtf must be >= 0, got {args.rtf}')
-    if not (math.isfinite(args.rate) and 10 <= args.rate <= 10000):
-        raise ParameterError(f'--rate must be in 10..10000 Hz, got {args.rate}')
-    if args.kick_at is not None and not (math.isfinite(args.kick_at) and (
-            args.kick_at < 0 or 1.0 / args.rate <= args.kick_at < args.duration)):
-        raise ParameterError(f'--kick-at must be finite, at least one sample (1/{args.rate:g} '
-                             f's) and before --duration ({args.duration:g} s), or < 0 for no '
-                             f'kick; got {args.kick_at}')
+    from gyro_rotor.node_settings import NODE_RANGES       # rotor_sim's own limits
+    check_number('--duration', args.duration, low=0.0, low_open=True,
+                 high=NODE_RANGES['t_end'][1], what='s')
+    check_number('--rtf', args.rtf, low=0.0, high=NODE_RANGES['real_time_factor'][1],
+                 what='(0 = as fast as possible)')
+    check_number('--rate', args.rate, low=10.0, high=10000.0, what='Hz')
+    if args.kick_at is not None:
+        if not math.isfinite(args.kick_at):
+            raise ParameterError(f'--kick-at must be finite (a time in s; any finite negative '
+                                 f'value: no kick), got {args.kick_at}')
+        if args.kick_at >= 0 and not 1.0 / args.rate <= args.kick_at < args.duration:
+            raise ParameterError(f'--kick-at must be at least one sample (1/{args.rate:g} s) '
+                                 f'and before --duration ({args.duration:g} s), or negative '
+                                 f'for no kick; got {args.kick_at}')
     # rotor_sim publishes on the grid k / rate and stops at t_end: a time off the grid is
     # never reached (--duration 5 kicked at 1.25 s waited at 1.248 s until the deadline)
     if round(args.duration * args.rate) < 1:

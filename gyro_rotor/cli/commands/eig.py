@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets
+from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_json
 from gyro_rotor.linear.roundoff import decay_text, fmt_re, shown
 from gyro_rotor.linear.stability import ModeKind
 from gyro_rotor.linear.system import assess, linearize_scene
@@ -78,8 +77,7 @@ def run(args: argparse.Namespace) -> int:
                'spectral_abscissa_resolution': float(v.slowest_resolution),
                'slowest_mode': v.slowest_mode, 'verdict': str(v.verdict),
                'marginal_modes': list(v.marginal_modes), 'reason': v.reason}
-        with open(args.json, 'w', encoding='utf-8') as f:
-            # no default=: a value json cannot write is an error, never silently a string
-            json.dump(doc, f, indent=1)
+        # no default=: a value json cannot write is an error, never silently a string
+        write_json(args.json, doc)
         print(f'  wrote {args.json}')
     return 0

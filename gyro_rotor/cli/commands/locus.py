@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_output
+from gyro_rotor.cli.util import (check_number, check_output_file, load_scene_with_sets,
+                                 write_json, write_output)
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.locus import check_claims, K_ref, regimes, root_locus
 from gyro_rotor.linear.roundoff import shown
@@ -57,8 +57,9 @@ def _grid(args, lin) -> np.ndarray:
     lo = 1e-4 * K if args.kd_min is None else args.kd_min
     hi = 1e4 * K if args.kd_max is None else args.kd_max
     for name, v in (('--kd-min', lo), ('--kd-max', hi)):
-        if not np.isfinite(v) or v <= 0:
-            raise ParameterError(f'{name} must be positive (K_D >= 0), got {v!r}')
+        # the grid is logarithmic: K_D = 0 is always its first point, added below
+        check_number(name, v, low=0.0, low_open=True,
+                     what='N m s/rad (the log grid; K_D = 0 is always included)')
     if hi <= lo:
         raise ParameterError(f'--kd-max ({hi:g}) must exceed --kd-min ({lo:g})')
     return np.concatenate([[0.0], np.geomspace(lo, hi, args.points)])
@@ -106,11 +107,7 @@ def run(args: argparse.Namespace) -> int:
                'meeting_points': [mt.lam for mt in cr.meetings],
                'structural_zero_roots': cr.structural_zero_roots, 'regimes': regimes(cr),
                **loc.as_dict()}
-
-        def write_json(path):
-            with open(path, 'w') as f:
-                json.dump(doc, f, indent=1, default=str)
-        write_output(args.json, write_json)
+        write_json(args.json, doc)
         print(f'  wrote {args.json}')
     if args.out:
         from gyro_rotor.linear.locus_plot import plot_root_locus

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import argparse
 
-from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_output
+from gyro_rotor.cli.util import (check_number, check_output_file, load_scene_with_sets,
+                                 write_output)
 from gyro_rotor.node_settings import NODE_KEYS
 from gyro_rotor.numerics.guard import describe_break, first_break
 from gyro_rotor.numerics.simulate import DEFAULT_RATE, simulate
@@ -81,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
     """Run the simulation and print the summary; 2 if it diverged or grew (module doc)."""
     if args.out:
         check_output_file(args.out, ('.csv', '.npz'), overwrite=args.force)
+    for name, tol in (('--rtol', args.rtol), ('--atol', args.atol)):
+        if tol is not None:     # rotor_sim's range: a tolerance above 1 is no tolerance
+            check_number(name, tol, low=0.0, low_open=True, high=1.0)
     scene = load_scene_with_sets(args.scene, args.set)
     tr, guard = _guard(simulate(scene, t_end=args.t_end, rate=args.rate, method=args.method,
                                 rtol=args.rtol, atol=args.atol, keep_failed=True))

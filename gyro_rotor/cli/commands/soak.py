@@ -46,8 +46,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the soak (or the rate search); 0 if nothing was lost."""
     from gyro_rotor.tools.soak import find_max_rate, run_soak
+    from gyro_rotor.cli.util import check_number
+    from gyro_rotor.node_settings import NODE_RANGES       # rotor_sim's own limits
     if args.load < 0:
         raise ParameterError(f'--load must be >= 0 busy processes, got {args.load}')
+    check_number('--rate', args.rate, low=1.0, high=10000.0, what='Hz')
+    t_max = NODE_RANGES['t_end'][1]
+    check_number('--duration', args.duration, low=0.0, low_open=True, high=t_max, what='s')
+    check_number('--run-seconds', args.run_seconds, low=0.0, low_open=True, high=t_max,
+                 what='s')
+    check_number('--rtf', args.rtf, low=0.0, high=NODE_RANGES['real_time_factor'][1],
+                 what='(0 = as fast as possible)')
     out = Path(args.out) if args.out else Path('soak_runs') / time.strftime('%Y%m%d-%H%M%S')
     if args.find_max_rate:
         try:
@@ -57,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
                 from err
         if not rates:
             raise ParameterError('--rates is empty')
+        for r in rates:         # every rate before the first run, not when its turn comes
+            check_number('--rates', r, low=1.0, high=10000.0, what='Hz (each of them)')
         print(f'searching the highest rate without loss: {rates} Hz, {args.run_seconds:g} s '
               f'each, scene {args.scene}, output {out}')
         best, results = find_max_rate(rates, duration=args.run_seconds, scene=args.scene,

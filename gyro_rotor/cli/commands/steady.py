@@ -21,10 +21,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print the steady motions the scene's system offers; exit 1 if one is not found."""
+    """Print the steady motions the scene's system offers; an ERROR if one is not found."""
     scene = load_scene_with_sets(args.scene, args.set, check=False)
     st = steady_motions(scene, args.theta0)
     print(f'scene {scene.name}: system {scene.system_name}; {st.head}')
     for line in st.lines:
         print(f'  {line}')
-    return 0 if st.found else 1
+    if not st.found:        # bad input (the tilt asked for, the scene's guess): one ERROR line
+        raise ParameterError(_not_found(st.lines, scene.name, args.theta0))
+    return 0
+
+
+def _not_found(lines: list[str], scene: str, theta0: float | None) -> str:
+    """Return the one-line reason no steady motion was found (each distinct reason once)."""
+    why = []
+    for line in lines:
+        if 'no steady motion' in line:
+            text = line.split(': ', 1)[1] if line.startswith('II branch') else line
+            if text not in why:
+                why.append(text)
+    given = '' if theta0 is None else f' (--theta0 {theta0:g})'
+    return f'scene {scene}{given}: ' + ('; '.join(why) or 'no steady motion found')
