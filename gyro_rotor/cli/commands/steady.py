@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from gyro_rotor.cli.util import load_scene_with_sets
+from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.newton import steady_motions
 
 HELP = ('print the steady motions (the centrifuge: solution I; II on both branches, exact and '
