@@ -266,3 +266,51 @@ def test_claim_b_headline_names_the_K_D_it_was_judged_at():
     assert 'K_D = 0 substituted' in b.statement and 'at K_D = 0.00045' in b.statement
     b = check_claims(linearize_scene(load_scene('precession'))).claims['b']
     assert b.statement.startswith("at the scene's K_D every root")
+
+
+# -- reach independent of the scale of K_S (review finding 1) ----------------------------------
+@pytest.mark.parametrize('scene, K_S, fixed', [
+    ('precession', 1e4, 1), ('precession', 5e4, 1), ('precession', 1e5, 1),
+    ('centrifuge_euler', 3e4, 2), ('twin_gimbal', 1e5, 0), ('upright', 5e4, 4)])
+def test_a_weakly_reached_mode_stays_reached_at_a_large_K_S(scene, K_S, fixed):
+    """A stiff drive reaches the slow modes weakly (|C v| ~ 1/K_S), never not at all.
+
+    At K_S = 5e4 the nutation of the precession scene has dRe/dK_D = -6.4e-10 (its
+    eigenvector's zdot part 1.3e-6 in 40 digits): it was put on the fixed subspace
+    because the staircase's rank cut-off grew with ||A0|| ~ K_S / C_R. What stays fixed:
+    the structural zero root (cyclic psi; the system file's centrifuge keeps psi itself
+    too: 2) and, around I (upright), the four tilt roots, exactly unreached whatever K_S.
+    """
+    ds = linearize_scene(load_scene(scene, overrides={'K_S': K_S})).drive_system()
+    assert cl.fixed_subspace(ds.A0, ds.C).shape[1] == fixed
+
+
+@pytest.mark.parametrize('scene, K_S', [('precession', 5e4), ('precession', 1e5),
+                                        ('upright', 5e4)])
+def test_claim_b_at_a_large_K_S_damps_every_reached_root(scene, K_S):
+    res = cl.check(linearize_scene(load_scene(scene, overrides={'K_S': K_S})).drive_system())
+    assert res.claims['b'].holds, res.claims['b'].detail
+    assert res.claims['b'].data['unreached'] == (4 if scene == 'upright' else 0)
+    assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
+
+
+def test_the_two_centrifuges_agree_on_reach_at_a_large_K_S():
+    a = linearize_scene(load_scene('precession', overrides={'K_S': 3e4})).drive_system()
+    b = linearize_scene(load_scene('centrifuge_euler', overrides={'K_S': 3e4})).drive_system()
+    assert cl.check(a).claims['b'].data['unreached'] == 0
+    assert cl.check(b).claims['b'].data['unreached'] == 0
+
+
+def test_fixed_subspace_decision_does_not_depend_on_the_working_precision():
+    """The exact zeros of the staircase are zeros of the data: 30 and 50 digits agree."""
+    for scene, K_S in (('upright', 5e4), ('precession', 1e5)):
+        ds = linearize_scene(load_scene(scene, overrides={'K_S': K_S})).drive_system()
+        dims = []
+        for dps in (30, 50):
+            old = cl.FINE_DPS
+            cl.FINE_DPS = dps
+            try:
+                dims.append(cl.fixed_subspace(ds.A0, ds.C).shape[1])
+            finally:
+                cl.FINE_DPS = old
+        assert dims[0] == dims[1] == cl.fixed_subspace(ds.A0, ds.C).shape[1]

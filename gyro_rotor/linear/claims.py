@@ -57,8 +57,13 @@ __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Lo
            'damped']
 
 _EPS = np.finfo(float).eps
-#: rank decisions of the staircase: singular values below this times the matrix norm are 0
+#: rank decisions of the structural-zero count: singular values below this times the norm
 RANK_RTOL = 1e-10
+#: digits of the fixed subspace's staircase (:func:`fixed_subspace`)
+FINE_DPS = 40
+#: a singular value of that staircase at most this times ||A0|| is an exact zero: the
+#: geometric mean of the unit round-offs in FINE_DPS digits (1e-40) and in double (1e-16)
+ZERO_RTOL = 1e-28
 #: a pair of roots closer than this (relative to their size) is solved as a double root
 MEET_RTOL = 1e-6
 #: the meeting is verified by the roots at K* (1 -/+ VERIFY_RTOL)
@@ -179,24 +184,56 @@ def _null(M: np.ndarray, scale: float) -> np.ndarray:
     return vt[rank:].T
 
 
+def _null_fine(M, scale: float):
+    """Basis (mpmath, orthonormal columns) of the null space of the mpmath matrix M.
+
+    Singular values at most ZERO_RTOL * ``scale`` are zeros (:func:`fixed_subspace`).
+    """
+    import mpmath
+    if M.rows == 0 or M.cols == 0:
+        return mpmath.eye(M.cols)
+    _, s, vt = mpmath.svd_r(M, full_matrices=True)
+    rank = sum(1 for x in s if x > ZERO_RTOL * scale)
+    return vt[rank:, :].T if rank < M.cols else mpmath.matrix(M.cols, 0)
+
+
 def fixed_subspace(A0: np.ndarray, C: np.ndarray) -> np.ndarray:
     """Orthonormal basis of the unobservable subspace of (C, A0) (may have 0 columns).
 
     The largest A0-invariant subspace in ker C: W_0 = ker C, W_k+1 = {x in W_k: A0 x in W_k},
-    each step a null space (orthogonal staircase). It is invariant under A0 - B K C for
-    every K, and its eigenvalues are the roots the drives do not reach.
+    each step a null space (orthogonal staircase), every step in FINE_DPS digits of the
+    given double-precision A0 and C. A mode is unreached when it is exactly unreached by
+    the data (Hagedorn: the drive damping vanishes identically on it), not when it is
+    reached weakly: a stiff drive (large K_S) reaches the slow modes with a zdot part of
+    order 1/K_S, small against ||A0|| ~ K_S but never zero. In FINE_DPS digits an exact
+    zero comes out at the working precision, about 1e-40 ||A0||; ZERO_RTOL (module
+    constant) lies 12 decades above that and 12 below the double-precision round-off
+    (1e-16) that every later computation on the data carries anyway: a reach that the
+    double data cannot resolve at all is not mistaken for none, and none for a reach.
     """
+    import mpmath
+    N = len(A0)
+    if N == 0 or not C.size:
+        return np.zeros((N, 0)) if C.size else np.eye(N)
     scale = max(np.linalg.norm(A0, 2), np.linalg.norm(C, 2), 1e-300)
-    W = _null(C, np.linalg.norm(C, 2))
-    while W.shape[1]:
-        R = A0 @ W
-        R -= W @ (W.T @ R)
-        Y = _null(R, scale)
-        if Y.shape[1] == W.shape[1]:
-            break
-        W = W @ Y
-        W, _ = np.linalg.qr(W)
-    return W
+    with mpmath.workdps(FINE_DPS):
+        A, Cm = mpmath.matrix(A0.tolist()), mpmath.matrix(C.tolist())
+        W = _null_fine(Cm, np.linalg.norm(C, 2))
+        while W.cols:
+            R = A * W
+            R -= W * (W.T * R)
+            Y = _null_fine(R, scale)
+            if Y.cols == W.cols:
+                break
+            if Y.cols == 0:
+                W = Y
+                break
+            W, _ = mpmath.qr(W * Y)
+            W = W[:, :Y.cols]
+        out = np.array(W.tolist(), dtype=float).reshape(N, W.cols)
+    if out.shape[1]:
+        out, _ = np.linalg.qr(out)
+    return out
 
 
 def split(A0: np.ndarray, C: np.ndarray) -> tuple:
