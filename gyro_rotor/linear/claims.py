@@ -54,11 +54,16 @@ from scipy.optimize import brentq, linear_sum_assignment
 
 __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
            'fixed_subspace', 'split', 'locked_spectrum', 'track', 'check', 'Damping',
-           'damped']
+           'damped', 'cyclic_drives']
 
 _EPS = np.finfo(float).eps
-#: rank decisions of the staircase: singular values below this times the matrix norm are 0
+#: rank decisions of the structural-zero count: singular values below this times the norm
 RANK_RTOL = 1e-10
+#: digits of the fixed subspace's staircase (:func:`fixed_subspace`)
+FINE_DPS = 40
+#: a singular value of that staircase at most this times ||A0|| is an exact zero: the
+#: geometric mean of the unit round-offs in FINE_DPS digits (1e-40) and in double (1e-16)
+ZERO_RTOL = 1e-28
 #: a pair of roots closer than this (relative to their size) is solved as a double root
 MEET_RTOL = 1e-6
 #: the meeting is verified by the roots at K* (1 -/+ VERIFY_RTOL)
@@ -136,6 +141,7 @@ class Claim:
     detail: str
     data: dict
     exception: str = ''
+    applicable: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -179,24 +185,56 @@ def _null(M: np.ndarray, scale: float) -> np.ndarray:
     return vt[rank:].T
 
 
+def _null_fine(M, scale: float):
+    """Basis (mpmath, orthonormal columns) of the null space of the mpmath matrix M.
+
+    Singular values at most ZERO_RTOL * ``scale`` are zeros (:func:`fixed_subspace`).
+    """
+    import mpmath
+    if M.rows == 0 or M.cols == 0:
+        return mpmath.eye(M.cols)
+    _, s, vt = mpmath.svd_r(M, full_matrices=True)
+    rank = sum(1 for x in s if x > ZERO_RTOL * scale)
+    return vt[rank:, :].T if rank < M.cols else mpmath.matrix(M.cols, 0)
+
+
 def fixed_subspace(A0: np.ndarray, C: np.ndarray) -> np.ndarray:
     """Orthonormal basis of the unobservable subspace of (C, A0) (may have 0 columns).
 
     The largest A0-invariant subspace in ker C: W_0 = ker C, W_k+1 = {x in W_k: A0 x in W_k},
-    each step a null space (orthogonal staircase). It is invariant under A0 - B K C for
-    every K, and its eigenvalues are the roots the drives do not reach.
+    each step a null space (orthogonal staircase), every step in FINE_DPS digits of the
+    given double-precision A0 and C. A mode is unreached when it is exactly unreached by
+    the data (Hagedorn: the drive damping vanishes identically on it), not when it is
+    reached weakly: a stiff drive (large K_S) reaches the slow modes with a zdot part of
+    order 1/K_S, small against ||A0|| ~ K_S but never zero. In FINE_DPS digits an exact
+    zero comes out at the working precision, about 1e-40 ||A0||; ZERO_RTOL (module
+    constant) lies 12 decades above that and 12 below the double-precision round-off
+    (1e-16) that every later computation on the data carries anyway: a reach that the
+    double data cannot resolve at all is not mistaken for none, and none for a reach.
     """
+    import mpmath
+    N = len(A0)
+    if N == 0 or not C.size:
+        return np.zeros((N, 0)) if C.size else np.eye(N)
     scale = max(np.linalg.norm(A0, 2), np.linalg.norm(C, 2), 1e-300)
-    W = _null(C, np.linalg.norm(C, 2))
-    while W.shape[1]:
-        R = A0 @ W
-        R -= W @ (W.T @ R)
-        Y = _null(R, scale)
-        if Y.shape[1] == W.shape[1]:
-            break
-        W = W @ Y
-        W, _ = np.linalg.qr(W)
-    return W
+    with mpmath.workdps(FINE_DPS):
+        A, Cm = mpmath.matrix(A0.tolist()), mpmath.matrix(C.tolist())
+        W = _null_fine(Cm, np.linalg.norm(C, 2))
+        while W.cols:
+            R = A * W
+            R -= W * (W.T * R)
+            Y = _null_fine(R, scale)
+            if Y.cols == W.cols:
+                break
+            if Y.cols == 0:
+                W = Y
+                break
+            W, _ = mpmath.qr(W * Y)
+            W = W[:, :Y.cols]
+        out = np.array(W.tolist(), dtype=float).reshape(N, W.cols)
+    if out.shape[1]:
+        out, _ = np.linalg.qr(out)
+    return out
 
 
 def split(A0: np.ndarray, C: np.ndarray) -> tuple:
@@ -399,13 +437,34 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
     return Meeting(K_D=float(K_star), lam=float(x), kind=kind, verified=ok)
 
 
+def _floor(R: _Roots, K: float, lam: np.ndarray) -> np.ndarray:
+    """Round-off of each root at K: of A(K), or of A(K)^-1 for the roots taken from it."""
+    nA = np.linalg.norm(R.A(K), 2)
+    nAi = np.linalg.norm(R._inverse(K), 2) if R.inv is not None else np.inf
+    with np.errstate(invalid='ignore'):     # a root at 0 (K_S = 0) has no round-off: 0
+        return 1e4 * _EPS * np.nan_to_num(np.minimum(nA, nAi * np.abs(lam) ** 2))
+
+
+def _settled(a1, a2, f1, f2, ratio: float, rtol: float) -> bool:
+    """Return True if the gaps between sorted |roots| a1 (at K) and a2 (at 10 K) scale so.
+
+    A gap within the round-off f1, f2 of its roots at both K values is a persistent double
+    root (identical uncoupled parts: a pair that is landing is double at one K only): it
+    carries no scaling to test and is skipped.
+    """
+    g1, g2 = np.diff(a1), np.diff(a2)
+    double = (g1 <= f1[1:] + f1[:-1]) & (g2 <= f2[1:] + f2[:-1])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        r = g2[~double] / g1[~double]
+    return bool(np.all(np.abs(r - ratio) < rtol))
+
+
 def _asymptotic(R: _Roots, K: float, m: int) -> bool:
     """Return True if at K the m fast and m slow roots are in claim (c)'s regime.
 
-    Each real, distinct, and scaling like K (fast) or 1/K (slow) from K to 10 K (and so
-    do the gaps between them);
-    fast roots beyond ten times, slow roots below a tenth of, every other root. Past such
-    a K no pair meets again.
+    Each real, and scaling like K (fast) or 1/K (slow) from K to 10 K (and so do the gaps
+    between them, :func:`_settled`); fast roots beyond ten times, slow roots below a tenth
+    of, every other root. Past such a K no pair meets again.
     """
     parts = []
     for k in (K, 10 * K):
@@ -419,14 +478,13 @@ def _asymptotic(R: _Roots, K: float, m: int) -> bool:
                 and np.max(np.abs(slow), initial=0.0) * 10 < np.min(np.abs(others),
                                                                     initial=np.inf)):
             return False
-        parts.append((np.sort(np.abs(fast)), np.sort(np.abs(slow))))
-    (f1, s1), (f2, s2) = parts
-    # the gaps between them scale alike: a near-double pair has settled (not still landing)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        gf = np.diff(f2) / np.diff(f1)
-        gs = np.diff(s2) / np.diff(s1)
-    return bool(np.all(np.abs(f2 / f1 - 10) < 0.1) and np.all(np.abs(s2 / s1 - 0.1) < 1e-3)
-                and np.all(np.abs(gf - 10) < 1) and np.all(np.abs(gs - 0.1) < 0.01))
+        f, s_ = np.sort(np.abs(fast)), np.sort(np.abs(slow))
+        parts.append((f, s_, _floor(R, k, -f), _floor(R, k, -s_)))
+    (f1, s1, ff1, fs1), (f2, s2, ff2, fs2) = parts
+    with np.errstate(divide='ignore', invalid='ignore'):    # a root at 0 (K_S = 0): nan
+        scaled = np.all(np.abs(f2 / f1 - 10) < 0.1) and np.all(np.abs(s2 / s1 - 0.1) < 1e-3)
+    return bool(scaled and _settled(f1, f2, ff1, ff2, 10.0, 1.0)
+                and _settled(s1, s2, fs1, fs2, 0.1, 0.01))
 
 
 def _ends(R: _Roots, K_ref) -> tuple:
@@ -815,6 +873,31 @@ def _claim_d(loc: Locus, m: int) -> Claim:
                   'net_from_counts': counted})
 
 
+def cyclic_drives(A0: np.ndarray, C: np.ndarray) -> list:
+    """Return the drives k whose angle z_k is cyclic (K_S = 0), decided by the structure.
+
+    z_k is the state whose equation is z_k' = zdot_k (its row of A0 equals row k of C); no
+    equation depends on it (its column of A0 is zero) exactly when its restoring torque
+    K_S z_k is absent: the potential V(q) does not depend on z.
+    """
+    out = []
+    for k, c in enumerate(C):
+        rows = np.flatnonzero(np.all(A0 == c, axis=1))
+        if any(not np.any(A0[:, j]) for j in rows):
+            out.append(k)
+    return out
+
+
+def _not_applicable(key: str, statement: str, cyclic: list) -> Claim:
+    """Return claim ``key`` marked not applicable: K_S = 0 on the ``cyclic`` drives."""
+    names = ', '.join(f'#{k + 1}' for k in cyclic)
+    return Claim(key, statement, False,
+                 f'not applicable: K_S = 0 on drive(s) {names} (the rotor angle is cyclic, '
+                 'no self-stable drive): the theorem and its K_D -> infinity claims need '
+                 'K_S > 0 on every varied drive (a root stays at 0 for every K_D, none goes to '
+                 '0 like K_S / K_D)', {'cyclic_drives': cyclic}, applicable=False)
+
+
 def check(sys: DriveSystem) -> ClaimsResult:
     """Check claims (a) to (d) on a :class:`DriveSystem` (module doc)."""
     A0, C = sys.A0, sys.C
@@ -834,6 +917,11 @@ def check(sys: DriveSystem) -> ClaimsResult:
     fixed_l = np.linalg.eigvals(Ul.T @ A0l @ Ul) if Ul.shape[1] else np.zeros(0, complex)
     c = _claim_c(A0v, Bv, Cv, float(loc.K[-1]), scale, fixed_l)
     d = _claim_d(loc, sys.drives)
+    cyclic = [k for k in cyclic_drives(A0, C) if k in sys.vary]
+    if cyclic:
+        c = _not_applicable('c', c.statement, cyclic)
+        d = _not_applicable('d', d.statement, cyclic)
+        loc = dataclasses.replace(loc, meetings=())
     un = lam_fixed[np.argsort(np.abs(lam_fixed))[n_zero:]] if lam_fixed.size else lam_fixed
     return ClaimsResult(claims={'a': a, 'b': b, 'c': c, 'd': d}, meetings=loc.meetings,
                         locus=loc, structural_zero_roots=n_zero, unreached=un)

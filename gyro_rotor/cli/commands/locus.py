@@ -43,7 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _print_claims(cr) -> None:
     """Print claims (a) to (d) and every meeting K_D*."""
     for key, c in cr.claims.items():
-        print(f'  ({key}) {"PASS" if c.holds else "FAIL"}: {c.statement}\n      {c.detail}')
+        word = 'PASS' if c.holds else 'FAIL' if c.applicable else 'NOT APPLICABLE'
+        print(f'  ({key}) {word}: {c.statement}\n      {c.detail}')
         if c.exception:
             print(f'      expected exception: {c.exception}')
     for mt in cr.meetings:
@@ -101,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         doc = {'scene': scene.name, 'system': scene.system_name, 'drive': args.drive,
                'claims': {k: {'statement': c.statement, 'holds': c.holds, 'detail': c.detail,
-                              'exception': c.exception, 'data': c.data}
+                              'exception': c.exception, 'data': c.data,
+                              'applicable': c.applicable}
                           for k, c in cr.claims.items()},
                'K_D_star': cr.K_D_star, 'meetings': [mt.as_dict() for mt in cr.meetings],
                'meeting_points': [mt.lam for mt in cr.meetings],
