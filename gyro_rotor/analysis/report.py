@@ -21,7 +21,8 @@ from gyro_rotor.analysis.verdict import (decay_rate_bound, fmt_interval, fmt_pm,
                                          needs_window, RE_RESOLUTION, Status)
 import numpy as np
 
-__all__ = ['text_report', 'verdict_line', 'json_report', 'write_report', 'plot_report']
+__all__ = ['text_report', 'verdict_line', 'json_report', 'write_report', 'plot_report',
+           'strict_json']
 
 
 def _f(x: Any, spec: str = '.4g') -> str:
@@ -131,15 +132,23 @@ def json_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> dict:
     return d
 
 
-def _clean(obj: Any) -> Any:
+def strict_json(obj: Any) -> Any:
+    """Return ``obj`` with every non-finite float (inf, -inf, nan) replaced by None.
+
+    The one rule of every JSON file the package writes (this report, eig, locus, campbell):
+    strict JSON has no Infinity or NaN; ``null`` where a number is not finite (an undamped
+    mode's infinite decay time, a regime that runs on to K_D -> infinity).
+    """
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        obj = obj.item()
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
+        return {k: strict_json(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return _clean(obj.item())
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return strict_json(obj.tolist())
     return obj
 
 
@@ -150,13 +159,13 @@ def write_report(bag: BagAnalysis, out_dir: str | Path | None = None,
     if json_path is not None:
         json_path = Path(json_path)
         json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(_clean(json_report(bag.result, bag)), indent=1))
+        json_path.write_text(json.dumps(strict_json(json_report(bag.result, bag)), indent=1))
         written.append(json_path)
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / 'report.txt').write_text(text_report(bag.result, bag))
-        (out / 'report.json').write_text(json.dumps(_clean(json_report(bag.result, bag)),
+        (out / 'report.json').write_text(json.dumps(strict_json(json_report(bag.result, bag)),
                                                     indent=1))
         written += [out / 'report.txt', out / 'report.json']
         if plots:

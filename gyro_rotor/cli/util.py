@@ -153,36 +153,18 @@ def make_unique_dir(base, *, tries: int = 1000):
     raise ParameterError(f'no free output directory like {base} after {tries} tries')
 
 
-def strict_json(obj: Any) -> Any:
-    """Return ``obj`` with every non-finite float (inf, -inf, nan) replaced by None.
-
-    The one rule of every JSON file the command line writes (as ``analyze``'s report):
-    strict JSON, which has no Infinity or NaN; ``null`` where a number is not finite (an
-    undamped mode's infinite decay time, a regime that runs on to K_D -> infinity).
-    """
-    import math
-
-    import numpy as np
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        obj = obj.item()
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: strict_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [strict_json(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return strict_json(obj.tolist())
-    return obj
-
-
 def write_json(path: str, doc: Any) -> None:
-    """Write ``doc`` to ``path`` as strict JSON (:func:`strict_json`; via :func:`write_output`).
+    """Write ``doc`` to ``path`` as strict JSON (via :func:`write_output`).
+
+    The one rule of every JSON file the command line writes, ``analyze``'s report's
+    (:func:`gyro_rotor.analysis.report.strict_json`): ``null`` where a number is not finite.
 
     ``allow_nan=False``: a non-finite number that reached the writer is an error, never the
     bare ``Infinity`` that strict parsers (``jq``, ``JSON.parse``) refuse.
     """
     import json
+
+    from gyro_rotor.analysis.report import strict_json
     text = json.dumps(strict_json(doc), indent=1, allow_nan=False)
 
     def write(tmp):

@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
     import math
 
     from gyro_rotor.analysis.offline import analyze_bag
-    from gyro_rotor.analysis.report import _clean, json_report, text_report, write_report
+    from gyro_rotor.analysis.report import (json_report, strict_json, text_report,
+                                            write_report)
     from gyro_rotor.errors import BagError, ParameterError
     if not args.bag.strip():
         raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
@@ -51,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     files = write_report(bag, args.out, None if to_stdout else args.json,
                          plots=not args.no_plots)
     if to_stdout:
-        print(json.dumps(_clean(json_report(bag.result, bag)), indent=1))
+        print(json.dumps(strict_json(json_report(bag.result, bag)), indent=1))
     for f in files:
         print(f'wrote {f}')
     res = bag.result
