@@ -690,9 +690,9 @@ class Damping:
 
     ``lam`` the reached roots (A(K) on the complement V of the fixed subspace), those
     below the double-precision resolution replaced by their 40-digit values (``fine``);
-    ``res`` each one's resolution (10 ``noise`` for a fine one); ``damped`` the one rule:
-    the root lies in the open left half plane; ``noise`` the 40-digit |Re| of A0's own
-    roots on V (0 if no root needed 40 digits).
+    ``res`` each one's resolution (for a fine one ten times its share of A0's round-off);
+    ``damped`` the one rule: the root lies in the open left half plane; ``noise`` the
+    largest share of A0's round-off among the fine roots (0 if no root needed 40 digits).
     """
 
     lam: np.ndarray
@@ -713,8 +713,12 @@ def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
     large K) is recomputed in 40 digits (:func:`_eig_fine`) and judged against the
     round-off the data A0 carries itself: at K = 0 every root of the conservative A0 lies
     on the axis (claim a), so the real parts of A0's own roots in 40 digits measure that
-    round-off (``noise``); the root is damped when it lies left of the axis and has moved
-    left of its K = 0 value by more than ten times the noise.
+    round-off. A root's own share of it is the larger of its own |Re| at K = 0 and the
+    data's relative round-off (the largest |Re lambda0| / |lambda0|) times its size: the
+    round-off of a root at 3873 rad/s (6e-12 1/s on precession at K_S = 1e5) is not that
+    of one at 61 rad/s (1e-13 1/s). The root is damped when it lies left of the axis and
+    has moved left of its K = 0 value by more than ten times its share (``res``);
+    ``noise`` is the largest share.
     """
     K = np.asarray(sys.K_scene if K is None else K, dtype=float)
     if V is None:
@@ -727,16 +731,19 @@ def damped(sys: DriveSystem, K=None, V: np.ndarray | None = None) -> Damping:
     noise = 0.0
     if fine.any():
         ev, ev0 = _eig_fine(A0v, Bv, Cv, K), _eig_fine(A0v, Bv, Cv, np.zeros_like(K))
-        noise = float(np.max(np.abs(ev0.real), initial=0.0))
+        size = np.abs(ev0)
+        rel = float(np.max(np.abs(ev0.real[size > 0]) / size[size > 0], initial=0.0))
         r, c = linear_sum_assignment(np.abs(lam[:, None] - ev[None, :]))
         lam = lam.astype(complex)
         lam[r[fine[r]]] = ev[c[fine[r]]]
         r0, c0 = linear_sum_assignment(np.abs(lam[:, None] - ev0[None, :]))
-        base = np.empty(len(lam))
+        base, share = np.empty(len(lam)), np.empty(len(lam))
         base[r0] = ev0[c0].real
+        share[r0] = np.maximum(np.abs(ev0[c0].real), rel * size[c0])
+        noise = float(np.max(share[fine]))
         res = res.copy()
-        res[fine] = 10 * noise
-        ok[fine] = (lam.real[fine] < 0) & (lam.real[fine] - base[fine] < -10 * noise)
+        res[fine] = 10 * share[fine]
+        ok[fine] = (lam.real[fine] < 0) & (lam.real[fine] - base[fine] < -res[fine])
     return Damping(lam=lam, res=res, damped=ok, fine=fine, noise=noise)
 
 
@@ -771,8 +778,9 @@ def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
         detail = (f'at K_D = {K_text}: every one of the {len(lam)} reached roots in the open '
                   f'left half plane, largest Re {worst:.6g} 1/s ' + (
                       f'({int(fine.sum())} damped below the double-precision resolution, '
-                      'resolved in 40 digits against the round-off of A0 itself, |Re| <= '
-                      f'{noise:.1e} 1/s at K_D = 0)' if fine.any()
+                      'resolved in 40 digits against the round-off of A0 itself: each moved '
+                      'left by more than ten times its share, at most '
+                      f'{noise:.1e} 1/s)' if fine.any()
                       else '(beyond its resolution)'))
     else:
         detail = (f'fails at K_D = {K_text}: ' + (
