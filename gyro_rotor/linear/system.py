@@ -50,7 +50,7 @@ from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
 __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
-           'dominant']
+           'dominant', 'name_roots']
 
 #: the coordinate of each state of the centrifuge's analytic linearizations (the rates'
 #: coordinates: thetadot is theta's, W_1 alpha's, ...)
@@ -349,7 +349,24 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     return start, d
 
 
+def name_roots(lin: Linearization, lam, K: float | None = None) -> list:
+    """Name each root in ``lam`` by the mode of :func:`modes` at K it is (or its conjugate)."""
+    ms = modes(lin, K)
+    return [min(ms, key=lambda m: min(abs(m.eigenvalue - z), abs(m.eigenvalue.conjugate() - z)))
+            .name for z in lam]
+
+
 def check_claims(lin: Linearization):
-    """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`."""
+    """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`.
+
+    Claim (b)'s exception names the modes the drives do not reach (:func:`name_roots`).
+    """
     from gyro_rotor.linear.claims import check
-    return check(lin.drive_system())
+    res = check(lin.drive_system())
+    if not res.unreached.size:
+        return res
+    b = res.claims['b']
+    names = ', '.join(sorted(set(name_roots(lin, res.unreached, 0.0))))
+    b = dataclasses.replace(b, exception=b.exception.replace(
+        'roots not reached by the drive', f'roots not reached by the drive ({names})'))
+    return dataclasses.replace(res, claims={**res.claims, 'b': b})
