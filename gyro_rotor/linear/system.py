@@ -238,7 +238,7 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
                          about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
                                f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
-                         modes_at=lambda lin, K: named_modes(ls, K))
+                         modes_at=lambda lin, K: named_modes(ls, K, lin.drive_system()))
 
 
 def dominant(lin: Linearization, v: np.ndarray) -> str:
