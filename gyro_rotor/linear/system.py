@@ -80,7 +80,6 @@ class Linearization:
     names: tuple
     coordinate: tuple
     fast_rates: np.ndarray
-    K_each: np.ndarray
     A_cons: np.ndarray
     b_all: np.ndarray
     c_all: np.ndarray
@@ -208,7 +207,7 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
         f'zdot_{r}' for r in system.rotors)
     return Linearization(A0=A0, b=b, c=c, K_D=float(Ks.max()), A_locked=_locked(A0, b, c),
                          names=names, coordinate=positions * 2,
-                         fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=Ks, A_cons=A_cons,
+                         fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=A_cons,
                          b_all=b_all, c_all=c_all,
                          K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which),
                          about=about)
@@ -234,7 +233,7 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          names=ls.state_names,
                          coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
                                           for x in ls.state_names),
-                         fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=K, A_cons=ls.A0,
+                         fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=ls.A0,
                          b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
                          about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
                                f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
