@@ -15,6 +15,7 @@ gyro_rotor.tools.launch --runs 20`` does that 20 times and counts the clean stop
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 from pathlib import Path
@@ -339,18 +340,14 @@ class LaunchRun:
 
         SIGKILL to the group after ``timeout`` seconds (then the status is negative).
         """
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(self.proc.pid, sig)
-        except ProcessLookupError:
-            pass
         return self._wait(timeout)
 
     def signal_launch(self, sig: int = signal.SIGTERM, timeout: float = 40.0) -> int:
         """Send ``sig`` to ``ros2 launch`` alone; return its exit status (see interrupt)."""
-        try:
+        with contextlib.suppress(ProcessLookupError):
             self.proc.send_signal(sig)
-        except ProcessLookupError:
-            pass
         return self._wait(timeout)
 
     def _wait(self, timeout: float) -> int:
@@ -379,10 +376,8 @@ class LaunchRun:
 
     def kill(self) -> None:
         """SIGKILL to the whole group (a launch that does not stop)."""
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(self.proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
         self.status = self.proc.wait()
 
     def problems(self, nodes: tuple = ('rotor_analysis', 'rotor_sim')) -> list[str]:
