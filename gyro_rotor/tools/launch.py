@@ -92,19 +92,6 @@ def ros_param(name: str, value: Any) -> str:
     return f'{name}:={text}'
 
 
-def _die_with_parent() -> None:
-    """In the child: ask Linux for SIGTERM when the parent dies (even by SIGKILL).
-
-    ``prctl(PR_SET_PDEATHSIG, SIGTERM)``; a no-op where there is no prctl.
-    """
-    try:
-        import ctypes
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGTERM, 0, 0, 0)      # 1 = PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
 class NodeProcess:
     """One node as a child process (stdout/stderr to files or pipes)."""
 
@@ -122,9 +109,12 @@ class NodeProcess:
         if domain_id is not None:
             e['ROS_DOMAIN_ID'] = str(domain_id)
         self.cmd = cmd
+        preexec = None
+        if die_with_parent:     # in the child: SIGTERM from Linux when this process dies
+            from gyro_rotor.ros.runner import exit_with_parent as preexec
         self.proc = subprocess.Popen(cmd, env=e, stdout=stdout, stderr=stderr,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
-                                     preexec_fn=_die_with_parent if die_with_parent else None)
+                                     preexec_fn=preexec)
 
     @property
     def pid(self) -> int:
