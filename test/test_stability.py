@@ -14,8 +14,7 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linear.linearize import (jacobian_analytic, jacobian_fd, linearize, reduced_rhs,
-                                         reduced_rhs_lagrange)
+from gyro_rotor.linear.linearize import jacobian_fd, linearize, reduced_rhs, reduced_rhs_lagrange
 from gyro_rotor.linear.locus import check_claims, regimes, root_locus
 from gyro_rotor.linear.stability import (ModeKind, sensitivities, spectrum, ZERO_ROOT,
                                          ZERO_ROOT_Z)
@@ -57,7 +56,7 @@ def test_analytic_jacobian_matches_full_model_fd(branch, model):
     # with h = 1e-6 have truncation ~h^2 and rounding ~1e-16/h: 1e-8 of max|A| is ample.
     p = P.replace(K_D=0.3)
     sm = steady_motion(p, 0.1 if branch else 0.0, branch)
-    A = jacobian_analytic(p, sm, model)
+    A = linearize(p, sm, model).A
     J = jacobian_fd(p, sm, model)
     assert np.max(np.abs(A - J)) < 1e-8 * np.max(np.abs(A))
 

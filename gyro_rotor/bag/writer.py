@@ -6,6 +6,7 @@ See :mod:`gyro_rotor.bag.bagio` for the format decisions (records, flushing).
 from __future__ import annotations
 
 from collections.abc import Mapping
+import contextlib
 import os
 from pathlib import Path
 import time
@@ -110,10 +111,8 @@ class BagWriter:
                            f'{getattr(err, "strerror", None) or err}') from err
 
     def _remove_empty_dir(self) -> None:
-        try:
+        with contextlib.suppress(OSError):
             self.path.rmdir()
-        except OSError:
-            pass
 
     # -- context manager ------------------------------------------------------------------
 

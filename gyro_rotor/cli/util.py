@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 from gyro_rotor.errors import ParameterError, SceneError
@@ -83,10 +84,8 @@ def check_output_file(path: str, suffixes: tuple[str, ...] = (), *,
     except OSError as err:
         raise ParameterError(f'cannot write {path}: no file can be created in directory '
                              f'{parent} ({err.strerror or err})') from None
-    try:
+    with contextlib.suppress(OSError):
         os.unlink(probe)
-    except OSError:
-        pass
 
 
 def write_output(path: str, write) -> None:
@@ -102,10 +101,8 @@ def write_output(path: str, write) -> None:
         write(str(tmp))
         os.replace(tmp, p)
     except OSError as err:
-        try:
+        with contextlib.suppress(OSError):
             tmp.unlink()
-        except OSError:
-            pass
         raise ParameterError(f'cannot write {path}: {err.strerror or err} (nothing written)'
                              ) from None
 

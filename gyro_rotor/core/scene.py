@@ -916,9 +916,7 @@ def _check_energy(scene: Scene, model: GeneralModel, where: str) -> None:
 def steady_residual(scene: Scene, model: GeneralModel | None = None) -> np.ndarray:
     """Accelerations (qddot, zddot) on the steady motion (zero if it is steady)."""
     model = model or scene.make_model()
-    f = model.rhs(0.0, scene.steady_state(model))
-    n, m = model.n, model.m
-    return np.concatenate([f[n:2 * n], f[2 * n + m:2 * n + 2 * m]])
+    return model.accelerations(scene.steady_state(model))
 
 
 def check_steady(scene: Scene, model: GeneralModel | None = None,

@@ -250,13 +250,12 @@ class _Continuation:
             return self.solved[W]
         near = min(self.solved, key=lambda w: abs(w - W))
         z, s = self.solved[near]
-        n, m = mdl.n, mdl.m
+        m = mdl.m
         q = np.asarray(sc.steady_q, dtype=float)
 
         def acc(u):
             zz, ss = u[:m], (u[m] if self.moving else 1.0)
-            f = mdl.rhs(0.0, mdl.state(q, ss * self.qdot, zz, np.zeros(m)))
-            return np.concatenate([f[n:2 * n], f[2 * n + m:2 * n + 2 * m]])
+            return mdl.accelerations(mdl.state(q, ss * self.qdot, zz, np.zeros(m)))
         u = np.concatenate([z, [s]]) if self.moving else z.copy()
         tol = 1e-11 * max(1.0, float(np.abs(self.qdot).max()) ** 2 * max(s, 1.0) ** 2,
                           mdl.rate())

@@ -814,10 +814,7 @@ def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
         lam = R(K, vectors=False)[0]
         order = np.argsort(lam.real)
         out.append((lam[order[:m]], lam[order[m:]]))
-        # round-off of each root: of A(K), or of A(K)^-1 for the roots taken from it
-        nA = np.linalg.norm(R.A(K), 2)
-        nAi = np.linalg.norm(R._inverse(K), 2) if R.inv is not None else np.inf
-        floor.append(1e4 * _EPS * np.minimum(nA, nAi * np.abs(lam[order[m:]]) ** 2))
+        floor.append(_floor(R, K, lam[order[m:]]))
     fast_ok = all(np.all(_is_real(f)) and np.all(
         np.abs(np.sort(-f.real) / (K * gains) - 1.0) < 0.01)
         for (f, _), K in zip(out, (K1, 10 * K1)))

@@ -75,7 +75,7 @@ from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
-__all__ = ['Coords', 'LinearSystem', 'linearize', 'jacobian_analytic', 'jacobian_fd',
+__all__ = ['Coords', 'LinearSystem', 'linearize', 'jacobian_fd',
            'reduced_rhs', 'reduced_rhs_lagrange', 'equilibrium', 'coordinates',
            'STATE_NAMES_II', 'STATE_NAMES_I', 'STATE_NAMES_UPRIGHT', 'STATE_NAMES_LOCKED']
 
@@ -231,15 +231,6 @@ def _analytic_A0_b(p: RotorParams, coords: str, motion: SteadyMotion):
     return A0, b
 
 
-def jacobian_analytic(params: RotorParams, motion: SteadyMotion,
-                      model: str = 'full') -> np.ndarray:
-    """Return the analytic Jacobian A (module doc) about ``motion``."""
-    coords = coordinates(model, motion)
-    A0, b = _analytic_A0_b(params, coords, motion)
-    c = _c_vector(coords)
-    return A0 - params.K_D * np.outer(b, c)
-
-
 def _c_vector(coords: str) -> np.ndarray:
     names = _names(coords)
     c = np.zeros(len(names))
@@ -357,8 +348,8 @@ def _weights(p: RotorParams, coords: str, motion: SteadyMotion) -> np.ndarray:
     return np.sqrt(np.maximum(np.array(w, dtype=float), tiny))
 
 
-def linearize(params: RotorParams, steady_motion: SteadyMotion, model: str = 'full', *,
-              method: str = 'analytic') -> LinearSystem:
+def linearize(params: RotorParams, steady_motion: SteadyMotion,
+              model: str = 'full') -> LinearSystem:
     """Linearize ``model`` about ``steady_motion``; unpacks as ``A, state_names``.
 
     Parameters
@@ -370,8 +361,6 @@ def linearize(params: RotorParams, steady_motion: SteadyMotion, model: str = 'fu
     model : str
         'full' (reduced coordinates of solution II, Cartesian tilt for solution I),
         'upright_axis' or 'locked_housing'.
-    method : str
-        'analytic' (module doc) or 'fd' (central differences through the full model).
     """
     if not isinstance(params, RotorParams):
         raise TypeError('params must be a RotorParams')
@@ -380,14 +369,7 @@ def linearize(params: RotorParams, steady_motion: SteadyMotion, model: str = 'fu
     coords = coordinates(model, steady_motion)
     A0, b = _analytic_A0_b(params, coords, steady_motion)
     c = _c_vector(coords)
-    if method == 'analytic':
-        A = A0 - params.K_D * np.outer(b, c)
-    elif method == 'fd':
-        A = jacobian_fd(params, steady_motion, model)
-        # the K_D part is exact and linear; keep A0 consistent with the FD matrix
-        A0 = A + params.K_D * np.outer(b, c)
-    else:
-        raise ParameterError(f"method must be 'analytic' or 'fd', got {method!r}")
-    return LinearSystem(A=A, state_names=_names(coords), A0=A0, b=b, c=c,
-                        groups=GROUPS[coords], weights=_weights(params, coords, steady_motion),
+    return LinearSystem(A=A0 - params.K_D * np.outer(b, c), state_names=_names(coords), A0=A0,
+                        b=b, c=c, groups=GROUPS[coords],
+                        weights=_weights(params, coords, steady_motion),
                         coords=coords, motion=steady_motion, model=model, params=params)

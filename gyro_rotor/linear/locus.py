@@ -17,7 +17,7 @@ import math
 
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.spectrum import K_ref, track, unit_eig
-from gyro_rotor.linear.system import Linearization, modes
+from gyro_rotor.linear.system import check_claims, Linearization, name_roots
 import numpy as np
 
 __all__ = ['RootLocus', 'root_locus', 'check_claims', 'regimes', 'name_roots', 'K_ref',
@@ -54,13 +54,6 @@ class RootLocus:
                                'locked_im': self.locked.imag.tolist(),
                                'locked_labels': self.locked_labels,
                                'fast_gains': self.lin.fast_rates.tolist()}}
-
-
-def name_roots(lin: Linearization, lam, K: float | None = None) -> list:
-    """Name each root in ``lam`` by the mode of :func:`modes` at K it is (or its conjugate)."""
-    ms = modes(lin, K)
-    return [min(ms, key=lambda m: min(abs(m.eigenvalue - z), abs(m.eigenvalue.conjugate() - z)))
-            .name for z in lam]
 
 
 def check_grid(grid) -> np.ndarray:
@@ -133,22 +126,6 @@ def root_locus(lin: Linearization, K_D_grid) -> RootLocus:
         ends[c] = names[r]
     return RootLocus(lin=lin, K_D=grid, eigenvalues=path, labels=names, locked=locked,
                      locked_res=res, locked_labels=ends)
-
-
-def check_claims(lin: Linearization):
-    """Check claims (a) to (d), naming in (b) the modes the drives do not reach.
-
-    The one checker of every system (:func:`gyro_rotor.linear.system.check_claims`).
-    """
-    from gyro_rotor.linear.system import check_claims as check
-    res = check(lin)
-    if not res.unreached.size:
-        return res
-    b = res.claims['b']
-    names = ', '.join(sorted(set(name_roots(lin, res.unreached, 0.0))))
-    b = dataclasses.replace(b, exception=b.exception.replace(
-        'roots not reached by the drive', f'roots not reached by the drive ({names})'))
-    return dataclasses.replace(res, claims={**res.claims, 'b': b})
 
 
 def regimes(res) -> list:

@@ -58,9 +58,7 @@ def solve_steady(scene: Scene, *, max_iter: int = 50) -> tuple:
     x = np.concatenate([scene.steady_q, scene.steady_z]).astype(float)
 
     def acc(x):
-        y = model.state(x[:n], scene.steady_qdot, x[n:], np.zeros(m))
-        f = model.rhs(0.0, y)
-        return np.concatenate([f[n:2 * n], f[2 * n + m:2 * n + 2 * m]])
+        return model.accelerations(model.state(x[:n], scene.steady_qdot, x[n:], np.zeros(m)))
     x, r = damped_newton(acc, x, 1e-13 * max(1.0, model.rate()), max_iter=max_iter,
                          min_step=1e-4)
     return x[:n], x[n:], float(np.abs(r).max())

@@ -38,7 +38,7 @@ import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
 __all__ = ['Stability', 'ModeKind', 'Mode', 'Verdict', 'judge', 'spectrum', 'named_modes',
-           'classify', 'drive_system', 'track', 'sensitivities', 'ZERO_ROOT', 'ZERO_ROOT_Z',
+           'classify', 'track', 'sensitivities', 'ZERO_ROOT', 'ZERO_ROOT_Z',
            'STRUCTURAL', 'TOL_RE_REL']
 
 
@@ -326,11 +326,12 @@ def judge(ms: Sequence[Mode], undamped_drives: bool) -> Verdict:
                    [m.name for m in marginal + neutral], res)
 
 
-def named_modes(lin: LinearSystem, K_D: float | None = None) -> list:
+def named_modes(lin: LinearSystem, K_D: float | None, sys) -> list:
     """Return the named, classified modes of the analytic linearization ``lin`` at ``K_D``.
 
-    Named at K_D = 0 by modal energy and tracked to ``K_D`` (default ``lin``'s own) by
-    eigenvector continuity; reach and damping by :func:`classify` (the one rule).
+    Named at K_D = 0 by modal energy and tracked to ``K_D`` (None: ``lin``'s own) by
+    eigenvector continuity; reach and damping by :func:`classify` (the one rule) on ``sys``,
+    its :class:`~gyro_rotor.linear.claims.DriveSystem`.
     """
     K_D = lin.params.K_D if K_D is None else float(K_D)
     if not (K_D >= 0 and math.isfinite(K_D)):
@@ -339,11 +340,4 @@ def named_modes(lin: LinearSystem, K_D: float | None = None) -> list:
         lin = dataclasses.replace(lin, params=lin.params.replace(K_D=K_D), A=lin.with_K_D(K_D))
     names, lam0, d0, lam_path = _tracked_names(lin, _path_to(K_D, lin))
     ms = _modes_from(lin, lam_path[-1], names, lam0, d0, floor(lin.A0))
-    return classify(ms, drive_system(lin), [K_D])
-
-
-def drive_system(lin: LinearSystem):
-    """Return the centrifuge's :class:`~gyro_rotor.linear.claims.DriveSystem` (one drive)."""
-    from gyro_rotor.linear.claims import DriveSystem
-    return DriveSystem(A0=lin.A0, B=lin.b[:, None], C=lin.c[None, :],
-                       K_scene=np.array([float(lin.params.K_D)]))
+    return classify(ms, sys, [K_D])

@@ -50,7 +50,7 @@ from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
 __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
-           'dominant']
+           'dominant', 'name_roots']
 
 #: the coordinate of each state of the centrifuge's analytic linearizations (the rates'
 #: coordinates: thetadot is theta's, W_1 alpha's, ...)
@@ -80,7 +80,6 @@ class Linearization:
     names: tuple
     coordinate: tuple
     fast_rates: np.ndarray
-    K_each: np.ndarray
     A_cons: np.ndarray
     b_all: np.ndarray
     c_all: np.ndarray
@@ -208,7 +207,7 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
         f'zdot_{r}' for r in system.rotors)
     return Linearization(A0=A0, b=b, c=c, K_D=float(Ks.max()), A_locked=_locked(A0, b, c),
                          names=names, coordinate=positions * 2,
-                         fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=Ks, A_cons=A_cons,
+                         fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=A_cons,
                          b_all=b_all, c_all=c_all,
                          K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which),
                          about=about)
@@ -234,11 +233,11 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          names=ls.state_names,
                          coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
                                           for x in ls.state_names),
-                         fast_rates=np.linalg.eigvalsh(c.T @ b), K_each=K, A_cons=ls.A0,
+                         fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=ls.A0,
                          b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
                          about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
                                f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
-                         modes_at=lambda lin, K: named_modes(ls, K))
+                         modes_at=lambda lin, K: named_modes(ls, K, lin.drive_system()))
 
 
 def dominant(lin: Linearization, v: np.ndarray) -> str:
@@ -349,7 +348,24 @@ def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
     return start, d
 
 
+def name_roots(lin: Linearization, lam, K: float | None = None) -> list:
+    """Name each root in ``lam`` by the mode of :func:`modes` at K it is (or its conjugate)."""
+    ms = modes(lin, K)
+    return [min(ms, key=lambda m: min(abs(m.eigenvalue - z), abs(m.eigenvalue.conjugate() - z)))
+            .name for z in lam]
+
+
 def check_claims(lin: Linearization):
-    """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`."""
+    """Check claims (a) to (d) (module doc): :func:`gyro_rotor.linear.claims.check`.
+
+    Claim (b)'s exception names the modes the drives do not reach (:func:`name_roots`).
+    """
     from gyro_rotor.linear.claims import check
-    return check(lin.drive_system())
+    res = check(lin.drive_system())
+    if not res.unreached.size:
+        return res
+    b = res.claims['b']
+    names = ', '.join(sorted(set(name_roots(lin, res.unreached, 0.0))))
+    b = dataclasses.replace(b, exception=b.exception.replace(
+        'roots not reached by the drive', f'roots not reached by the drive ({names})'))
+    return dataclasses.replace(res, claims={**res.claims, 'b': b})

@@ -24,13 +24,13 @@ from typing import Mapping
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseStamped, Vector3Stamped
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Vector3, Vector3Stamped
 # the wire layouts are written once, in gyro_rotor.bag.wire
 from gyro_rotor.bag.wire import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES
 import numpy as np
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, MultiArrayDimension, String
+from std_msgs.msg import ColorRGBA, Float64MultiArray, Header, MultiArrayDimension, String
 from visualization_msgs.msg import Marker
 
 __all__ = ['JOINT_NAMES', 'ENERGY_FIELDS', 'LEVELS', 'stamp', 'joint_state', 'float_array',
@@ -63,13 +63,10 @@ def joint_state(t: Time, positions, velocities, efforts, names=JOINT_NAMES,
     ``names`` and ``wrap=False``: a general system's coordinates and rotor lags, as
     integrated.
     """
-    msg = JointState()
-    msg.header.stamp = t
-    msg.name = list(names)
-    msg.position = [_wrap(float(a)) if wrap else float(a) for a in positions]
-    msg.velocity = [float(v) for v in velocities]
-    msg.effort = [float(e) for e in efforts]
-    return msg
+    return JointState(header=Header(stamp=t), name=list(names),
+                      position=[_wrap(float(a)) if wrap else float(a) for a in positions],
+                      velocity=[float(v) for v in velocities],
+                      effort=[float(e) for e in efforts])
 
 
 def float_array(data, *labels) -> Float64MultiArray:
@@ -89,58 +86,38 @@ def float_array(data, *labels) -> Float64MultiArray:
 
 def axis_vector(t: Time, frame_id: str, axis) -> Vector3Stamped:
     """Return the stator's symmetry axis e_3 in space axes (unit vector)."""
-    msg = Vector3Stamped()
-    msg.header.stamp = t
-    msg.header.frame_id = frame_id
-    msg.vector.x, msg.vector.y, msg.vector.z = (float(v) for v in axis)
-    return msg
+    x, y, z = (float(v) for v in axis)
+    return Vector3Stamped(header=Header(stamp=t, frame_id=frame_id), vector=Vector3(x=x, y=y, z=z))
 
 
 def stator_pose(t: Time, frame_id: str, q) -> PoseStamped:
     """Stator orientation (body to space) from (w, x, y, z), normalized; position F = 0."""
     q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q)
-    msg = PoseStamped()
-    msg.header.stamp = t
-    msg.header.frame_id = frame_id
-    o = msg.pose.orientation
-    o.w, o.x, o.y, o.z = (float(v) for v in q)
-    return msg
+    w, x, y, z = (float(v) for v in q / np.linalg.norm(q))
+    return PoseStamped(header=Header(stamp=t, frame_id=frame_id),
+                       pose=Pose(orientation=Quaternion(w=w, x=x, y=y, z=z)))
 
 
 def axis_marker(t: Time, frame_id: str, axis, length: float = 0.3,
                 ns: str = 'rotor_axis') -> Marker:
     """Build an ARROW from the fixed point F along the symmetry axis (RViz, Foxglove)."""
-    m = Marker()
-    m.header.stamp = t
-    m.header.frame_id = frame_id
-    m.ns = ns
-    m.id = 0
-    m.type = Marker.ARROW
-    m.action = Marker.ADD
     a = np.asarray(axis, dtype=float) * length
-    m.points = [Point(x=0.0, y=0.0, z=0.0), Point(x=float(a[0]), y=float(a[1]), z=float(a[2]))]
-    m.scale.x = 0.01 * length / 0.3     # shaft diameter
-    m.scale.y = 0.02 * length / 0.3     # head diameter
-    m.scale.z = 0.04 * length / 0.3     # head length
-    m.color.r, m.color.g, m.color.b, m.color.a = 0.9, 0.3, 0.1, 1.0
-    m.frame_locked = False
-    return m
+    return Marker(header=Header(stamp=t, frame_id=frame_id), ns=ns, id=0, type=Marker.ARROW,
+                  action=Marker.ADD, frame_locked=False,
+                  points=[Point(), Point(x=float(a[0]), y=float(a[1]), z=float(a[2]))],
+                  # shaft diameter, head diameter, head length
+                  scale=Vector3(x=0.01 * length / 0.3, y=0.02 * length / 0.3,
+                                z=0.04 * length / 0.3),
+                  color=ColorRGBA(r=0.9, g=0.3, b=0.1, a=1.0))
 
 
 def diagnostic_array(t: Time, name: str, level: str, message: str,
                      values: Mapping[str, object], hardware_id: str = '') -> DiagnosticArray:
     """Build a DiagnosticArray with one status; ``level`` is 'OK', 'WARN', 'ERROR' or 'STALE'."""
-    st = DiagnosticStatus()
-    st.level = LEVELS[level]
-    st.name = name
-    st.message = message
-    st.hardware_id = hardware_id
-    st.values = [KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()]
-    msg = DiagnosticArray()
-    msg.header.stamp = t
-    msg.status = [st]
-    return msg
+    st = DiagnosticStatus(level=LEVELS[level], name=name, message=message,
+                          hardware_id=hardware_id,
+                          values=[KeyValue(key=str(k), value=_fmt(v)) for k, v in values.items()])
+    return DiagnosticArray(header=Header(stamp=t), status=[st])
 
 
 def _fmt(v: object) -> str:

@@ -15,6 +15,7 @@ gyro_rotor.tools.launch --runs 20`` does that 20 times and counts the clean stop
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 from pathlib import Path
@@ -91,19 +92,6 @@ def ros_param(name: str, value: Any) -> str:
     return f'{name}:={text}'
 
 
-def _die_with_parent() -> None:
-    """In the child: ask Linux for SIGTERM when the parent dies (even by SIGKILL).
-
-    ``prctl(PR_SET_PDEATHSIG, SIGTERM)``; a no-op where there is no prctl.
-    """
-    try:
-        import ctypes
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGTERM, 0, 0, 0)      # 1 = PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
 class NodeProcess:
     """One node as a child process (stdout/stderr to files or pipes)."""
 
@@ -121,9 +109,12 @@ class NodeProcess:
         if domain_id is not None:
             e['ROS_DOMAIN_ID'] = str(domain_id)
         self.cmd = cmd
+        preexec = None
+        if die_with_parent:     # in the child: SIGTERM from Linux when this process dies
+            from gyro_rotor.ros.runner import exit_with_parent as preexec
         self.proc = subprocess.Popen(cmd, env=e, stdout=stdout, stderr=stderr,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
-                                     preexec_fn=_die_with_parent if die_with_parent else None)
+                                     preexec_fn=preexec)
 
     @property
     def pid(self) -> int:
@@ -339,18 +330,14 @@ class LaunchRun:
 
         SIGKILL to the group after ``timeout`` seconds (then the status is negative).
         """
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(self.proc.pid, sig)
-        except ProcessLookupError:
-            pass
         return self._wait(timeout)
 
     def signal_launch(self, sig: int = signal.SIGTERM, timeout: float = 40.0) -> int:
         """Send ``sig`` to ``ros2 launch`` alone; return its exit status (see interrupt)."""
-        try:
+        with contextlib.suppress(ProcessLookupError):
             self.proc.send_signal(sig)
-        except ProcessLookupError:
-            pass
         return self._wait(timeout)
 
     def _wait(self, timeout: float) -> int:
@@ -379,10 +366,8 @@ class LaunchRun:
 
     def kill(self) -> None:
         """SIGKILL to the whole group (a launch that does not stop)."""
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(self.proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
         self.status = self.proc.wait()
 
     def problems(self, nodes: tuple = ('rotor_analysis', 'rotor_sim')) -> list[str]:

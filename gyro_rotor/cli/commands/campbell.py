@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from gyro_rotor.cli.util import check_output_file, write_json, write_output
+from gyro_rotor.cli.util import (check_output_file, load_scene_with_sets, write_json,
+                                 write_output)
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
@@ -24,13 +25,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--points', type=int, default=200, help='number of speeds (2..20000)')
     p.add_argument('--json', default=None, metavar='FILE', help='write the diagram as JSON')
     p.add_argument('--out', default=None, metavar='FILE.png', help='plot (needs matplotlib)')
-
-
-def _load(args):
-    """Return the scene and its nominal field speed (the first rotor's)."""
-    from gyro_rotor.cli.util import load_scene_with_sets
-    scene = load_scene_with_sets(args.scene, args.set)
-    return scene, scene.Omega0
 
 
 def _speed_range(args, W0: float) -> tuple:
@@ -64,8 +58,8 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.out, ('.png',))
     if not 2 <= args.points <= 20000:
         raise ParameterError(f'--points must be 2..20000, got {args.points}')
-    scene, W0 = _load(args)
-    lo, hi = _speed_range(args, W0)
+    scene = load_scene_with_sets(args.scene, args.set)
+    lo, hi = _speed_range(args, scene.Omega0)
     cb = campbell(scene, np.linspace(lo, hi, args.points))
     print(f'scene {scene.name}: Campbell diagram over Omega0 = {lo:.4g} .. {hi:.4g} rad/s '
           f'({args.points} speeds, every drive scaled with the first); modes tracked by '

@@ -30,8 +30,7 @@ import sys
 import time
 
 from gyro_rotor.cli.util import check_number
-from gyro_rotor.core.scene import DEFAULT_SCENE
-from gyro_rotor.core.scene import load_scene
+from gyro_rotor.core.scene import DEFAULT_SCENE, load_scene
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.tools.launch import claim_domain_id, make_output_dir, NodeProcess, SideNode
 from gyro_rotor.tools.monitor import message_values

@@ -183,6 +183,11 @@ class GeneralModel:
         self.compiled.rhs(np.asarray(y, dtype=float), self.P, out)
         return out
 
+    def accelerations(self, y) -> np.ndarray:
+        """Return (qddot, zddot) at the state y (zero on a steady motion)."""
+        f, (_, sqd, _, szd) = self.rhs(0.0, y), self.slices()
+        return np.concatenate([f[sqd], f[szd]])
+
     def lin(self, y) -> tuple:
         """(Mbar, dF/dq, dF/dv) at the state y as arrays (exact derivatives, no drive terms).
 
