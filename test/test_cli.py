@@ -248,7 +248,10 @@ def test_simulate_of_an_unstable_system_grown_beyond_floats_is_unstable(tmp_path
     |E*|). That is the unstable steady motion, not a failed integration: UNSTABLE, naming
     where the integration stopped; exit 2.
     """
-    assert main(['simulate', unstable_scene(tmp_path), '--t-end', '100']) == 2
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')          # numpy's overflow warnings: none
+        assert main(['simulate', unstable_scene(tmp_path), '--t-end', '100']) == 2
     last = capsys.readouterr().out.splitlines()[-1]
     assert last.startswith('UNSTABLE: the motion grows, the energy identity sound'), last
     assert 'then the integration stopped after the last finite sample (t = 37.37 s' in last
