@@ -226,6 +226,38 @@ def test_simulate_of_an_unstable_system_says_it_grew(tmp_path, capsys):
     assert len(out.read_text().splitlines()) == 1 + 1001
 
 
+def test_simulate_of_an_unstable_system_too_short_to_fit_says_it_grows(tmp_path, capsys):
+    """Review finding: simulate of the unstable system exited 0 saying nothing.
+
+    With t_end below the analysis' shortest fit (2 s) no window measured the growth, so
+    no line was printed and the exit status was 0, though E* went from -0.00045 J to
+    -109128 J in 1.5 s. The linear theory's growing mode is named, exit 2.
+    """
+    assert main(['simulate', unstable_scene(tmp_path), '--t-end', '1.5']) == 2
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith('UNSTABLE: the linear theory predicts growing modes: mode (x) '), last
+    assert '(Re lambda = +9.602 1/s); this 1.5 s run is too short for the analysis' in last
+    assert last.endswith('(its fits need 2 s): E* went from -0.00045 J to -109128 J'), last
+
+
+def test_simulate_of_an_unstable_system_grown_beyond_floats_is_unstable(tmp_path, capsys):
+    """Review finding: growth until the state overflowed was called DIVERGED.
+
+    k < 0 grows like exp(9.6 t): at t = 37.6 s the state leaves floating point's range and
+    the integrator stops, with the energy identity sound in every sample before (1e-11 of
+    |E*|). That is the unstable steady motion, not a failed integration: UNSTABLE, naming
+    where the integration stopped; exit 2.
+    """
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')          # numpy's overflow warnings: none
+        assert main(['simulate', unstable_scene(tmp_path), '--t-end', '100']) == 2
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith('UNSTABLE: the motion grows, the energy identity sound'), last
+    assert 'then the integration stopped after the last finite sample (t = 37.37 s' in last
+    assert 'DIVERGED' not in last
+
+
 def test_simulate_of_a_diverging_integration_says_so_and_keeps_the_samples(tmp_path, capsys):
     """dop853 at rtol 0.9 blows up: the last line names the guard's numbers, exit 2.
 

@@ -107,6 +107,12 @@ class _Segment:
         self.identity_t = math.nan
         self.identity_r = 0.0
         self.identity_bound = math.nan
+        #: the same for the energy balance criterion's limit (``residual_warn``), its
+        #: recorded residual, balance and their mismatch: ratio, time, |r|, bound
+        self.balance_excess = 0.0
+        self.balance_t = math.nan
+        self.balance_r = 0.0
+        self.balance_bound = math.nan
         self.slips = 0
         self.last_slip_t = -math.inf
         self.wells: dict = {}     # rotor -> the well its z last arrived in (hysteresis)
@@ -397,13 +403,21 @@ class RotorAnalyzer:
             seg.balance_max = max(seg.balance_max, abs(bal))
             if math.isfinite(s.residual):
                 seg.balance_mismatch = max(seg.balance_mismatch, abs(bal - s.residual))
+        # E_ref needs a recorded D; without it the bound's energy scale is E* alone
+        ref = float(seg.E_ref) if math.isfinite(seg.E_ref) else float(s.E_star)
         for r in (s.residual, bal):
             if math.isfinite(r):
-                x = excess(float(r), float(s.E_star), float(seg.E_ref), self.diverge_residual)
+                x = excess(float(r), float(s.E_star), ref, self.diverge_residual)
                 if x > seg.identity_excess:
                     seg.identity_excess, seg.identity_t, seg.identity_r = x, s.t, abs(r)
-                    seg.identity_bound = bound(float(s.E_star), float(seg.E_ref),
-                                               self.diverge_residual)
+                    seg.identity_bound = bound(float(s.E_star), ref, self.diverge_residual)
+        # the energy balance criterion: the same rule with its own limit (residual_warn)
+        for r in (s.residual, bal, bal - s.residual):
+            if math.isfinite(r):
+                x = excess(float(r), float(s.E_star), ref, self.residual_warn)
+                if x > seg.balance_excess:
+                    seg.balance_excess, seg.balance_t, seg.balance_r = x, s.t, abs(r)
+                    seg.balance_bound = bound(float(s.E_star), ref, self.residual_warn)
         # synchronism: passages of each z over the potential maxima (2k+1) pi / p
         # with hysteresis: the well index changes only once z is within pi/(2p) of the
         # bottom of another well, so jitter on a maximum counts nothing
@@ -536,9 +550,12 @@ class RotorAnalyzer:
         if nan is not None:
             return True, f'E* is not finite at t = {nan.t_end:.6g} s'
         broken = worst.identity_excess > 1.0
-        text = (f'max |E* + D - E_ref| = {worst.identity_r:.3g} J at t = {worst.identity_t:.6g} '
-                f's {">" if broken else "<="} max({self.diverge_residual:g} J, '
-                f'{RELATIVE_LIMIT:g} x max(|E*|, |E_ref|)) = {worst.identity_bound:.3g} J')
+        # the sample nearest its bound (the largest |r| / bound), not the largest |r|: that
+        # is the energy balance criterion's number, and the bound grows with |E*|
+        text = (f'|E* + D - E_ref| = {worst.identity_r:.3g} J at t = {worst.identity_t:.6g} s, '
+                f'the sample nearest its bound, {">" if broken else "<="} '
+                f'max({self.diverge_residual:g} J, {RELATIVE_LIMIT:g} x max(|E*|, |E_ref|)) '
+                f'= {worst.identity_bound:.3g} J there')
         return broken, text
 
     def _window(self, seg: _Segment) -> np.ndarray:
@@ -640,7 +657,9 @@ class RotorAnalyzer:
             balance_max=seg.balance_max, balance_mismatch=seg.balance_mismatch,
             balance_n=seg.balance_n, identity_excess=seg.identity_excess,
             identity_t=seg.identity_t, identity_r=seg.identity_r,
-            identity_bound=seg.identity_bound,
+            identity_bound=seg.identity_bound, balance_excess=seg.balance_excess,
+            balance_t=seg.balance_t, balance_r=seg.balance_r,
+            balance_bound=seg.balance_bound,
             energy_decay_rate=e_fit.rate if e_fit else math.nan,
             deviation_decay_rate=dev_rate, window_s=span, modes=modes,
             pole_slips=seg.slips, sync_state=sync_state, well=well,

@@ -21,6 +21,7 @@ from gyro_rotor.analysis.results import SegmentResult
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decay_rate_bound,
                                          DECAY_RTOL, decide, fmt_against, fmt_interval, fmt_pm,
                                          Measured, ModeStatus, needs_window, Status, SyncState)
+from gyro_rotor.numerics.guard import RELATIVE_LIMIT
 
 __all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism', 'scene',
            'FIT_RTOL', 'RATE_RTOL', 'rate_bound', 'mode_line']
@@ -80,32 +81,40 @@ def lyapunov(segs: list[SegmentResult], tol: float, rtol: float) -> Criterion:
 
 
 def energy_balance(segs: list[SegmentResult], warn: float) -> Criterion:
-    """Check that |E* + D - E_ref| stays below ``warn`` (interval: its rounding, 4 ulp).
+    """Check |E* + D - E_ref| by the simulation guard's rule with the limit ``warn``.
 
     E* + D - E_ref is computed from the recorded E* and D (E_ref: E* + D - residual at a
-    segment's first sample) and held together with the recorded residual: the larger of
-    the two, and their difference, must stay below ``warn``.
+    segment's first sample) and held together with the recorded residual: each of the
+    two, and their difference, must stay below max(``warn``, RELATIVE_LIMIT x max(|E*|,
+    |E_ref|)) (:func:`~gyro_rotor.numerics.guard.bound`: the one rule of the energy
+    identity, whose divergence limit is the analyzer's ``diverge_residual``); the number
+    judged is the sample nearest its bound (interval: its rounding, 4 ulp).
     """
     name = CriterionName.ENERGY_BALANCE
     recorded = max((s.residual_max for s in segs), default=math.nan)
     computed = max((s.balance_max for s in segs if s.balance_n), default=math.nan)
     mismatch = max((s.balance_mismatch for s in segs if s.balance_n), default=math.nan)
-    worst = max(v for v in (computed, recorded, mismatch) if not math.isnan(v)) \
-        if segs else math.nan
-    E = max((abs(s.E_last) for s in segs if math.isfinite(s.E_last)), default=0.0)
+    worst = max(segs, key=lambda s: s.balance_excess) if segs else None
     nums = {'residual_max_J': recorded, 'balance_max_J': computed, 'mismatch_J': mismatch,
-            'tol_J': warn}
-    if not segs or not math.isfinite(worst):
+            'tol_J': warn, 'rel_tol': RELATIVE_LIMIT}
+    if worst is None or not math.isfinite(worst.balance_bound):
         return Criterion(name, Status.NOT_YET, 'no residual yet', nums)
-    status = decide(Measured.pm(worst, 4 * _EPS * max(E, 1.0)), warn, 'below')
+    r, b = worst.balance_r, worst.balance_bound
+    nums.update(worst_J=r, worst_bound_J=b, worst_t=worst.balance_t)
+    status = decide(Measured.pm(r, 4 * _EPS * max(b / RELATIVE_LIMIT, 1.0)), b, 'below')
     rel = {Status.PASS: '<=', Status.FAIL: '>', Status.NOT_YET: 'at'}[status]
+    if b > warn:
+        against = (f'{rel} max({warn:.1g} J, {RELATIVE_LIMIT:g} x max(|E*|, |E_ref|)); '
+                   f'nearest it at t = {worst.balance_t:.6g} s: {r:.3g} J against {b:.3g} J')
+    else:
+        against = f'{rel} {warn:.1g} J'
     if math.isnan(computed):
         return Criterion(name, status, f'max |E* + D - E_ref| = {recorded:.3g} J as the '
-                         f'recorded residual says (D not recorded: not computed) ({rel} '
-                         f'{warn:.1g} J)', nums)
+                         f'recorded residual says (D not recorded: not computed) ({against})',
+                         nums)
     return Criterion(name, status, f'max |E* + D - E_ref| = {computed:.3g} J from the '
                      f'recorded E* and D, recorded residual max {recorded:.3g} J, they differ '
-                     f'by up to {mismatch:.3g} J ({rel} {warn:.1g} J)', nums)
+                     f'by up to {mismatch:.3g} J ({against})', nums)
 
 
 def _limit_text(seg: SegmentResult, pred: Prediction) -> str:

@@ -649,14 +649,18 @@ def _combination(r: Root, parents: list, span: float) -> str | None:
     allowed: 2 omega_i is a harmonic) matches when it is within twice the combined
     uncertainty of the measured frequencies, and its rate sum_k Re lambda_k (a product
     of modes decays at the sum of their rates) within twice theirs plus the window's
-    resolution.
+    resolution. The lowest order that matches explains the root; where more than one tone
+    of that order matches, the data cannot tell which it is (their distance is within the
+    tolerance, and below the window's resolution 1/T if the tolerance is): the root is a
+    combination tone of that order, not named after one of them. The text says the
+    tolerance and the window's 1/T.
     """
     res_re = RESOLVABLE / max(span, 1e-9)
     items = [(m.name, root.value.imag, root.im.u, root.value.real,
               root.re.u if root.re.bounded else res_re) for m, root in parents]
-    best = None
+    found = []
     for order, combo, signs, w in _tones([it[1] for it in items]):
-        if best is not None and order > best[2]:
+        if found and order > found[0][0]:
             break               # the lowest order that explains it
         uw = TONE_SIGMAS * math.sqrt(r.im.u ** 2 + sum(items[k][2] ** 2 for k in combo))
         d = abs(r.value.imag - w)
@@ -667,14 +671,22 @@ def _combination(r: Root, parents: list, span: float) -> str | None:
                              + sum(items[k][4] ** 2 for k in combo)) + res_re
         if abs(r.value.real - rate) > ur:
             continue
-        if best is None or d / uw < best[0]:
-            label = _combo_label([items[k][0] for k in combo], signs)
-            dec = _digits(r.im.u / _TWO_PI)      # the digits of the measured frequency
-            best = (d / uw, f'combination tone {label}: {w / _TWO_PI:.{dec}f} Hz '
-                            f'({d / _TWO_PI:.2g} Hz apart, within the tolerance '
-                            f'{uw / _TWO_PI:.2g} Hz: {TONE_SIGMAS:g} x the combined '
-                            'uncertainty of the frequencies)', order)
-    return None if best is None else best[1]
+        found.append((order, d / uw, _combo_label([items[k][0] for k in combo], signs), w,
+                      d, uw))
+    if not found:
+        return None
+    found.sort(key=lambda x: x[1])
+    dec = _digits(r.im.u / _TWO_PI)      # the digits of the measured frequency
+    res = f'the window resolves 1/T = {1.0 / max(span, 1e-9):.2g} Hz'
+    why = f'{TONE_SIGMAS:g} x the combined uncertainty of the frequencies; {res}'
+    if len(found) == 1:
+        _, _, label, w, d, uw = found[0]
+        return (f'combination tone {label}: {w / _TWO_PI:.{dec}f} Hz ({d / _TWO_PI:.2g} Hz '
+                f'apart, within the tolerance {uw / _TWO_PI:.2g} Hz: {why})')
+    tones = ' or '.join(f'{label}: {w / _TWO_PI:.{dec}f} Hz ({d / _TWO_PI:.2g} Hz apart, '
+                        f'tolerance {uw / _TWO_PI:.2g} Hz)' for _, _, label, w, d, uw in found)
+    return (f'combination tone of order {found[0][0]}, not told apart in this window: '
+            f'{tones} ({why})')
 
 
 def tone_line(r: Root, text: str) -> str:

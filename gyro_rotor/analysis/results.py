@@ -110,6 +110,12 @@ class SegmentResult:
     identity_t: float = math.nan
     identity_r: float = 0.0
     identity_bound: float = math.nan
+    #: the same for the energy balance criterion's limit (residual_warn; recorded residual,
+    #: balance and their mismatch): above 1 the criterion fails
+    balance_excess: float = 0.0
+    balance_t: float = math.nan
+    balance_r: float = 0.0
+    balance_bound: float = math.nan
 
     def as_dict(self) -> dict:
         """JSON-friendly dict."""
