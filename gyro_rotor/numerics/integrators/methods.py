@@ -516,19 +516,25 @@ def method_cost(name: str, rate: float, tol: float, sample_rate: float = 0.0) ->
 
 def cheapest_explicit(rate: float, tol: float, sample_rate: float = 0.0) -> tuple[str, dict]:
     """Return the cheapest of COST_METHODS at ``tol`` and every candidate's predicted cost."""
-    best, costs = _cheapest(float(rate), float(tol), float(sample_rate))
+    floors = tuple(ERROR_FLOOR[m] for m in COST_METHODS)
+    best, costs = _cheapest(float(rate), float(tol), float(sample_rate), floors,
+                            STEP_OVERHEAD, LANDED_DENSE)
     return best, dict(costs)
 
 
 @functools.lru_cache(maxsize=256)
-def _cheapest(rate: float, tol: float, sample_rate: float) -> tuple[str, tuple]:
+def _cheapest(rate: float, tol: float, sample_rate: float, floors: tuple,
+              overhead: float, landed: float) -> tuple[str, tuple]:
     """:func:`cheapest_explicit`, remembered: auto's choice is part of every run's fixed cost.
 
-    The four cost predictions took about a third of a short run's Python overhead; a sweep,
-    an ensemble or the benchmark's repeats ask the same question again and again.
+    The four cost predictions took about two thirds of auto's choice (24-27 us of a run's
+    Python overhead at load 7); a sweep, an ensemble or the benchmark's repeats ask the same
+    question again and again. The key holds the tables :func:`method_cost` reads at call
+    time (``floors``: ERROR_FLOOR of COST_METHODS, STEP_OVERHEAD, LANDED_DENSE), so a changed
+    table (a test's monkeypatch) is never answered from the cache.
     """
-    costs = {m: method_cost(m, rate, tol, sample_rate) for m in COST_METHODS
-             if ERROR_FLOOR[m] <= tol or m == 'dop853'}
+    costs = {m: method_cost(m, rate, tol, sample_rate)
+             for m, floor in zip(COST_METHODS, floors) if floor <= tol or m == 'dop853'}
     return min(costs, key=costs.get), tuple(costs.items())
 
 
