@@ -476,3 +476,19 @@ def test_generated_dop853_step_and_dense_equal_the_tableau_loops(scene):
             kernels.dense_eval(F_a, y, x, out_a)
             rk_generated.dop853_eval(kind, F_a, y, x, out_b)
             assert np.all(np.abs(out_a - out_b) <= 16 * eps * (np.abs(y) + np.abs(F_a).sum(0)))
+
+
+def test_auto_choice_is_remembered_but_follows_a_changed_table(monkeypatch):
+    # auto's choice is cached (a fixed cost of every run): a changed ERROR_FLOOR or
+    # STEP_OVERHEAD is part of the key, never answered from the cache
+    from gyro_rotor.numerics.integrators import methods
+    p = load_scene('fast_spin').make_model()
+    first = choose_method(p, 2.0, rtol=1e-10, sample_rate=100.0)[0]
+    assert choose_method(p, 2.0, rtol=1e-10, sample_rate=100.0)[0] == first
+    monkeypatch.setitem(methods.ERROR_FLOOR, first, 1e-9)
+    assert choose_method(p, 2.0, rtol=1e-10, sample_rate=100.0)[0] != first
+    monkeypatch.undo()
+    monkeypatch.setattr(methods, 'STEP_OVERHEAD', 1e6)   # steps' overhead dwarfs the stages
+    rate = model_rate(p.params)
+    best, costs = cheapest_explicit(rate, 1e-10, 100.0)
+    assert costs == {m: method_cost(m, rate, 1e-10, 100.0) for m in costs}

@@ -23,6 +23,7 @@ equations see q only through its direction). The Gauss method keeps |q| = 1 by i
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -32,7 +33,7 @@ from gyro_rotor.numerics.integrators import kernels, primitives
 import numpy as np
 
 __all__ = ['Integrator', 'LoopStepped', 'IntegrationResult', 'STATUS_MESSAGES', 'model_rate',
-           'kernel_args']
+           'kernel_args', 'rates_of']
 
 STATUS_MESSAGES = {
     0: 'The solver successfully reached the end of the integration interval.',
@@ -322,4 +323,20 @@ def model_rate(p) -> float:
     (:func:`gyro_rotor.core.model.drive_rates`: the nutation rate C_R Omega0 / I, eq. 18, the
     drive's frequency, the tilt and twist frequencies, 1 1/s as a floor).
     """
-    return max(drive_rates(p))
+    return max(rates_of(p))
+
+
+def rates_of(p) -> tuple[float, float]:
+    """Return :func:`~gyro_rotor.core.model.drive_rates` of ``p``, remembered per parameter set.
+
+    A RotorParams is frozen and hashable: every run asks for its rates (the default step,
+    auto's choice), a fixed cost of each of the benchmark's and an ensemble's runs. Other
+    parameter objects (unhashable) are computed each time.
+    """
+    try:
+        return _rates_cached(p)
+    except TypeError:
+        return drive_rates(p)
+
+
+_rates_cached = functools.lru_cache(maxsize=256)(drive_rates)

@@ -33,6 +33,7 @@ radau9 is :class:`~.radau_jac.Radau9Jac`: the same method with the generated exa
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 
 from gyro_rotor.core.model import Model
@@ -40,7 +41,7 @@ from gyro_rotor.errors import ParameterError
 from gyro_rotor.numerics.integrators import (kernels, radau, splitting as split,
                                              tableaux as tb)
 from gyro_rotor.numerics.integrators.base import (IntegrationResult, Integrator, LoopStepped,
-                                                  STATUS_MESSAGES)
+                                                  rates_of, STATUS_MESSAGES)
 from gyro_rotor.numerics.integrators.radau_jac import Radau9Jac
 import numpy as np
 
@@ -515,9 +516,26 @@ def method_cost(name: str, rate: float, tol: float, sample_rate: float = 0.0) ->
 
 def cheapest_explicit(rate: float, tol: float, sample_rate: float = 0.0) -> tuple[str, dict]:
     """Return the cheapest of COST_METHODS at ``tol`` and every candidate's predicted cost."""
-    costs = {m: method_cost(m, rate, tol, sample_rate) for m in COST_METHODS
-             if ERROR_FLOOR[m] <= tol or m == 'dop853'}
-    return min(costs, key=costs.get), costs
+    floors = tuple(ERROR_FLOOR[m] for m in COST_METHODS)
+    best, costs = _cheapest(float(rate), float(tol), float(sample_rate), floors,
+                            STEP_OVERHEAD, LANDED_DENSE)
+    return best, dict(costs)
+
+
+@functools.lru_cache(maxsize=256)
+def _cheapest(rate: float, tol: float, sample_rate: float, floors: tuple,
+              overhead: float, landed: float) -> tuple[str, tuple]:
+    """:func:`cheapest_explicit`, remembered: auto's choice is part of every run's fixed cost.
+
+    The four cost predictions took about two thirds of auto's choice (24-27 us of a run's
+    Python overhead at load 7); a sweep, an ensemble or the benchmark's repeats ask the same
+    question again and again. The key holds the tables :func:`method_cost` reads at call
+    time (``floors``: ERROR_FLOOR of COST_METHODS, STEP_OVERHEAD, LANDED_DENSE), so a changed
+    table (a test's monkeypatch) is never answered from the cache.
+    """
+    costs = {m: method_cost(m, rate, tol, sample_rate)
+             for m, floor in zip(COST_METHODS, floors) if floor <= tol or m == 'dop853'}
+    return min(costs, key=costs.get), tuple(costs.items())
 
 
 def choose_method(model, t_end: float = 0.0, rtol: float | None = None,
@@ -556,7 +574,7 @@ def _choose(model, t_end: float, rtol: float | None, sample_rate: float, y0) -> 
     choice is part of every run's fixed cost).
     """
     model = getattr(model, 'model', model)          # the kernels' view of a system file
-    stiff, osc = model.drive_rates(y0)
+    stiff, osc = rates_of(model.params) if isinstance(model, Model) else model.drive_rates(y0)
     if stiff > STIFF_RATIO * osc:
         return 'radau9', lambda: (
             f'stiff: the drive damping root {stiff:.3g} 1/s is {stiff / osc:.3g} times the '
