@@ -28,6 +28,18 @@ if ! "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps 
   cat "$log" >&2
   exit 1
 fi
+# the upstream ros2 CLI and ros2 launch, where ../shared/rostools is beside the checkout (as
+# in CI): colcon and launch's libraries into the venv, the tools into $venv/rostools, so that
+# the tests run `ros2 launch` and the ROS tutorial for real (run_tests.sh points
+# GYRO_ROTOR_ROSTOOLS there; each test run rebuilds the package's overlay from the checkout)
+rostools="$here/../shared/rostools/build.sh"
+if [ -f "$rostools" ]; then
+  if ! bash "$rostools" "$venv" "$venv/rostools" >"$venv/.rostools.log" 2>&1; then
+    tail -5 "$venv/.rostools.log" >&2
+    echo "bootstrap: ERROR: $rostools failed (log: $venv/.rostools.log)" >&2
+    exit 1
+  fi
+fi
 # compile the integrators' numba kernels into numba's cache now, not in the first node
 "$venv/bin/python" -m gyro_rotor.numerics.integrators.warmup
 echo "$want" > "$stamp"

@@ -8,4 +8,8 @@ cd "$here"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export ROS_PYTHON_CHECK_FIELDS=1
 export MPLBACKEND=Agg
+# ros2 launch and the ROS tutorial run against the rostools build that bootstrap made
+if [ -z "${GYRO_ROTOR_ROSTOOLS:-}" ] && [ -f "$here/.venv/rostools/env.sh" ]; then
+  export GYRO_ROTOR_ROSTOOLS="$here/.venv/rostools"
+fi
 exec "$here/.venv/bin/python" -m pytest "$@"

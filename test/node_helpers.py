@@ -5,9 +5,18 @@ answer) or a condition on what the nodes produced (messages on disk in the bag),
 generous deadline that only a broken node reaches.
 """
 
+import fcntl
+import hashlib
+import os
 from pathlib import Path
+import subprocess
+import sys
 import time
 import warnings
+
+import pytest
+
+_REPO = Path(__file__).resolve().parents[1]
 
 
 def wait_until(cond, what: str, proc=None, timeout: float = 60.0, step: float = 0.05):
@@ -60,3 +69,42 @@ def spin_until(executor, cond, timeout: float = 20.0, step: float = 0.02) -> Non
     while not cond():
         assert time.monotonic() < deadline
         executor.spin_once(timeout_sec=step)
+
+
+def rostools_env() -> str:
+    """Return the env.sh of a rostools build with this checkout in its overlay, or skip.
+
+    ``GYRO_ROTOR_ROSTOOLS`` names a rostools DEST (run_tests.sh sets it to the one that
+    bootstrap built): there a failed build of the overlay fails the test. Otherwise, where ``../shared/rostools``
+    is beside the checkout and the venv has colcon already (nothing to download: a
+    rostools build ran for it before), one is built into the temp directory (about 15 s,
+    then a few seconds per rebuild of the overlay).
+    """
+    build = _REPO.parent / 'shared' / 'rostools' / 'build.sh'
+    venv = Path(sys.prefix)
+    dest = os.environ.get('GYRO_ROTOR_ROSTOOLS')
+    asked = bool(dest)
+    if not dest:
+        if not build.is_file():
+            pytest.skip('ros2 launch is not installed: set GYRO_ROTOR_ROSTOOLS to a rostools '
+                        'build (../shared/rostools/build.sh VENV DEST --package .)')
+        if not (venv / 'bin' / 'colcon').is_file():
+            pytest.skip(f'ros2 launch is not installed and {venv} has no colcon (a first '
+                        'rostools build downloads it): run ../shared/rostools/build.sh '
+                        f'{venv} DEST --package {_REPO}, then GYRO_ROTOR_ROSTOOLS=DEST')
+        key = hashlib.sha256(str(venv).encode()).hexdigest()[:12]     # one per venv
+        dest = str(Path(os.environ.get('TMPDIR', '/tmp')) /
+                   f'gyro_rotor_rostools_{os.getuid()}_{key}')
+    if not build.is_file():
+        env_sh = Path(dest) / 'env.sh'
+        if not env_sh.is_file():
+            pytest.skip(f'GYRO_ROTOR_ROSTOOLS={dest} has no env.sh')
+        return str(env_sh)          # (no build.sh to rebuild the overlay with: as it is)
+    with open(f'{dest}.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        r = subprocess.run(['bash', str(build), str(venv), dest, '--package', str(_REPO)],
+                           capture_output=True, text=True, timeout=300)
+    if r.returncode != 0:
+        (pytest.fail if asked else pytest.skip)(f'rostools build failed (exit {r.returncode}): '
+                    f'{(r.stderr or r.stdout).strip().splitlines()[-1:]}')
+    return str(Path(dest) / 'env.sh')

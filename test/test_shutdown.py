@@ -129,45 +129,6 @@ def test_nodes_signalled_as_under_launch_exit_0_and_the_bag_is_whole(tmp_path, f
 
 
 # -- under ros2 launch (upstream, built by ../shared/rostools) ---------------------------------
-def _rostools(tmp_root: Path) -> str:
-    """Return the env.sh of a rostools build with this checkout in its overlay, or skip.
-
-    ``GYRO_ROTOR_ROSTOOLS`` names a rostools DEST; otherwise, where ``../shared/rostools``
-    is beside the checkout and the venv has colcon already (nothing to download: a
-    rostools build ran for it before), one is built into the temp directory (about 15 s,
-    then a few seconds per rebuild of the overlay).
-    """
-    build = REPO.parent / 'shared' / 'rostools' / 'build.sh'
-    venv = Path(sys.prefix)
-    dest = os.environ.get('GYRO_ROTOR_ROSTOOLS')
-    if not dest:
-        if not build.is_file():
-            pytest.skip('ros2 launch is not installed: set GYRO_ROTOR_ROSTOOLS to a rostools '
-                        'build (../shared/rostools/build.sh VENV DEST --package .)')
-        if not (venv / 'bin' / 'colcon').is_file():
-            pytest.skip(f'ros2 launch is not installed and {venv} has no colcon (a first '
-                        'rostools build downloads it): run ../shared/rostools/build.sh '
-                        f'{venv} DEST --package {REPO}, then GYRO_ROTOR_ROSTOOLS=DEST')
-        import hashlib
-        key = hashlib.sha256(str(venv).encode()).hexdigest()[:12]     # one per venv
-        dest = str(Path(os.environ.get('TMPDIR', '/tmp')) /
-                   f'gyro_rotor_rostools_{os.getuid()}_{key}')
-    if not build.is_file():
-        env_sh = Path(dest) / 'env.sh'
-        if not env_sh.is_file():
-            pytest.skip(f'GYRO_ROTOR_ROSTOOLS={dest} has no env.sh')
-        return str(env_sh)          # (no build.sh to rebuild the overlay with: as it is)
-    import fcntl
-    with open(f'{dest}.lock', 'w') as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        r = subprocess.run(['bash', str(build), str(venv), dest, '--package', str(REPO)],
-                           capture_output=True, text=True, timeout=300)
-    if r.returncode != 0:
-        pytest.skip(f'rostools build failed (exit {r.returncode}): '
-                    f'{(r.stderr or r.stdout).strip().splitlines()[-1:]}')
-    return str(Path(dest) / 'env.sh')
-
-
 @pytest.mark.ros
 @pytest.mark.slow
 @pytest.mark.parametrize('how', ['ctrl-c', 'sigterm-to-group', 'sigterm-to-launch'])
@@ -181,7 +142,7 @@ def test_ros2_launch_stopped_by_a_signal_is_clean(tmp_path, how, ros_domain_id):
     SIGTERM or, when only launch got it, from their parent's death, and the bag is
     finalized and whole.
     """
-    env_sh = _rostools(tmp_path)
+    env_sh = node_helpers.rostools_env()
     out = tmp_path / 'run'
     run = LaunchRun(env_sh, ['gyro_rotor', 'gyro_rotor.launch.py', 'robot_description:=false',
                              f'output:={out}'], str(tmp_path / 'launch.log'),
