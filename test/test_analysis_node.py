@@ -15,7 +15,6 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
-import time
 
 from gyro_rotor.analysis.checks import analyze_bag
 from gyro_rotor.bag.bagio import open_bag
@@ -235,7 +234,7 @@ def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
         wait_for_log(tmp_path / 'sim.log', 'simulation time starts', sim, timeout=40.0)
         wait_until(lambda: len(bag_on_disk(bag, '/energy')) >= 25,
                    'a flushed chunk with energy messages', an, timeout=60.0)
-        t_kill = time.time_ns()
+        on_disk = bag_on_disk(bag, '/energy')         # what the recorder had flushed
         an.send_signal(signal.SIGKILL)
         an.wait(timeout=10)
     finally:
@@ -244,11 +243,11 @@ def test_sigkill_leaves_a_readable_bag_that_recover_fixes(tmp_path, capsys):
     with pytest.warns(Warning, match='truncated'):
         reader = open_bag(bag)
     assert reader.truncated
-    times = [t for _, t, _ in reader.messages('/energy')]
-    assert times, 'the flushed chunks are readable'
-    # at most about a second lost: the last readable message was received shortly before
-    lost_s = (t_kill - max(times)) * 1e-9
-    assert 0 <= lost_s <= 1.2, lost_s
+    # every message flushed before the kill is readable after it (a bound in wall-clock
+    # seconds on the open chunk's loss is a timing, not an event: the spool's idle flush is
+    # tested in test_spool without a clock)
+    after = [(t, d) for _, t, d in reader.messages('/energy')]
+    assert len(on_disk) >= 25 and after[:len(on_disk)] == on_disk
     seq = [int(m.data[7]) for _, _, m in reader.decoded('/energy')]
     assert seq == list(range(seq[0], seq[0] + len(seq)))
     assert cli.main(['recover', str(bag)]) == 0

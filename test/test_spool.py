@@ -125,3 +125,18 @@ def test_closed_spool_refuses_more(tmp_path):
         spool.put_many([('/a', f64(0), 1, 1)])
     with pytest.raises(BagError, match='max_bytes'):
         BagSpool(BagWriter(tmp_path / 'c'), max_bytes=0)
+
+
+def test_an_idle_spool_flushes_its_open_chunk_without_being_asked(tmp_path):
+    """The open chunk reaches the disk after flush_period with no further message or flush().
+
+    What a recorder killed by SIGKILL keeps (test_analysis_node); waited for as an event,
+    the chunk on disk, not as a duration.
+    """
+    from node_helpers import bag_on_disk
+    spool = BagSpool(BagWriter(tmp_path / 'b'), flush_period=0.05)
+    spool.add_topic('/a', FLOAT64, qos_profile_dict())
+    spool.put_many([('/a', f64(1.0), 10**9, 10**9), ('/a', f64(2.0), 10**9 + 1, 10**9)])
+    wait_until(lambda: len(bag_on_disk(tmp_path / 'b', '/a')) == 2, 'the chunk on disk')
+    assert spool.stats.queued == 0
+    spool.close()
