@@ -75,10 +75,10 @@ def rostools_env() -> str:
     """Return the env.sh of a rostools build with this checkout in its overlay, or skip.
 
     ``GYRO_ROTOR_ROSTOOLS`` names a rostools DEST (run_tests.sh sets it to the one that
-    bootstrap built): there a failed build of the overlay fails the test. Otherwise, where ``../shared/rostools``
-    is beside the checkout and the venv has colcon already (nothing to download: a
-    rostools build ran for it before), one is built into the temp directory (about 15 s,
-    then a few seconds per rebuild of the overlay).
+    bootstrap built): there a failed build of the overlay fails the test. Otherwise, where
+    ``../shared/rostools`` is beside the checkout and the venv has colcon already (nothing
+    to download: a rostools build ran for it before), one is built into the temp directory
+    (about 15 s, then a few seconds per rebuild of the overlay).
     """
     build = _REPO.parent / 'shared' / 'rostools' / 'build.sh'
     venv = Path(sys.prefix)
@@ -105,6 +105,7 @@ def rostools_env() -> str:
         r = subprocess.run(['bash', str(build), str(venv), dest, '--package', str(_REPO)],
                            capture_output=True, text=True, timeout=300)
     if r.returncode != 0:
-        (pytest.fail if asked else pytest.skip)(f'rostools build failed (exit {r.returncode}): '
-                    f'{(r.stderr or r.stdout).strip().splitlines()[-1:]}')
+        why = (f'rostools build failed (exit {r.returncode}): '
+               f'{(r.stderr or r.stdout).strip().splitlines()[-1:]}')
+        (pytest.fail if asked else pytest.skip)(why)
     return str(Path(dest) / 'env.sh')
