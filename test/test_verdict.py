@@ -466,3 +466,12 @@ def test_printed_interval_reads_on_the_side_of_the_bound_it_is_decided_on(lo, wi
     for end, x in zip(shown, (lo, hi)):
         if x != bound:
             assert (float(end) > float(b)) == (x > bound) and float(end) != float(b), (text, b)
+
+
+def test_the_window_a_number_needs_is_never_inf_nor_this_window():
+    """Neither "needs about inf s" (an unbounded interval) nor "needs 8 s" in an 8 s window."""
+    from gyro_rotor.analysis.verdict import needs_phrase
+    assert needs_phrase(8.0, 0.1, 0.2) == 'needs about 32 s'
+    assert 'inf' not in needs_phrase(8.0, 0.1, math.inf)
+    assert 'unbounded' in needs_phrase(8.0, 0.1, math.inf)
+    assert needs_phrase(8.0, 1.0, 0.1) == 'not for want of a longer window'

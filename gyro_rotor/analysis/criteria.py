@@ -20,7 +20,7 @@ from gyro_rotor.analysis.prediction import Prediction
 from gyro_rotor.analysis.results import SegmentResult
 from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, decay_rate_bound,
                                          DECAY_RTOL, decide, fmt_against, fmt_interval, fmt_pm,
-                                         Measured, ModeStatus, needs_window, Status, SyncState)
+                                         Measured, ModeStatus, needs_phrase, Status, SyncState)
 from gyro_rotor.numerics.guard import RELATIVE_LIMIT
 
 __all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism', 'scene',
@@ -228,8 +228,8 @@ def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
     if st is Status.FAIL:
         text += ': slower than predicted'
     elif st is Status.NOT_YET:
-        text += (': the interval straddles the bound (needs about '
-                 f'{needs_window(window_s, rate.value - bound, rate.u):.3g} s)')
+        text += (': the interval straddles the bound '
+                 f'({needs_phrase(window_s, rate.value - bound, rate.u)})')
     return st, text, bound
 
 

@@ -25,7 +25,7 @@ import math
 from gyro_rotor.analysis.decay import RESOLVABLE
 from gyro_rotor.analysis.prediction import PredictedMode, Prediction
 from gyro_rotor.analysis.verdict import (_digits, decide, fmt_interval, fmt_pm, Measured,
-                                         ModeStatus, needs_window, Status)
+                                         ModeStatus, needs_phrase, Status)
 from gyro_rotor.errors import AnalysisError
 import numpy as np
 
@@ -738,14 +738,14 @@ def _judge(m: PredictedMode, r: Root, span: float) -> ModeCheck:
     freq_status = decide(r.im.abs_deviation(ev.imag), tol_im, 'below')
     if r.im.u >= tol_im:
         freq_status = None
-        notes.append(f'frequency not resolved in this window (needs about '
-                     f'{needs_window(span, tol_im, r.im.u):.3g} s)')
+        notes.append('frequency not resolved in this window '
+                     f'({needs_phrase(span, tol_im, r.im.u)})')
     target = 0.0 if (m.marginal or m.structural) else ev.real
     rate_status = decide(r.re.abs_deviation(target), tol_re, 'below')
     if not r.re.bounded or r.re.u >= tol_re:
         rate_status = None
-        notes.append(f'decay not measurable in this window (needs about '
-                     f'{needs_window(span, tol_re, r.re.u):.3g} s)')
+        notes.append('decay not measurable in this window '
+                     f'({needs_phrase(span, tol_re, r.re.u)})')
     judged = [s for s in (freq_status, rate_status) if s is not None]
     if Status.FAIL in judged:
         status = ModeStatus.DISAGREES

@@ -32,7 +32,7 @@ import math
 __all__ = ['Verdict', 'Status', 'CriterionName', 'ModeStatus', 'SyncState', 'Criterion',
            'Measured', 'decide', 'DECAY_RTOL', 'conjoin', 'over_run', 'combine',
            'decay_rate_bound', 'fmt_rate', 'fmt_tau', 'fmt_re', 'fmt_pm', 'fmt_interval',
-           'fmt_against', 'needs_window']
+           'fmt_against', 'needs_window', 'needs_phrase']
 
 
 class _Coded(enum.StrEnum):
@@ -247,6 +247,20 @@ def needs_window(window_s: float, value: float, u: float) -> float:
     if not (math.isfinite(u) and math.isfinite(value)) or value == 0:
         return math.inf
     return window_s * max(1.0, 2.0 * u / abs(value))
+
+
+def needs_phrase(window_s: float, value: float, u: float) -> str:
+    """Say how long a window would resolve ``value`` (+- ``u`` now): :func:`needs_window`.
+
+    Never "needs about inf s" (an interval unbounded in this window) nor a window no
+    longer than this one (the uncertainty is then not what is missing).
+    """
+    need = needs_window(window_s, value, u)
+    if not math.isfinite(need):
+        return 'its uncertainty unbounded in this window: a longer one may tell'
+    if need <= window_s:
+        return 'not for want of a longer window'
+    return f'needs about {need:.3g} s'
 
 
 def _digits(u: float) -> int:
