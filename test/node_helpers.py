@@ -100,12 +100,21 @@ def rostools_env() -> str:
         if not env_sh.is_file():
             pytest.skip(f'GYRO_ROTOR_ROSTOOLS={dest} has no env.sh')
         return str(env_sh)          # (no build.sh to rebuild the overlay with: as it is)
+    env_sh = Path(dest) / 'env.sh'
     with open(f'{dest}.lock', 'w') as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         r = subprocess.run(['bash', str(build), str(venv), dest, '--package', str(_REPO)],
                            capture_output=True, text=True, timeout=300)
+        if r.returncode == 0:
+            # the overlay is a copy of the package at another path: numba's cache of the
+            # checkout does not serve it, and the first node started from it would compile
+            # the kernels (minutes on a cold cache) inside a test's deadline. Compiled here
+            # once, outside the checkout (so that the copy is imported); later calls load them.
+            r = subprocess.run(['bash', '-c', f'set +u; source {env_sh}; exec python -m '
+                                'gyro_rotor.numerics.integrators.warmup'], cwd=dest,
+                               capture_output=True, text=True, timeout=900)
     if r.returncode != 0:
-        why = (f'rostools build failed (exit {r.returncode}): '
+        why = (f'rostools build or warm-up failed (exit {r.returncode}): '
                f'{(r.stderr or r.stdout).strip().splitlines()[-1:]}')
         (pytest.fail if asked else pytest.skip)(why)
-    return str(Path(dest) / 'env.sh')
+    return str(env_sh)
