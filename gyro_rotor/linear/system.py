@@ -241,12 +241,31 @@ def from_analytic(ls: LinearSystem) -> Linearization:
 
 
 def dominant(lin: Linearization, v: np.ndarray) -> str:
-    """Return the coordinate that holds most of eigenvector ``v`` (its angle and rate)."""
+    """Return the coordinate that holds most of eigenvector ``v`` (its angle and rate).
+
+    Of coordinates that hold equal shares within 1e-9 (a cyclic direction such as
+    centrifuge_euler's psi at fixed phi_M + psi), the first in the system's order.
+    """
     order = list(dict.fromkeys(lin.coordinate))
     w = np.zeros(len(order))
     for i, name in enumerate(lin.coordinate):
         w[order.index(name)] += abs(v[i])
-    return order[int(np.argmax(w))]
+    return order[int(np.flatnonzero(w >= (1.0 - 1e-9) * w.max())[0])]
+
+
+def _on_kernel(A: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Return zero root eigenvector ``v`` projected on the kernel of ``A`` (if it lies there).
+
+    A cyclic coordinate's two zero roots are one Jordan block (its shift, and the
+    neighbouring steady motions of its family): the computed pair splits by about
+    sqrt(eps) ||A|| (centrifuge_euler: +-1.2e-7j) and its two vectors carry that much of
+    the generalized vector. The kernel (numerical rank, numpy's rule) is exact to
+    round-off: both roots are named by the cyclic direction it holds.
+    """
+    _, s, vh = np.linalg.svd(A)
+    null = vh[s <= s.max(initial=0.0) * max(A.shape) * np.finfo(float).eps].conj().T
+    w = null @ (null.conj().T @ v)
+    return w if np.linalg.norm(w) >= 0.5 * np.linalg.norm(v) else v
 
 
 def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
@@ -296,7 +315,7 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     for i, value in enumerate(lam):
         v = V[:, i]
         zero = abs(value) <= 1e-7 * scale
-        coord = dominant(lin, v)
+        coord = dominant(lin, _on_kernel(A, v) if zero else v)
         value = complex(value)
         re = value.real
         kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > tol_im
