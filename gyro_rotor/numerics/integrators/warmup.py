@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Sequence
 
 import numpy as np
 
@@ -43,5 +44,36 @@ def warm_up() -> float:
     return time.perf_counter() - t0
 
 
+def warm_up_live(scenes: Sequence[str]) -> float:
+    """Compile only what rotor_sim runs on ``scenes``: their live stepping; wall seconds.
+
+    The node's defaults (:data:`~gyro_rotor.node_settings.NODE_KEYS`, with and without
+    ``stop_at_t_end``, which may change auto's choice), a tick, a kick and a tick: a copy
+    of the package installed elsewhere (a colcon overlay) then starts its nodes without
+    the JIT compiler, at a fraction of :func:`warm_up`'s cost.
+    """
+    from gyro_rotor.core.scene import load_scene
+    from gyro_rotor.node_settings import NODE_KEYS
+    from gyro_rotor.numerics.live import LiveSimulation
+    t0 = time.perf_counter()
+    for name in scenes:
+        scene = load_scene(name)
+        for stop in (False, True):
+            cfg = {k: spec[1] for k, spec in NODE_KEYS.items()}
+            cfg.update(real_time_factor=0.0, stop_at_t_end=stop)
+            sim = LiveSimulation(scene, cfg, scene.perturbation, budget=None)
+            sim.pacer.t_end = 0.02
+            sim.tick()
+            sim.perturb()
+            sim.pacer.t_end = 0.04
+            sim.tick()
+    return time.perf_counter() - t0
+
+
 if __name__ == '__main__':
-    print(f'gyro_rotor: integrator kernels ready ({warm_up():.1f} s)', file=sys.stderr)
+    # python -m gyro_rotor.numerics.integrators.warmup [--live SCENE ...]
+    if sys.argv[1:2] == ['--live']:
+        print(f'gyro_rotor: live kernels ready ({warm_up_live(sys.argv[2:]):.1f} s)',
+              file=sys.stderr)
+    else:
+        print(f'gyro_rotor: integrator kernels ready ({warm_up():.1f} s)', file=sys.stderr)
