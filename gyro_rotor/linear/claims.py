@@ -49,7 +49,7 @@ import math
 
 from gyro_rotor.linear.roundoff import floor, resolution
 import numpy as np
-import scipy.linalg as sla
+from scipy.linalg import lapack
 from scipy.optimize import brentq, linear_sum_assignment
 
 __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
@@ -173,6 +173,61 @@ class ClaimsResult:
     def K_D_star(self) -> list:
         """Return every K where a pair meets on the real axis, increasing."""
         return [mt.K_D for mt in self.meetings]
+
+
+# -- double-precision kernels of the continuation (thousands of small calls) -----------------
+_GEEV = lapack.get_lapack_funcs(('geev', 'geev_lwork'), (np.zeros((1, 1)),))
+_LWORK: dict = {}
+_I = np.array(1j, dtype='F')
+
+
+def _complex_vectors(w: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Complex eigenvectors from LAPACK's real pairs (column i +- i column i+1), as scipy.
+
+    The same arithmetic as ``scipy.linalg.eig`` (``_make_complex_eigvecs``), one array
+    operation for all the pairs instead of a Python loop over them.
+    """
+    out = np.array(v, dtype=complex)
+    m = w.imag > 0
+    m[:-1] |= w.imag[1:] < 0
+    idx = np.flatnonzero(m)
+    if np.any(np.diff(idx) == 1):       # never from LAPACK; scipy's own loop then
+        for i in idx:
+            out.imag[:, i] = v[:, i + 1]
+            np.conj(out[:, i], out[:, i + 1])
+        return out
+    out.imag[:, idx] = v[:, idx + 1]
+    out[:, idx + 1] = out[:, idx].conj()
+    return out
+
+
+def _eig_lr(A: np.ndarray) -> tuple:
+    """Return ``scipy.linalg.eig(A, left=True, right=True)`` of a real A, bit for bit.
+
+    The same LAPACK call (dgeev, the same workspace), without scipy's per-call checks and
+    its loop over conjugate pairs: the continuation (:func:`track`) calls it for every
+    trial step.
+    """
+    A = np.asarray(A, dtype=float)
+    if not np.isfinite(A).all():
+        raise ValueError('array must not contain infs or NaNs')
+    n = A.shape[0]
+    geev, geev_lwork = _GEEV
+    lwork = _LWORK.get(n)
+    if lwork is None:
+        lwork = _LWORK[n] = lapack._compute_lwork(geev_lwork, n, compute_vl=1, compute_vr=1)
+    wr, wi, vl, vr, info = geev(A, lwork=lwork, compute_vl=1, compute_vr=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'eig algorithm (geev) failed: info = {info}')
+    w = wr + _I * wi
+    if not np.all(w.imag == 0.0):
+        vl, vr = _complex_vectors(w, vl), _complex_vectors(w, vr)
+    return w, vl, vr
+
+
+def _norm2(A: np.ndarray) -> float:
+    """Return ``np.linalg.norm(A, 2)`` (the largest singular value) without its wrapper."""
+    return np.linalg.svd(A, compute_uv=False).max()
 
 
 # -- the subspace that does not move with K -------------------------------------------------
@@ -312,20 +367,20 @@ class _Roots:
         """Return (roots, left, right eigenvectors) at K (vectors None if not asked)."""
         A = self.A(K)
         if vectors:
-            lam, yl, xr = sla.eig(A, left=True, right=True)
+            lam, yl, xr = _eig_lr(A)
         else:
             lam, yl, xr = np.linalg.eigvals(A), None, None
         if self.inv is None or K <= self.K_inv:
             return lam, yl, xr
         Ai = self._inverse(K)
         if vectors:
-            mu, yl_i, xr_i = sla.eig(Ai, left=True, right=True)
+            mu, yl_i, xr_i = _eig_lr(Ai)
         else:
             mu, yl_i, xr_i = np.linalg.eigvals(Ai), None, None
         with np.errstate(divide='ignore'):
             lam_i = 1.0 / mu
         r, c = linear_sum_assignment(np.abs(lam[:, None] - lam_i[None, :]))
-        nA, nAi = np.linalg.norm(A, 2), np.linalg.norm(Ai, 2)
+        nA, nAi = _norm2(A), _norm2(Ai)
         take = nAi * np.abs(lam[r]) ** 2 < nA
         lam = lam.astype(complex)
         lam[r[take]] = lam_i[c[take]]
@@ -367,7 +422,7 @@ def _branch_K(A0, B, C, lam: float, K_near: float) -> tuple:
     X = np.linalg.solve(L, B)
     G = C @ X
     Gp = -C @ np.linalg.solve(L, X)
-    mu, wl, ur = sla.eig(G, left=True, right=True)
+    mu, wl, ur = _eig_lr(G)
     best = None
     for i, z in enumerate(mu):
         if abs(z.imag) > 1e-9 * abs(z) or z.real >= 0:
@@ -439,8 +494,8 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
 
 def _floor(R: _Roots, K: float, lam: np.ndarray) -> np.ndarray:
     """Round-off of each root at K: of A(K), or of A(K)^-1 for the roots taken from it."""
-    nA = np.linalg.norm(R.A(K), 2)
-    nAi = np.linalg.norm(R._inverse(K), 2) if R.inv is not None else np.inf
+    nA = _norm2(R.A(K))
+    nAi = _norm2(R._inverse(K)) if R.inv is not None else np.inf
     with np.errstate(invalid='ignore'):     # a root at 0 (K_S = 0) has no round-off: 0
         return 1e4 * _EPS * np.nan_to_num(np.minimum(nA, nAi * np.abs(lam) ** 2))
 
@@ -800,6 +855,14 @@ def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
                           'reached': len(lam), 'failing': [_fmt(lam[i]) for i in bad]}, exc)
 
 
+#: the statements of claims (c) and (d) (also when they are not applicable)
+_STATEMENT = {
+    'c': 'K_D -> infinity: m roots to -infinity, m to 0, the rest to the spectrum of the locked '
+         'system',
+    'd': 'every pair meeting on the negative real axis found, with its kind; net, m pairs meet '
+         '(one per drive)'}
+
+
 def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
     """Check (c) on the moving part at K1 and 10 K1 (the asymptotic regime).
 
@@ -850,8 +913,7 @@ def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
               f'(like 1/K_D: {"yes" if np.all(conv) else "NO"}); fast root(s) -K_D '
               + ', '.join(f'{g:.6g}' for g in gains) + f' ({"ok" if fast_ok else "NOT"}); '
               f'roots to 0 like 1/K_D: {to_zero} (drives: {m})')
-    return Claim('c', 'K_D -> infinity: m roots to -infinity, m to 0, the rest to the spectrum '
-                 'of the locked system', holds, detail,
+    return Claim('c', _STATEMENT['c'], holds, detail,
                  {'locked_re': full.real.tolist(), 'locked_im': full.imag.tolist(),
                   'distance': [float(d1.max(initial=0)) / scale,
                                float(d2.max(initial=0)) / scale],
@@ -870,8 +932,7 @@ def _claim_d(loc: Locus, m: int) -> Claim:
               + f'; net {net} (break-ins minus breakaways), real roots {loc.real_counts[0]} at '
               f'K_D = {loc.K[0]:.3g} and {loc.real_counts[-1]} at {loc.K[-1]:.3g} '
               f'(net {counted}); drives: {m}')
-    return Claim('d', 'every pair meeting on the negative real axis found, with its kind; net, '
-                 'm pairs meet (one per drive)', holds, detail,
+    return Claim('d', _STATEMENT['d'], holds, detail,
                  {'K_D_star': [mt.K_D for mt in loc.meetings],
                   'lambda_star': [mt.lam for mt in loc.meetings],
                   'kinds': [str(mt.kind) for mt in loc.meetings], 'net_meetings': net,
@@ -915,18 +976,23 @@ def check(sys: DriveSystem) -> ClaimsResult:
     b = _claim_b(sys, U, V, lam_fixed, n_zero)
     # (c), (d): the locus of the varied drives, on its moving part
     A0l, Bl, Cl = sys.locus_pieces()
-    Ul, Vl = split(A0l, Cl)
+    # varying every drive, A0' and C_v are A0 and C: the same fixed subspace (40 digits)
+    same = np.array_equal(A0l, A0) and np.array_equal(Cl, C)
+    Ul, Vl = (U, V) if same else split(A0l, Cl)
     A0v, Bv, Cv = Vl.T @ A0l @ Vl, Vl.T @ Bl, Cl @ Vl
     loc = track(A0v, Bv, Cv)
-    scale = max(float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=0.0)), 1e-300)
-    fixed_l = np.linalg.eigvals(Ul.T @ A0l @ Ul) if Ul.shape[1] else np.zeros(0, complex)
-    c = _claim_c(A0v, Bv, Cv, float(loc.K[-1]), scale, fixed_l)
-    d = _claim_d(loc, sys.drives)
     cyclic = [k for k in cyclic_drives(A0, C) if k in sys.vary]
     if cyclic:
-        c = _not_applicable('c', c.statement, cyclic)
-        d = _not_applicable('d', d.statement, cyclic)
+        # outside the theorem: (c) and (d) are not computed, only said so
+        c = _not_applicable('c', _STATEMENT['c'], cyclic)
+        d = _not_applicable('d', _STATEMENT['d'], cyclic)
         loc = dataclasses.replace(loc, meetings=())
+    else:
+        scale = max(float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=0.0)), 1e-300)
+        fixed_l = (np.linalg.eigvals(Ul.T @ A0l @ Ul) if Ul.shape[1]
+                   else np.zeros(0, complex))
+        c = _claim_c(A0v, Bv, Cv, float(loc.K[-1]), scale, fixed_l)
+        d = _claim_d(loc, sys.drives)
     un = lam_fixed[np.argsort(np.abs(lam_fixed))[n_zero:]] if lam_fixed.size else lam_fixed
     return ClaimsResult(claims={'a': a, 'b': b, 'c': c, 'd': d}, meetings=loc.meetings,
                         locus=loc, structural_zero_roots=n_zero, unreached=un)
