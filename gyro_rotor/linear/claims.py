@@ -181,31 +181,21 @@ _LWORK: dict = {}
 _I = np.array(1j, dtype='F')
 
 
-def _complex_vectors(w: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Complex eigenvectors from LAPACK's real pairs (column i +- i column i+1), as scipy.
-
-    The same arithmetic as ``scipy.linalg.eig`` (``_make_complex_eigvecs``), one array
-    operation for all the pairs instead of a Python loop over them.
-    """
-    out = np.array(v, dtype=complex)
-    m = w.imag > 0
-    m[:-1] |= w.imag[1:] < 0
-    idx = np.flatnonzero(m)
-    if np.any(np.diff(idx) == 1):       # never from LAPACK; scipy's own loop then
-        for i in idx:
-            out.imag[:, i] = v[:, i + 1]
-            np.conj(out[:, i], out[:, i + 1])
-        return out
-    out.imag[:, idx] = v[:, idx + 1]
-    out[:, idx + 1] = out[:, idx].conj()
+def _complex_pairs(v: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Complex eigenvectors from LAPACK's real pairs: column i +- i column i+1 (i in idx)."""
+    out = v.astype(complex)
+    nxt = idx + 1
+    out.imag[:, idx] = v[:, nxt]
+    out[:, nxt] = out[:, idx].conj()
     return out
 
 
 def _eig_lr(A: np.ndarray) -> tuple:
     """Return ``scipy.linalg.eig(A, left=True, right=True)`` of a real A, bit for bit.
 
-    The same LAPACK call (dgeev, the same workspace), without scipy's per-call checks and
-    its loop over conjugate pairs: the continuation (:func:`track`) calls it for every
+    The same LAPACK call (dgeev, the same workspace) and the same arithmetic on its output
+    (scipy's ``_make_complex_eigvecs``), without scipy's per-call checks and its Python
+    loop over the conjugate pairs: the continuation (:func:`track`) calls it for every
     trial step.
     """
     A = np.asarray(A, dtype=float)
@@ -220,8 +210,19 @@ def _eig_lr(A: np.ndarray) -> tuple:
     if info != 0:
         raise np.linalg.LinAlgError(f'eig algorithm (geev) failed: info = {info}')
     w = wr + _I * wi
-    if not np.all(w.imag == 0.0):
-        vl, vr = _complex_vectors(w, vl), _complex_vectors(w, vr)
+    if wi.any():                        # Im w is wi: complex vectors, as scipy makes them
+        m = wi > 0
+        m[:-1] |= wi[1:] < 0
+        idx = m.nonzero()[0]
+        if (m[:-1] & m[1:]).any():      # never from LAPACK: scipy's own loop then
+            def loop(v):
+                out = v.astype(complex)
+                for i in idx:
+                    out.imag[:, i] = v[:, i + 1]
+                    np.conj(out[:, i], out[:, i + 1])
+                return out
+            return w, loop(vl), loop(vr)
+        vl, vr = _complex_pairs(vl, idx), _complex_pairs(vr, idx)
     return w, vl, vr
 
 
@@ -248,7 +249,10 @@ def _null_fine(M, scale: float):
     import mpmath
     if M.rows == 0 or M.cols == 0:
         return mpmath.eye(M.cols)
-    _, s, vt = mpmath.svd_r(M, full_matrices=True)
+    # a tall M: the thin SVD, whose S and V are those of the full one bit for bit (mpmath
+    # pads M with zero columns for the full one; their Householder steps and rotations are
+    # exact no-ops), without its M.rows x M.rows U and V
+    _, s, vt = mpmath.svd_r(M, full_matrices=M.rows <= M.cols)
     rank = sum(1 for x in s if x > ZERO_RTOL * scale)
     return vt[rank:, :].T if rank < M.cols else mpmath.matrix(M.cols, 0)
 
@@ -380,8 +384,7 @@ class _Roots:
         with np.errstate(divide='ignore'):
             lam_i = 1.0 / mu
         r, c = linear_sum_assignment(np.abs(lam[:, None] - lam_i[None, :]))
-        nA, nAi = _norm2(A), _norm2(Ai)
-        take = nAi * np.abs(lam[r]) ** 2 < nA
+        take = _better_inverse(A, Ai, np.abs(lam[r]) ** 2)
         lam = lam.astype(complex)
         lam[r[take]] = lam_i[c[take]]
         if vectors:
@@ -389,6 +392,23 @@ class _Roots:
             yl[:, r[take]] = yl_i[:, c[take]]
             xr[:, r[take]] = xr_i[:, c[take]]
         return lam, yl, xr
+
+
+def _better_inverse(A: np.ndarray, Ai: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Return ||A^-1||_2 x < ||A||_2 (x = |lambda|^2: the root is better from A^-1).
+
+    Decided by the Frobenius norms where they suffice (||M||_2 <= ||M||_F <= sqrt(N)
+    ||M||_2, a margin of 1e-9 for their round-off), the 2-norms (an SVD each) computed
+    only for a root in between: the same answer as the 2-norms give, at every step of the
+    continuation.
+    """
+    fA, fAi = np.linalg.norm(A), np.linalg.norm(Ai)
+    k = math.sqrt(len(A)) * (1 + 1e-9)
+    lhs = fAi * x
+    yes, no = lhs * k < fA, lhs >= fA * k
+    if np.all(yes | no):
+        return yes
+    return _norm2(Ai) * x < _norm2(A)
 
 
 def _velocity(lam, yl, xr, BC) -> np.ndarray:
