@@ -562,13 +562,18 @@ def _asymptotic(R: _Roots, K: float, m: int) -> bool:
                 and _settled(s1, s2, fs1, fs2, 0.1, 0.01))
 
 
-def _ends(R: _Roots, K_ref) -> tuple:
-    """K range of the continuation: every meeting lies inside it (module doc of :func:`track`)."""
+def _ends(R: _Roots, K_ref, regime: bool = True) -> tuple:
+    """K range of the continuation: every meeting lies inside it (module doc of :func:`track`).
+
+    ``regime`` False: the end is not searched for (:func:`track`): 1e6 K_ref.
+    """
     lo = 1e-6 * K_ref
     for _ in range(20):
         if not len(R.A0) or not np.any(_is_real(R(lo, vectors=False)[0])):
             break
         lo *= 1e-2
+    if not regime:
+        return lo, 1e6 * K_ref
     hi = 1e4 * K_ref
     for _ in range(30):
         if _asymptotic(R, hi, R.B.shape[1]):
@@ -647,7 +652,7 @@ def _add(meetings: list, mt: Meeting | None) -> bool:
 
 
 def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = None,
-          K_hi: float | None = None, max_steps: int = 200000) -> Locus:
+          K_hi: float | None = None, max_steps: int = 200000, regime: bool = True) -> Locus:
     """Follow the roots of A0 - K B C over K in [K_lo, K_hi] and find every meeting.
 
     A0, B, C must have no fixed root (use the complement of :func:`fixed_subspace`). The
@@ -658,11 +663,19 @@ def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = Non
     it; a pair that changes between real and complex within a step is solved from the side
     where it is real. The default ends: from where no root is real yet to where the m fast
     and m slow roots are real and far from the rest (the asymptotic regime of claim (c)).
+    ``regime`` False (a varied drive without stiffness, K_S = 0: there is no such regime,
+    claim (c) is not applicable): the end is not searched for, the default is 1e6 K_ref,
+    K_ref = (spectral radius of A0) / max |eig(C B)|, two decades past where the search
+    starts (and past the end of the ``locus`` command's default grid). Searched for
+    without a regime, the end went to 1e34 K_ref; with A0 singular the root that stays at
+    0 is computed from A(K) alone, its round-off eps ||A(K)|| grows like K, and the step
+    stalled below 1e-14 for all ``max_steps`` (at K = 3e13 for twin_gimbal with drive
+    R2's K_S = 0: 200 s). ``K_hi`` given: no search either.
     """
     R = _Roots(A0, B, C)
     scale = max(float(np.max(np.abs(np.linalg.eigvals(A0)), initial=0.0)), 1e-300)
     gain = float(np.max(np.abs(np.linalg.eigvals(C @ B)))) if len(B.T) else 1.0
-    lo_d, hi_d = _ends(R, scale / max(gain, 1e-300))
+    lo_d, hi_d = _ends(R, scale / max(gain, 1e-300), regime and K_hi is None)
     K = lo_d if K_lo is None else K_lo
     K_end = hi_d if K_hi is None else K_hi
     h = h_max = math.log(10.0) / 8
@@ -1000,8 +1013,8 @@ def check(sys: DriveSystem) -> ClaimsResult:
     same = np.array_equal(A0l, A0) and np.array_equal(Cl, C)
     Ul, Vl = (U, V) if same else split(A0l, Cl)
     A0v, Bv, Cv = Vl.T @ A0l @ Vl, Vl.T @ Bl, Cl @ Vl
-    loc = track(A0v, Bv, Cv)
     cyclic = [k for k in cyclic_drives(A0, C) if k in sys.vary]
+    loc = track(A0v, Bv, Cv, regime=not cyclic)
     if cyclic:
         # outside the theorem: (c) and (d) are not computed, only said so
         c = _not_applicable('c', _STATEMENT['c'], cyclic)
