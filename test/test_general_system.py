@@ -564,10 +564,12 @@ def test_eig_json_has_eigenvalues_and_reached(tmp_path):
 
 
 def test_zero_roots_of_cyclic_coordinates_are_named():
-    """centrifuge_euler's potential holds psi and phi_M only as phi_M + psi: one cyclic
-    direction (psi at fixed phi_M + psi), whose two zero roots are one Jordan block (its
-    shift and its neighbouring steady motions; the quaternion model drops psi and keeps the
-    second, 'zero root (cyclic psi)'). Both are named by it, as the kernel of A0 holds it.
+    """Name both zero roots of centrifuge_euler's one cyclic direction after psi.
+
+    Its potential holds psi and phi_M only as phi_M + psi: one cyclic direction (psi at
+    fixed phi_M + psi), whose two zero roots are one Jordan block (its shift and its
+    neighbouring steady motions; the quaternion model drops psi and keeps the second,
+    'zero root (cyclic psi)'). Both are named by it, as the kernel of A0 holds it.
     """
     lin = linearize_scene(load_scene('centrifuge_euler'))
     ms = modes(lin)
