@@ -93,7 +93,10 @@ def bisect_meeting(sys, lo, hi, lam):
 
 
 # -- properties over random valid systems ------------------------------------------------------
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# 100 examples fit about 90 s: an example costs 0.62 s of cpu, 0.72-0.87 s wall on the 2
+# shared cores (load 4), after the checker's continuation kernels were made cheaper (1.34 s
+# wall before: 300 examples took 403 s, then 216 s; 120 took 105 s).
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 4), m=st.integers(1, 3))
 def test_claims_hold_on_every_random_valid_system(seed, n, m):
     res = cl.check(random_system(seed, n, m))

@@ -49,7 +49,7 @@ import math
 
 from gyro_rotor.linear.roundoff import floor, resolution
 import numpy as np
-import scipy.linalg as sla
+from scipy.linalg import lapack
 from scipy.optimize import brentq, linear_sum_assignment
 
 __all__ = ['DriveSystem', 'Claim', 'Meeting', 'MeetingKind', 'ClaimsResult', 'Locus',
@@ -175,6 +175,62 @@ class ClaimsResult:
         return [mt.K_D for mt in self.meetings]
 
 
+# -- double-precision kernels of the continuation (thousands of small calls) -----------------
+_GEEV = lapack.get_lapack_funcs(('geev', 'geev_lwork'), (np.zeros((1, 1)),))
+_LWORK: dict = {}
+_I = np.array(1j, dtype='F')
+
+
+def _complex_pairs(v: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Complex eigenvectors from LAPACK's real pairs: column i +- i column i+1 (i in idx)."""
+    out = v.astype(complex)
+    nxt = idx + 1
+    out.imag[:, idx] = v[:, nxt]
+    out[:, nxt] = out[:, idx].conj()
+    return out
+
+
+def _eig_lr(A: np.ndarray) -> tuple:
+    """Return ``scipy.linalg.eig(A, left=True, right=True)`` of a real A, bit for bit.
+
+    The same LAPACK call (dgeev, the same workspace) and the same arithmetic on its output
+    (scipy's ``_make_complex_eigvecs``), without scipy's per-call checks and its Python
+    loop over the conjugate pairs: the continuation (:func:`track`) calls it for every
+    trial step.
+    """
+    A = np.asarray(A, dtype=float)
+    if not np.isfinite(A).all():
+        raise ValueError('array must not contain infs or NaNs')
+    n = A.shape[0]
+    geev, geev_lwork = _GEEV
+    lwork = _LWORK.get(n)
+    if lwork is None:
+        lwork = _LWORK[n] = lapack._compute_lwork(geev_lwork, n, compute_vl=1, compute_vr=1)
+    wr, wi, vl, vr, info = geev(A, lwork=lwork, compute_vl=1, compute_vr=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'eig algorithm (geev) failed: info = {info}')
+    w = wr + _I * wi
+    if wi.any():                        # Im w is wi: complex vectors, as scipy makes them
+        m = wi > 0
+        m[:-1] |= wi[1:] < 0
+        idx = m.nonzero()[0]
+        if (m[:-1] & m[1:]).any():      # never from LAPACK: scipy's own loop then
+            def loop(v):
+                out = v.astype(complex)
+                for i in idx:
+                    out.imag[:, i] = v[:, i + 1]
+                    np.conj(out[:, i], out[:, i + 1])
+                return out
+            return w, loop(vl), loop(vr)
+        vl, vr = _complex_pairs(vl, idx), _complex_pairs(vr, idx)
+    return w, vl, vr
+
+
+def _norm2(A: np.ndarray) -> float:
+    """Return ``np.linalg.norm(A, 2)`` (the largest singular value) without its wrapper."""
+    return np.linalg.svd(A, compute_uv=False).max()
+
+
 # -- the subspace that does not move with K -------------------------------------------------
 def _null(M: np.ndarray, scale: float) -> np.ndarray:
     """Orthonormal basis of the null space of M (singular values <= RANK_RTOL * scale)."""
@@ -193,7 +249,10 @@ def _null_fine(M, scale: float):
     import mpmath
     if M.rows == 0 or M.cols == 0:
         return mpmath.eye(M.cols)
-    _, s, vt = mpmath.svd_r(M, full_matrices=True)
+    # a tall M: the thin SVD, whose S and V are those of the full one bit for bit (mpmath
+    # pads M with zero columns for the full one; their Householder steps and rotations are
+    # exact no-ops), without its M.rows x M.rows U and V
+    _, s, vt = mpmath.svd_r(M, full_matrices=M.rows <= M.cols)
     rank = sum(1 for x in s if x > ZERO_RTOL * scale)
     return vt[rank:, :].T if rank < M.cols else mpmath.matrix(M.cols, 0)
 
@@ -312,21 +371,20 @@ class _Roots:
         """Return (roots, left, right eigenvectors) at K (vectors None if not asked)."""
         A = self.A(K)
         if vectors:
-            lam, yl, xr = sla.eig(A, left=True, right=True)
+            lam, yl, xr = _eig_lr(A)
         else:
             lam, yl, xr = np.linalg.eigvals(A), None, None
         if self.inv is None or K <= self.K_inv:
             return lam, yl, xr
         Ai = self._inverse(K)
         if vectors:
-            mu, yl_i, xr_i = sla.eig(Ai, left=True, right=True)
+            mu, yl_i, xr_i = _eig_lr(Ai)
         else:
             mu, yl_i, xr_i = np.linalg.eigvals(Ai), None, None
         with np.errstate(divide='ignore'):
             lam_i = 1.0 / mu
         r, c = linear_sum_assignment(np.abs(lam[:, None] - lam_i[None, :]))
-        nA, nAi = np.linalg.norm(A, 2), np.linalg.norm(Ai, 2)
-        take = nAi * np.abs(lam[r]) ** 2 < nA
+        take = _better_inverse(A, Ai, np.abs(lam[r]) ** 2)
         lam = lam.astype(complex)
         lam[r[take]] = lam_i[c[take]]
         if vectors:
@@ -334,6 +392,23 @@ class _Roots:
             yl[:, r[take]] = yl_i[:, c[take]]
             xr[:, r[take]] = xr_i[:, c[take]]
         return lam, yl, xr
+
+
+def _better_inverse(A: np.ndarray, Ai: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Return ||A^-1||_2 x < ||A||_2 (x = |lambda|^2: the root is better from A^-1).
+
+    Decided by the Frobenius norms where they suffice (||M||_2 <= ||M||_F <= sqrt(N)
+    ||M||_2, a margin of 1e-9 for their round-off), the 2-norms (an SVD each) computed
+    only for a root in between: the same answer as the 2-norms give, at every step of the
+    continuation.
+    """
+    fA, fAi = np.linalg.norm(A), np.linalg.norm(Ai)
+    k = math.sqrt(len(A)) * (1 + 1e-9)
+    lhs = fAi * x
+    yes, no = lhs * k < fA, lhs >= fA * k
+    if np.all(yes | no):
+        return yes
+    return _norm2(Ai) * x < _norm2(A)
 
 
 def _velocity(lam, yl, xr, BC) -> np.ndarray:
@@ -367,7 +442,7 @@ def _branch_K(A0, B, C, lam: float, K_near: float) -> tuple:
     X = np.linalg.solve(L, B)
     G = C @ X
     Gp = -C @ np.linalg.solve(L, X)
-    mu, wl, ur = sla.eig(G, left=True, right=True)
+    mu, wl, ur = _eig_lr(G)
     best = None
     for i, z in enumerate(mu):
         if abs(z.imag) > 1e-9 * abs(z) or z.real >= 0:
@@ -439,8 +514,8 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
 
 def _floor(R: _Roots, K: float, lam: np.ndarray) -> np.ndarray:
     """Round-off of each root at K: of A(K), or of A(K)^-1 for the roots taken from it."""
-    nA = np.linalg.norm(R.A(K), 2)
-    nAi = np.linalg.norm(R._inverse(K), 2) if R.inv is not None else np.inf
+    nA = _norm2(R.A(K))
+    nAi = _norm2(R._inverse(K)) if R.inv is not None else np.inf
     with np.errstate(invalid='ignore'):     # a root at 0 (K_S = 0) has no round-off: 0
         return 1e4 * _EPS * np.nan_to_num(np.minimum(nA, nAi * np.abs(lam) ** 2))
 
@@ -487,13 +562,18 @@ def _asymptotic(R: _Roots, K: float, m: int) -> bool:
                 and _settled(s1, s2, fs1, fs2, 0.1, 0.01))
 
 
-def _ends(R: _Roots, K_ref) -> tuple:
-    """K range of the continuation: every meeting lies inside it (module doc of :func:`track`)."""
+def _ends(R: _Roots, K_ref, regime: bool = True) -> tuple:
+    """K range of the continuation: every meeting lies inside it (module doc of :func:`track`).
+
+    ``regime`` False: the end is not searched for (:func:`track`): 1e6 K_ref.
+    """
     lo = 1e-6 * K_ref
     for _ in range(20):
         if not len(R.A0) or not np.any(_is_real(R(lo, vectors=False)[0])):
             break
         lo *= 1e-2
+    if not regime:
+        return lo, 1e6 * K_ref
     hi = 1e4 * K_ref
     for _ in range(30):
         if _asymptotic(R, hi, R.B.shape[1]):
@@ -572,7 +652,7 @@ def _add(meetings: list, mt: Meeting | None) -> bool:
 
 
 def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = None,
-          K_hi: float | None = None, max_steps: int = 200000) -> Locus:
+          K_hi: float | None = None, max_steps: int = 200000, regime: bool = True) -> Locus:
     """Follow the roots of A0 - K B C over K in [K_lo, K_hi] and find every meeting.
 
     A0, B, C must have no fixed root (use the complement of :func:`fixed_subspace`). The
@@ -583,11 +663,19 @@ def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = Non
     it; a pair that changes between real and complex within a step is solved from the side
     where it is real. The default ends: from where no root is real yet to where the m fast
     and m slow roots are real and far from the rest (the asymptotic regime of claim (c)).
+    ``regime`` False (a varied drive without stiffness, K_S = 0: there is no such regime,
+    claim (c) is not applicable): the end is not searched for, the default is 1e6 K_ref,
+    K_ref = (spectral radius of A0) / max |eig(C B)|, two decades past where the search
+    starts (and past the end of the ``locus`` command's default grid). Searched for
+    without a regime, the end went to 1e34 K_ref; with A0 singular the root that stays at
+    0 is computed from A(K) alone, its round-off eps ||A(K)|| grows like K, and the step
+    stalled below 1e-14 for all ``max_steps`` (at K = 3e13 for twin_gimbal with drive
+    R2's K_S = 0: 200 s). ``K_hi`` given: no search either.
     """
     R = _Roots(A0, B, C)
     scale = max(float(np.max(np.abs(np.linalg.eigvals(A0)), initial=0.0)), 1e-300)
     gain = float(np.max(np.abs(np.linalg.eigvals(C @ B)))) if len(B.T) else 1.0
-    lo_d, hi_d = _ends(R, scale / max(gain, 1e-300))
+    lo_d, hi_d = _ends(R, scale / max(gain, 1e-300), regime and K_hi is None)
     K = lo_d if K_lo is None else K_lo
     K_end = hi_d if K_hi is None else K_hi
     h = h_max = math.log(10.0) / 8
@@ -800,6 +888,14 @@ def _claim_b(sys: DriveSystem, U, V, lam_fixed, n_zero: int) -> Claim:
                           'reached': len(lam), 'failing': [_fmt(lam[i]) for i in bad]}, exc)
 
 
+#: the statements of claims (c) and (d) (also when they are not applicable)
+_STATEMENT = {
+    'c': 'K_D -> infinity: m roots to -infinity, m to 0, the rest to the spectrum of the locked '
+         'system',
+    'd': 'every pair meeting on the negative real axis found, with its kind; net, m pairs meet '
+         '(one per drive)'}
+
+
 def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
     """Check (c) on the moving part at K1 and 10 K1 (the asymptotic regime).
 
@@ -850,8 +946,7 @@ def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
               f'(like 1/K_D: {"yes" if np.all(conv) else "NO"}); fast root(s) -K_D '
               + ', '.join(f'{g:.6g}' for g in gains) + f' ({"ok" if fast_ok else "NOT"}); '
               f'roots to 0 like 1/K_D: {to_zero} (drives: {m})')
-    return Claim('c', 'K_D -> infinity: m roots to -infinity, m to 0, the rest to the spectrum '
-                 'of the locked system', holds, detail,
+    return Claim('c', _STATEMENT['c'], holds, detail,
                  {'locked_re': full.real.tolist(), 'locked_im': full.imag.tolist(),
                   'distance': [float(d1.max(initial=0)) / scale,
                                float(d2.max(initial=0)) / scale],
@@ -870,8 +965,7 @@ def _claim_d(loc: Locus, m: int) -> Claim:
               + f'; net {net} (break-ins minus breakaways), real roots {loc.real_counts[0]} at '
               f'K_D = {loc.K[0]:.3g} and {loc.real_counts[-1]} at {loc.K[-1]:.3g} '
               f'(net {counted}); drives: {m}')
-    return Claim('d', 'every pair meeting on the negative real axis found, with its kind; net, '
-                 'm pairs meet (one per drive)', holds, detail,
+    return Claim('d', _STATEMENT['d'], holds, detail,
                  {'K_D_star': [mt.K_D for mt in loc.meetings],
                   'lambda_star': [mt.lam for mt in loc.meetings],
                   'kinds': [str(mt.kind) for mt in loc.meetings], 'net_meetings': net,
@@ -915,18 +1009,23 @@ def check(sys: DriveSystem) -> ClaimsResult:
     b = _claim_b(sys, U, V, lam_fixed, n_zero)
     # (c), (d): the locus of the varied drives, on its moving part
     A0l, Bl, Cl = sys.locus_pieces()
-    Ul, Vl = split(A0l, Cl)
+    # varying every drive, A0' and C_v are A0 and C: the same fixed subspace (40 digits)
+    same = np.array_equal(A0l, A0) and np.array_equal(Cl, C)
+    Ul, Vl = (U, V) if same else split(A0l, Cl)
     A0v, Bv, Cv = Vl.T @ A0l @ Vl, Vl.T @ Bl, Cl @ Vl
-    loc = track(A0v, Bv, Cv)
-    scale = max(float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=0.0)), 1e-300)
-    fixed_l = np.linalg.eigvals(Ul.T @ A0l @ Ul) if Ul.shape[1] else np.zeros(0, complex)
-    c = _claim_c(A0v, Bv, Cv, float(loc.K[-1]), scale, fixed_l)
-    d = _claim_d(loc, sys.drives)
     cyclic = [k for k in cyclic_drives(A0, C) if k in sys.vary]
+    loc = track(A0v, Bv, Cv, regime=not cyclic)
     if cyclic:
-        c = _not_applicable('c', c.statement, cyclic)
-        d = _not_applicable('d', d.statement, cyclic)
+        # outside the theorem: (c) and (d) are not computed, only said so
+        c = _not_applicable('c', _STATEMENT['c'], cyclic)
+        d = _not_applicable('d', _STATEMENT['d'], cyclic)
         loc = dataclasses.replace(loc, meetings=())
+    else:
+        scale = max(float(np.max(np.abs(np.linalg.eigvals(A0v)), initial=0.0)), 1e-300)
+        fixed_l = (np.linalg.eigvals(Ul.T @ A0l @ Ul) if Ul.shape[1]
+                   else np.zeros(0, complex))
+        c = _claim_c(A0v, Bv, Cv, float(loc.K[-1]), scale, fixed_l)
+        d = _claim_d(loc, sys.drives)
     un = lam_fixed[np.argsort(np.abs(lam_fixed))[n_zero:]] if lam_fixed.size else lam_fixed
     return ClaimsResult(claims={'a': a, 'b': b, 'c': c, 'd': d}, meetings=loc.meetings,
                         locus=loc, structural_zero_roots=n_zero, unreached=un)
