@@ -12,7 +12,7 @@ if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && [ -x "$venv/bin/python"
   exit 0
 fi
 t0=$SECONDS
-echo "bootstrap: setting up $venv (the first run took about 2 minutes on a 2-core VM)" >&2
+echo "bootstrap: setting up $venv (the first run takes about 6 to 7 minutes on a quiet 2-core machine, most of it numba compiling)" >&2
 if [ ! -x "$venv/bin/python" ]; then
   "$python" -m venv "$venv"
 fi

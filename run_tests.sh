@@ -12,4 +12,6 @@ export MPLBACKEND=Agg
 if [ -z "${GYRO_ROTOR_ROSTOOLS:-}" ] && [ -f "$here/.venv/rostools/env.sh" ]; then
   export GYRO_ROTOR_ROSTOOLS="$here/.venv/rostools"
 fi
-exec "$here/.venv/bin/python" -m pytest "$@"
+# the test files on 2 worker processes, each file whole on one (its module-scoped runs are
+# computed once); GYRO_ROTOR_TEST_WORKERS=0 runs them in this process (a later -n wins too)
+exec "$here/.venv/bin/python" -m pytest -n "${GYRO_ROTOR_TEST_WORKERS:-2}" --dist loadfile "$@"
