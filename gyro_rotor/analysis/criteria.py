@@ -200,9 +200,10 @@ def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
     above the noise floor, fitted free (not pulled toward the prediction, see
     :mod:`~gyro_rotor.analysis.decay`), so it is held against (1 - RATE_RTOL) x their
     predicted rate (:meth:`~gyro_rotor.analysis.decay.EnergyFit.shown_decay`), which is
-    2|alpha| (eq. 13: terms exp(2 Re(lambda) t)) where the slowest mode's term shows. A slowest mode too slow for the window is merged into
-    E*_inf (:func:`~gyro_rotor.analysis.decay.fit_energy`): the fast terms' rate is not
-    held against its bound, which it would pass whatever the data. No term showing: NOT YET.
+    2|alpha| (eq. 13: terms exp(2 Re(lambda) t)) where the slowest mode's term shows. A
+    slowest mode too slow for the window is merged into E*_inf
+    (:func:`~gyro_rotor.analysis.decay.fit_energy`): the fast terms' rate is not held
+    against its bound, which it would pass whatever the data. No term showing: NOT YET.
     """
     slowest = fit.shown_decay()
     ref = f'2|alpha| = {full:.4g} 1/s'
