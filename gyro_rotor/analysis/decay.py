@@ -167,9 +167,9 @@ def _n_eff(r: np.ndarray) -> float:
 
 #: points of the coarse search over the free rate (geometric, :data:`RESOLVABLE` / span to
 #: :data:`FREE_SPAN` x the predicted rate), and bisection steps for each end of its interval
-FREE_POINTS = 30
+FREE_POINTS = 20
 FREE_SPAN = 20.0
-_BISECT = 16
+_BISECT = 12
 
 
 #: the common factor of the other terms' rates is searched over 1 / KAPPA_SPAN .. KAPPA_SPAN,
@@ -221,7 +221,7 @@ def _faster_scale(tau: np.ndarray, y: np.ndarray, Q: np.ndarray, group: Sequence
         a, b = math.log(near / 1.5), math.log(near * 1.5)
         best, best_v = near, rss(near)
     else:
-        grid = np.geomspace(1.0 / KAPPA_SPAN, KAPPA_SPAN, 21)
+        grid = np.geomspace(1.0 / KAPPA_SPAN, KAPPA_SPAN, 13)
         vals = [rss(k) for k in grid]
         i = int(np.argmin(vals))
         best, best_v = float(grid[i]), vals[i]
@@ -229,7 +229,7 @@ def _faster_scale(tau: np.ndarray, y: np.ndarray, Q: np.ndarray, group: Sequence
     g = 0.5 * (math.sqrt(5.0) - 1.0)
     c_, d_ = b - g * (b - a), a + g * (b - a)
     fc, fd = rss(math.exp(c_)), rss(math.exp(d_))
-    for _ in range(14):                                    # golden section in log kappa
+    for _ in range(10):                                    # golden section in log kappa
         if fc < fd:
             b, d_, fd = d_, c_, fc
             c_ = b - g * (b - a)
@@ -293,7 +293,7 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
         g = 0.5 * (math.sqrt(5.0) - 1.0)
         c_, d_ = b - g * (b - a), a + g * (b - a)
         fc, fd = fit(math.exp(c_)), fit(math.exp(d_))
-        for _ in range(18):
+        for _ in range(12):
             if fc < fd:
                 b, d_, fd = d_, c_, fc
                 c_ = b - g * (b - a)
@@ -419,8 +419,9 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
                 fixed = still + [complex(kappa * mu.real, mu.imag) for mu in other]
             Xf = np.column_stack(cols + [_basis(tau, fixed)])
             rate, lo, hi, (own, end) = _free_rate(tau, E - E[-1], Xf, group, free, dt, noise)
-            if not math.isfinite(rate) or abs(rate - r) <= 1e-3 * r:
-                break
+            measurable = math.isfinite(rate) and own >= floor and end >= floor
+            if not measurable or abs(rate - r) <= 3e-3 * r:
+                break                       # settled, or not measurable (below)
             r = rate
         if not own >= floor:
             # E_inf, the trend and the other terms mimic these terms but for less than the
