@@ -245,8 +245,12 @@ def _faster_scale(tau: np.ndarray, y: np.ndarray, Q: np.ndarray, group: Sequence
 
 
 def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[complex],
-               rate0: float, dt: float, noise: float) -> tuple[float, float, float]:
-    """Fit the rate of the terms ``group`` free: (rate, lo, hi) in 1/s (module doc).
+               rate0: float, dt: float, noise: float) -> tuple:
+    """Fit the rate of the terms ``group`` free: (rate, interval, shown), rate in 1/s.
+
+    ``interval()`` returns (lo, hi) (module doc), computed only when called: the
+    alternation of :func:`fit_energy` needs it of its last round alone; ``shown`` is the
+    group's part no other column can take and its terms over the window's last fifth (rms).
 
     ``Xf`` holds the columns kept as predicted (E_inf, the trend, the other terms); the
     terms of ``group`` (predicted real part -``rate0``) get the real part -r, their
@@ -282,7 +286,7 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
     if dt > 0:
         r_max = min(r_max, MAX_EXPONENT / dt)
     if not r_max > r_min:
-        return math.nan, math.nan, math.nan, (0.0, 0.0)
+        return math.nan, lambda: (math.nan, math.nan), (0.0, 0.0)
     grid = np.geomspace(r_min, r_max, FREE_POINTS)
     rss = np.array([fit(r) for r in grid])
     k = int(np.argmin(rss))
@@ -322,11 +326,14 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
                 outside = mid
         return inside
 
-    below = [i for i in range(len(grid)) if grid[i] < rate and rss[i] > level]
-    above = [i for i in range(len(grid)) if grid[i] > rate and rss[i] > level]
-    lo = edge(rate, grid[below[-1]]) if below else 0.0
-    hi = edge(rate, grid[above[0]]) if above else math.inf
-    return rate, min(lo, rate), max(hi, rate), shown
+    def interval() -> tuple[float, float]:
+        below = [i for i in range(len(grid)) if grid[i] < rate and rss[i] > level]
+        above = [i for i in range(len(grid)) if grid[i] > rate and rss[i] > level]
+        lo = edge(rate, grid[below[-1]]) if below else 0.0
+        hi = edge(rate, grid[above[0]]) if above else math.inf
+        return min(lo, rate), max(hi, rate)
+
+    return rate, interval, shown
 
 
 def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
@@ -418,11 +425,13 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
             if other:
                 fixed = still + [complex(kappa * mu.real, mu.imag) for mu in other]
             Xf = np.column_stack(cols + [_basis(tau, fixed)])
-            rate, lo, hi, (own, end) = _free_rate(tau, E - E[-1], Xf, group, free, dt, noise)
+            rate, interval, (own, end) = _free_rate(tau, E - E[-1], Xf, group, free, dt,
+                                                    noise)
             measurable = math.isfinite(rate) and own >= floor and end >= floor
             if not measurable or abs(rate - r) <= 3e-3 * r:
                 break                       # settled, or not measurable (below)
             r = rate
+        lo, hi = interval() if own >= floor and end >= floor else (math.nan, math.nan)
         if not own >= floor:
             # E_inf, the trend and the other terms mimic these terms but for less than the
             # noise floor: nothing of them is left to measure a rate from
