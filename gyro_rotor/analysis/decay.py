@@ -279,17 +279,24 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
     y_perp = y - Q @ (Q.T @ y)
 
     trig = _basis(tau, [complex(0.0, mu.imag) for mu in group])    # the group's cos, sin
+    # the group's columns at r are F = e trig, e = exp(-r tau): Q^T F, F^T F and F^T y are
+    # weighted sums over the samples of products that do not depend on r (computed once)
+    m, p = trig.shape[1], Q.shape[1]
+    q_trig = (Q[:, :, None] * trig[:, None, :]).reshape(n, p * m)
+    trig2 = (trig[:, :, None] * trig[:, None, :]).reshape(n, m * m)
+    trig_y = trig * y_perp[:, None]
 
     def fit(r: float, full: bool = False):
-        F = np.exp(-r * tau)[:, None] * trig
-        QF = _tdot(Q, F)
-        c = np.linalg.lstsq(_tdot(F, F) - QF.T @ QF, F.T @ y_perp, rcond=1e-12)[0]
-        if not full:
-            res = y_perp - F @ c + np.einsum('ij,j->i', Q, QF @ c)
-            return float(res @ res)
-        own = F @ c - np.einsum('ij,j->i', Q, QF @ c)
+        e = np.exp(-r * tau)
+        QF = np.einsum('i,ik->k', e, q_trig).reshape(p, m)
+        FF = np.einsum('i,ik->k', e * e, trig2).reshape(m, m)
+        c = np.linalg.lstsq(FF - QF.T @ QF, np.einsum('i,ik->k', e, trig_y), rcond=1e-12)[0]
+        Fc = e * np.einsum('ik,k->i', trig, c)
+        own = Fc - np.einsum('ij,j->i', Q, QF @ c)
         res = y_perp - own
-        return float(res @ res), res, own, F @ c
+        if not full:
+            return float(res @ res)
+        return float(res @ res), res, own, Fc
 
     r_min = RESOLVABLE / max(span, 1e-12)
     r_max = max(FREE_SPAN * rate0, 2.0 * r_min)
