@@ -24,7 +24,7 @@ from gyro_rotor.analysis.verdict import (conjoin, Criterion, CriterionName, deca
 from gyro_rotor.numerics.guard import RELATIVE_LIMIT
 
 __all__ = ['lyapunov', 'energy_balance', 'decay', 'modes', 'data', 'synchronism', 'scene',
-           'FIT_RTOL', 'RATE_RTOL', 'rate_bound', 'mode_line']
+           'FIT_RTOL', 'RATE_RTOL', 'rate_bound', 'mode_line', 'slow_phrase']
 
 #: the fit of E*(t) with the predicted rates must leave at most this rms residual, relative
 #: to the spread of E* over the window (or the noise floor, if that is larger). Measured on
@@ -139,8 +139,10 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
 
     Two tests, each by the rule: the fit of E*(t) with the predicted rates holds (its rms
     residual, with its interval from the number of independent residuals, below
-    :data:`FIT_RTOL` of E*'s spread or the noise floor), and the rate of E* - E*_inf (its
-    interval from :func:`~gyro_rotor.analysis.decay.fit_energy`) is above the bound of the
+    :data:`FIT_RTOL` of E*'s spread or the noise floor; a coarse test: a constant and a line
+    absorb a wrong rate, 0.3 % of the spread for 0.75 K_D on precession), and the rate of
+    E* - E*_inf (that of its slowest shown terms fitted free, with its interval, from
+    :func:`~gyro_rotor.analysis.decay.fit_energy`) is above the bound of the
     predicted terms it shows (:func:`_rate`; :func:`rate_bound` where the slowest mode's term
     shows). E* settled within its noise floor decides nothing (NOT YET), unless
     no mode is predicted to decay (then it is as predicted).
@@ -194,18 +196,19 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
 def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
     """Judge the rate of E* - E*_inf against the terms it shows; (status, text, bound).
 
-    Like with like: the rate is measured where E* - E*_inf is above the noise floor, so it
-    is held against (1 - RATE_RTOL) x the slowest predicted term of E* that shows there
-    (:meth:`~gyro_rotor.analysis.decay.EnergyFit.shown_decay`), which is 2|alpha| where
-    the slowest mode's term shows. A slowest mode too slow for the window is merged into
-    E*_inf (:func:`~gyro_rotor.analysis.decay.fit_energy`): the fast terms' rate is not
-    held against its bound, which it would pass whatever the data. No term showing: NOT YET.
+    Like with like: the rate measured is that of the slowest predicted terms of E* that show
+    above the noise floor, fitted free (not pulled toward the prediction, see
+    :mod:`~gyro_rotor.analysis.decay`), so it is held against (1 - RATE_RTOL) x their
+    predicted rate (:meth:`~gyro_rotor.analysis.decay.EnergyFit.shown_decay`), which is
+    2|alpha| (eq. 13: terms exp(2 Re(lambda) t)) where the slowest mode's term shows. A
+    slowest mode too slow for the window is merged into E*_inf
+    (:func:`~gyro_rotor.analysis.decay.fit_energy`): the fast terms' rate is not held
+    against its bound, which it would pass whatever the data. No term showing: NOT YET.
     """
     slowest = fit.shown_decay()
     ref = f'2|alpha| = {full:.4g} 1/s'
     if full * window_s < RESOLVABLE:
-        ref += (f', too slow to resolve in this {window_s:.3g} s window: needs about '
-                f'{RESOLVABLE / full:.3g} s')
+        ref += f', {slow_phrase(full, window_s)}'
     bound = (1.0 - RATE_RTOL) * slowest
     factor = '2|alpha|' if slowest == full else (
         f'{slowest:.4g} 1/s (the slowest predicted term of E* above its noise floor)')
@@ -214,23 +217,37 @@ def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
         why = fit.rate_note or 'E* - E*_inf not resolved'
         head = (f'bound (1 - {RATE_RTOL:g}) x {factor} = {bound:.4g} 1/s ({ref})'
                 if math.isfinite(bound) else ref)
-        return Status.NOT_YET, (f'rate of E* - E*_inf not measurable in this window ({why}; '
-                                f'the slowest predicted decay needs about '
-                                f'{RESOLVABLE / full:.3g} s); {head}'), bound
+        # the reason last: over_run quotes the newest window's last clause
+        return Status.NOT_YET, (f'{head}: rate of E* - E*_inf not measurable in this window, '
+                                f'{why}'), bound
     if not math.isfinite(slowest):
         return Status.NOT_YET, (f'rate of E* - E*_inf not decided: no predicted decaying term '
                                 f'of E* above its noise floor ({fit.floor:.2g} J) decays '
                                 f'resolvably in this window ({ref})'), math.nan
     st = decide(rate, bound, 'above')
     shown, b = fmt_against(rate, bound, '1/s')
-    text = (f'E* - E*_inf decays at {shown}, bound (1 - {RATE_RTOL:g}) x {factor} = {b} 1/s '
-            f'({ref})')
+    text = (f'E* - E*_inf decays at {shown} (the rate of its slowest shown terms, fitted '
+            f'free), bound (1 - {RATE_RTOL:g}) x {factor} = {b} 1/s ({ref})')
     if st is Status.FAIL:
         text += ': slower than predicted'
     elif st is Status.NOT_YET:
         text += (': the interval straddles the bound '
                  f'({needs_phrase(window_s, rate.value - bound, rate.u)})')
     return st, text, bound
+
+
+def slow_phrase(rate: float, window_s: float) -> str:
+    """Say what a decay rate too slow for the window means, in numbers.
+
+    A term decaying at ``rate`` changes by rate x window over it; below :data:`RESOLVABLE`
+    (5 %) :func:`~gyro_rotor.analysis.decay.fit_energy` merges it into E*_inf and the trend.
+    RESOLVABLE / rate is only the window in which it would change by 5 % and be fitted as a
+    term of its own, not one that measures its rate; its time constant is 1 / rate.
+    """
+    return (f'too slow to resolve in this {window_s:.3g} s window: it changes its terms by '
+            f'{100.0 * rate * window_s:.2g} % over it, under the {100.0 * RESOLVABLE:g} % that '
+            f'tells a term from E*_inf ({RESOLVABLE / rate:.3g} s would, without measuring its '
+            f'rate), time constant {1.0 / rate:.3g} s')
 
 
 def mode_line(c) -> str:

@@ -76,6 +76,8 @@ class RunRecord:
                 rec.setdefault('first_pass', (t, c))
                 rec['last_pass'] = (t, c)
             rec['last'] = (t, c)
+            rec['n'] = rec.get('n', 0) + 1
+            rec['n_pass'] = rec.get('n_pass', 0) + (c.status is Status.PASS)
         for c in w.modes:
             m = self._modes.setdefault(c.name, _Mode())
             if c.status is ModeStatus.DISAGREES and m.bad is None:
@@ -90,7 +92,9 @@ class RunRecord:
         """Return the criterion ``name`` over the windows (:func:`verdict.over_run`)."""
         rec = self._crit[name]
         items = [rec[k] for k in ('first_pass', 'last_pass', 'fail') if k in rec]
-        return over_run(items + [rec['last']]) if 'last' in rec else None
+        if 'last' not in rec:
+            return None
+        return over_run(items + [rec['last']], counts=(rec['n_pass'], rec['n']))
 
     def modes(self, newest: list) -> list:
         """Each mode as the windows saw it, given the newest window's checks.

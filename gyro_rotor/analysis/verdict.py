@@ -205,14 +205,18 @@ def conjoin(statuses) -> Status:
     return Status.NOT_YET
 
 
-def over_run(history: list, current: Criterion | None = None) -> Criterion | None:
+def over_run(history: list, current: Criterion | None = None,
+             counts: tuple | None = None) -> Criterion | None:
     """Judge a criterion over every window of a run: what the whole run saw.
 
     ``history``: the criterion evaluated at the checkpoints of a segment, in time order,
     as (t, Criterion); ``current``: the evaluation of the newest window (if it is not the
-    last checkpoint). FAIL if one window failed (the first failure, with its time); PASS
-    if a window passed and none failed (the last passing window's numbers, and what the
-    newest window says if it no longer decides); NOT YET otherwise (the newest reason).
+    last checkpoint); ``counts``: (windows passed, windows judged) if the history is a
+    summary. FAIL if one window failed (the first failure, with its time); PASS if a
+    window passed and none failed (the last passing window's numbers, how many windows
+    passed, and what the newest window says if it no longer decides: a term that decayed
+    into the noise floor leaves nothing to measure, which contradicts no earlier
+    measurement); NOT YET otherwise (the newest reason).
     """
     items = list(history) + ([(math.nan, current)] if current is not None else [])
     if not items:
@@ -230,8 +234,12 @@ def over_run(history: list, current: Criterion | None = None) -> Criterion | Non
     if c is last:
         return c
     t0 = passed[0][0]
-    span = (f'passed in the windows ending t = {t0:.2f} .. {t:.2f} s' if t0 < t
-            else f'passed in the window ending t = {t:.2f} s')
+    k, n = counts if counts is not None else (len(passed), len(items))
+    if t0 < t:
+        span = (f'passed in {k} of {n} windows, the first ending t = {t0:.2f} s, the last '
+                f't = {t:.2f} s')
+    else:
+        span = f'passed in the window ending t = {t:.2f} s' + (f' (1 of {n})' if n > 1 else '')
     # the newest window's own reason: its last clause (the one that did not decide)
     why = last.detail.rsplit('; ', 1)[-1]
     return dataclasses.replace(c, detail=f'{c.detail} ({span}; newest window '
