@@ -121,6 +121,27 @@ class EnergyFit:
         return self.E_inf + self.trend * (tau - self.span) + X @ np.asarray(self.coef)
 
 
+def _golden_log(f, a: float, b: float, steps: int) -> tuple[float, float]:
+    """Return (x, f(exp x)): golden-section search for the minimum of f(exp x) on [a, b].
+
+    ``steps`` narrowings after the first two evaluations; the better of the last pair
+    (the later one on a tie).
+    """
+    g = 0.5 * (math.sqrt(5.0) - 1.0)
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(math.exp(c)), f(math.exp(d))
+    for _ in range(steps):
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = f(math.exp(c))
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = f(math.exp(d))
+    return (c, fc) if fc < fd else (d, fd)
+
+
 def _exponents(eigs: Sequence[complex]) -> list[complex]:
     """Distinct exponents lambda_i + lambda_j, lambda_i + conj lambda_j (Im >= 0 kept)."""
     lam = [complex(z) for z in eigs]
@@ -236,22 +257,8 @@ def _faster_scale(tau: np.ndarray, y: np.ndarray, Q: np.ndarray, group: Sequence
         i = int(np.argmin(vals))
         best, best_v = float(grid[i]), vals[i]
         a, b = math.log(grid[max(i - 1, 0)]), math.log(grid[min(i + 1, len(grid) - 1)])
-    g = 0.5 * (math.sqrt(5.0) - 1.0)
-    c_, d_ = b - g * (b - a), a + g * (b - a)
-    fc, fd = rss(math.exp(c_)), rss(math.exp(d_))
-    for _ in range(10):                                    # golden section in log kappa
-        if fc < fd:
-            b, d_, fd = d_, c_, fc
-            c_ = b - g * (b - a)
-            fc = rss(math.exp(c_))
-        else:
-            a, c_, fc = c_, d_, fd
-            d_ = a + g * (b - a)
-            fd = rss(math.exp(d_))
-    for x, v in ((c_, fc), (d_, fd)):
-        if v < best_v:
-            best, best_v = math.exp(x), v
-    return best
+    x, v = _golden_log(rss, a, b, 10)                      # golden section in log kappa
+    return math.exp(x) if v < best_v else best
 
 
 def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[complex],
@@ -311,20 +318,9 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
     if 0 < k < len(grid) - 1:
         # golden-section refinement between the coarse minimum's neighbours (in log r)
         a, b = math.log(grid[k - 1]), math.log(grid[k + 1])
-        g = 0.5 * (math.sqrt(5.0) - 1.0)
-        c_, d_ = b - g * (b - a), a + g * (b - a)
-        fc, fd = fit(math.exp(c_)), fit(math.exp(d_))
-        for _ in range(12):
-            if fc < fd:
-                b, d_, fd = d_, c_, fc
-                c_ = b - g * (b - a)
-                fc = fit(math.exp(c_))
-            else:
-                a, c_, fc = c_, d_, fd
-                d_ = a + g * (b - a)
-                fd = fit(math.exp(d_))
-        if min(fc, fd) < rss_min:
-            rate = math.exp(c_ if fc < fd else d_)
+        x, v = _golden_log(fit, a, b, 12)
+        if v < rss_min:
+            rate = math.exp(x)
     rss_min, res, own, term = fit(rate, full=True)
     # the group's part no other column can take (rms), and the terms themselves over the
     # last fifth of the window (rms): both must show above the noise floor
