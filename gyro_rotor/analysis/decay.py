@@ -265,20 +265,14 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
                rate0: float, dt: float, noise: float) -> tuple:
     """Fit the rate of the terms ``group`` free: (rate, interval, shown), rate in 1/s.
 
-    ``interval()`` returns (lo, hi) (module doc), computed only when called: the
-    alternation of :func:`fit_energy` needs it of its last round alone; ``shown`` is the
-    group's part no other column can take and its terms over the window's last fifth (rms).
+    ``interval()``: (lo, hi), computed when called; ``shown``: the group's own part (rms).
 
-    ``Xf`` holds the columns kept as predicted (E_inf, the trend, the other terms); the
-    terms of ``group`` (predicted real part -``rate0``) get the real part -r, their
-    frequencies kept. At each r the fit is linear (variable projection): the residual of
-    ``y`` after ``Xf`` and the group's columns. The rate is the r of least residual; the
-    interval holds every r whose residual sum of squares exceeds the least by at most
-    SIGMAS^2 s^2, s^2 the residual variance counted over :func:`_n_eff` independent pieces
-    (at least the noise level's). An interval that reaches the slowest resolvable rate
-    (:data:`RESOLVABLE` / span) holds every slower one: its lower end is 0; one that
-    reaches the fastest searched rate is unbounded above (the least residual at an end of
-    the search is that end's rate, its interval then open on that side).
+    ``Xf``: the columns kept as predicted; the terms of ``group`` (real part -``rate0``)
+    get the real part -r, frequencies kept; at each r the fit is linear (variable
+    projection). The rate is the r of least residual; the interval every r whose residual
+    sum of squares exceeds the least by at most SIGMAS^2 s^2 (s^2 counted over
+    :func:`_n_eff` pieces, at least the noise level's), down to 0 at the slowest
+    resolvable rate, open above at the fastest searched one.
     """
     n = len(tau)
     span = float(tau[-1]) if n else 0.0
@@ -349,6 +343,50 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
     return rate, interval, shown
 
 
+def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
+             free: float, floor: float, dt: float, noise: float) -> tuple:
+    """Return (rate, lo, hi, note) of the slowest shown terms (rate ``free``) fitted free."""
+    note = ''
+    fixed = [mu for mu in mus if abs(-mu.real - free) > 1e-9 * free]
+    group = [mu for mu in mus if mu not in fixed]
+    # the other terms the window resolves as decaying: their rates scaled by one fitted
+    # factor while any of them shows (a wrong K_D moves them all, eq. 17)
+    other = [mu for mu, a in terms if mu in fixed and a >= floor and -mu.real > free]
+    rounds = ALTERNATE if other else 1
+    still = [mu for mu in fixed if mu not in other]
+    Q_still = _orth(np.column_stack(cols + [_basis(tau, still)])) if other else None
+    kappa, r = math.nan, free
+    for k in range(rounds):
+        if rounds > 1:
+            # alternately: the others' common factor with the group at its rate so far,
+            # then the group's rate with the others at that factor
+            at_r = [complex(-r, mu.imag) for mu in group]
+            kappa = _faster_scale(tau, y, Q_still, at_r, other, kappa)
+        if other:
+            fixed = still + [complex(kappa * mu.real, mu.imag) for mu in other]
+        Xf = np.column_stack(cols + [_basis(tau, fixed)])
+        rate, interval, (own, end) = _free_rate(tau, y, Xf, group, free, dt,
+                                                noise)
+        measurable = math.isfinite(rate) and own >= floor and end >= floor
+        if not measurable or abs(rate - r) <= 3e-3 * r:
+            break                       # settled, or not measurable (below)
+        r = rate
+    lo, hi = interval() if own >= floor and end >= floor else (math.nan, math.nan)
+    if not own >= floor:
+        # E_inf, the trend and the other terms mimic these terms but for less than the
+        # noise floor: nothing of them is left to measure a rate from
+        note = (f'the part of its slowest shown terms ({free:.4g} 1/s) that E*_inf, the '
+                f'trend and the other terms cannot take is {own:.2g} J rms, below the '
+                f'noise floor {floor:.2g} J')
+        rate = lo = hi = math.nan
+    elif not end >= floor:
+        # what is left at the window's end is the remainder's, which a free rate fits too
+        note = (f'its slowest shown terms ({free:.4g} 1/s) fall below the noise floor '
+                f'{floor:.2g} J within the window ({end:.2g} J rms over its last fifth)')
+        rate = lo = hi = math.nan
+    return rate, lo, hi, note
+
+
 def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
                noise: float = 0.0, remainder: float = 0.0) -> EnergyFit:
     """Fit E*(t) = E_inf + sum of terms with the exponents of the predicted ``eigs``.
@@ -415,48 +453,12 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
                       floor=floor).terms()
     shown = [-mu.real for mu, a in terms if a >= floor and -mu.real * span >= RESOLVABLE]
     free = min(shown, default=math.nan)
-    note = ''
     if not math.isfinite(free):
         rate = lo = hi = math.nan
         note = 'no predicted term of E* - E*_inf decays resolvably above its noise floor'
     else:
-        fixed = [mu for mu in mus if abs(-mu.real - free) > 1e-9 * free]
-        group = [mu for mu in mus if mu not in fixed]
-        # the other terms the window resolves as decaying: their rates scaled by one fitted
-        # factor while any of them shows (a wrong K_D moves them all, eq. 17)
-        other = [mu for mu, a in terms if mu in fixed and a >= floor and -mu.real > free]
-        rounds = ALTERNATE if other else 1
-        still = [mu for mu in fixed if mu not in other]
-        Q_still = _orth(np.column_stack(cols + [_basis(tau, still)])) if other else None
-        kappa, r = math.nan, free
-        for k in range(rounds):
-            if rounds > 1:
-                # alternately: the others' common factor with the group at its rate so far,
-                # then the group's rate with the others at that factor
-                at_r = [complex(-r, mu.imag) for mu in group]
-                kappa = _faster_scale(tau, E - E[-1], Q_still, at_r, other, kappa)
-            if other:
-                fixed = still + [complex(kappa * mu.real, mu.imag) for mu in other]
-            Xf = np.column_stack(cols + [_basis(tau, fixed)])
-            rate, interval, (own, end) = _free_rate(tau, E - E[-1], Xf, group, free, dt,
-                                                    noise)
-            measurable = math.isfinite(rate) and own >= floor and end >= floor
-            if not measurable or abs(rate - r) <= 3e-3 * r:
-                break                       # settled, or not measurable (below)
-            r = rate
-        lo, hi = interval() if own >= floor and end >= floor else (math.nan, math.nan)
-        if not own >= floor:
-            # E_inf, the trend and the other terms mimic these terms but for less than the
-            # noise floor: nothing of them is left to measure a rate from
-            note = (f'the part of its slowest shown terms ({free:.4g} 1/s) that E*_inf, the '
-                    f'trend and the other terms cannot take is {own:.2g} J rms, below the '
-                    f'noise floor {floor:.2g} J')
-            rate = lo = hi = math.nan
-        elif not end >= floor:
-            # what is left at the window's end is the remainder's, which a free rate fits too
-            note = (f'its slowest shown terms ({free:.4g} 1/s) fall below the noise floor '
-                    f'{floor:.2g} J within the window ({end:.2g} J rms over its last fifth)')
-            rate = lo = hi = math.nan
+        rate, lo, hi, note = _measure(tau, E - E[-1], cols, mus, terms, free, floor,
+                                      dt, noise)
     return EnergyFit(t0=t0, E_inf=E_inf, E_inf_sigma=sigma, rate=rate, rate_lo=lo,
                      rate_hi=hi, rel_residual=rel, spread=spread, trend=trend, span=span,
                      exponents=tuple(mus), coef=tuple(float(c) for c in coef[len(cols):]),
