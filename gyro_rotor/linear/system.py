@@ -253,17 +253,21 @@ def dominant(lin: Linearization, v: np.ndarray) -> str:
     return order[int(np.flatnonzero(w >= (1.0 - 1e-9) * w.max())[0])]
 
 
-def _on_kernel(A: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Return zero root eigenvector ``v`` projected on the kernel of ``A`` (if it lies there).
+def _kernel(A: np.ndarray) -> np.ndarray:
+    """Return an orthonormal basis of the kernel of ``A`` (numerical rank, numpy's rule)."""
+    _, s, vh = np.linalg.svd(A)
+    return vh[s <= s.max(initial=0.0) * max(A.shape) * np.finfo(float).eps].conj().T
+
+
+def _on_kernel(null: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Return zero root eigenvector ``v`` projected on the kernel ``null`` (if it lies there).
 
     A cyclic coordinate's two zero roots are one Jordan block (its shift, and the
     neighbouring steady motions of its family): the computed pair splits by about
     sqrt(eps) ||A|| (centrifuge_euler: +-1.2e-7j) and its two vectors carry that much of
-    the generalized vector. The kernel (numerical rank, numpy's rule) is exact to
-    round-off: both roots are named by the cyclic direction it holds.
+    the generalized vector. The kernel (:func:`_kernel`) is exact to round-off: both roots
+    are named by the cyclic direction it holds.
     """
-    _, s, vh = np.linalg.svd(A)
-    null = vh[s <= s.max(initial=0.0) * max(A.shape) * np.finfo(float).eps].conj().T
     w = null @ (null.conj().T @ v)
     return w if np.linalg.norm(w) >= 0.5 * np.linalg.norm(v) else v
 
@@ -311,11 +315,13 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     lam_r, res_r = resolutions(A, lin.A_cons)
     tol_im = 1e-9 * max(np.linalg.norm(lin.A_cons), 1.0)
     angles = {lin.coordinate[i] for i in np.flatnonzero(np.any(lin.c_all != 0, axis=1))}
+    zeros = np.abs(lam) <= 1e-7 * scale
+    null = _kernel(A) if zeros.any() else None          # one SVD for every zero root
     out = []
     for i, value in enumerate(lam):
         v = V[:, i]
-        zero = abs(value) <= 1e-7 * scale
-        coord = dominant(lin, _on_kernel(A, v) if zero else v)
+        zero = bool(zeros[i])
+        coord = dominant(lin, _on_kernel(null, v) if zero else v)
         value = complex(value)
         re = value.real
         kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > tol_im
