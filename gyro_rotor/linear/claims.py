@@ -213,15 +213,9 @@ def _eig_lr(A: np.ndarray) -> tuple:
     if wi.any():                        # Im w is wi: complex vectors, as scipy makes them
         m = wi > 0
         m[:-1] |= wi[1:] < 0
+        # dgeev returns each pair as Im > 0 then its conjugate: the marked columns are
+        # never adjacent, and scipy's loop over them is this one array operation
         idx = m.nonzero()[0]
-        if (m[:-1] & m[1:]).any():      # never from LAPACK: scipy's own loop then
-            def loop(v):
-                out = v.astype(complex)
-                for i in idx:
-                    out.imag[:, i] = v[:, i + 1]
-                    np.conj(out[:, i], out[:, i + 1])
-                return out
-            return w, loop(vl), loop(vr)
         vl, vr = _complex_pairs(vl, idx), _complex_pairs(vr, idx)
     return w, vl, vr
 
