@@ -16,9 +16,9 @@ every PASS holds by the rule (its interval wholly on the passing side), and the 
 the linear theory's where the run can show it: at 10, 20 and 60 s on every scene but
 ``stiff_drive`` (K_D = 1e4: the modes the drive reaches decay at 0.004 1/s and slower, which
 no 8 s window resolves: an honest 'insufficient data'). The simulation runs once per scene
-(11 x 60 s); the analysis costs about 0.1 to 0.5 s per window judged (every second of
-simulation time) since the decay's rate is fitted free (it was 40 ms): this file takes
-about 10 min on the loaded 2-core machine (the matrix took about 90 s before).
+(11 x 60 s); since the decay's rate is fitted free the analysis costs about 33 ms per
+window judged (every second of simulation time) on one BLAS thread, as run_tests.sh runs
+it (8 ms before; 300-450 ms with a threaded BLAS at load 4).
 
 **Mutations**, each must NOT confirm: the prediction from a wrong K_D (0.5x, 2x), from
 another scene, from other constants; an E* rise injected; 1 % of the messages dropped; the

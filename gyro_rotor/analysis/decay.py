@@ -223,8 +223,8 @@ def _faster_scale(tau: np.ndarray, y: np.ndarray, Q: np.ndarray, group: Sequence
 
     The other terms that show and that the window resolves as decaying (``faster``: all
     but the slowest shown ones, ``group``) get the real parts kappa Re(mu), the group and
-    ``Xf`` (E_inf, the trend, the terms below the noise floor or not resolved as decaying)
-    kept (``Q``: an orthonormal basis of ``Xf``'s columns, :func:`_orth`); least residual by
+    the kept columns (E_inf, the trend, the terms below the noise floor or not resolved as
+    decaying; ``Q``: their orthonormal basis, :func:`_orth`) as they are; least residual by
     variable projection over log kappa, from 1 / KAPPA_SPAN to
     KAPPA_SPAN, or within a factor 1.5 of ``near`` (a previous round's kappa). A wrong
     drive damping moves every rate the drive reaches (eq. 17): fixed as predicted, their
