@@ -88,6 +88,31 @@ def test_double_sigint_in_process_tears_down_fully_with_status_0():
     assert signal.getsignal(signal.SIGINT) is before
 
 
+@pytest.mark.ros
+def test_a_node_runs_blas_on_one_thread_and_the_limit_is_put_back():
+    """rotor_analysis's small products: one BLAS thread in a node (runner's module doc)."""
+    from gyro_rotor.errors import ParameterError
+    from gyro_rotor.ros.runner import run_node
+    import numpy  # noqa: F401 (loads OpenBLAS, whatever the tests before this one imported)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads():
+        return {p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'}
+
+    seen = {}
+
+    def make():
+        seen['threads'] = blas_threads()
+        raise ParameterError('the test stops here')
+
+    with threadpool_limits(limits=2, user_api='blas'):     # the suite's runner sets 1
+        outside = blas_threads()
+        assert run_node(make, [], restore_signals=True) == 1
+        assert seen['threads'] == {1}
+        assert blas_threads() == outside
+    assert outside == {2}
+
+
 # -- the two nodes as processes, signalled as launch signals them ------------------------------
 def _start_pair(tmp_path: Path, **sim_params):
     env = dict(os.environ, PYTHONUNBUFFERED='1')

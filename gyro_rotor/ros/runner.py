@@ -26,6 +26,14 @@ whose parent process is a launch process therefore asks the kernel for a SIGTERM
 that parent dies (``PR_SET_PDEATHSIG``, Linux), and stops as on any SIGTERM. (Only under
 launch: a node started from a shell, e.g. with ``nohup``, is left alone.)
 
+**BLAS on one thread.** numpy's OpenBLAS starts one thread per core, and they spin between
+calls. In a node that is the worst of both: rotor_analysis judges a window with small
+matrix products (:mod:`~gyro_rotor.analysis.decay`), which a second thread only slows down
+(44 ms a window on one thread against 82-102 ms on two, with one other busy process on the
+2-core machine), and the spinning threads take the cores from rotor_sim's real-time loop.
+``run_node`` therefore limits BLAS to one thread in the node's process
+(``threadpoolctl``), and puts the previous limit back when the node is done.
+
 Errors a user can cause (a bad parameter, an unreadable scene, an unwritable output
 directory, malformed ``--ros-args``) end in one ``ERROR:`` line on stderr and exit status
 1, never in a traceback.
@@ -45,6 +53,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from threadpoolctl import threadpool_limits
 
 __all__ = ['run_node', 'spin_until_stopped', 'StopSignals', 'SPIN_TIMEOUT', 'exit_with_parent',
            'parent_is_launch']
@@ -166,7 +175,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     """Run the node that ``make_node()`` builds until SIGINT/SIGTERM; return the exit status.
 
     A process's ``main()``: SIGINT and SIGTERM stay ignored afterwards (module doc), unless
-    ``restore_signals``. Under launch, the death of the launch process is a SIGTERM.
+    ``restore_signals``. Under launch, the death of the launch process is a SIGTERM. BLAS
+    runs on one thread while the node runs (module doc).
     """
     guard: list = []
     stop = StopSignals().install(wake=lambda: guard and guard[0].trigger())
@@ -174,7 +184,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
         if not parent_is_launch():          # the parent died before the request
             stop(signal.SIGTERM, None)
     try:
-        return _run(make_node, args, stop, guard)
+        with threadpool_limits(limits=1, user_api='blas'):
+            return _run(make_node, args, stop, guard)
     finally:
         stop.restore(ignore=not restore_signals)
 
