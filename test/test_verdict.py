@@ -324,11 +324,16 @@ def _decay_of_slower_run(name: str, f: float) -> Criterion:
 
 
 @settings(max_examples=10, deadline=None, derandomize=True)
-@given(name=st.sampled_from(DECAYING), f=st.floats(0.3, 0.8))
+@given(name=st.sampled_from(DECAYING), f=st.floats(0.3, 0.88))
 @example(name='precession', f=0.75)
 @example(name='elastic_frame', f=0.8)
+@example(name='elastic_frame', f=0.88)
 def test_decay_never_passes_a_slower_run(name, f):
-    """Decay never passes a run whose drive damping is f x the scene's (0.3 <= f <= 0.8).
+    """Decay never passes a run whose drive damping is f x the scene's (0.3 <= f <= 0.88).
+
+    The bound is 0.9 x the predicted rate, and the rates of E*'s terms scale about like
+    K_D: up to f = 0.88 the true rate is under the bound (elastic_frame at 0.88: 0.403
+    against 0.412).
 
     Found: precession at 0.75 K_D passed decay with 0.420 (interval 0.377 .. 0.475) 1/s
     against the bound 0.3735: the rate was measured with E*_inf and the amplitudes fitted
@@ -337,8 +342,12 @@ def test_decay_never_passes_a_slower_run(name, f):
     1/s in the windows ending 11 .. 20 s: FAIL. elastic_frame at 0.8 K_D (true 0.367
     1/s) passed with the free rate alone, 0.531 (0.476 .. 0.587): the faster terms fixed
     at the scene's rates leaked into it; with their rates scaled by a fitted factor it
-    measures 0.405 (0.399 .. 0.410): FAIL. The same runs at f = 1 pass (the scene's own
-    data; the verdict matrix judges them over 60 s).
+    measures 0.405 (0.399 .. 0.410): FAIL. elastic_frame at 0.88 K_D (true 0.403 1/s)
+    still passed with that factor, 0.419 (0.416 .. 0.422) in the window ending at 6 s: one
+    factor is not the truth, and the faster terms' misfit leaks into the rate most at the
+    window's start; measured again over the window's last three quarters, 0.406
+    (0.4055 .. 0.4062): FAIL. The same runs at f = 1 pass (the scene's own data; the
+    verdict matrix judges them over 60 s).
     """
     decay = _decay_of_slower_run(name, f)
     assert decay.status is not Status.PASS, (name, f, decay.detail)
@@ -352,6 +361,20 @@ def test_decay_fails_the_slower_precession_with_the_true_rate():
     bound = decay.numbers['rate_bound']
     assert decay.numbers['rate_hi'] < bound and bound == pytest.approx(0.3735, abs=1e-4)
     assert 0.30 < decay.numbers['rate'] < 0.36, decay.detail
+
+
+def test_decay_fails_elastic_frame_at_0_88_K_D_by_the_window_s_last_part():
+    """One fitted factor for the faster terms left elastic_frame at 0.88 K_D passing.
+
+    Its true rate 0.403 1/s is under the bound 0.412; over the window's last three quarters
+    the rate comes out near it, below the bound.
+    """
+    decay = _decay_of_slower_run('elastic_frame', 0.88)
+    assert decay.status is Status.FAIL, decay.detail
+    n = decay.numbers
+    assert n['tail_rate_hi'] < n['rate_bound'] == pytest.approx(0.4124, abs=1e-4)
+    assert 0.395 < n['tail_rate'] < 0.41, decay.detail
+    assert 'over its last 75 %' in decay.detail and 'slower than predicted' in decay.detail
 
 
 def test_a_wrong_K_D_is_seen_by_the_modes_alone():

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from gyro_rotor.analysis.decay import NOISE_K, RESOLVABLE
+from gyro_rotor.analysis.decay import NOISE_K, RESOLVABLE, TAIL_FROM
 from gyro_rotor.analysis.modes import (FREQ_RTOL, mode_tolerances, RATE_RTOL as MODE_RATE_RTOL,
                                        tone_line)
 from gyro_rotor.analysis.prediction import Prediction
@@ -164,6 +164,9 @@ def decay(seg: SegmentResult, pred: Prediction, min_fit_s: float) -> Criterion:
     nums.update(rate=fit.rate, rate_lo=fit.rate_lo, rate_hi=fit.rate_hi, E_inf=fit.E_inf,
                 spread=fit.spread, trend=fit.trend, E_inf_sigma=fit.E_inf_sigma,
                 rel_residual=fit.rel_residual, noise=fit.noise)
+    if fit.tail is not None:
+        nums.update(tail_rate=fit.tail.rate, tail_rate_lo=fit.tail.rate_lo,
+                    tail_rate_hi=fit.tail.rate_hi)
     if fit.settled:
         var = (f'E* varies by less than its noise floor ({NOISE_K:g} x '
                f'{max(fit.noise, fit.remainder):.2g} J)')
@@ -204,11 +207,30 @@ def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
     slowest mode too slow for the window is merged into E*_inf
     (:func:`~gyro_rotor.analysis.decay.fit_energy`): the fast terms' rate is not held
     against its bound, which it would pass whatever the data. No term showing: NOT YET.
+    Measured over the window and again over its last part (``fit.tail``, where a wrong
+    prediction's faster terms leak less into it): each measured rate is held against its
+    bound, and the rate passes only if every one does.
     """
-    slowest = fit.shown_decay()
     ref = f'2|alpha| = {full:.4g} 1/s'
     if full * window_s < RESOLVABLE:
         ref += f', {slow_phrase(full, window_s)}'
+    parts = [(fit, '')]
+    if fit.tail is not None and math.isfinite(fit.tail.rate):
+        parts = [(fit, ' over the window'),
+                 (fit.tail, f' over its last {100 * (1 - TAIL_FROM):.0f} %')]
+    judged = [_one_rate(f, full, ref if i == 0 else '', window_s, where)
+              for i, (f, where) in enumerate(parts)]
+    measured = [j for j, (f, _) in zip(judged, parts) if math.isfinite(f.rate)
+                and math.isfinite(f.shown_decay())]
+    if not measured:
+        return judged[0]
+    return conjoin(j[0] for j in measured), '; '.join(j[1] for j in measured), measured[0][2]
+
+
+def _one_rate(fit, full: float, ref: str, window_s: float,
+              where: str) -> tuple[Status, str, float]:
+    """Judge one measured rate of E* - E*_inf (:func:`_rate`): (status, text, bound)."""
+    slowest = fit.shown_decay()
     bound = (1.0 - RATE_RTOL) * slowest
     factor = '2|alpha|' if slowest == full else (
         f'{slowest:.4g} 1/s (the slowest predicted term of E* above its noise floor)')
@@ -226,8 +248,9 @@ def _rate(fit, full: float, window_s: float) -> tuple[Status, str, float]:
                                 f'resolvably in this window ({ref})'), math.nan
     st = decide(rate, bound, 'above')
     shown, b = fmt_against(rate, bound, '1/s')
-    text = (f'E* - E*_inf decays at {shown} (the rate of its slowest shown terms, fitted '
-            f'free), bound (1 - {RATE_RTOL:g}) x {factor} = {b} 1/s ({ref})')
+    text = (f'E* - E*_inf decays at {shown}{where} (the rate of its slowest shown terms, '
+            f'fitted free), bound (1 - {RATE_RTOL:g}) x {factor} = {b} 1/s'
+            + (f' ({ref})' if ref else ''))
     if st is Status.FAIL:
         text += ': slower than predicted'
     elif st is Status.NOT_YET:
