@@ -478,9 +478,9 @@ def test_yaml_1_2_numbers_the_same_everywhere(tmp_path):
     from gyro_rotor.core.scene import load_scene
     path = tmp_path / 's.yaml'
     path.write_text(_scene_text(**{'K_D: 0.05 ': 'K_D: 1.0e5 '}))
-    assert load_scene(path).params.K_D == 1.0e5
+    assert load_scene(path).system.params.K_D == 1.0e5
     path.write_text(_scene_text(**{'K_D: 0.05 ': 'K_D: 1e5 '}))
-    assert load_scene(path).params.K_D == 1.0e5
+    assert load_scene(path).system.params.K_D == 1.0e5
     assert parse_sets(['K_D=1.0e5', 'x=1e-3', 'y=012', 'z=nan'])['y'] == 12
     assert parse_sets(['K_D=1.0e5'])['K_D'] == 1.0e5
     assert isinstance(parse_sets(['y=yes'])['y'], str)      # YAML 1.1's bool is text

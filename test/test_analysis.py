@@ -122,7 +122,7 @@ def test_pole_slips_counted_and_synchronism_state():
     # to tell the decay rate from its bound (decay NOT YET: insufficient data)
     tr = simulate('pole_slip', t_end=14.0, rate=250.0)
     samples = samples_from_trajectory(tr)
-    p = tr.scene.params.pole_pairs
+    p = tr.scene.system.params.pole_pairs
     wells = round(p * tr.z[-1] / (2 * math.pi))
     # early: still slipping
     a = RotorAnalyzer(tr.scene, window_s=8.0)
@@ -220,11 +220,11 @@ def test_pairer_pairs_in_any_order_and_gives_up_on_lost_partners():
 def test_scene_round_trip_and_sim_document():
     scene = load_scene('nutation')
     again = scene_from_mapping(scene.to_flat(), strict_float=False)
-    assert again.params == scene.params and again.initial == scene.initial
+    assert again.system == scene.system
     doc = {'scene': 'nutation', 'model': 'full', 't_end': 10.0,
-           'params': {**scene.params.to_mapping(), 'K_D': 0.2}, 'perturbation': {}}
+           'params': {**scene.system.params.to_mapping(), 'K_D': 0.2}, 'perturbation': {}}
     live = scene_from_sim_doc(doc, scene)
-    assert live.params.K_D == 0.2 and live.initial == scene.initial
+    assert live.system.params.K_D == 0.2 and live.system.initial == scene.system.initial
     with pytest.raises(AnalysisError, match='not a scene document'):
         scene_from_sim_doc({'foo': 1})
     with pytest.raises(Exception, match="unknown scene 'no_such_scene'"):
@@ -358,7 +358,7 @@ def test_residual_beyond_tolerance_fails_energy_balance(kicked):
 def test_decay_slower_than_predicted_fails_decay(kicked):
     # the data of K_D = 0.05 analysed against the prediction for K_D = 0.3
     tr, samples = kicked
-    other = dataclasses.replace(tr.scene, params=tr.scene.params.replace(K_D=0.3))
+    other = tr.scene.with_params(K_D=0.3)
     _, res = analyze(other, samples, window_s=8.0)
     assert _status(res, 'decay') == 'FAIL', res.evidence
     assert not res.confirmed and 'decay' in res.reason
@@ -367,8 +367,8 @@ def test_decay_slower_than_predicted_fails_decay(kicked):
 def test_mode_at_the_wrong_frequency_fails_modes(kicked):
     # predicted with a housing stiffness 20 % off: the twist frequency is 10 % off
     tr, samples = kicked
-    p = tr.scene.params
-    other = dataclasses.replace(tr.scene, params=p.replace(c_psi=1.2 * p.c_psi))
+    p = tr.scene.system.params
+    other = tr.scene.with_params(c_psi=1.2 * p.c_psi)
     _, res = analyze(other, samples, window_s=8.0)
     assert _status(res, 'modes') == 'FAIL', res.evidence
     assert not res.confirmed and 'modes' in res.reason

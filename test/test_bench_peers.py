@@ -17,7 +17,7 @@ bench_peers = pytest.importorskip('gyro_rotor.numerics.bench_peers')
 
 @pytest.mark.parametrize('scene', ['precession', 'pole_slip', 'stiff_drive', 'conservative'])
 def test_peer_rhs_equals_the_model_at_random_states(scene):
-    params = load_scene(scene).params
+    params = load_scene(scene).system.params
     model = FullModel(params)
     f = bench_peers.peer_rhs_python(params)
     rng = np.random.default_rng(26)
@@ -38,7 +38,7 @@ def test_each_peer_runs_the_model(package):
     model = scene.make_model()
     y0 = scene.initial_state(model)
     te = np.linspace(0.0, 0.5, 51)
-    peer = bench_peers.make_peer_rhs(scene.params)
+    peer = bench_peers.make_peer_rhs(scene.system.params)
     ref = integrate(model, y0, (0.0, 0.5), te, 'dop853', rtol=1e-12, atol=1e-14).y
     for method in bench_peers.PEER_METHODS[package]:
         Y, _ = bench_peers.peer_run(peer, package, method, y0, te, 1e-10, 1e-12)
@@ -68,3 +68,4 @@ def test_general_peer_rhs_equals_the_generated_model_at_random_states(name):
         got = f(y)
         # the two evaluate M^-1 F in different orders: equal to the solve's round-off
         assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), y
+

@@ -217,7 +217,7 @@ def test_centrifuge_K_D_star_same_from_quaternion_model_and_system_file(values):
                                    'pole_slip', 'upright', 'conservative', 'locked_housing'])
 def test_one_checker_on_every_centrifuge_scene(scene):
     sc = load_scene(scene)
-    lin = linearize(sc.params, sc.steady(), sc.model)
+    lin = linearize(sc.system.params, sc.system.steady(), sc.system.model)
     cr = named_claims(from_analytic(lin))
     res = cl.check(from_analytic(lin).drive_system())
     held = {k: c.holds for k, c in res.claims.items()}

@@ -25,7 +25,7 @@ def _load(name, **sets):
 
 
 def _W0(scene):
-    return scene.params.Omega0 if scene.builtin else scene.system.drives[0].Omega0
+    return scene.system.params.Omega0 if scene.builtin else scene.system.drives[0].Omega0
 
 
 def _legend(ax):
@@ -84,7 +84,7 @@ def test_campbell_modes_cross_instead_of_swapping():
     """
     from gyro_rotor.linear.campbell import campbell
     scene = load_scene('precession')
-    cb = campbell(scene, np.linspace(0.05, 2.0, 150) * scene.params.Omega0)
+    cb = campbell(scene, np.linspace(0.05, 2.0, 150) * scene.system.params.Omega0)
     nut = [k for k, t in enumerate(cb.labels) if t.startswith('nutation')]
     rfc = [k for k, t in enumerate(cb.labels) if t.startswith('rotor-field')]
     assert len(nut) == len(rfc) == 1

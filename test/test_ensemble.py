@@ -18,7 +18,7 @@ def _ensemble(n=6):
     Y0 = np.repeat(y0[None], n, axis=0)
     Y0[:, 8] += rng.normal(0.0, 1.0, n)            # zdot
     Y0[:, 4:6] += rng.normal(0.0, 0.05, (n, 2))    # transverse rates
-    params = [sc.params.replace(K_D=kd) for kd in np.linspace(0.0, 0.5, n)]
+    params = [sc.system.params.replace(K_D=kd) for kd in np.linspace(0.0, 0.5, n)]
     return m, Y0, params
 
 

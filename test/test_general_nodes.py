@@ -276,7 +276,7 @@ def test_a_scene_document_of_the_same_scene_changes_nothing_in_the_analysis():
     scene = load_scene('twin_gimbal')
     again = scene_from_flat(yaml.safe_load(yaml.safe_dump(
         scene.to_flat())))
-    assert again.system.path is None and scene.system.path is not None
+    assert again.system.reduced.path is None and scene.system.reduced.path is not None
     a = RotorAnalyzer(scene)
     assert not a.set_scene(again) and a.param_changes == 0
     assert a.set_scene(scene.with_changes({'drive.R1.K_D': 0.05})) and a.param_changes == 1

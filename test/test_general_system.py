@@ -772,8 +772,8 @@ def test_ensemble_runs_a_general_system_with_its_own_numbers_per_trajectory():
     scene = load_scene('twin_gimbal')
     model = scene.make_model()
     y0 = scene.initial_state(model)
-    systems = [scene.system, scene.with_drives(K_D=0.3).system,
-               scene.system.with_constants({'c_a': 60.0})]
+    systems = [scene.system.reduced, scene.with_drives(K_D=0.3).system.reduced,
+               scene.system.reduced.with_constants({'c_a': 60.0})]
     Y0 = np.array([y0, 0.5 * y0, y0])
     te = np.linspace(0.0, 0.5, 11)
     res = run_ensemble(model, Y0, te, params=systems, step=1e-4)

@@ -77,7 +77,7 @@ def test_empirical_order(method, order, h, extra, monkeypatch):
 def _cases():
     for name in list_scenes(builtin=True):
         stiff = name in STIFF
-        full = load_scene(name).model == 'full'
+        full = load_scene(name).system.model == 'full'
         for method in METHODS:
             if stiff and method not in ('rodas4', 'radau9'):
                 continue          # explicit and fixed-point methods are not for K_D = 1e4
@@ -104,7 +104,7 @@ def test_quaternion_norm_and_energy_residual_at_tolerance_level(name, method):
 # -- hard cases --------------------------------------------------------------------------------
 def test_pole_slip_count_right_for_every_method():
     sc, m, y0 = _setup('pole_slip')
-    p = sc.params.pole_pairs
+    p = sc.system.params.pole_pairs
 
     def poles(res):
         return round(res.y[-1, m.iz] * p / (2 * math.pi))
@@ -193,7 +193,7 @@ def test_auto_choice():
                          sample_rate=100.0)[0] == 'dop853'
     assert choose_method(load_scene('stiff_drive').make_model())[0] == 'radau9'
     assert choose_method(load_scene('conservative').make_model(), 1000.0)[0] == 'split8'
-    assert choose_method(make_model('upright_axis', load_scene('conservative').params),
+    assert choose_method(make_model('upright_axis', load_scene('conservative').system.params),
                          1000.0)[0] == 'gauss6'    # split8's sub-flows are the full model's
     assert 'stiff' in choose_method(load_scene('stiff_drive').make_model())[1]
 
@@ -261,7 +261,8 @@ def test_drift_per_period_matches_dop853():
     from gyro_rotor.numerics.integrators.methods import DRIFT_PER_PERIOD
     sc, m, y0 = _setup('conservative')
     T = 100.0
-    periods = T * math.sqrt(sc.params.K_S * (1 / sc.params.C_R + 1 / sc.params.C_M)) \
+    p = sc.system.params
+    periods = T * math.sqrt(p.K_S * (1 / p.C_R + 1 / p.C_M)) \
         / (2 * math.pi)
     for rtol in (1e-10, 1e-11):
         y = integrate(m, y0, (0.0, T), None, 'dop853', rtol=rtol, atol=rtol * 1e-2).y
@@ -442,7 +443,7 @@ def test_generated_dop853_step_and_dense_equal_the_tableau_loops(scene):
     from gyro_rotor.numerics.integrators import kernels, rk_generated
     from gyro_rotor.numerics.integrators.base import kernel_args
     sc, m, y0 = _setup(scene)
-    kind, P, _ = kernel_args(m, sc.params)
+    kind, P, _ = kernel_args(m, sc.system.params)
     rng = np.random.default_rng(7)
     tb = tableaux
     eps = np.finfo(float).eps

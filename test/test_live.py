@@ -62,7 +62,7 @@ def test_sample_block_carries_every_derived_output_as_arrays():
     np.testing.assert_array_equal(E['k'], np.arange(n))
     np.testing.assert_array_equal(E['seq'], np.arange(n))
     np.testing.assert_array_equal(E['t_sim'], E['k'] / RATE)
-    p = sim.scene.params
+    p = sim.scene.system.params
     np.testing.assert_allclose(E['dissipation'], p.K_D * E['zdot'] ** 2, rtol=1e-15)
     np.testing.assert_array_equal(E['dE_dt'], -E['dissipation'])
     assert np.max(np.abs(E['residual'])) < 1e-8           # eq. 17: E* + D is conserved
@@ -89,11 +89,11 @@ def test_parameter_changes_are_checked_then_applied_with_the_baseline_moved():
     clock = FakeClock()
     sim, _ = make_sim(clock)
     run_ticks(sim, clock, 5)
-    before, stepper = sim.scene.params, sim.stepper
+    before, stepper = sim.scene.system.params, sim.stepper
     for bad in ({'K_D': -1.0}, {'A_R': 0.0}, {'integrator': 'euler'}, {'rtol': -1.0}):
         with pytest.raises(GyroRotorError):
             sim.check(bad)
-    assert sim.scene.params == before and sim.stepper is stepper
+    assert sim.scene.system.params == before and sim.stepper is stepper
     y, E_ref = sim.stepper.y.copy(), sim.baseline.E_ref
     sim.check({'K_S': 40.0})
     sim.apply({'K_S': 40.0})

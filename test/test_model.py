@@ -54,11 +54,11 @@ def test_agrees_with_euler_lagrange(scene_name):
         scene = load_scene('pole_slip', overrides={'initial.dtheta': 0.2})
     else:
         scene = load_scene(scene_name)
-    p = scene.params
+    p = scene.system.params
     model = FullModel(p)
     y0 = scene.initial_state(model)
-    ic = scene.initial
-    sm = scene.steady()
+    ic = scene.system.initial
+    sm = scene.system.steady()
     th0, thd0 = sm.theta0 + ic.dtheta, ic.dthetadot
     psd0, pMd0 = sm.psidot0 + ic.dpsidot, -sm.psidot0
     x0 = [th0, 0.0, ic.dchi + ic.dz, ic.dchi, thd0, psd0, pMd0 + ic.dzdot + p.Omega0, pMd0]

@@ -110,8 +110,8 @@ def test_rtf0_records_every_message_and_the_scene_needs_no_file(tmp_path):
     docs = [m.data for _, _, m in reader.decoded('/rotor_sim/scene')]
     doc = yaml.safe_load(docs[-1])
     ref = load_scene('precession')
-    assert doc['initial']['mode'] == ref.initial.mode == 'steady'
-    assert scene_from_sim_doc(doc).initial == ref.initial
+    assert doc['initial']['mode'] == ref.system.initial.mode == 'steady'
+    assert scene_from_sim_doc(doc).system.initial == ref.system.initial
 
 
 def _bag_energy_count(bag: Path) -> int:
@@ -523,7 +523,7 @@ bad_live = st.one_of(st.sampled_from([math.nan, math.inf, -math.inf, -1.0, 0.0, 
 def test_live_interface_refuses_changes_that_invalidate_the_model(live_node, field, value):
     from rclpy.parameter import Parameter
     node = live_node
-    before = node.sim.scene.params
+    before = node.sim.scene.system.params
     stepper = node.stepper
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
@@ -541,4 +541,4 @@ def test_live_interface_refuses_changes_that_invalidate_the_model(live_node, fie
             assert 'is not a double' in res.reason, res.reason
         else:
             assert field in res.reason or 'range' in res.reason, res.reason
-        assert node.sim.scene.params == before and node.stepper is stepper
+        assert node.sim.scene.system.params == before and node.stepper is stepper

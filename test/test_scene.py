@@ -15,17 +15,17 @@ def test_all_required_scenes_ship():
 @pytest.mark.parametrize('name', SHIPPED)
 def test_scene_loads_and_is_statically_stable(name):
     s = load_scene(name)
-    assert s.params.c_theta > s.params.G * s.params.s
+    assert s.system.params.c_theta > s.system.params.G * s.system.params.s
     assert s.initial_state().shape == (s.make_model().n,)
 
 
 def test_scene_specifics():
-    assert load_scene('fast_spin').params.Omega0 == 3141.6
-    assert load_scene('conservative').params.K_D == 0.0
-    assert load_scene('pole_slip').params.pole_pairs > 0
-    assert load_scene('locked_housing').model == 'locked_housing'
-    assert load_scene('nutation').initial.branch == 2
-    assert load_scene('upright').initial.branch == 0
+    assert load_scene('fast_spin').system.params.Omega0 == 3141.6
+    assert load_scene('conservative').system.params.K_D == 0.0
+    assert load_scene('pole_slip').system.params.pole_pairs > 0
+    assert load_scene('locked_housing').system.model == 'locked_housing'
+    assert load_scene('nutation').system.initial.branch == 2
+    assert load_scene('upright').system.initial.branch == 0
 
 
 def write(tmp_path, body, name='s.yaml'):
@@ -116,7 +116,7 @@ def test_body_quaternion_sign_is_the_smaller_twist(tmp_path):
     s = load_scene(f)
     y = s.initial_state()
     assert y[0] == 1.0
-    assert s.make_model().energy(y) == pytest.approx(s.params.G * s.params.s)
+    assert s.make_model().energy(y) == pytest.approx(s.system.params.G * s.system.params.s)
     f = write(tmp_path, HEAD + '    initial:\n      mode: body\n'
               '      quaternion: [-1.0, 0.0, 0.0, 0.0]\n      chi: 6.283185307179586\n', 'c.yaml')
     assert load_scene(f).initial_state()[0] == -1.0
@@ -131,3 +131,25 @@ def test_typed_file_refusals(tmp_path):
         load_scene(f)
     with pytest.raises(ParameterError, match='supported range'):
         load_scene('precession', overrides={'Omega0': 1e200})
+
+
+def test_both_kinds_of_system_offer_what_a_scene_asks_of_its_system():
+    """Scene asks its system (issue 25): the centrifuge and a system file's answer alike.
+
+    Every ``self.system.NAME`` in Scene's source must exist on both classes, except the
+    copies that only make sense for one kind (parameters of the centrifuge, drives of a
+    system file).
+    """
+    import inspect
+    import re
+    from gyro_rotor.core.scene import Centrifuge, GeneratedSystem, Scene
+    asked = set(re.findall(r'self\.system\.(\w+)', inspect.getsource(Scene)))
+    assert {'make_model', 'initial_state', 'document_parts', 'live_scene'} <= asked
+    one_kind = {'with_params', 'with_drives', 'drives'}
+    for cls in (Centrifuge, GeneratedSystem):
+        missing = sorted(asked - one_kind - set(dir(cls)))
+        assert not missing, f'{cls.__name__} lacks {missing}'
+    for name in ('precession', 'twin_gimbal'):
+        scene = load_scene(name)
+        assert scene.physics()[0] == ('system', scene.system_name)
+        assert scene.with_changes({'t_end': 3.0}).t_end == 3.0

@@ -141,7 +141,7 @@ def test_energy_layout_effort_and_lyapunov(rig):
     n0 = len(rig.energy)
     rig.spin_until(lambda: len(rig.energy) - n0 >= 100)
     rows = rig.energy_rows(n0)
-    p = rig.node.sim.scene.params
+    p = rig.node.sim.scene.system.params
     z, zdot = rows[:, F['z']], rows[:, F['zdot']]
     np.testing.assert_allclose(rows[:, F['dissipation']], p.K_D * zdot ** 2, rtol=1e-12)
     np.testing.assert_allclose(rows[:, F['dE_dt']], -rows[:, F['dissipation']])
@@ -234,7 +234,7 @@ def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
         (result,) = node.set_parameters([Parameter(name, value=value)])
         assert not result.successful
         assert word in result.reason
-    assert node.sim.scene.params.K_D == 0.05 and node.sim.scene.params.A_R == 0.05
+    assert node.sim.scene.system.params.K_D == 0.05 and node.sim.scene.system.params.A_R == 0.05
     # K_S: E* jumps by (K_S' - K_S) z^2 / 2, the residual baseline moves with it (the
     # node's lock holds its loop thread between the reading of the state and the change)
     with node.lock:
@@ -242,7 +242,7 @@ def test_invalid_parameter_changes_are_refused_valid_ones_applied(rig):
         E_ref = node.sim.baseline.E_ref
         (result,) = node.set_parameters([Parameter('K_S', value=40.0)])
         assert result.successful, result.reason
-        assert node.sim.scene.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
+        assert node.sim.scene.system.params.K_S == 40.0 and node.sim.model.params.K_S == 40.0
         assert node.sim.baseline.E_ref - E_ref == pytest.approx(0.5 * 20.0 * y[7] ** 2,
                                                                 rel=1e-9, abs=1e-15)
         seq_change = node.sim.seq      # samples from here on were computed with K_S = 40
@@ -355,7 +355,7 @@ def test_live_change_of_the_wrong_type_names_parameter_value_and_type(rig):
             ('K_S', -1.0, 'K_S')):
         (result,) = rig.node.set_parameters([Parameter(name, value=value)])
         assert not result.successful and reason in result.reason, result.reason
-    assert rig.node.sim.scene.params.K_S == 20.0
+    assert rig.node.sim.scene.system.params.K_S == 20.0
     assert rig.node.get_parameter('K_S').value == 20.0
 
 

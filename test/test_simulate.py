@@ -19,7 +19,7 @@ def test_energy_balance_residual_at_tolerance_level(name):
     scale = max(1.0, float(np.max(np.abs(tr.E_star))))
     assert tr.max_abs_residual < 1e3 * tr.rtol * scale
     assert tr.max_qnorm_drift < 1e3 * tr.rtol
-    if tr.scene.params.K_D > 0 and name != 'locked_housing':
+    if tr.scene.system.params.K_D > 0 and name != 'locked_housing':
         assert tr.E_star[-1] < tr.E_star[0]          # the drive takes energy out
 
 

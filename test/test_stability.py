@@ -39,7 +39,7 @@ def analyze(p, sm, model='full', *, K_D=None) -> SimpleNamespace:
 def analyze_scene(scene) -> SimpleNamespace:
     """Return :func:`analyze` of a scene (name or Scene) about its steady motion."""
     sc = load_scene(scene) if isinstance(scene, str) else scene
-    return analyze(sc.params, sc.steady(), sc.model)
+    return analyze(sc.system.params, sc.system.steady(), sc.system.model)
 
 
 @pytest.fixture(scope='module')
@@ -100,7 +100,7 @@ def test_claim_c_locked_spectrum_computed_separately(claims_default):
     assert c.holds, c.detail
     locked = np.array(c.data['locked_re']) + 1j * np.array(c.data['locked_im'])
     sc = load_scene('precession')
-    lin = linearize(sc.params, sc.steady(), sc.model)
+    lin = linearize(sc.system.params, sc.system.steady(), sc.system.model)
     zeros = spectrum(lin, math.inf)[0]
     assert len(locked) == len(zeros)
     scale = np.max(np.abs(zeros))
@@ -121,7 +121,7 @@ def test_claim_d_pair_meets_on_negative_real_axis(claims_default):
     # the value of the grid-bracketed bisection before issue 11, now polished
     assert K_star == pytest.approx(0.858071, rel=1e-6) and lam_star < 0
     sc = load_scene('precession')
-    lin = linearize(sc.params, sc.steady(), sc.model)
+    lin = linearize(sc.system.params, sc.system.steady(), sc.system.model)
     # 1e-9 below K_D* the pair is complex, 1e-9 above it two distinct real roots
     below, _ = spectrum(lin, K_star * (1 - 1e-9))
     above, _ = spectrum(lin, K_star * (1 + 1e-9))
@@ -152,7 +152,7 @@ def test_claims_hold_on_every_shipped_scene(scene):
     sc = load_scene(scene)
     cr = check_claims(linearize_scene(sc))
     assert cr.all_hold, {k: c.detail for k, c in cr.claims.items()}
-    if sc.steady().branch == 0:
+    if sc.system.steady().branch == 0:
         # solution I: the tilt modes are not reached; theory expects them on the axis
         exc = cr.claims['b'].exception
         assert 'nutation' in exc and 'precession' in exc and 'as the theory expects' in exc
@@ -321,7 +321,8 @@ def test_scene_descriptions_quote_the_frequencies_eig_gives():
                 nut = [m.freq_hz for m in modes(linearize_scene(scene)) if m.name == 'nutation']
                 assert nut == [pytest.approx(float(x), rel=0.2)], (path.stem, nut, x)
             else:
-                sm = steady_motion(scene.params, scene.initial.theta0, scene.initial.branch)
+                ic = scene.system.initial
+                sm = steady_motion(scene.system.params, ic.theta0, ic.branch)
                 f = abs(sm.psidot0) / (2 * math.pi)
                 assert f == pytest.approx(float(x), rel=0.2), (path.stem, f, x)
             checked += 1
@@ -400,9 +401,9 @@ def test_matrix_pencil_recovers_exponentials():
 def _fit_trajectory(scene_name, y0_fn, channels_fn, order, t_end=4.0, rate=100.0):
     sc = load_scene(scene_name)
     model = sc.make_model()
-    y0 = y0_fn(model, sc.steady())
+    y0 = y0_fn(model, sc.system.steady())
     tr = simulate(sc, t_end=t_end, rate=rate, y0=y0)
-    S = channels_fn(tr.out, sc.steady())
+    S = channels_fn(tr.out, sc.system.steady())
     return analyze_scene(sc), matrix_pencil(S, 1.0 / rate, order)
 
 
@@ -579,7 +580,7 @@ def test_stability_modules_do_not_import_rclpy_or_matplotlib():
 def test_reduced_models_are_simple_and_correct():
     r = analyze_scene('locked_housing')
     (m,) = r.modes
-    p = load_scene('locked_housing').params
+    p = load_scene('locked_housing').system.params
     # C_R z'' + K_D z' + K_S z = 0 (eq. 8)
     lam = (-p.K_D + np.sqrt(complex(p.K_D ** 2 - 4 * p.C_R * p.K_S))) / (2 * p.C_R)
     assert abs(m.eigenvalue - lam) < 1e-12 * abs(lam)

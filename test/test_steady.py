@@ -77,8 +77,8 @@ def test_full_model_stays_on_solution_ii(branch):
     scene = load_scene('precession', overrides={
         'initial.branch': branch, 'initial.dtheta': 0.0, 'initial.dthetadot': 0.0,
         'initial.dchi': 0.0, 'initial.dz': 0.0, 'initial.dzdot': 0.0})
-    sm = scene.steady()
-    model = FullModel(scene.params)
+    sm = scene.system.steady()
+    model = FullModel(scene.system.params)
     assert np.allclose(scene.initial_state(model), steady_state(model, sm))
     tr = simulate(scene, t_end=10.0, rate=20.0)
     assert np.max(np.abs(tr.theta - sm.theta0)) < 1e-8

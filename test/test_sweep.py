@@ -234,7 +234,7 @@ def test_scene_initial_condition_matches_simulate(capsys):
     assert res['status'][0] == PointStatus.OK
     assert res['pole_slips'][0] == int(printed.group(1)) == 3     # the README's reference
     tr = simulate('pole_slip')
-    p = tr.scene.params.pole_pairs
+    p = tr.scene.system.params.pole_pairs
     assert res['final_well'][0] == int(round(tr.z[-1] * p / (2 * np.pi))) == -3
 
 
@@ -276,7 +276,7 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     model = scene.make_model()
     run = integrate(model, scene.initial_state(model), spec.t_eval, method='dop853',
                     rtol=1e-11, atol=1e-13)
-    q = run.y[:, :model.n] - np.asarray(scene.steady_q)
+    q = run.y[:, :model.n] - np.asarray(scene.system.steady_q)
     assert got['peak_deviation'][j] == pytest.approx(np.abs(q).max(), rel=1e-7)
     assert got['final_E_star'][j] == pytest.approx(model.energy(run.y[-1:])[0], rel=1e-7)
     # the values reach the points: a stiffer turntable spring changes the motion

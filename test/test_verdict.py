@@ -267,11 +267,11 @@ def _verdict(scene, samples, **kw):
 
 def _mutations(scene) -> dict:
     if scene.builtin:
-        p = scene.params
-        return {'K_D x0.5': dataclasses.replace(scene, params=p.replace(K_D=0.5 * p.K_D)),
-                'K_D x2': dataclasses.replace(scene, params=p.replace(K_D=2.0 * p.K_D)),
-                'c_psi x1.2': dataclasses.replace(scene, params=p.replace(c_psi=1.2 * p.c_psi)),
-                'G x1.2': dataclasses.replace(scene, params=p.replace(G=1.2 * p.G)),
+        p = scene.system.params
+        return {'K_D x0.5': scene.with_params(K_D=0.5 * p.K_D),
+                'K_D x2': scene.with_params(K_D=2.0 * p.K_D),
+                'c_psi x1.2': scene.with_params(c_psi=1.2 * p.c_psi),
+                'G x1.2': scene.with_params(G=1.2 * p.G),
                 'scene nutation': load_scene('nutation'),
                 'scene upright': load_scene('upright')}
     kd = scene.system.drives[0].K_D
@@ -309,7 +309,7 @@ _SLOW: dict = {}
 def _with_K_D(scene, f: float):
     """Return the scene with its drive damping K_D (every drive's) times ``f``."""
     if scene.builtin:
-        return dataclasses.replace(scene, params=scene.params.replace(K_D=f * scene.params.K_D))
+        return scene.with_params(K_D=f * scene.system.params.K_D)
     return scene.with_changes({'K_D': f * scene.system.drives[0].K_D})
 
 
@@ -381,7 +381,7 @@ def test_a_wrong_K_D_is_seen_by_the_modes_alone():
     # K_D does not enter E* or the initial state: the drive's decay rates must show it
     scene, samples = _first('precession')
     for k in (0.5, 2.0):
-        wrong = dataclasses.replace(scene, params=scene.params.replace(K_D=k * 0.05))
+        wrong = scene.with_params(K_D=k * 0.05)
         res = _verdict(wrong, samples)
         assert str(res.criterion(CriterionName.MODES).status) == 'FAIL', (k, res.evidence)
         assert str(res.criterion(CriterionName.SCENE).status) == 'PASS'
@@ -522,7 +522,7 @@ def test_sweep_of_twin_gimbal_gives_no_growth_at_stable_points():
         model = scene.make_model()
         t = np.linspace(0.0, 10.0, 1001)
         run = integrate(model, scene.initial_state(model), t)
-        rate = system_metrics(model, np.asarray(scene.steady_q), t, run.y, {Metric.DECAY},
+        rate = system_metrics(model, np.asarray(scene.system.steady_q), t, run.y, {Metric.DECAY},
                               tol=1e-3)['decay_rate']
         # every root is stable (eig): a rate is positive or not resolved, never negative
         assert math.isnan(rate) or rate > 0, (k_d, rate)

@@ -109,9 +109,10 @@ def predict(scene: Scene) -> Prediction:
                               marginal=bool(r.is_marginal),
                               structural=_zero(r))
                 for r in roots if r.eigenvalue.imag >= -1e-12 * scale)
-    sm = scene.steady() if scene.params else None
-    # a system file's steady motion in its coordinates (the centrifuge's: theta0, psidot0)
-    steady = (tuple(scene.steady_q), tuple(scene.steady_qdot), tuple(scene.steady_z))
+    # the centrifuge's steady motion by theta0, psidot0; a system file's in its coordinates
+    sm = scene.system.steady() if scene.builtin else None
+    steady = () if scene.builtin else tuple(tuple(getattr(scene.system, k)) for k in (
+        'steady_q', 'steady_qdot', 'steady_z'))
     return Prediction(
         scene=scene.name, coords=lin.analytic.coords if lin.analytic else GENERAL_COORDS,
         modes=_unique_names(out), spectral_abscissa=float(verdict.spectral_abscissa),
@@ -120,7 +121,7 @@ def predict(scene: Scene) -> Prediction:
         pole_pairs=max(scene.pole_pairs), K_D=float(lin.K_all.max()),
         source='linear.system.assess', steady=steady if any(steady) else (),
         rotor_pole_pairs=scene.pole_pairs,
-        active_q=_position_channels(lin.A_scene(), len(scene.steady_q), scale))
+        active_q=_position_channels(lin.A_scene(), 0 if sm else scene.system.n, scale))
 
 
 def _zero(mode) -> bool:

@@ -68,35 +68,27 @@ import os
 from pathlib import Path
 import re
 from typing import Any, Mapping
-import warnings
 
-from gyro_rotor.core.model import make_model, Model, MODELS, perturb_state, PERTURBATION_KEYS
-from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.core.steady import steady_motion, SteadyMotion
-from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS
+from gyro_rotor.core.centrifuge import CENTRIFUGE, Centrifuge, INITIAL_UNITS, InitialCondition
+from gyro_rotor.core.model import Model, perturb_state, PERTURBATION_KEYS
+from gyro_rotor.core.params import PARAM_FIELDS
+from gyro_rotor.core.system.generated import (GeneratedSystem, key_sizes, lock, SYSTEM_DOC,
+                                              vector)
+from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import (config_dirs, DRIVE_KEYS, load_system,
                                                 RotorSystem, system_from_mapping, systems_dirs)
 from gyro_rotor.core.yamlio import SCENE_NAME, short
-from gyro_rotor.errors import did_you_mean, ParameterError, SceneError, SystemFileError
+from gyro_rotor.errors import did_you_mean, SceneError, SystemFileError
 from gyro_rotor.node_settings import NODE_KEYS, NODE_NAMES, NODE_RANGES
 import numpy as np
-import sympy
 
 __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'scene_from_flat',
            'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
            'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE', 'INITIAL_UNITS',
-           'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs']
+           'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs', 'Centrifuge',
+           'GeneratedSystem']
 
 DEFAULT_SCENE = 'precession'
-#: the built-in system: the elastically restrained centrifuge (section 4)
-CENTRIFUGE = 'centrifuge'
-#: key of the embedded system document in :meth:`Scene.to_flat`
-SYSTEM_DOC = 'system_doc'
-
-#: SI units of the centrifuge's numeric initial-condition keys (module doc)
-INITIAL_UNITS = {'theta0': 'rad', 'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s',
-                 'dchi': 'rad', 'dz': 'rad', 'dzdot': 'rad/s', 'z': 'rad', 'zdot': 'rad/s',
-                 'chi': 'rad', 'branch': '-'}
 #: keys of a centrifuge scene
 SCENE_KEYS: dict[str, type] = {
     'scene': str, 'description': str, 'system': str, 'model': str, 't_end': float,
@@ -121,118 +113,61 @@ SYSTEM_SCENE_KEYS: dict[str, type] = {
 
 
 @dataclasses.dataclass(frozen=True)
-class InitialCondition:
-    """Initial condition of a scene (see module doc)."""
-
-    mode: str = 'steady'
-    theta0: float = 0.0
-    branch: int = 0
-    dtheta: float = 0.0
-    dthetadot: float = 0.0
-    dpsidot: float = 0.0
-    dchi: float = 0.0
-    dz: float = 0.0
-    dzdot: float = 0.0
-    quaternion: tuple = (1.0, 0.0, 0.0, 0.0)
-    omega_body: tuple = (0.0, 0.0, 0.0)
-    z: float = 0.0
-    zdot: float = 0.0
-    chi: float | None = None
-
-
-@dataclasses.dataclass(frozen=True)
 class Scene:
     """A loaded, validated scene of any system (module doc).
 
-    Common to every system: the name, ``t_end``, the description, the file, the node's
-    keys (``node``), the kick (``perturbation``) and the typed flat keys it was built from
-    (``flat``). The built-in centrifuge (``system_name == 'centrifuge'``) carries its
-    parameters (``params``), its model and its initial condition (``initial``); a system
-    file's scene carries the system (``system``, overrides applied, locked coordinates
-    removed; ``full_system`` before the lock; ``base_system`` as the file defines it), the
-    initial and the steady state and the locked coordinates.
+    Its name, ``t_end``, the description, the file, the node's keys (``node``), the kick
+    (``perturbation``), the typed flat keys it was built from (``flat``) and its system
+    with the scene's numbers and motion (``system``): the built-in
+    :class:`~gyro_rotor.core.centrifuge.Centrifuge` or a system file's
+    :class:`~gyro_rotor.core.system.generated.GeneratedSystem`. The two present one
+    interface: what differs by the system is asked of it, never of its kind.
     """
 
     name: str
-    params: RotorParams | None = None
-    model: str = 'full'
+    system: Centrifuge | GeneratedSystem
     t_end: float = 10.0
-    initial: InitialCondition = InitialCondition()
     perturbation: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     node: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     description: str = ''
     path: str | None = None
-    system: RotorSystem | None = None
-    full_system: RotorSystem | None = None
-    q0: tuple = ()
-    qdot0: tuple = ()
-    z0: tuple = ()
-    zdot0: tuple = ()
-    steady_q: tuple = ()
-    steady_qdot: tuple = ()
-    steady_z: tuple = ()
-    locked: tuple = ()
     #: the typed flat keys the scene was built from (overrides included)
     flat: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
-    #: the system as its file defines it (before the scene's constants and drives)
-    base_system: RotorSystem | None = dataclasses.field(default=None, compare=False,
-                                                        repr=False)
 
     @property
     def builtin(self) -> bool:
         """Return True for the built-in centrifuge (its hand-written models)."""
-        return self.system is None
+        return self.system.builtin
 
     @property
     def system_name(self) -> str:
         """Return the name of the scene's system (``centrifuge`` for the built-in one)."""
-        return CENTRIFUGE if self.system is None else self.system.name
+        return self.system.name
 
     @property
     def pole_pairs(self) -> tuple:
         """Pole pairs of each rotor's drive (0: linear law)."""
-        if self.system is None:
-            return (int(self.params.pole_pairs),)
-        return tuple(int(d.pole_pairs) for d in self.system.drives)
+        return self.system.pole_pairs
 
     @property
     def Omega0(self) -> float:
         """Return the field speed Omega0 of the first rotor's drive [rad/s] (eq. 23)."""
-        if self.system is None:
-            return float(self.params.Omega0)
-        return float(self.system.drives[0].Omega0)
+        return self.system.Omega0
 
     @property
     def joint_names(self) -> tuple:
         """Return the joint_states names rotor_sim publishes for this scene (its model's)."""
-        return Model.joint_names if self.system is None else joint_names(self.system)
+        return self.system.joint_names
 
     def physics(self) -> tuple:
         """Return (name, value) of everything a run's analysis depends on.
 
-        The system's name first; the centrifuge: its parameters, model and initial
-        condition; a system file's: the coordinates, rotors, constants (by name), drives,
-        equations, the steady motion and the initial state. Names, descriptions, t_end and
-        the kick do not count.
+        The system's name first, then what its system holds: the centrifuge's parameters,
+        model and initial condition; a system file's coordinates, rotors, constants (by
+        name), drives, equations, steady motion and initial state. Names, descriptions,
+        t_end and the kick do not count.
         """
-        out = [('system', self.system_name)]
-        if self.system is None:
-            out += [(f, getattr(self.params, f)) for f in PARAM_FIELDS]
-            out.append(('model', self.model))
-            out += [(f'initial.{f.name}', getattr(self.initial, f.name))
-                    for f in dataclasses.fields(InitialCondition)]
-            return tuple(out)
-        s = self.system
-        out += [('coordinates', s.coordinates), ('rotors', s.rotors)]
-        out += sorted(s.constants.items())
-        out += [(f'drive.{r}.{f}', getattr(d, f)) for r, d in zip(s.rotors, s.drives)
-                for f in ('K_S', 'K_D', 'Omega0', 'pole_pairs')]
-        out.append(('the equations (mass matrix, guidance, potential, rotor inertia)',
-                    (s.mass_matrix, s.guidance, s.potential, tuple(s.rotor_inertia))))
-        out += [(f.replace('_', '.', 1) if f.startswith('steady') else f'initial.{f[:-1]}',
-                 getattr(self, f))
-                for f in ('steady_q', 'steady_qdot', 'steady_z', 'q0', 'qdot0', 'z0', 'zdot0')]
-        return tuple(out)
+        return (('system', self.system_name), *self.system.physics())
 
     @property
     def kicked(self) -> bool:
@@ -242,23 +177,11 @@ class Scene:
 
     def make_model(self) -> Model | GeneralModel:
         """Return the model this scene needs."""
-        if self.system is None:
-            return make_model(self.model, self.params)
-        return GeneralModel(self.system)
-
-    def steady(self) -> SteadyMotion:
-        """Return the centrifuge's steady motion the initial condition refers to."""
-        ic = self.initial
-        if ic.mode != 'steady':
-            return steady_motion(self.params, 0.0, 0)
-        return steady_motion(self.params, ic.theta0, ic.branch)
+        return self.system.make_model()
 
     def initial_state(self, model=None) -> np.ndarray:
         """State vector at t = 0 for this scene's model."""
-        model = model or self.make_model()
-        if self.system is not None:
-            return model.state(self.q0, self.qdot0, self.z0, self.zdot0)
-        return _centrifuge_state(self, model)
+        return self.system.initial_state(model or self.make_model(), self.name)
 
     def steady_state(self, model: Model | GeneralModel | None = None) -> np.ndarray:
         """State on the scene's steady motion at t = 0 (z = zdot = 0, D = 0).
@@ -266,38 +189,32 @@ class Scene:
         The centrifuge: its steady motion (I or II, eqs. 20-23; the resting state for a
         body-mode scene); a system file: its checked steady motion (q_s, qdot_s, z_s).
         """
-        model = model or self.make_model()
-        if self.system is None:
-            sm = self.steady()
-            return (model.state_from_euler(theta=sm.theta0, psidot=sm.psidot0,
-                                           phi_M_dot=-sm.psidot0)
-                    if self.initial.mode == 'steady' else model.state_from_euler())
-        return model.state(self.steady_q, self.steady_qdot, self.steady_z,
-                           np.zeros(self.system.m))
+        return self.system.steady_state(model or self.make_model())
 
     def with_params(self, **changes: Any) -> 'Scene':
         """Copy with some centrifuge parameters changed (validated)."""
-        return dataclasses.replace(self, params=self.params.replace(**changes))
-
-    def with_changes(self, changes: Mapping[str, Any]) -> 'Scene':
-        """Copy with flat keys changed (constants.NAME, drive.ROTOR.KEY, K_D, ..., t_end).
-
-        Validated as in a scene file (SceneError names the problem); the steady motion
-        is checked again, since constants move it.
-        """
-        flat = dict(self.flat)
-        for key in changes:      # a common drive key sets every drive: per-rotor ones go
-            if key in DRIVE_KEYS:
-                flat = {k: v for k, v in flat.items()
-                        if not (k.startswith('drive.') and k.endswith(f'.{key}'))}
-        flat.update(changes)
-        return _system_scene(flat, path=self.path, system=self.base_system,
-                             where=f'scene {self.name}')
+        return dataclasses.replace(self, system=self.system.with_params(**changes))
 
     def with_drives(self, **values: float) -> 'Scene':
         """Copy with a drive value (K_S, K_D, Omega0, pole_pairs) set for every rotor."""
         drives = [d.replace(**values) for d in self.system.drives]
         return dataclasses.replace(self, system=self.system.with_drives(drives))
+
+    def with_changes(self, changes: Mapping[str, Any]) -> 'Scene':
+        """Copy with flat keys changed (constants.NAME, drive.ROTOR.KEY, K_D, ..., t_end).
+
+        Validated as in a scene file (SceneError names the problem); a system file's steady
+        motion is checked again, since constants move it.
+        """
+        flat = {**self.to_flat(), **self.node}
+        flat.pop(SYSTEM_DOC, None)
+        for key in changes:      # a common drive key sets every drive: per-rotor ones go
+            if key in DRIVE_KEYS:
+                flat = {k: v for k, v in flat.items()
+                        if not (k.startswith('drive.') and k.endswith(f'.{key}'))}
+        flat.update(changes)
+        return scene_from_mapping(flat, path=self.path, strict_float=False,
+                                  system=self.system.base, where=f'scene {self.name}')
 
     def with_t_end(self, t_end: float) -> 'Scene':
         """Copy with another duration."""
@@ -312,21 +229,7 @@ class Scene:
         (validated as in a scene file, :meth:`with_changes`: positive definite mass matrix,
         steady motion still steady). Raises ParameterError.
         """
-        if self.system is None:
-            phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
-            if not phys:
-                return None
-            with warnings.catch_warnings():
-                warnings.simplefilter('ignore')
-                return dataclasses.replace(self, params=self.params.replace(**phys))
-        phys = {k: v for k, v in changes.items()
-                if k in DRIVE_KEYS or k.startswith(('constants.', 'drive.'))}
-        if not phys:
-            return None
-        try:
-            return self.with_changes(phys)
-        except SceneError as err:
-            raise ParameterError(str(err)) from None
+        return self.system.live_scene(self, changes)
 
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick of rotor_sim's ~/perturb: ``values`` checked, the other keys 0.
@@ -337,70 +240,18 @@ class Scene:
         as for ``initial.q`` (a locked coordinate's entry must be 0). Raises
         ParameterError.
         """
-        if self.system is None:
-            out = dict.fromkeys(PERTURBATION_KEYS, 0.0)
-            for key, value in values.items():
-                if key not in out:
-                    raise ParameterError(_unknown(f'perturbation.{key}', [
-                        f'perturbation.{k}' for k in PERTURBATION_KEYS]))
-                try:
-                    out[key] = float(value)
-                except (TypeError, ValueError):
-                    raise ParameterError(f'perturbation.{key} must be a number, got '
-                                         f'{short(value)}') from None
-            return out
-        n, m = self.full_system.n, self.system.m
-        sizes = dict(zip(KICK_KEYS, (n, n, m, m)))
-        out = {k: [0.0] * size for k, size in sizes.items()}
-        for key, value in values.items():
-            if key not in sizes:
-                raise ParameterError(f"unknown key 'perturbation.{key}': a general scene "
-                                     f"kicks perturbation.{', perturbation.'.join(sizes)}")
-            try:    # a list, a tuple, or the array.array('d') of a ROS double-array parameter
-                v = [float(x) for x in np.atleast_1d(np.asarray(value, dtype=float))]
-            except (TypeError, ValueError):
-                v = []
-            if len(v) != sizes[key] or not all(math.isfinite(x) for x in v):
-                raise ParameterError(
-                    f'perturbation.{key} must be {sizes[key]} finite numbers, got '
-                    f'{list(value) if hasattr(value, "__len__") else value!r}')
-            held = [c for c, x in zip(self.full_system.coordinates, v)
-                    if c in self.locked and x != 0.0] if key in ('q', 'qdot') else []
-            if held:
-                raise ParameterError(f'perturbation.{key}: the locked coordinate '
-                                     f'{held[0]} cannot be kicked (its entry must be 0)')
-            out[key] = v
-        return out
+        return self.system.kick_values(values)
 
     def model_kick(self, kick: Mapping[str, Any]) -> Mapping[str, Any]:
         """Return a kick of :meth:`kick_values` in the terms of the scene's model.
 
         (A system file's scene drops the entries of its locked coordinates.)
         """
-        if self.system is None:
-            return kick
-        free = [i for i, c in enumerate(self.full_system.coordinates) if c not in self.locked]
-        return {k: [v[i] for i in free] if k in ('q', 'qdot') else v for k, v in kick.items()}
+        return self.system.model_kick(kick)
 
     def initial_doc(self) -> dict[str, Any]:
         """Return the initial condition as ``initial.*`` keys without the prefix."""
-        if self.system is not None:
-            return {'q': list(self.q0), 'qdot': list(self.qdot0), 'z': list(self.z0),
-                    'zdot': list(self.zdot0)}
-        ic = self.initial
-        keys = (('mode', 'theta0', 'branch', *PERTURBATION_KEYS) if ic.mode == 'steady'
-                else ('mode', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'))
-        out = {}
-        for k in keys:
-            v = getattr(ic, k)
-            if v is None:
-                continue
-            if isinstance(v, (tuple, list, np.ndarray)):
-                v = [float(x) for x in v]
-            elif not isinstance(v, (bool, int, str)):
-                v = float(v)
-            out[k] = v
-        return out
+        return self.system.initial_doc()
 
     def document_parts(self) -> tuple[dict[str, Any], dict[str, Any]]:
         """Return the scene's keys of rotor_sim's ``~/scene`` document: (head, tail).
@@ -409,17 +260,7 @@ class Scene:
         file's ``flat`` holds the scene's keys with the system file's document embedded
         (:meth:`to_flat`): a reader rebuilds the scene without the file.
         """
-        if self.system is None:
-            return ({'scene': self.name, 'model': self.model, 't_end': self.t_end,
-                     'params': self.params.to_mapping(), 'initial': self.initial_doc()},
-                    {'path': self.path})
-        s = self.system
-        return ({'scene': self.name, 'system': s.name, 't_end': self.t_end,
-                 'constants': dict(self.full_system.constants),
-                 'drives': {r: {k: getattr(d, k) for k in DRIVE_KEYS}
-                            for r, d in zip(s.rotors, s.drives)},
-                 'joint_names': list(joint_names(s)), 'initial': self.initial_doc()},
-                {'path': self.path, 'flat': self.to_flat()})
+        return self.system.document_parts(self)
 
     def to_flat(self) -> dict[str, Any]:
         """Return the flat dotted keys that :func:`scene_from_flat` rebuilds the scene from.
@@ -427,62 +268,7 @@ class Scene:
         A system file's scene carries the system's document (``system_doc``), so that a
         reader rebuilds it on a machine without the file.
         """
-        if self.system is not None:
-            flat = dict(self.flat)
-            doc = self.base_system.document if self.base_system is not None else None
-            if doc is not None:
-                flat[SYSTEM_DOC] = doc
-            return flat
-        flat: dict[str, Any] = {'scene': self.name, 'system': CENTRIFUGE, 'model': self.model,
-                                't_end': self.t_end}
-        if self.description:
-            flat['description'] = self.description
-        flat.update(self.params.to_mapping())
-        flat.update({f'initial.{k}': v for k, v in self.initial_doc().items()})
-        for k, v in self.perturbation.items():
-            flat[f'perturbation.{k}'] = v
-        return flat
-
-
-def _centrifuge_state(scene: Scene, model: Model) -> np.ndarray:
-    """Return the centrifuge's state at t = 0 from its initial condition (module doc)."""
-    ic = scene.initial
-    if ic.mode == 'steady':
-        sm = scene.steady()
-        if model.name != 'full' and (ic.dtheta or ic.dthetadot or sm.theta0):
-            raise SceneError(f"scene '{scene.name}': model {model.name} holds the axis "
-                             'vertical; theta0, dtheta and dthetadot must be 0')
-        return model.state_from_euler(
-            theta=sm.theta0 + ic.dtheta, thetadot=ic.dthetadot, psi=0.0,
-            psidot=sm.psidot0 + ic.dpsidot, phi_M=ic.dchi, phi_M_dot=-sm.psidot0,
-            z=ic.dz, zdot=ic.dzdot)
-    # body mode
-    q = np.asarray(ic.quaternion, dtype=float)
-    W = np.asarray(ic.omega_body, dtype=float)
-    if model.name == 'full':
-        # q and -q are one orientation, but the sign carries the twist chi (|chi| < 2 pi):
-        # without initial.chi take the smaller twist (q_w >= 0); with it, the sign that
-        # gives that twist
-        if q[0] < 0 or (q[0] == 0 and q[3] < 0):
-            q = -q
-        if ic.chi is not None and abs(2.0 * math.atan2(-q[3], -q[0]) - ic.chi) < abs(
-                2.0 * math.atan2(q[3], q[0]) - ic.chi):
-            q = -q
-        y = model.state_from_body(q, W, ic.z, ic.zdot)
-        if ic.chi is not None:
-            chi_q = 2.0 * math.atan2(y[3], y[0])
-            if abs(chi_q - ic.chi) > 1e-9:
-                raise SceneError(
-                    f"scene '{scene.name}': initial.chi = {ic.chi} disagrees with the "
-                    f"quaternion's twist 2 atan2(q_z, q_w) = {chi_q:.12g}")
-        return y
-    if model.name == 'upright_axis':
-        if abs(W[0]) > 0 or abs(W[1]) > 0 or abs(q[1]) > 0 or abs(q[2]) > 0:
-            raise SceneError(f"scene '{scene.name}': model upright_axis needs the axis "
-                             'vertical: quaternion x, y and omega_body 1, 2 must be 0')
-        chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
-        return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
-    return np.array([ic.z, ic.zdot, 0.0])
+        return self.system.to_flat(self)
 
 
 # -- loading ---------------------------------------------------------------------------------
@@ -693,61 +479,26 @@ def _centrifuge_scene(flat: Mapping[str, Any], path: str | None, strict: bool) -
         if key not in SCENE_KEYS:
             raise SceneError(f'{where}: ' + _unknown(key, SCENE_KEYS))
         vals[key] = _typed(key, SCENE_KEYS[key], value, where, strict_float=strict)
-    name = vals.get('scene', Path(path).stem if path else 'custom')
-    model = vals.get('model', 'full')
-    if model not in MODELS:
-        raise SceneError(f"{where}: unknown model '{model}'; valid: {', '.join(MODELS)}")
     t_end = vals.get('t_end', 10.0)
     if not (math.isfinite(t_end) and t_end > 0):
         raise SceneError(f'{where}: t_end must be positive and finite, got {t_end!r}')
-    try:
-        params = RotorParams(**{k: vals[k] for k in PARAM_FIELDS if k in vals})
-    except ParameterError as err:
-        raise ParameterError(f'{where}: {err}') from None
-    ini = {k.split('.', 1)[1]: v for k, v in vals.items() if k.startswith('initial.')}
-    mode = ini.get('mode', 'steady')
-    if mode not in ('steady', 'body'):
-        raise SceneError(f"{where}: initial.mode must be 'steady' or 'body', got {mode!r}")
-    if mode == 'body':
-        bad = [k for k in ini if k in ('theta0', 'branch') or k in PERTURBATION_KEYS]
-        if bad:
-            raise SceneError(f'{where}: initial.{bad[0]} belongs to initial.mode steady')
-        if len(ini.get('quaternion', (1, 0, 0, 0))) != 4:
-            raise SceneError(f'{where}: initial.quaternion needs 4 numbers [w, x, y, z]')
-        if len(ini.get('omega_body', (0, 0, 0))) != 3:
-            raise SceneError(f'{where}: initial.omega_body needs 3 numbers')
-        qn = math.hypot(*ini.get('quaternion', (1, 0, 0, 0)))
-        if not (math.isfinite(qn) and qn > 0):
-            raise SceneError(f'{where}: initial.quaternion must be finite and non-zero')
-    else:
-        bad = [k for k in ini if k in ('quaternion', 'omega_body', 'z', 'zdot', 'chi')]
-        if bad:
-            raise SceneError(f'{where}: initial.{bad[0]} belongs to initial.mode body')
-    for k, v in ini.items():
-        if isinstance(v, float) and not math.isfinite(v):
-            raise SceneError(f'{where}: initial.{k} must be finite, got {v!r}')
-        if isinstance(v, tuple) and not all(math.isfinite(x) for x in v):
-            raise SceneError(f'{where}: initial.{k} must be finite, got {list(v)!r}')
-    initial = InitialCondition(**ini)
+    system = Centrifuge.from_keys(vals, where)
     pert = {k.split('.', 1)[1]: v for k, v in vals.items() if k.startswith('perturbation.')}
     for k, v in pert.items():
         if not math.isfinite(v):
             raise SceneError(f'{where}: perturbation.{k} must be finite, got {v!r}')
-    node = {k: v for k, v in vals.items() if k in NODE_KEYS}
     check_node_ranges(vals, where)
-    scene = Scene(name=name, params=params, model=model, t_end=t_end, initial=initial,
-                  perturbation=pert, node=node, description=vals.get('description', ''),
-                  path=path, flat=dict(vals))
+    scene = Scene(name=vals.get('scene', Path(path).stem if path else 'custom'), system=system,
+                  t_end=t_end, perturbation=pert, node=_node(vals),
+                  description=vals.get('description', ''), path=path, flat=dict(vals))
     # validate the initial condition now (steady motion exists, model fits)
     scene.initial_state()
     return scene
 
 
-def _vector(vals: dict, key: str, size: int, what: str, where: str) -> tuple:
-    v = vals.get(key, (0.0,) * size)
-    if len(v) != size:
-        raise SceneError(f'{where}: {key} must have {size} entries ({what}), got {len(v)}')
-    return v
+def _node(vals: Mapping[str, Any]) -> dict[str, Any]:
+    """Return the node's keys of a scene's typed keys."""
+    return {k: v for k, v in vals.items() if k in NODE_KEYS}
 
 
 def _drives(system: RotorSystem, vals: dict, where: str) -> RotorSystem:
@@ -763,24 +514,6 @@ def _drives(system: RotorSystem, vals: dict, where: str) -> RotorSystem:
         k = system.rotors.index(parts[1])
         drives[k] = drives[k].replace(**{parts[2]: value})
     return system.with_drives(drives)
-
-
-def lock(system: RotorSystem, names, values) -> RotorSystem:
-    """Hold the coordinates ``names`` at ``values``: the reduced system (rows/columns dropped)."""
-    if not names:
-        return system
-    keep = [i for i, c in enumerate(system.coordinates) if c not in names]
-    syms = system.q_symbols()
-    subs = {syms[i]: sympy.Float(values[i]) for i, c in enumerate(system.coordinates)
-            if c in names}
-    M = sympy.ImmutableMatrix([[system.mass_matrix[i, j].xreplace(subs) for j in keep]
-                               for i in keep]) if keep else sympy.ImmutableMatrix(0, 0, [])
-    B = sympy.ImmutableMatrix(system.m, len(keep), [system.guidance[k, j].xreplace(subs)
-                                                    for k in range(system.m) for j in keep])
-    return dataclasses.replace(
-        system, name=f'{system.name}_locked', coordinates=tuple(system.coordinates[i]
-                                                                for i in keep),
-        mass_matrix=M, guidance=B, potential=system.potential.xreplace(subs))
 
 
 def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
@@ -820,9 +553,7 @@ def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
         system = _drives(system, vals, where)
     except SystemFileError as err:
         raise SceneError(f'{where}: {err}') from None
-    scene = _build(vals, system, where, path)
-    scene = dataclasses.replace(scene, base_system=base, flat={
-        k: list(v) if isinstance(v, tuple) else v for k, v in vals.items()})
+    scene = _build(vals, system, base, where, path)
     model = scene.make_model()
     # the checks test the values for finiteness and say so in one line: numpy's warnings
     # on the way (a singular point of the generated code) would only add lines
@@ -836,40 +567,20 @@ def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
     return scene
 
 
-def _build(vals: dict, system: RotorSystem, where: str, path: str | None) -> Scene:
+def _build(vals: dict, system: RotorSystem, base: RotorSystem, where: str,
+           path: str | None) -> Scene:
     """Return the scene of typed keys ``vals`` on ``system`` (constants, drives applied)."""
-    n, m = system.n, system.m
-    coords = ', '.join(system.coordinates) or 'none'
-    per_q, per_r = f'one per coordinate: {coords}', f'one per rotor: {", ".join(system.rotors)}'
-    sizes = {'q': (n, per_q), 'qdot': (n, per_q), 'z': (m, per_r), 'zdot': (m, per_r)}
-    q0, qd0, z0, zd0 = (_vector(vals, f'initial.{k}', *sizes[k], where) for k in sizes)
-    sq, sqd, sz = (_vector(vals, f'steady.{k}', *sizes[k], where) for k in ('q', 'qdot', 'z'))
-    locked = vals.get('locked', ())
-    for i, name in enumerate(locked):
-        if name not in system.coordinates:
-            raise SceneError(f"{where}: locked[{i}] = '{name}' is not a coordinate of system "
-                             f'{system.name}{did_you_mean(name, system.coordinates)} '
-                             f'(coordinates: {coords})')
-    keep = [i for i, c in enumerate(system.coordinates) if c not in locked]
-    for i, c in enumerate(system.coordinates):
-        if c in locked and (q0[i] != sq[i] or qd0[i] != 0.0 or sqd[i] != 0.0):
-            raise SceneError(f'{where}: the locked coordinate {c} is held at steady.q = '
-                             f'{sq[i]}: initial.q must equal it and initial.qdot, steady.qdot '
-                             f'be 0 there')
+    generated = dataclasses.replace(GeneratedSystem.from_keys(vals, system, where), base=base)
     t_end = vals.get('t_end', 10.0)
     if not t_end > 0:
         raise SceneError(f'{where}: t_end must be positive, got {t_end!r}')
-    kick = {k: _vector(vals, f'perturbation.{k}', *sizes[k], where) for k in sizes
+    sizes = key_sizes(system)
+    kick = {k: vector(vals, f'perturbation.{k}', *sizes[k], where) for k in sizes
             if f'perturbation.{k}' in vals}
-
-    def pick(v):
-        return tuple(v[i] for i in keep)
-    return Scene(
-        name=vals.get('scene', Path(path).stem if path else system.name),
-        system=lock(system, locked, sq), full_system=system, t_end=t_end, q0=pick(q0),
-        qdot0=pick(qd0), z0=z0, zdot0=zd0, steady_q=pick(sq), steady_qdot=pick(sqd),
-        steady_z=sz, locked=tuple(locked), description=vals.get('description', ''),
-        path=path, node={k: v for k, v in vals.items() if k in NODE_KEYS}, perturbation=kick)
+    return Scene(name=vals.get('scene', Path(path).stem if path else system.name),
+                 system=generated, t_end=t_end, description=vals.get('description', ''),
+                 path=path, node=_node(vals), perturbation=kick,
+                 flat={k: list(v) if isinstance(v, tuple) else v for k, v in vals.items()})
 
 
 #: smallest mass-matrix eigenvalue over the largest below which a scene is refused
@@ -924,7 +635,7 @@ def check_steady(scene: Scene, model: GeneralModel | None = None,
     """Raise SceneError if the accelerations on the steady motion do not vanish."""
     model = model or scene.make_model()
     acc = steady_residual(scene, model)
-    v = np.abs(np.concatenate([scene.steady_qdot, [1.0]])).max()
+    v = np.abs(np.concatenate([scene.system.steady_qdot, [1.0]])).max()
     tol = 1e-9 * max(1.0, v * v, model.rate())
     worst = int(np.argmax(np.abs(acc))) if acc.size else 0
     if acc.size and abs(acc[worst]) > tol:

@@ -231,19 +231,19 @@ class _Continuation:
         self.scene, self.ref = scene, scene.Omega0
         self.model = scene.make_model()
         self._Model = GeneralModel
-        self.qdot = np.asarray(scene.steady_qdot, dtype=float)
+        self.qdot = np.asarray(scene.system.steady_qdot, dtype=float)
         self.moving = bool(np.any(self.qdot != 0))
         # unknowns: the drive lags z and (moving) the size s of the rate pattern
-        self.solved = {self.ref: (np.asarray(scene.steady_z, dtype=float), 1.0)}
+        self.solved = {self.ref: (np.asarray(scene.system.steady_z, dtype=float), 1.0)}
 
     def __call__(self, W: float):
         """Return the scene at field speed W, its steady motion solved."""
         f = W / self.ref
         drives = [d.replace(Omega0=d.Omega0 * f) for d in self.scene.system.drives]
         sc = dataclasses.replace(self.scene, system=self.scene.system.with_drives(drives))
-        z, s = self._steady(sc, self._Model(sc.system, self.model.compiled), W)
-        return dataclasses.replace(sc, steady_z=tuple(z.tolist()),
-                                   steady_qdot=tuple((s * self.qdot).tolist()))
+        z, s = self._steady(sc, self._Model(sc.system.reduced, self.model.compiled), W)
+        return dataclasses.replace(sc, system=dataclasses.replace(
+            sc.system, steady_z=tuple(z.tolist()), steady_qdot=tuple((s * self.qdot).tolist())))
 
     def _steady(self, sc, mdl, W):
         if W in self.solved:
@@ -251,7 +251,7 @@ class _Continuation:
         near = min(self.solved, key=lambda w: abs(w - W))
         z, s = self.solved[near]
         m = mdl.m
-        q = np.asarray(sc.steady_q, dtype=float)
+        q = np.asarray(sc.system.steady_q, dtype=float)
 
         def acc(u):
             zz, ss = u[:m], (u[m] if self.moving else 1.0)

@@ -55,10 +55,11 @@ def solve_steady(scene: Scene, *, max_iter: int = 50) -> tuple:
     """
     model = scene.make_model()
     n, m = model.n, model.m
-    x = np.concatenate([scene.steady_q, scene.steady_z]).astype(float)
+    x = np.concatenate([scene.system.steady_q, scene.system.steady_z]).astype(float)
 
     def acc(x):
-        return model.accelerations(model.state(x[:n], scene.steady_qdot, x[n:], np.zeros(m)))
+        return model.accelerations(model.state(x[:n], scene.system.steady_qdot, x[n:],
+                                               np.zeros(m)))
     x, r = damped_newton(acc, x, 1e-13 * max(1.0, model.rate()), max_iter=max_iter,
                          min_step=1e-4)
     return x[:n], x[n:], float(np.abs(r).max())
@@ -91,9 +92,9 @@ def _closed_form(scene: Scene, theta0: float | None) -> SteadyMotions:
     """Solutions I and II (both branches) of the centrifuge, exact and by eq. (22)."""
     from gyro_rotor.core.steady import steady_motion
     from gyro_rotor.errors import NoSteadyMotionError
-    p = scene.params
+    p = scene.system.params
     if theta0 is None:
-        theta0 = scene.initial.theta0 if scene.initial.theta0 > 0 else 0.1
+        theta0 = scene.system.initial.theta0 if scene.system.initial.theta0 > 0 else 0.1
     lines = ['I:  theta = 0, psidot = 0, rotor at Omega0 about the vertical, housing at rest']
     found = True
     for branch in (1, 2):
@@ -134,5 +135,6 @@ def _from_guess(scene: Scene, theta0: float | None) -> SteadyMotions:
     if ok:
         lines.append('for the scene: steady: {q: ' + json.dumps(q.tolist()) + ', z: '
                      + json.dumps(z.tolist()) + '}')
-    return SteadyMotions(f'steady guess q = {list(scene.steady_q)}, qdot = '
-                         f'{list(scene.steady_qdot)}, z = {list(scene.steady_z)}', lines, ok)
+    sm = scene.system
+    return SteadyMotions(f'steady guess q = {list(sm.steady_q)}, qdot = '
+                         f'{list(sm.steady_qdot)}, z = {list(sm.steady_z)}', lines, ok)

@@ -177,7 +177,7 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
         return _centrifuge(scene, drive)
     model = model or scene.make_model()
     check_steady(scene, model)
-    system = scene.system
+    system = scene.system.reduced
     if drive is None:
         which = list(range(system.m))
     elif drive in system.rotors:
@@ -189,9 +189,9 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
     A0, b, c, A_cons = _drive_parts(model, y0, system.drives, which)
     everyone = list(range(system.m))
     _, b_all, c_all, _ = _drive_parts(model, y0, system.drives, everyone)
-    if np.any(np.asarray(scene.steady_qdot) != 0):
+    if np.any(np.asarray(scene.system.steady_qdot) != 0):
         y1 = y0.copy()
-        y1[:model.n] += 0.37 * np.asarray(scene.steady_qdot)
+        y1[:model.n] += 0.37 * np.asarray(scene.system.steady_qdot)
         A1 = _drive_parts(model, y1, system.drives, which)[0]
         if not np.allclose(A0, A1, rtol=1e-8, atol=1e-10 * np.abs(A0).max()):
             raise SceneError(f'scene {scene.name}: the linearization changes along the steady '
@@ -200,8 +200,8 @@ def linearize_scene(scene: Scene, *, drive: str | None = None,
     if not np.all(np.isfinite(A0)):
         raise SceneError(f'scene {scene.name}: the linearization is not finite')
     Ks = np.array([system.drives[k].K_D for k in which])
-    about = (f'q = {list(scene.steady_q)}, qdot = {list(scene.steady_qdot)}, '
-             f'z = {list(scene.steady_z)}')
+    sm = scene.system
+    about = f'q = {list(sm.steady_q)}, qdot = {list(sm.steady_qdot)}, z = {list(sm.steady_z)}'
     positions = tuple(system.coordinates) + tuple(f'z_{r}' for r in system.rotors)
     names = positions + tuple(f'{q}_dot' for q in system.coordinates) + tuple(
         f'zdot_{r}' for r in system.rotors)
@@ -221,7 +221,8 @@ def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
     if drive is not None:
         raise ParameterError('--drive is for the scenes of system files; the centrifuge '
                              'has one drive')
-    return from_analytic(linearize(scene.params, scene.steady(), scene.model))
+    return from_analytic(linearize(scene.system.params, scene.system.steady(),
+                                   scene.system.model))
 
 
 def from_analytic(ls: LinearSystem) -> Linearization:

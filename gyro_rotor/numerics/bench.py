@@ -329,11 +329,11 @@ def _load() -> float:
 def _peers(scene: Scene, quick: bool):
     """Return (compiled peer or None, {package: methods}) of the scene's sweep."""
     if scene.builtin:
-        if scene.model != 'full':
+        if scene.system.model != 'full':
             return None, {}
         table = QUICK_PEERS if quick else bench_peers.PEER_METHODS
         have = {p: table[p] for p in bench_peers.available() if p in table}
-        return (bench_peers.make_peer_rhs(scene.params, list(have)) if have else None), have
+        return (bench_peers.make_peer_rhs(scene.system.params, list(have)) if have else None), have
     if 'cyrk' not in bench_peers.available():
         return None, {}
     methods = QUICK_PEERS['cyrk'] if quick else bench_peers.GENERAL_PEER_METHODS

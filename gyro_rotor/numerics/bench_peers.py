@@ -245,7 +245,7 @@ def _general_body(scene):
     import sympy
     from numba import njit
     from gyro_rotor.core.system.equations import derive
-    system = scene.system
+    system = scene.system.reduced
     eq = derive(system, jacobians=False)
     n, m = eq.n, eq.m
     N = n + m
@@ -319,7 +319,7 @@ def _lambdified(scene, jacobians: bool):
     """
     import sympy
     from gyro_rotor.core.system.equations import derive
-    eq = derive(scene.system, jacobians=jacobians)
+    eq = derive(scene.system.reduced, jacobians=jacobians)
     n, m, N = eq.n, eq.m, eq.n + eq.m
     z = sympy.symbols(f'z0:{m}', real=True)
     args = list(eq.q) + list(z) + list(eq.v) + list(eq.consts) + list(eq.Omega0)

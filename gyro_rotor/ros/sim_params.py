@@ -142,14 +142,15 @@ def declare_parameters(node: Node) -> tuple:
                              f"scene '{base.name}' ('{CENTRIFUGE}'); give a scene of that system")
     flat['description'] = _declare(node, 'description', base.description,
                                    'what the scene shows', True)
-    flat['model'] = _declare(node, 'model', base.model, 'full | locked_housing | upright_axis',
+    flat['model'] = _declare(node, 'model', base.system.model,
+                             'full | locked_housing | upright_axis',
                              True)
     flat['t_end'] = _declare(node, 't_end', base.t_end, 'scene duration [s] (the node stops '
                              'there if stop_at_t_end)')
     for f in PARAM_FIELDS:
-        flat[f] = _declare(node, f, getattr(base.params, f),
+        flat[f] = _declare(node, f, getattr(base.system.params, f),
                            f'{PARAM_DESCRIPTIONS[f]} [{PARAM_UNITS[f]}]; live')
-    ic = base.initial
+    ic = base.system.initial
     mode = _declare(node, 'initial.mode', ic.mode, _INITIAL_DOC['mode'], True)
     keys = (('theta0', 'branch', *PERTURBATION_KEYS) if mode == 'steady'
             else ('quaternion', 'omega_body', 'z', 'zdot'))
@@ -195,7 +196,7 @@ def _declare_system(node: Node, base) -> tuple:
     keys.
     """
     from gyro_rotor.core.system.system_file import DRIVE_KEYS
-    system, flat = base.full_system, dict(base.flat)
+    system, flat = base.system.full, dict(base.flat)
     decl, overrides = {}, {}
 
     def scene_key(key, default, doc, read_only=False, typ=float):

@@ -174,7 +174,7 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
         from gyro_rotor.core.system.model import system_rate
         path = str(loaded.path)
         base = {'t_end': loaded.t_end}
-        fastest = max(system_rate(sc.system) for sc in grid.check_system(path))
+        fastest = max(system_rate(sc.system.reduced) for sc in grid.check_system(path))
     else:
         base, path = scene_flat(scene)
         grid.check(base)
@@ -251,9 +251,10 @@ def _centrifuge_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
             ic = {k.split('.', 1)[1]: v for k, v in ch.items() if k.startswith('initial.')}
             try:
                 if pc not in params:
-                    params[pc] = base.params.replace(**dict(pc))
-                sc = dataclasses.replace(base, params=params[pc],
-                                         initial=dataclasses.replace(base.initial, **ic))
+                    params[pc] = base.system.params.replace(**dict(pc))
+                sc = dataclasses.replace(base, system=dataclasses.replace(
+                    base.system, params=params[pc],
+                    initial=dataclasses.replace(base.system.initial, **ic)))
                 scenes[j], Y0[j] = sc, sc.initial_state()
             except (GyroRotorError, ZeroDivisionError, ValueError) as err:
                 msg[j] = f'set-up: {err}'
@@ -263,10 +264,10 @@ def _centrifuge_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
     model_name = str(spec.base.get('model', 'full'))
 
     def measured(j: int, y: np.ndarray) -> dict:
-        return trajectory_metrics(make_model(model_name, scenes[j].params), spec.t_eval, y,
+        return trajectory_metrics(make_model(model_name, scenes[j].system.params), spec.t_eval, y,
                                   metrics, tol=spec.tol)
-    return _ensemble(spec, scenes, idx, msg, make_model(model_name, scenes[idx[0]].params),
-                     np.array([Y0[j] for j in idx]), [scenes[j].params for j in idx],
+    return _ensemble(spec, scenes, idx, msg, make_model(model_name, scenes[idx[0]].system.params),
+                     np.array([Y0[j] for j in idx]), [scenes[j].system.params for j in idx],
                      measured, metrics)
 
 
@@ -289,12 +290,12 @@ def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
     model = scenes[idx[0]].make_model()
 
     def measured(j: int, y: np.ndarray) -> dict:
-        bound = GeneralModel(scenes[j].system, compiled=model.compiled)
-        steady_q = np.asarray(scenes[j].steady_q, dtype=float)
+        bound = GeneralModel(scenes[j].system.reduced, compiled=model.compiled)
+        steady_q = np.asarray(scenes[j].system.steady_q, dtype=float)
         return system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
     return _ensemble(spec, scenes, idx, msg, model,
                      np.array([scenes[j].initial_state(model) for j in idx]),
-                     [scenes[j].system for j in idx], measured, metrics)
+                     [scenes[j].system.reduced for j in idx], measured, metrics)
 
 
 def _ensemble(spec: SweepSpec, scenes: list, idx: list, msg: list, model, Y: np.ndarray,

@@ -17,6 +17,6 @@ def run(args: argparse.Namespace) -> int:
     """Print one line per scene: its system (and the centrifuge's model), t_end, what."""
     for name in list_scenes():
         s = load_scene(name)
-        what = f'centrifuge {s.model}' if s.builtin else f'system {s.system.name}'
+        what = f'centrifuge {s.system.model}' if s.builtin else f'system {s.system.name}'
         print(f'{name:16s} {what:28s} t_end {s.t_end:6g} s  {s.description}')
     return 0

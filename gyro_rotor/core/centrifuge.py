@@ -1,0 +1,276 @@
+"""The built-in system ``centrifuge`` as a scene sets it up (Magnus 1980, section 4).
+
+The elastically restrained centrifuge of section 4 is the package's one hand-written
+system: a quaternion model, regular at theta = 0 (:mod:`gyro_rotor.core.model`), its
+reduced models (upright axis, locked housing) and its steady motions in closed form
+(:mod:`gyro_rotor.core.steady`). :class:`Centrifuge` holds what a scene gives it: the
+parameters (:class:`~gyro_rotor.core.params.RotorParams`), the model that runs it and the
+initial condition. A system file's scene holds a
+:class:`~gyro_rotor.core.system.generated.GeneratedSystem` instead; the two present the
+same interface, so :class:`~gyro_rotor.core.scene.Scene` asks its system and never which
+one it is. The scene file's keys are in the module doc of :mod:`gyro_rotor.core.scene`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, ClassVar, Mapping
+import warnings
+
+from gyro_rotor.core.model import make_model, Model, MODELS, PERTURBATION_KEYS
+from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
+from gyro_rotor.core.steady import steady_motion, SteadyMotion
+from gyro_rotor.core.yamlio import short
+from gyro_rotor.errors import did_you_mean, ParameterError, SceneError
+import numpy as np
+
+__all__ = ['Centrifuge', 'InitialCondition', 'INITIAL_UNITS', 'CENTRIFUGE']
+
+#: the built-in system's name: ``system: centrifuge`` in a scene file
+CENTRIFUGE = 'centrifuge'
+
+#: SI units of the centrifuge's numeric initial-condition keys (module doc of core.scene)
+INITIAL_UNITS = {'theta0': 'rad', 'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s',
+                 'dchi': 'rad', 'dz': 'rad', 'dzdot': 'rad/s', 'z': 'rad', 'zdot': 'rad/s',
+                 'chi': 'rad', 'branch': '-'}
+
+
+@dataclasses.dataclass(frozen=True)
+class InitialCondition:
+    """Initial condition of a centrifuge scene (module doc of :mod:`gyro_rotor.core.scene`)."""
+
+    mode: str = 'steady'
+    theta0: float = 0.0
+    branch: int = 0
+    dtheta: float = 0.0
+    dthetadot: float = 0.0
+    dpsidot: float = 0.0
+    dchi: float = 0.0
+    dz: float = 0.0
+    dzdot: float = 0.0
+    quaternion: tuple = (1.0, 0.0, 0.0, 0.0)
+    omega_body: tuple = (0.0, 0.0, 0.0)
+    z: float = 0.0
+    zdot: float = 0.0
+    chi: float | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Centrifuge:
+    """The built-in centrifuge with a scene's numbers (module doc).
+
+    ``params``: the parameters; ``model``: the model that runs it (``full``,
+    ``upright_axis``, ``locked_housing``); ``initial``: the initial condition.
+    """
+
+    params: RotorParams
+    model: str = 'full'
+    initial: InitialCondition = InitialCondition()
+
+    #: the system's name in a scene file
+    name: ClassVar[str] = CENTRIFUGE
+    #: the hand-written built-in system (a system file's is generated)
+    builtin: ClassVar[bool] = True
+    #: the system as its file defines it: none, it is built in
+    base: ClassVar[None] = None
+
+    @property
+    def pole_pairs(self) -> tuple:
+        """Pole pairs of the rotor's drive (0: linear law), one per rotor."""
+        return (int(self.params.pole_pairs),)
+
+    @property
+    def Omega0(self) -> float:
+        """Return the drive's field speed Omega0 [rad/s] (eq. 23)."""
+        return float(self.params.Omega0)
+
+    @property
+    def joint_names(self) -> tuple:
+        """Return the joint_states names of its models (theta, psi, phi_R, phi_M)."""
+        return Model.joint_names
+
+    def physics(self) -> list:
+        """Return (name, value) of its parameters, model and initial condition."""
+        return ([(f, getattr(self.params, f)) for f in PARAM_FIELDS] + [('model', self.model)]
+                + [(f'initial.{f.name}', getattr(self.initial, f.name))
+                   for f in dataclasses.fields(InitialCondition)])
+
+    def make_model(self) -> Model:
+        """Return the model that runs it."""
+        return make_model(self.model, self.params)
+
+    def with_params(self, **changes: Any) -> 'Centrifuge':
+        """Copy with some parameters changed (validated)."""
+        return dataclasses.replace(self, params=self.params.replace(**changes))
+
+    def steady(self) -> SteadyMotion:
+        """Return the steady motion the initial condition refers to (eqs. 20-22)."""
+        ic = self.initial
+        if ic.mode != 'steady':
+            return steady_motion(self.params, 0.0, 0)
+        return steady_motion(self.params, ic.theta0, ic.branch)
+
+    def steady_state(self, model: Model) -> np.ndarray:
+        """State on its steady motion (I or II; the resting state for a body-mode scene)."""
+        sm = self.steady()
+        return (model.state_from_euler(theta=sm.theta0, psidot=sm.psidot0,
+                                       phi_M_dot=-sm.psidot0)
+                if self.initial.mode == 'steady' else model.state_from_euler())
+
+    def initial_state(self, model: Model, scene: str) -> np.ndarray:
+        """Return the state at t = 0 from the initial condition (``scene``: for messages)."""
+        ic = self.initial
+        if ic.mode == 'steady':
+            sm = self.steady()
+            if model.name != 'full' and (ic.dtheta or ic.dthetadot or sm.theta0):
+                raise SceneError(f"scene '{scene}': model {model.name} holds the axis "
+                                 'vertical; theta0, dtheta and dthetadot must be 0')
+            return model.state_from_euler(
+                theta=sm.theta0 + ic.dtheta, thetadot=ic.dthetadot, psi=0.0,
+                psidot=sm.psidot0 + ic.dpsidot, phi_M=ic.dchi, phi_M_dot=-sm.psidot0,
+                z=ic.dz, zdot=ic.dzdot)
+        q = np.asarray(ic.quaternion, dtype=float)
+        W = np.asarray(ic.omega_body, dtype=float)
+        if model.name == 'full':
+            return _body_state(model, q, W, ic, scene)
+        if model.name == 'upright_axis':
+            if abs(W[0]) > 0 or abs(W[1]) > 0 or abs(q[1]) > 0 or abs(q[2]) > 0:
+                raise SceneError(f"scene '{scene}': model upright_axis needs the axis "
+                                 'vertical: quaternion x, y and omega_body 1, 2 must be 0')
+            chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
+            return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
+        return np.array([ic.z, ic.zdot, 0.0])
+
+    def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Return the kick ``values`` (keys :data:`PERTURBATION_KEYS`, numbers), the rest 0."""
+        out = dict.fromkeys(PERTURBATION_KEYS, 0.0)
+        for key, value in values.items():
+            if key not in out:
+                valid = [f'perturbation.{k}' for k in PERTURBATION_KEYS]
+                raise ParameterError(f"unknown key 'perturbation.{key}'"
+                                     f'{did_you_mean(f"perturbation.{key}", valid)}')
+            try:
+                out[key] = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f'perturbation.{key} must be a number, got '
+                                     f'{short(value)}') from None
+        return out
+
+    def model_kick(self, kick: Mapping[str, Any]) -> Mapping[str, Any]:
+        """Return a kick of :meth:`kick_values` in its model's terms (the same)."""
+        return kick
+
+    def initial_doc(self) -> dict[str, Any]:
+        """Return the initial condition as ``initial.*`` keys without the prefix."""
+        ic = self.initial
+        keys = (('mode', 'theta0', 'branch', *PERTURBATION_KEYS) if ic.mode == 'steady'
+                else ('mode', 'quaternion', 'omega_body', 'z', 'zdot', 'chi'))
+        out = {}
+        for k in keys:
+            v = getattr(ic, k)
+            if v is None:
+                continue
+            if isinstance(v, (tuple, list, np.ndarray)):
+                v = [float(x) for x in v]
+            elif not isinstance(v, (bool, int, str)):
+                v = float(v)
+            out[k] = v
+        return out
+
+    def document_parts(self, scene) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Return the keys of rotor_sim's ``~/scene`` document (:meth:`Scene.document_parts`)."""
+        return ({'scene': scene.name, 'model': self.model, 't_end': scene.t_end,
+                 'params': self.params.to_mapping(), 'initial': self.initial_doc()},
+                {'path': scene.path})
+
+    def to_flat(self, scene) -> dict[str, Any]:
+        """Return the flat keys of ``scene`` (:meth:`Scene.to_flat`)."""
+        flat: dict[str, Any] = {'scene': scene.name, 'system': CENTRIFUGE, 'model': self.model,
+                                't_end': scene.t_end}
+        if scene.description:
+            flat['description'] = scene.description
+        flat.update(self.params.to_mapping())
+        flat.update({f'initial.{k}': v for k, v in self.initial_doc().items()})
+        for k, v in scene.perturbation.items():
+            flat[f'perturbation.{k}'] = v
+        return flat
+
+    def live_scene(self, scene, changes: Mapping[str, Any]):
+        """Return ``scene`` with the live changes of its parameters (None: there are none).
+
+        The RotorParams fields of ``changes``, validated by RotorParams (ParameterError);
+        the live simulation carries its state.
+        """
+        phys = {k: v for k, v in changes.items() if k in PARAM_FIELDS}
+        if not phys:
+            return None
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            return dataclasses.replace(scene, system=self.with_params(**phys))
+
+    @classmethod
+    def from_keys(cls, vals: Mapping[str, Any], where: str) -> 'Centrifuge':
+        """Return the centrifuge of a scene's typed keys ``vals`` (module doc of core.scene).
+
+        Checks the model, the parameters (RotorParams) and the initial condition's keys;
+        :meth:`initial_state` checks that its steady motion exists and its model fits.
+        """
+        model = vals.get('model', 'full')
+        if model not in MODELS:
+            raise SceneError(f"{where}: unknown model '{model}'; valid: {', '.join(MODELS)}")
+        try:
+            params = RotorParams(**{k: vals[k] for k in PARAM_FIELDS if k in vals})
+        except ParameterError as err:
+            raise ParameterError(f'{where}: {err}') from None
+        ini = {k.split('.', 1)[1]: v for k, v in vals.items() if k.startswith('initial.')}
+        _check_initial(ini, where)
+        return cls(params=params, model=model, initial=InitialCondition(**ini))
+
+
+def _check_initial(ini: Mapping[str, Any], where: str) -> None:
+    """Refuse initial.* keys of the other mode, wrong sizes and values that are not finite."""
+    mode = ini.get('mode', 'steady')
+    if mode not in ('steady', 'body'):
+        raise SceneError(f"{where}: initial.mode must be 'steady' or 'body', got {mode!r}")
+    if mode == 'body':
+        bad = [k for k in ini if k in ('theta0', 'branch') or k in PERTURBATION_KEYS]
+        if bad:
+            raise SceneError(f'{where}: initial.{bad[0]} belongs to initial.mode steady')
+        if len(ini.get('quaternion', (1, 0, 0, 0))) != 4:
+            raise SceneError(f'{where}: initial.quaternion needs 4 numbers [w, x, y, z]')
+        if len(ini.get('omega_body', (0, 0, 0))) != 3:
+            raise SceneError(f'{where}: initial.omega_body needs 3 numbers')
+        qn = math.hypot(*ini.get('quaternion', (1, 0, 0, 0)))
+        if not (math.isfinite(qn) and qn > 0):
+            raise SceneError(f'{where}: initial.quaternion must be finite and non-zero')
+    else:
+        bad = [k for k in ini if k in ('quaternion', 'omega_body', 'z', 'zdot', 'chi')]
+        if bad:
+            raise SceneError(f'{where}: initial.{bad[0]} belongs to initial.mode body')
+    for k, v in ini.items():
+        if isinstance(v, float) and not math.isfinite(v):
+            raise SceneError(f'{where}: initial.{k} must be finite, got {v!r}')
+        if isinstance(v, tuple) and not all(math.isfinite(x) for x in v):
+            raise SceneError(f'{where}: initial.{k} must be finite, got {list(v)!r}')
+
+
+def _body_state(model: Model, q: np.ndarray, W: np.ndarray, ic: InitialCondition,
+                scene: str) -> np.ndarray:
+    """Return the full model's state of a body-mode initial condition."""
+    # q and -q are one orientation, but the sign carries the twist chi (|chi| < 2 pi):
+    # without initial.chi take the smaller twist (q_w >= 0); with it, the sign that
+    # gives that twist
+    if q[0] < 0 or (q[0] == 0 and q[3] < 0):
+        q = -q
+    if ic.chi is not None and abs(2.0 * math.atan2(-q[3], -q[0]) - ic.chi) < abs(
+            2.0 * math.atan2(q[3], q[0]) - ic.chi):
+        q = -q
+    y = model.state_from_body(q, W, ic.z, ic.zdot)
+    if ic.chi is not None:
+        chi_q = 2.0 * math.atan2(y[3], y[0])
+        if abs(chi_q - ic.chi) > 1e-9:
+            raise SceneError(
+                f"scene '{scene}': initial.chi = {ic.chi} disagrees with the "
+                f"quaternion's twist 2 atan2(q_z, q_w) = {chi_q:.12g}")
+    return y
