@@ -69,3 +69,33 @@ def test_general_peer_rhs_equals_the_generated_model_at_random_states(name):
         # the two evaluate M^-1 F in different orders: equal to the solve's round-off
         assert np.max(np.abs(got - want)) <= 1e-12 * max(1.0, np.max(np.abs(want))), y
 
+
+def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
+    """The repeats of one run are spread over the sweep, not back to back (stop 37).
+
+    The machine's speed drifts over minutes: back-to-back repeats put a slow spell on one
+    method. Here run A is slow on its first pass and B on its later ones; each keeps its
+    fastest pass, and the passes alternate A, B, A, B, ...
+    """
+    import dataclasses
+    from gyro_rotor.numerics.bench import timed_in_rounds
+
+    @dataclasses.dataclass
+    class Row:
+        name: str
+        wall_per_sim: float
+
+    now, calls = [0.0], []
+    took = {'A': [3.0e-3, 1.0e-3, 2.0e-3], 'B': [1.0e-3, 5.0e-3, 4.0e-3]}
+
+    def job(name):
+        def fn():
+            calls.append(name)
+            now[0] += took[name].pop(0)
+            return None, 1, 1, 0, 0.5          # Y, nfev, nsteps, status, t_done
+        return ('gyro_rotor', name, 'rtol=1e-06', fn)
+    rows = timed_in_rounds([job('A'), job('B')],
+                           lambda family, name, setting, out, wall: Row(name, wall / out[4]),
+                           3, clock=lambda: now[0])
+    assert calls == ['A', 'B', 'A', 'B', 'A', 'B']
+    assert [(r.name, r.wall_per_sim) for r in rows] == [('A', 2.0e-3), ('B', 2.0e-3)]
