@@ -7,7 +7,10 @@ name or path is a system file (:mod:`gyro_rotor.core.system.system_file`). A sce
 a ``system`` key is a centrifuge scene, so older files keep working. One type
 (:class:`Scene`), one reader, one validator of keys (unknown keys are refused with the
 nearest valid name), one name-or-path resolver (:func:`scene_path`: config/ first, then
-config/systems/scenes/).
+config/systems/scenes/). A scene holds its system with the scene's numbers and motion
+(:attr:`Scene.system`): a :class:`~gyro_rotor.core.centrifuge.Centrifuge` or a system
+file's :class:`~gyro_rotor.core.system.generated.GeneratedSystem`, one interface; the scene
+asks it and never which one it is.
 
 The shipped scenes are keyed ``/**`` (any node name, so that a renamed or namespaced
 rotor_sim reads them too); ``rotor_sim`` and ``/rotor_sim`` are read as well.
