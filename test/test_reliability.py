@@ -443,6 +443,33 @@ def test_disk_full_while_recording_is_reported_not_silent(tiny_tmpfs):
         rclpy.try_shutdown(context=ctx)
 
 
+@pytest.mark.ros
+def test_a_scene_delivered_while_the_analysis_node_starts_is_kept(tmp_path, monkeypatch):
+    """The recorder's thread may hand over the latched scene before __init__ returns."""
+    import rclpy
+    from gyro_rotor.ros.analysis_node import RotorAnalysisNode
+    import gyro_rotor.ros.recorder as recorder
+    reader = open_bag(_SAMPLE_BAG)
+    scene_data = next(d for _, _, d in reader.messages(('/rotor_sim/scene',)))
+
+    def start_with_the_scene(self):         # the race, made certain: delivery inside start
+        self.spool.on_message('/rotor_sim/scene', scene_data)
+    monkeypatch.setattr(recorder.BagRecorder, 'start', start_with_the_scene)
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = RotorAnalysisNode(context=ctx, parameter_overrides=[
+            rclpy.parameter.Parameter('output', value=str(tmp_path / 'bag'))])
+        try:
+            assert node.session.rejected == {} and node.session.scene is not None
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    record = open_bag(tmp_path / 'bag').metadata['gyro_rotor.scene']
+    assert record['name'] == node.session.scene.name and 'document' in record
+
+
 # -- bad input (hypothesis) -----------------------------------------------------------------
 
 _SAMPLE_BAG = ROOT / 'bags' / 'precession'

@@ -127,6 +127,8 @@ class RotorAnalysisNode(Node):
         self.pub_verdict = self.create_publisher(String, 'analysis_verdict', _LATCHED)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', _QOS)
         self.recorder = None
+        # set before the recorder starts: its spool thread may deliver the scene at once
+        self._scene_recorded = scene is not None
         if self.record:
             path = default_bag_path() if not output else output
             check_writable(path)
@@ -150,7 +152,6 @@ class RotorAnalysisNode(Node):
                 self.joints_topic, self.session.on_joints), deep)
             self.create_subscription(String, f'{self.sim_node}/scene', self._guarded(
                 self.scene_topic, lambda m: self._on_scene(m.data)), _LATCHED)
-        self._scene_recorded = scene is not None
         # results every ``period`` of steady time: with use_sim_time (the launch files) a
         # ROS-time timer would stop while the simulation pauses and fire in bursts at
         # real_time_factor 0; the stamps are simulation time all the same (_publish_diag)
