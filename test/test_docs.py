@@ -65,7 +65,10 @@ def test_tutorial_blocks_run_and_print_what_the_page_quotes(page, tmp_path, monk
     assert steps, f'{page.name} has no code block'
     bash = any(lang == 'bash' for lang, _, _ in steps)
     # the ROS tutorial runs with ros2 from a rostools build (skipped where there is none)
-    ros = f'set +u; source {node_helpers.rostools_env()}; set -u\n' if page.stem == 'ros' else ''
+    # and in a shell with job control, as the user's terminal: without it (bash -c) a
+    # background job ignores SIGINT, and `kill -INT %1` would not stop the launch
+    ros = (f'set -m; set +u; source {node_helpers.rostools_env()}; set -u\n'
+           if page.stem == 'ros' else '')
     env = dict(os.environ, PATH=f'{pathlib.Path(sys.executable).parent}:{os.environ["PATH"]}',
                MPLBACKEND='Agg', ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     monkeypatch.chdir(tmp_path)
