@@ -221,6 +221,20 @@ def test_modes_at_huge_K_D_stay_named_pairs(K_D):
     assert r.mode('rotor-field coupling (fast real)').eigenvalue.real < -1e2 * K_D
 
 
+@pytest.mark.parametrize('K_S', [1e9, 1e10])
+def test_a_stiff_drive_keeps_the_slow_pairs_complex(K_S):
+    # ||A0|| grows with K_S (1.8e11 at 1e9): a pair is complex beyond its own round-off,
+    # not beyond a fraction of ||A0|| (that made nutation and twist two real roots at 0)
+    scene = load_scene('precession').with_changes({'K_S': K_S})
+    lin = linearize_scene(scene)
+    ms, _ = assess(lin)
+    lam = np.linalg.eigvals(lin.A_scene())
+    for name in ('nutation', 'housing twist'):
+        m = next(m for m in ms if m.name == name)
+        assert m.kind == ModeKind.OSCILLATORY
+        assert np.min(np.abs(lam - m.eigenvalue)) < 1e-6 * abs(m.eigenvalue)
+
+
 def test_non_finite_spectrum_is_a_parameter_error():
     lin = linearize(P, steady_motion(P, 0.1, 1))
     with pytest.raises(ParameterError, match='too large'):

@@ -26,11 +26,13 @@ import scipy.linalg as sla
 __all__ = ['floor', 'resolution', 'resolutions', 'shown', 'fmt_re', 'decay_text', 'TOL_RE_REL']
 
 
-def resolution(A: np.ndarray) -> tuple:
+def resolution(A: np.ndarray, scale: float | None = None) -> tuple:
     """Return (eigenvalues, resolution of each): 100 eps ||A|| times its condition number.
 
     The condition number 1/|y^H x| (unit left and right eigenvectors) bounds how far round-off
     in A moves the eigenvalue: a real part within it is not distinguishable from 0.
+    ``scale`` replaces ||A|| where the roots are computed from a better-scaled form (the
+    pencil of A0 and the drive, whose round-off is that of A0 at any K_D).
     """
     if len(A) == 0:
         return np.zeros(0, complex), np.zeros(0)
@@ -39,7 +41,8 @@ def resolution(A: np.ndarray) -> tuple:
     xr = xr / np.linalg.norm(xr, axis=0)
     s = np.abs(np.sum(yl.conj() * xr, axis=0))
     kappa = 1.0 / np.maximum(s, 1e-300)
-    return lam, 100 * np.finfo(float).eps * np.linalg.norm(A) * np.minimum(kappa, 1e16)
+    norm = np.linalg.norm(A) if scale is None else float(scale)
+    return lam, 100 * np.finfo(float).eps * norm * np.minimum(kappa, 1e16)
 
 
 def floor(A0: np.ndarray) -> float:

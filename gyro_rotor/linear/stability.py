@@ -30,7 +30,7 @@ from typing import Sequence
 
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import LinearSystem
-from gyro_rotor.linear.roundoff import floor
+from gyro_rotor.linear.roundoff import floor, resolution
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
                                         zero_K_sensitivities, ZERO_ROOT, ZERO_ROOT_Z)
@@ -179,14 +179,19 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
     by_name: dict = {}
     for j, nm in enumerate(names):
         by_name.setdefault(nm, []).append(j)
-    # a pair is complex beyond the scale of A0, not of the escaping root -K_D c^T b
-    tol_im = 1e-9 * max(np.linalg.norm(lin.A0), 1.0)
+    # a pair is complex beyond its own round-off (condition number x the scale of A0: the
+    # pencil keeps the roots to it at any K_D), not beyond a scale of the whole matrix: a
+    # stiff drive (K_S = 1e9) makes ||A0|| 1.8e11 while the nutation is 61 rad/s
+    lam_r, res_r = resolution(lin.A, scale=max(np.linalg.norm(lin.A0), 1.0))
+
+    def complex_pair(z: complex) -> bool:
+        return abs(z.imag) > res_r[int(np.argmin(np.abs(lam_r - z)))]
     out = []
     for nm, idx in by_name.items():
         lams = lam_K[idx]
         if nm in STRUCTURAL:
             groups = [(nm, idx[0], ModeKind.ZERO)]
-        elif len(idx) == 2 and abs(lams[0].imag) > tol_im:
+        elif len(idx) == 2 and complex_pair(complex(lams[0])):
             j = idx[int(np.argmax(lams.imag))]
             groups = [(nm, j, ModeKind.OSCILLATORY)]
         elif len(idx) == 2:

@@ -305,7 +305,7 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     (:func:`gyro_rotor.linear.roundoff.resolutions`). A zero root whose
     eigenvector is mostly a rotor angle z is ``rotor_angle`` (no drive stiffness).
     """
-    from gyro_rotor.linear.roundoff import resolutions
+    from gyro_rotor.linear.roundoff import resolution, resolutions
     from gyro_rotor.linear.spectrum import unit_eig
     from gyro_rotor.linear.stability import classify
     Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
@@ -314,7 +314,7 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     lam, V = unit_eig(A)
     lam0, dre = _followed(lin, Ks, lam)
     lam_r, res_r = resolutions(A, lin.A_cons)
-    tol_im = 1e-9 * max(np.linalg.norm(lin.A_cons), 1.0)
+    lam_i, res_i = resolution(A, scale=max(np.linalg.norm(lin.A_cons), 1.0))
     angles = {lin.coordinate[i] for i in np.flatnonzero(np.any(lin.c_all != 0, axis=1))}
     zeros = np.abs(lam) <= 1e-7 * scale
     null = _kernel(A) if zeros.any() else None          # one SVD for every zero root
@@ -325,9 +325,13 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
         coord = dominant(lin, _on_kernel(null, v) if zero else v)
         value = complex(value)
         re = value.real
-        kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > tol_im
-                else ModeKind.REAL)
         res = float(res_r[int(np.argmin(np.abs(lam_r - value)))])
+        # complex beyond the root's own round-off at the scale of A_cons (as the centrifuge's
+        # pencil: not of the escaping roots of a large K), not beyond a scale of the whole
+        # matrix (a stiff drive's K_S)
+        im_res = float(res_i[int(np.argmin(np.abs(lam_i - value)))])
+        kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > im_res
+                else ModeKind.REAL)
         on_axis = abs(re) <= res
         out.append(Mode(name=coord, eigenvalue=value, freq_hz=abs(value.imag) / (2 * math.pi),
                         zeta=0.0 if zero or on_axis else -re / abs(value),
