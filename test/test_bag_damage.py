@@ -203,8 +203,13 @@ def test_damage_keeps_every_intact_chunk_and_counts_the_loss(
     assert got == want, (f'{kind}/{place}: {len(got)} messages read, {len(want)} in the '
                          f'intact chunks')
     assert want_meta <= set(reader.metadata), sorted(reader.metadata)
-    # the records written when the file was closed are named when they went with its end
-    assert bool(reader.lost_records) == ('rosbag2' not in want_meta), reader.lost_records
+    # a lost metadata record is named: those written when the file was closed when they
+    # went with its end, a damaged one by its name (the summary still indexes it)
+    missing = {name for _, _, name in lay.meta} - want_meta
+    assert bool(reader.lost_records) == bool(missing), reader.lost_records
+    if kind == 'metadata':
+        assert any("the metadata record 'gyro_rotor.middle' (damaged)" in r
+                   for r in reader.lost_records)
     readable = {t: sum(1 for m in want if m[0] == t) for t in lay.total}
     lost = {t: n - readable[t] for t, n in lay.total.items() if n > readable[t]}
     assert reader.lost == lost, reader.problems
@@ -269,9 +274,17 @@ def test_damaged_scene_record_loses_no_message(tmp_path):
     mcap.write_bytes(bytes(b))
     reader, got, _ = read_all(bag)
     assert reader.topics['/energy'].count == 3001 and reader.lost == {}
+    # no message is lost, the record is: said so, not 'nothing lost' (adversarial finding)
+    lost = "the metadata record 'gyro_rotor.scene' (damaged)"
+    assert 'gyro_rotor.scene' not in reader.metadata and lost in reader.loss_text()
     report = recover_bag(bag)
     assert report.messages_per_topic['/energy'] == 3001
-    assert open_bag(bag).topics['/energy'].count == 3001
+    assert any(lost in r for r in report.lost_records)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', BagWarning)
+        again = open_bag(bag)
+    assert again.topics['/energy'].count == 3001
+    assert any(lost in r for r in again.lost_records)       # kept on record by the recovery
 
 
 def test_cut_after_the_last_chunk_names_the_lost_live_verdict(tmp_path, capsys):

@@ -82,6 +82,8 @@ class McapContents:
     orphans: dict[int, int] = dataclasses.field(default_factory=dict)
     #: losses whose size the file does not tell (a cut without summary)
     unknown_loss: list[str] = dataclasses.field(default_factory=list)
+    #: metadata records the summary indexes but that do not read (damaged): their names
+    lost_records: list[str] = dataclasses.field(default_factory=list)
     #: what was wrong, one line each
     problems: list[str] = dataclasses.field(default_factory=list)
     start: int | None = None
@@ -284,6 +286,7 @@ class _Reader:
             except ValueError as err:
                 out.problems.append(f'metadata record {index.name!r} at byte {index.offset} '
                                     f'is damaged ({err}): skipped')
+                out.lost_records.append(f'the metadata record {index.name!r} (damaged)')
                 continue
             out.metadata[record.name] = dict(record.metadata)
         mismatch = ''

@@ -153,6 +153,7 @@ class BagReader:
             self.lost_records.append(
                 f'{data.path.name}: the metadata records written at its end (the '
                 f'{ROSBAG2_RECORD!r} record, and the live verdict where one was recorded)')
+        self.lost_records.extend(f'{data.path.name}: {r}' for r in data.lost_records)
 
         if data.recorded is None and (data.unknown_loss or data.lost):
             readable: dict[str, int] = {}
