@@ -68,9 +68,9 @@ def _grid(args, lin) -> np.ndarray:
 
 def run(args: argparse.Namespace) -> int:
     """Compute, print the claims, write the requested files; 0 if all claims hold, else 2."""
-    for path in (args.csv, args.json, args.out):
+    for path, suffixes in ((args.csv, ()), (args.json, ()), (args.out, ('.png',))):
         if path:
-            check_output_file(path)
+            check_output_file(path, suffixes)
     if not 2 <= args.points <= MAX_POINTS:
         raise ParameterError(f'--points must be from 2 to {MAX_POINTS}, got {args.points}')
     scene = load_scene_with_sets(args.scene, args.set)
