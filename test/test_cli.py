@@ -304,6 +304,16 @@ def test_every_json_file_is_strict_json_with_null_for_non_finite(tmp_path, capsy
     _strict_json(camp)
 
 
+def test_analyze_json_to_stdout_is_the_json_alone(capsys):
+    """Adversarial finding: '--json -' mixed the text report into stdout (not pipeable)."""
+    import json
+    from pathlib import Path
+    bag = Path(__file__).resolve().parent.parent / 'bags' / 'precession'
+    assert main(['analyze', str(bag), '--no-plots', '--json', '-']) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)['verdict'] and 'RESULT: CONFIRMED' in cap.err
+
+
 def test_campbell_critical_speeds_are_exact_whatever_the_grid(tmp_path, capsys):
     """Review finding: --points 2 gave nutation x 1 at 39.95 rad/s, the default 37.69.
 

@@ -25,7 +25,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='write report.txt, report.json and plots (energy.png, '
                         'eigenvalues.png, state.png) into DIR')
     p.add_argument('--json', default=None, metavar='FILE',
-                   help="write the JSON report ('-': to stdout)")
+                   help="write the JSON report ('-': to stdout, the text to stderr)")
     p.add_argument('--scene', default=None,
                    help='scene name or path (default: the one recorded in the bag)')
     p.add_argument('--window', type=float, default=None, metavar='S',
@@ -47,14 +47,16 @@ def run(args: argparse.Namespace) -> int:
         bad = 'NaN' if math.isnan(args.window) else repr(args.window)
         raise ParameterError(f'--window must be >= 0 s (0 = whole segments), got {bad}')
     bag = analyze_bag(args.bag, scene=args.scene, window_s=args.window)
-    sys.stdout.write(text_report(bag.result, bag))
     to_stdout = args.json == '-'
+    # with the JSON on stdout (to pipe it), the text goes to stderr
+    text = sys.stderr if to_stdout else sys.stdout
+    text.write(text_report(bag.result, bag))
     files = write_report(bag, args.out, None if to_stdout else args.json,
                          plots=not args.no_plots)
     if to_stdout:
         print(json.dumps(strict_json(json_report(bag.result, bag)), indent=1))
     for f in files:
-        print(f'wrote {f}')
+        print(f'wrote {f}', file=text)
     res = bag.result
     why = [] if res.confirmed else [res.reason]
     if bag.cut_note:
@@ -62,5 +64,5 @@ def run(args: argparse.Namespace) -> int:
     # a damaged bag says so in the result line, whatever the verdict (issue 24)
     damage = f' [damaged bag: {bag.loss}]' if bag.damaged else ''
     print(f'RESULT: {"CONFIRMED" if res.confirmed else "NOT CONFIRMED"}: {res.verdict}'
-          + (f' ({"; ".join(why)})' if why else '') + damage)
+          + (f' ({"; ".join(why)})' if why else '') + damage, file=text)
     return 0 if res.confirmed else NOT_CONFIRMED
