@@ -371,3 +371,17 @@ def test_a_block_that_fails_falls_back_to_its_points(scene, grid, target, monkey
     for c in ('peak_deviation', 'final_E_star'):
         assert got[c][0] == ref[c][0] and np.all(np.isnan(got[c][1:])), c
         assert np.all(np.isfinite(ref[c])), c
+
+
+def test_a_step_longer_than_a_sample_interval_is_shown_as_the_one_taken(capsys, tmp_path):
+    """Adversarial finding: --step 10 on a 1-s run printed 'RK4 step 10 s (100 steps)'."""
+    from gyro_rotor.cli.main import main
+    spec = make_spec('precession', ['K_D=0:1:2'], t_end=1.0, rate=100.0, step=10.0)
+    assert spec.step_used == pytest.approx(0.01) and spec.steps_per_trajectory == 100
+    assert make_spec('precession', ['K_D=0:1:2'], t_end=1.0, step=1e-3).step_used == \
+        pytest.approx(1e-3)
+    assert main(['sweep', 'precession', '--grid', 'K_D=0:1:2', '--serial', '--out',
+                 str(tmp_path / 'sw'), '--t-end', '1', '--step', '10', '--no-maps',
+                 '--quiet', '--yes']) == 0
+    assert 'RK4 step 0.01 s (--step 10 s is longer than a sample interval' in \
+        capsys.readouterr().out

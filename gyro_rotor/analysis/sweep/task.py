@@ -113,6 +113,13 @@ class SweepSpec:
         return int(sum(max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
                        for a, b in zip(te[:-1], te[1:])))
 
+    @property
+    def step_used(self) -> float:
+        """The longest RK4 step taken: ``step``, or the sample interval if that is shorter."""
+        te = self.t_eval
+        return float(max((b - a) / max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
+                         for a, b in zip(te[:-1], te[1:])))
+
     def block_points(self, b: int) -> np.ndarray:
         """Flat indices of block ``b``."""
         if not 0 <= b < self.n_blocks:

@@ -80,6 +80,15 @@ def _confirm(spec, yes: bool) -> None:
         raise ParameterError('sweep not started (answered no)')
 
 
+def _step_text(spec) -> str:
+    """The step taken, and the --step asked for where a sample interval cut it."""
+    used = spec.step_used
+    if used < spec.step * (1.0 - 1e-9):
+        return (f'{used:.4g} s (--step {spec.step:.4g} s is longer than a sample interval: '
+                'one step per sample)')
+    return f'{used:.4g} s'
+
+
 def run(args: argparse.Namespace) -> int:
     """Check everything, run the sweep, draw the maps, print a summary."""
     if args.workers is not None and args.workers < 1:
@@ -92,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     executor = (Executor.SERIAL if args.serial else
                 Executor.ADDRESS if args.scheduler else Executor.LOCAL)
     print(f'sweep {spec.scene}: {spec.n_points} points ({" x ".join(spec.grid)}), '
-          f'{spec.t_end:g} s, RK4 step {spec.step:.4g} s ({spec.steps_per_trajectory} steps), '
+          f'{spec.t_end:g} s, RK4 step {_step_text(spec)} ({spec.steps_per_trajectory} steps), '
           f'{spec.n_blocks} blocks of {spec.block_size}, {executor.value}')
     r = run_sweep(spec, args.out, executor=executor, workers=args.workers,
                   scheduler=args.scheduler, resume=args.resume, progress=not args.quiet)
