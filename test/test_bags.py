@@ -261,3 +261,19 @@ def test_analyze_exit_status_follows_the_verdict(tmp_path, capsys):
     assert cli.main(['analyze', str(dst), '--scene', 'precession', '--no-plots']) == 2
     out = capsys.readouterr().out
     assert 'RESULT: NOT CONFIRMED' in out and 'failed: data' in out
+
+
+def test_a_file_the_metadata_does_not_list_is_named_not_read(tmp_path):
+    """Adversarial finding: an extra .mcap beside the listed one was ignored in silence."""
+    import warnings
+    from gyro_rotor.bag.bagio import BagWarning
+    bag = tmp_path / 'two'
+    shutil.copytree(BAGS / 'precession', bag)
+    shutil.copy(bag / 'precession_0.mcap', bag / 'precession_1.mcap')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always', BagWarning)
+        reader = open_bag(bag)
+    assert [f.name for f in reader.files] == ['precession_0.mcap']
+    assert reader.topics['/energy'].count == 3001            # as rosbag2: not doubled
+    assert any('precession_1.mcap not listed in metadata.yaml: not read' in str(w.message)
+               for w in caught)

@@ -63,6 +63,12 @@ def _bag_files(path: Path) -> tuple[list[Path], dict[str, Any] | None, list[str]
         missing = [str(f) for f in files if not f.is_file()]
         if missing:
             raise BagError(f'{path}: files listed in metadata.yaml are missing: {missing}')
+        # as rosbag2, only the listed files are read; one that is not is named, not ignored
+        # in silence (a copy of a file beside it would double every message if it were read)
+        unlisted = sorted(p.name for p in path.glob('*.mcap') if p.is_file() and p not in files)
+        if files and unlisted:
+            problems.append(f'{path}: {", ".join(unlisted)} not listed in metadata.yaml: '
+                            'not read (as rosbag2 reads a bag)')
     if not files:
         files = sorted(p for p in path.glob('*.mcap') if p.is_file())
     if not files:
