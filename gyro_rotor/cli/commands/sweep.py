@@ -81,7 +81,7 @@ def _confirm(spec, yes: bool) -> None:
 
 
 def _step_text(spec) -> str:
-    """The step taken, and the --step asked for where a sample interval cut it."""
+    """Return the step taken, and the --step asked for where a sample interval cut it."""
     used = spec.step_used
     if used < spec.step * (1.0 - 1e-9):
         return (f'{used:.4g} s (--step {spec.step:.4g} s is longer than a sample interval: '
