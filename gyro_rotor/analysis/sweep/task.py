@@ -115,7 +115,7 @@ class SweepSpec:
 
     @property
     def step_used(self) -> float:
-        """The longest RK4 step taken: ``step``, or the sample interval if that is shorter."""
+        """Return the longest RK4 step taken: ``step``, or a shorter sample interval."""
         te = self.t_eval
         return float(max((b - a) / max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
                          for a, b in zip(te[:-1], te[1:])))
