@@ -1,5 +1,6 @@
 """The gyro-rotor command line: exit codes and messages (called as a function)."""
 
+from pathlib import Path
 import subprocess
 import sys
 
@@ -7,6 +8,10 @@ from gyro_rotor.cli.main import main
 import numpy as np
 import pytest
 from random_systems import unstable_scene
+
+_REPO = Path(__file__).resolve().parent.parent
+_BAG = str(_REPO / 'bags' / 'precession')
+_README = str(_REPO / 'README.md')
 
 
 def test_simulate_prints_summary_and_writes_csv(tmp_path, capsys):
@@ -119,6 +124,9 @@ def test_usage_error_and_module_entry_point():
     (['simulate', 'precession', '--out', '/nonexistent/dir/x.csv'], 'does not exist'),
     (['simulate', 'precession', '--rate', '1e12'], 'samples is more than'),
     (['steady', 'precession', '--set', 'Omega0=1e200'], 'supported range'),
+    (['analyze', _BAG, '--json', '/nonexistent/dir/a.json'], 'does not exist'),
+    (['analyze', _BAG, '--out', _README], 'exists and is not a directory'),
+    (['demo', 'precession', '--out', _README], 'exists and is not a directory'),
 ])
 def test_bad_output_and_sizes_are_refused_before_work(argv, match, capsys):
     assert main(argv) == 1
@@ -307,7 +315,6 @@ def test_every_json_file_is_strict_json_with_null_for_non_finite(tmp_path, capsy
 def test_analyze_json_to_stdout_is_the_json_alone(capsys):
     """Adversarial finding: '--json -' mixed the text report into stdout (not pipeable)."""
     import json
-    from pathlib import Path
     bag = Path(__file__).resolve().parent.parent / 'bags' / 'precession'
     assert main(['analyze', str(bag), '--no-plots', '--json', '-']) == 0
     cap = capsys.readouterr()

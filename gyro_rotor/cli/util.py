@@ -88,6 +88,26 @@ def check_output_file(path: str, suffixes: tuple[str, ...] = (), *,
         os.unlink(probe)
 
 
+def check_output_dir(path: str) -> None:
+    """Refuse, before any work is done, an output directory that could not be made.
+
+    It may exist (as a directory) or not; its nearest existing parent must be a writable
+    directory (it is made with its parents when the output is written).
+    """
+    import os
+    from pathlib import Path
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ParameterError(f'{path} exists and is not a directory')
+    parent = p
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ParameterError(f'cannot make directory {path}: {parent} is not a directory')
+    if not os.access(parent, os.W_OK):
+        raise ParameterError(f'cannot make directory {path}: {parent} is not writable')
+
+
 def write_output(path: str, write) -> None:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``.
 

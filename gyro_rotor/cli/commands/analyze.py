@@ -40,14 +40,19 @@ def run(args: argparse.Namespace) -> int:
     from gyro_rotor.analysis.offline import analyze_bag
     from gyro_rotor.analysis.report import (json_report, strict_json, text_report,
                                             write_report)
+    from gyro_rotor.cli.util import check_output_dir, check_output_file
     from gyro_rotor.errors import BagError, ParameterError
     if not args.bag.strip():
         raise BagError('the bag path is empty (give a bag directory or an .mcap file)')
     if args.window is not None and not args.window >= 0:
         bad = 'NaN' if math.isnan(args.window) else repr(args.window)
         raise ParameterError(f'--window must be >= 0 s (0 = whole segments), got {bad}')
-    bag = analyze_bag(args.bag, scene=args.scene, window_s=args.window)
     to_stdout = args.json == '-'
+    if args.json and not to_stdout:
+        check_output_file(args.json)
+    if args.out:
+        check_output_dir(args.out)
+    bag = analyze_bag(args.bag, scene=args.scene, window_s=args.window)
     # with the JSON on stdout (to pipe it), the text goes to stderr
     text = sys.stderr if to_stdout else sys.stdout
     text.write(text_report(bag.result, bag))
