@@ -101,3 +101,15 @@ def test_branches_for_a_reversed_field():
 def test_field_at_rest_has_an_exact_rate_and_no_closed_form():
     sm = steady_motion(RotorParams(Omega0=0.0), 0.1, 1)
     assert math.isfinite(sm.psidot0) and math.isnan(sm.psidot0_eq22)
+
+
+def test_eq22_is_not_defined_at_a_right_angle_tilt(capsys):
+    """Adversarial finding: at theta0 = pi/2, eq. (22) divided by cos = 6.1e-17 (7.9e17 rad/s)."""
+    from gyro_rotor.cli.main import main
+    from gyro_rotor.core.steady import precession_rate_eq22
+    for branch in (1, 2):
+        assert math.isnan(precession_rate_eq22(RotorParams(), math.pi / 2, branch))
+        assert math.isfinite(precession_rate_eq22(RotorParams(), 1.5, branch))
+    assert main(['steady', 'precession', '--theta0', repr(math.pi / 2)]) == 0
+    out = capsys.readouterr().out
+    assert out.count('eq. (22) corrected: not defined here') == 2 and 'e+17' not in out

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
@@ -115,8 +116,10 @@ def precession_rate_eq22(p: RotorParams, theta0: float, branch: int) -> float:
     _check(theta0, branch)
     c, s = math.cos(theta0), math.sin(theta0)
     h = p.C_R * p.Omega0
-    if h == 0.0 or c == 0.0:
-        return math.nan            # the closed form divides by C_R Omega0 and cos(theta0)
+    if h == 0.0 or abs(c) <= 8.0 * sys.float_info.epsilon:
+        # the closed form divides by C_R Omega0 and cos(theta0); cos of the double nearest
+        # pi/2 is 6.1e-17, a rounded 0, not a number to divide by (it gave 7.9e17 rad/s)
+        return math.nan
     rad = 1.0 - 4.0 * c * p.I * (p.Gs * s - p.c_theta * theta0) / (h * h * s)
     if rad < 0.0:
         return math.nan

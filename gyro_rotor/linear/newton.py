@@ -8,6 +8,7 @@ in the centrifuge's case): :func:`solve_steady` solves for (q, z) from a scene's
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from gyro_rotor.core.scene import Scene
 import numpy as np
@@ -104,9 +105,11 @@ def _closed_form(scene: Scene, theta0: float | None) -> SteadyMotions:
             lines.append(f'II branch {branch}: {err}')
             found = False
             continue
+        eq22 = (f'eq. (22) corrected: {sm.psidot0_eq22:.12g} rad/s; relative difference '
+                f'{sm.relative_difference:+.3e}' if math.isfinite(sm.psidot0_eq22) else
+                'eq. (22) corrected: not defined here (no real root, or cos(theta0) = 0)')
         lines.append(f'{sm.name}: theta0 = {sm.theta0:.6g} rad, psidot0 = {sm.psidot0:.12g} '
-                     f'rad/s (exact); eq. (22) corrected: {sm.psidot0_eq22:.12g} rad/s; '
-                     f'relative difference {sm.relative_difference:+.3e}')
+                     f'rad/s (exact); {eq22}')
     return SteadyMotions(f'Omega0 = {p.Omega0:g} rad/s, I = {p.I:g} kg m^2, C_R = {p.C_R:g}, '
                          f'G s = {p.Gs:g} N m, c_theta = {p.c_theta:g} N m/rad', lines, found)
 
