@@ -233,11 +233,11 @@ def expected_outcome(scene, duration: float) -> dict:
     exp = {'verdict': predict(scene).verdict, 'pole_slips': None}
     if any(scene.pole_pairs):
         from gyro_rotor.analysis.analyzer import RotorAnalyzer
-        from gyro_rotor.analysis.samples import samples_from_trajectory
+        from gyro_rotor.analysis.samples import iter_samples
         from gyro_rotor.numerics.simulate import simulate
         tr = simulate(scene, t_end=duration, rate=250.0)
         ref = RotorAnalyzer(scene, window_s=0, checkpoint_s=0)     # the slip count alone
-        ref.add_many(samples_from_trajectory(tr))
+        ref.add_many(iter_samples(tr))
         exp['pole_slips'] = ref.result().pole_slips
     return exp
 

@@ -56,13 +56,14 @@ def _analysis(tr):
     newest window of the live node's length only (no checkpoints): its cost does not grow
     with the run's length.
     """
-    from gyro_rotor.analysis.checks import RotorAnalyzer, samples_from_trajectory
+    from gyro_rotor.analysis.checks import RotorAnalyzer
+    from gyro_rotor.analysis.samples import iter_samples
     import numpy as np
     ana = RotorAnalyzer(tr.scene, checkpoint_s=0)
     # an unstable system's growth reaches 1e304 J before the state overflows: its squares
     # overflow in the fits (to inf, which they handle), not worth a RuntimeWarning each
     with np.errstate(over='ignore', under='ignore'):
-        ana.add_many(samples_from_trajectory(tr))
+        ana.add_many(iter_samples(tr))
         return ana.result(), ana.min_fit_s
 
 
