@@ -153,3 +153,11 @@ def test_both_kinds_of_system_offer_what_a_scene_asks_of_its_system():
         scene = load_scene(name)
         assert scene.physics()[0] == ('system', scene.system_name)
         assert scene.with_changes({'t_end': 3.0}).t_end == 3.0
+
+
+def test_a_system_file_given_as_a_scene_is_named_as_such():
+    """Adversarial finding: it said 'no rotor_sim (or /**) section; found name, ...'."""
+    from pathlib import Path
+    path = Path(__file__).resolve().parent.parent / 'config' / 'systems' / 'twin_gimbal.yaml'
+    with pytest.raises(SceneError, match='is a system file, not a scene file: give its name'):
+        load_scene(str(path))
