@@ -488,3 +488,14 @@ def test_campbell_keeps_a_crossing_whose_bracket_loses_the_steady_motion(monkeyp
     assert main(['campbell', 'precession', '--points', '200']) == 0
     out = capsys.readouterr().out
     assert 'nutation, 9.71 Hz) crosses 1 x rotor speed at Omega0 = 37.694' in out, out
+
+
+def test_a_run_out_of_steps_is_stopped_not_diverged(monkeypatch, capsys):
+    """Adversarial finding: Omega0 = 1e12 ran 93 s, then said 'DIVERGED: ... budget'."""
+    import gyro_rotor.numerics.simulate as sim
+    make = sim.make_integrator
+    monkeypatch.setattr(sim, 'make_integrator',
+                        lambda *a, **k: make(*a, **k, max_steps=50))   # the budget, small
+    assert main(['simulate', 'precession', '--t-end', '1']) == 2
+    out = capsys.readouterr().out
+    assert 'STOPPED: ' in out and 'budget' in out and 'DIVERGED' not in out

@@ -31,6 +31,7 @@ from gyro_rotor.errors import IntegrationError, ParameterError
 from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
 from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
                                              integrate as integrate_kernels, make_integrator)
+from gyro_rotor.numerics.integrators.primitives import Status
 from gyro_rotor.numerics.kernel_system import kernel_model, methods_for
 import numpy as np
 
@@ -65,6 +66,8 @@ class Trajectory:
     method_reason: str = ''
     #: step of a fixed-step method [s] (None for adaptive methods)
     step: float | None = None
+    #: the run stopped early because its step budget ran out (not a divergence)
+    budget: bool = False
 
     @property
     def setting(self) -> str:
@@ -239,7 +242,8 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
                       out=model.outputs(run.t, run.y), method=method, rtol=run.rtol,
                       atol=run.atol, nfev=int(run.nfev), nsteps=int(run.nsteps),
                       wall_time=run.wall, success=success, message=message,
-                      method_reason=reason, step=run.step)
+                      method_reason=reason, step=run.step,
+                      budget=method in own and run.status == Status.BUDGET)
 
 
 @dataclasses.dataclass

@@ -91,6 +91,9 @@ def _verdict(guard: str, broken: bool, res, tr, min_fit_s: float) -> str:
     """
     from gyro_rotor.analysis.verdict import Verdict
     E = tr.out['E_star']
+    if guard and not broken and tr.budget:      # slow, not divergent: say which
+        return (f'STOPPED: {guard} (not a divergence: the run needs more steps than its '
+                'budget); the samples before it are kept')
     if guard and (broken or res.verdict is not Verdict.UNSTABLE):
         return (f'DIVERGED: the integration diverged: {guard}; the samples before it are '
                 'kept')
