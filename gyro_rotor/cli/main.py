@@ -59,6 +59,10 @@ def _load(name: str):
     return importlib.import_module(f'gyro_rotor.cli.commands.{COMMANDS[name]}')
 
 
+#: options that name an output file or directory
+_PATH_OPTIONS = ('out', 'json', 'csv')
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argparse parser with every available subcommand."""
     parser = _Parser(
@@ -83,6 +87,9 @@ def main(argv: list[str] | None = None) -> int:
         if extra:       # as parse_args, but naming the command they were given to
             raise UsageError(f'unrecognized arguments: {" ".join(extra)} '
                              f'(see {parser.prog} {args.command} --help)')
+        for name in _PATH_OPTIONS:      # '' would be skipped as "not given", in silence
+            if getattr(args, name, None) == '':
+                raise UsageError(f'--{name} is empty: give a file name')
     except UsageError as err:
         print(f'ERROR: {err}', file=sys.stderr)
         return 1
