@@ -277,3 +277,17 @@ def test_a_file_the_metadata_does_not_list_is_named_not_read(tmp_path):
     assert reader.topics['/energy'].count == 3001            # as rosbag2: not doubled
     assert any('precession_1.mcap not listed in metadata.yaml: not read' in str(w.message)
                for w in caught)
+
+
+def test_a_bag_cut_before_its_channels_says_it_is_damaged(tmp_path):
+    """Adversarial finding: cut to 1000 bytes it was 'not a gyro_rotor recording'."""
+    import warnings
+    from gyro_rotor.bag.bagio import BagWarning
+    bag = tmp_path / 'cut'
+    shutil.copytree(BAGS / 'precession', bag)
+    with open(bag / 'precession_0.mcap', 'r+b') as f:
+        f.truncate(1000)
+    with warnings.catch_warnings(), pytest.raises(AnalysisError,
+                                                  match='damaged and no topic of it can be'):
+        warnings.simplefilter('ignore', BagWarning)
+        analyze_bag(bag)

@@ -129,6 +129,9 @@ def _data_topics(path, reader) -> tuple:
     joints = _find_topic(reader.topics, 'joint_states', 'sensor_msgs/msg/JointState')
     if energy is None or joints is None:
         found = ', '.join(f'{t} ({i.type})' for t, i in sorted(reader.topics.items()))
+        if reader.damaged and not found:        # cut before its first channel
+            raise AnalysisError(f'{path}: the bag is damaged and no topic of it can be read '
+                                f'({reader.loss_text()}): no data to analyse')
         raise AnalysisError(f'{path}: not a gyro_rotor recording: needs the topics energy '
                             f'(std_msgs/msg/Float64MultiArray) and joint_states '
                             f'(sensor_msgs/msg/JointState); found {found or "no topics"}')
