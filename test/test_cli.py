@@ -69,6 +69,7 @@ def test_steady_prints_both_branches(capsys):
     (['simulate', 'precession', '--t-end', '0.1', '--out', 'x.txt'], '.csv or .npz'),
     (['locus', 'precession', '--points', '3', '--out', 'x.txt'], 'must end in .png'),
     (['eig', 'precession', '--json', ''], '--json is empty'),
+    (['simulate', 'precession', '--set', 'initial.dzdot=1e300'], 'not a finite number'),
     (['simulate', 'precession', '--out', ''], '--out is empty'),
     (['steady', 'precession', '--set', 'c_theta=1.0', '--set', 'Omega0=10.0',
       '--theta0', '0.5'], 'discriminant'),

@@ -222,6 +222,11 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     size = len(model.state_names)
     if y_init.shape != (size,) or not np.all(np.isfinite(y_init)):
         raise ParameterError(f'the initial state must be {size} finite numbers')
+    with np.errstate(over='ignore', invalid='ignore'):
+        E_init = float(np.asarray(model.energy(y_init)).reshape(-1)[0])
+    if not np.isfinite(E_init):
+        raise ParameterError(f'the initial state has E* = {E_init} J (eq. 13), not a finite '
+                             'number: its values are too large')
     if method == 'auto':
         method, reason = auto_method(scene, t_end, rtol, rate, model, y_init)
     t_eval = _sample_times(t_end, rate)
