@@ -235,6 +235,15 @@ def test_a_stiff_drive_keeps_the_slow_pairs_complex(K_S):
         assert np.min(np.abs(lam - m.eigenvalue)) < 1e-6 * abs(m.eigenvalue)
 
 
+def test_tune_refuses_rates_inside_their_round_off():
+    # adversarial finding: at K_S = 1e9 tune printed a "best" K_D whose rate (3.9e-8 1/s)
+    # was below the rates' round-off (its neighbours' rates negative)
+    stiff = linearize_scene(load_scene('precession').with_changes({'K_S': 1e9}))
+    with pytest.raises(ParameterError, match='within their round-off'):
+        tune(stiff)
+    assert tune(linearize_scene(load_scene('precession'))).rate_best > 0
+
+
 def test_non_finite_spectrum_is_a_parameter_error():
     lin = linearize(P, steady_motion(P, 0.1, 1))
     with pytest.raises(ParameterError, match='too large'):

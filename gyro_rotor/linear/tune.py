@@ -14,6 +14,7 @@ import dataclasses
 import math
 
 from gyro_rotor.errors import ParameterError
+from gyro_rotor.linear.roundoff import resolution
 from gyro_rotor.linear.spectrum import drive_sensitivity
 from gyro_rotor.linear.stability import ModeKind
 import numpy as np
@@ -82,6 +83,17 @@ def tune(lin) -> TuneResult:
     r_best = rate(K_best)
     if not r_best > 0:
         _refuse(lin, K_best, modes)
+    # a best rate within the round-off of its root is no rate (a stiff drive, K_S = 1e9:
+    # "best" 3.9e-8 1/s beside -1.9e-7 at 0.9 x best, the round-off about 1e-4)
+    lam_b, res_b = resolution(A0v - K_best * BCv, scale=max(np.linalg.norm(A0v), 1.0))
+    noise = float(res_b[int(np.argmax(lam_b.real))])
+    if r_best <= noise:
+        raise ParameterError(
+            f'the decay rates over K_D are within their round-off: the best found, '
+            f'{r_best:.3g} 1/s at K_D = {K_best:.4g} N m s/rad, against {noise:.2g} 1/s '
+            f'(||A0|| = {np.linalg.norm(A0v):.3g} 1/s: a drive this stiff against the '
+            'structure leaves its modes almost undamped): K_D cannot be tuned in double '
+            'precision')
     gov = sorted({m.name for m in modes(lin, K_best)
                   if m.kind != ModeKind.ZERO and m.reached_by_drive
                   and -m.eigenvalue.real <= r_best * (1 + 1e-6)})
