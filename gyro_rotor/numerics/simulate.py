@@ -167,6 +167,20 @@ def check_tolerances(rtol: float, atol: float) -> None:
             raise ParameterError(f'{name} must be positive and finite, got {v!r}')
 
 
+def _initial_state(scene: Scene, model: Model, y0) -> np.ndarray:
+    """Return the initial state (``y0`` or the scene's), refused unless it and E* are finite."""
+    y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
+    size = len(model.state_names)
+    if y_init.shape != (size,) or not np.all(np.isfinite(y_init)):
+        raise ParameterError(f'the initial state must be {size} finite numbers')
+    with np.errstate(over='ignore', invalid='ignore'):
+        E_init = float(np.asarray(model.energy(y_init)).reshape(-1)[0])
+    if not np.isfinite(E_init):
+        raise ParameterError(f'the initial state has E* = {E_init} J (eq. 13), not a finite '
+                             'number: its values are too large')
+    return y_init
+
+
 def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
              rate: float = DEFAULT_RATE, method: str = DEFAULT_METHOD,
              rtol: float | None = None, atol: float | None = None,
@@ -218,15 +232,7 @@ def simulate(scene: Scene | str = 'precession', *, t_end: float | None = None,
     if method not in ('auto',) + own and method not in SCIPY_METHODS:
         raise ParameterError(f"unknown integrator '{method}' for system {scene.system_name}; "
                              f"valid: auto, {', '.join(own)}, {', '.join(SCIPY_METHODS)}")
-    y_init = scene.initial_state(model) if y0 is None else np.asarray(y0, dtype=float)
-    size = len(model.state_names)
-    if y_init.shape != (size,) or not np.all(np.isfinite(y_init)):
-        raise ParameterError(f'the initial state must be {size} finite numbers')
-    with np.errstate(over='ignore', invalid='ignore'):
-        E_init = float(np.asarray(model.energy(y_init)).reshape(-1)[0])
-    if not np.isfinite(E_init):
-        raise ParameterError(f'the initial state has E* = {E_init} J (eq. 13), not a finite '
-                             'number: its values are too large')
+    y_init = _initial_state(scene, model, y0)
     if method == 'auto':
         method, reason = auto_method(scene, t_end, rtol, rate, model, y_init)
     t_eval = _sample_times(t_end, rate)
