@@ -161,3 +161,12 @@ def test_a_system_file_given_as_a_scene_is_named_as_such():
     path = Path(__file__).resolve().parent.parent / 'config' / 'systems' / 'twin_gimbal.yaml'
     with pytest.raises(SceneError, match='is a system file, not a scene file: give its name'):
         load_scene(str(path))
+
+
+@pytest.mark.parametrize('system', ['', 'system: twin_gimbal\n    '])
+def test_a_value_where_a_group_of_keys_belongs_is_named(tmp_path, system):
+    """Adversarial finding: 'initial: 5' gave "unknown key 'initial'; did you mean ...?"."""
+    path = tmp_path / 'scene.yaml'
+    path.write_text(f'/**:\n  ros__parameters:\n    {system}initial: 5\n')
+    with pytest.raises(SceneError, match="'initial' is a group of keys, not a value"):
+        load_scene(str(path))

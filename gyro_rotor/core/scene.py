@@ -392,6 +392,12 @@ def flatten(d: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
 
 
 def _unknown(key: str, valid) -> str:
+    groups = sorted({v.split('.', 1)[0] for v in valid if '.' in v})
+    if key in groups:       # a value where a group of keys belongs ('initial: 5')
+        inside = sorted(v for v in valid if v.startswith(key + '.'))
+        more = ', ...' if len(inside) > 6 else ''
+        return (f"'{key}' is a group of keys, not a value: give its keys "
+                f"({', '.join(inside[:6])}{more})")
     return f"unknown key '{key}'{did_you_mean(key, valid)}"
 
 
