@@ -392,9 +392,8 @@ def flatten(d: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
 
 
 def _unknown(key: str, valid) -> str:
-    groups = sorted({v.split('.', 1)[0] for v in valid if '.' in v})
-    if key in groups:       # a value where a group of keys belongs ('initial: 5')
-        inside = sorted(v for v in valid if v.startswith(key + '.'))
+    inside = sorted(v for v in valid if v.startswith(key + '.'))
+    if inside:       # a value where a group of keys belongs ('initial: 5')
         more = ', ...' if len(inside) > 6 else ''
         return (f"'{key}' is a group of keys, not a value: give its keys "
                 f"({', '.join(inside[:6])}{more})")

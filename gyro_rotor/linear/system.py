@@ -305,7 +305,7 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     (:func:`gyro_rotor.linear.roundoff.resolutions`). A zero root whose
     eigenvector is mostly a rotor angle z is ``rotor_angle`` (no drive stiffness).
     """
-    from gyro_rotor.linear.roundoff import resolution, resolutions
+    from gyro_rotor.linear.roundoff import floor, resolution
     from gyro_rotor.linear.spectrum import unit_eig
     from gyro_rotor.linear.stability import classify
     Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
@@ -313,8 +313,11 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     scale = max(1.0, float(np.abs(np.linalg.eigvals(lin.A_cons)).max(initial=0.0)))
     lam, V = unit_eig(A)
     lam0, dre = _followed(lin, Ks, lam)
-    lam_r, res_r = resolutions(A, lin.A_cons)
-    lam_i, res_i = resolution(A, scale=max(np.linalg.norm(lin.A_cons), 1.0))
+    # one eigen-decomposition, two scales: the imaginary parts' round-off at that of A_cons
+    # (below), the real parts' at that of A with the floor of A_cons (roundoff.resolutions)
+    s_cons = max(np.linalg.norm(lin.A_cons), 1.0)
+    lam_r, res_i = resolution(A, scale=s_cons)
+    res_r = np.maximum(res_i * (np.linalg.norm(A) / s_cons), floor(lin.A_cons))
     angles = {lin.coordinate[i] for i in np.flatnonzero(np.any(lin.c_all != 0, axis=1))}
     zeros = np.abs(lam) <= 1e-7 * scale
     null = _kernel(A) if zeros.any() else None          # one SVD for every zero root
@@ -325,11 +328,12 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
         coord = dominant(lin, _on_kernel(null, v) if zero else v)
         value = complex(value)
         re = value.real
-        res = float(res_r[int(np.argmin(np.abs(lam_r - value)))])
+        near = int(np.argmin(np.abs(lam_r - value)))
+        res = float(res_r[near])
         # complex beyond the root's own round-off at the scale of A_cons (as the centrifuge's
         # pencil: not of the escaping roots of a large K), not beyond a scale of the whole
         # matrix (a stiff drive's K_S)
-        im_res = float(res_i[int(np.argmin(np.abs(lam_i - value)))])
+        im_res = float(res_i[near])
         kind = (ModeKind.ZERO if zero else ModeKind.OSCILLATORY if abs(value.imag) > im_res
                 else ModeKind.REAL)
         on_axis = abs(re) <= res

@@ -109,16 +109,18 @@ class SweepSpec:
     @property
     def steps_per_trajectory(self) -> int:
         """RK4 steps of one trajectory (the ensemble splits each sample interval evenly)."""
-        te = self.t_eval
-        return int(sum(max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
-                       for a, b in zip(te[:-1], te[1:])))
+        return int(sum(n for _, n in self._intervals()))
 
     @property
     def step_used(self) -> float:
         """Return the longest RK4 step taken: ``step``, or a shorter sample interval."""
+        return float(max(d / n for d, n in self._intervals()))
+
+    def _intervals(self):
+        """Yield (sample interval, RK4 steps in it): the ensemble splits each one evenly."""
         te = self.t_eval
-        return float(max((b - a) / max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
-                         for a, b in zip(te[:-1], te[1:])))
+        for a, b in zip(te[:-1], te[1:]):
+            yield b - a, max(1, math.ceil((b - a) / self.step * (1.0 - 1e-12)))
 
     def block_points(self, b: int) -> np.ndarray:
         """Flat indices of block ``b``."""

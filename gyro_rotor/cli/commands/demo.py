@@ -252,9 +252,9 @@ def _out_dir(args: argparse.Namespace, scene) -> Path:
         from gyro_rotor.cli.util import make_unique_dir
         stamp = time.strftime('%Y%m%d-%H%M%S')
         return make_unique_dir(Path('demo_runs') / f'{scene.name}_{stamp}')
+    from gyro_rotor.cli.util import check_output_dir
+    check_output_dir(args.out)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f'{out} exists and is not a directory')
     if out.exists() and any(out.iterdir()):
         raise ParameterError(f'output directory {out} exists and is not empty')
     return make_output_dir(out)
