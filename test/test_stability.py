@@ -221,10 +221,12 @@ def test_modes_at_huge_K_D_stay_named_pairs(K_D):
     assert r.mode('rotor-field coupling (fast real)').eigenvalue.real < -1e2 * K_D
 
 
-@pytest.mark.parametrize('K_S', [1e9, 1e10])
+@pytest.mark.parametrize('K_S', [1e9, 1e10, 1e11])
 def test_a_stiff_drive_keeps_the_slow_pairs_complex(K_S):
     # ||A0|| grows with K_S (1.8e11 at 1e9): a pair is complex beyond its own round-off,
-    # not beyond a fraction of ||A0|| (that made nutation and twist two real roots at 0)
+    # not beyond a fraction of ||A0|| (that made nutation and twist two real roots at 0);
+    # a root is 0 within its own round-off, not within 1e-8 ||A0|| (at K_S = 1e11 that
+    # named the nutation the zero root of psi and the zero root 'nutation')
     scene = load_scene('precession').with_changes({'K_S': K_S})
     lin = linearize_scene(scene)
     ms, _ = assess(lin)
@@ -233,6 +235,10 @@ def test_a_stiff_drive_keeps_the_slow_pairs_complex(K_S):
         m = next(m for m in ms if m.name == name)
         assert m.kind == ModeKind.OSCILLATORY
         assert np.min(np.abs(lam - m.eigenvalue)) < 1e-6 * abs(m.eigenvalue)
+    assert sorted(m.name for m in ms) == sorted(
+        ('nutation', 'housing twist', 'rotor-field coupling', 'zero root (cyclic psi)'))
+    psi = next(m for m in ms if m.name == 'zero root (cyclic psi)')
+    assert abs(psi.eigenvalue) < 1e-9 * min(abs(m.eigenvalue) for m in ms if m is not psi)
 
 
 def test_tune_refuses_rates_inside_their_round_off():

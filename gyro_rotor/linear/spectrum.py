@@ -287,11 +287,13 @@ def _shares(lin: LinearSystem, Vw: np.ndarray) -> dict:
     return {g: e[groups == g].sum(axis=0) / tot for g in ('tilt', 'twist', 'drive')}
 
 
-def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None) -> list:
+def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None,
+                  at_zero=None) -> list:
     """Names of the eigenvalues of A0 (K_D = 0) by modal energy shares (module doc).
 
-    ``d`` (the sensitivities d lambda/d K_D) decides which of several zero roots is the
-    structural one of psi: the one the drive damping does not move.
+    ``d`` (the sensitivities d lambda/d K_D) decides which of several zero roots (``at_zero``:
+    which roots are 0 within their round-off) is the structural one of psi: the one the
+    drive damping does not move.
     """
     from scipy.optimize import linear_sum_assignment
     n = len(lam)
@@ -303,8 +305,8 @@ def _name_at_zero(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray, d=None) ->
         free.remove(n - 1)
     if lin.coords == Coords.II:
         mag = np.abs(lam[free])
-        if d is not None:
-            near = mag <= 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
+        if d is not None and at_zero is not None:
+            near = np.asarray(at_zero)[free]
             if np.sum(near) > 1:
                 mag = np.where(near, np.abs(np.asarray(d)[free]), np.inf)
         j0 = free[int(np.argmin(mag))]

@@ -167,11 +167,24 @@ def _one_rule(lin: LinearSystem, lam: np.ndarray, Vw: np.ndarray) -> np.ndarray:
     d = np.empty(len(lam), dtype=complex)
     d[rows] = d1[cols]
     last = len(lam) - 1 if _cyclic_z(lin) is not None else None
-    tol = 1e-8 * max(np.linalg.norm(lin.A0), 1.0)
-    zero = [k for k, j in enumerate(rows) if abs(lam[j]) <= tol and j != last]
+    at_zero = zero_within_roundoff(lin, lam)
+    zero = [k for k, j in enumerate(rows) if at_zero[j] and j != last]
     if len(zero) > 1:
         Vw[:, rows[zero]] = unit(V1[:, cols[zero]] * lin.weights[:, None])
     return d
+
+
+def zero_within_roundoff(lin: LinearSystem, lam: np.ndarray) -> np.ndarray:
+    """Return which roots ``lam`` of A0 are 0 within their own round-off.
+
+    A root is 0 when its modulus is within its resolution (condition number x the scale
+    of A0, :func:`~gyro_rotor.linear.roundoff.resolution`), not within a fraction of
+    ||A0||: a stiff drive (K_S = 1e11) makes ||A0|| 1.8e13 while the nutation is 61 rad/s
+    and its round-off a few rad/s.
+    """
+    lam_r, res_r = resolution(lin.A0, scale=max(np.linalg.norm(lin.A0), 1.0))
+    res = np.array([res_r[int(np.argmin(np.abs(lam_r - z)))] for z in lam])
+    return np.abs(lam) <= res
 
 
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
@@ -220,7 +233,7 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
 def _tracked_names(lin: LinearSystem, K_values: Sequence[float]):
     """Names at K_D = 0 and the eigenvalues tracked along ``K_values`` (starting at 0)."""
     lam0, d0, Vw = sensitivities(lin)
-    names = _name_at_zero(lin, lam0, Vw, d0)
+    names = _name_at_zero(lin, lam0, Vw, d0, zero_within_roundoff(lin, lam0))
     lam_path = track(lambda k: (lam0, Vw) if k == 0 else spectrum(lin, k), K_values, names,
                      log=True)
     return names, lam0, d0, lam_path
