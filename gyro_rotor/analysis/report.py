@@ -49,8 +49,8 @@ def _meas_tau(m) -> str:
         return 'undamped' if m.rate_status is Status.PASS else '-'
     need = needs_window(m.window_s, m.rate.value if m.rate.value else m.predicted.real,
                         m.rate.u)
-    return (f'not measurable (needs ~{need:.2g} s)' if math.isfinite(need) and need > m.window_s
-            else 'not measurable')
+    return (f'not measurable in {m.window_s:.2g} s (needs ~{need:.2g} s)'
+            if math.isfinite(need) and need > m.window_s else 'not measurable')
 
 
 def _pred_tau(m) -> str:
