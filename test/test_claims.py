@@ -115,7 +115,8 @@ def test_every_meeting_is_a_real_root_count_change(seed, n, m):
     for mt in cl.check(sys).meetings:
         below = n_real_near(A0, B, C, mt.K_D * (1 - 1e-7), mt.lam)
         above = n_real_near(A0, B, C, mt.K_D * (1 + 1e-7), mt.lam)
-        assert above - below == (2 if mt.kind is cl.MeetingKind.BREAK_IN else -2)
+        assert above - below == 2 * mt.multiplicity * (
+            1 if mt.kind is cl.MeetingKind.BREAK_IN else -1)
         K_ind = bisect_meeting(sys, mt.K_D * (1 - 1e-7), mt.K_D * (1 + 1e-7), mt.lam)
         assert abs(K_ind - mt.K_D) <= 1e-10 * mt.K_D
 
@@ -126,6 +127,47 @@ def test_an_indefinite_potential_fails_a_or_b(seed, n, m):
     """The checker can fail: a Hessian with a negative eigenvalue breaks the theorem."""
     res = cl.check(random_system(seed, n, m, indefinite=True))
     assert not (res.claims['a'].holds and res.claims['b'].holds)
+
+
+def _doubled(sys, tweak=0.0):
+    """Two uncoupled copies of ``sys`` (the second's A0 scaled by 1 + tweak)."""
+    from scipy.linalg import block_diag
+    return cl.DriveSystem(A0=block_diag(sys.A0, (1 + tweak) * sys.A0),
+                          B=block_diag(sys.B, sys.B), C=block_diag(sys.C, sys.C),
+                          K_scene=np.concatenate([sys.K_scene, sys.K_scene]))
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 2), m=st.integers(1, 2))
+def test_two_identical_uncoupled_parts_meet_the_axis_in_pairs(seed, n, m):
+    """Adversarial finding: two equal rotors on equal carriers keep every root double.
+
+    The continuation stalled on the double roots (a step bounded by a gap of 0: h down to
+    1e-14 for 200000 steps, 107 s) and judged (c) and (d) where it stopped, at K = 2e-7:
+    both FAIL, no K_D*. The doubled system has the single one's K_D*, each met by two pairs.
+    """
+    one = cl.check(random_system(seed, n, m))
+    two = cl.check(_doubled(random_system(seed, n, m)))
+    assert two.all_hold, {k: c.detail for k, c in two.claims.items()}
+    assert two.claims['d'].data['net_meetings'] == 2 * m
+    assert [mt.multiplicity for mt in two.meetings] == [2] * len(one.meetings)
+    assert np.allclose(two.K_D_star, one.K_D_star, rtol=1e-8)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 2), m=st.integers(1, 2),
+       tweak=st.sampled_from([1e-6, 1e-4, 1e-2]))
+def test_nearly_identical_parts_are_followed_to_the_regime(seed, n, m, tweak):
+    """Nearly equal roots that move together do not stall the continuation.
+
+    Adversarial finding: a carrier stiffness 10.5 against 10 kept the two fast roots (and
+    the two slow ones) 4e-6 of their size apart for every K; a step bounded by a quarter of
+    that gap took 200000 steps to K = 9.5 (8 min) and (c) was judged there: FAIL.
+    """
+    res = cl.check(_doubled(random_system(seed, n, m), tweak))
+    assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
+    assert res.claims['d'].data['net_meetings'] == 2 * m
+    assert len(res.locus.K) < 20000
 
 
 def test_slow_roots_near_zero_still_count_as_real():

@@ -32,9 +32,11 @@ K. Structural zero roots (cyclic coordinates) lie in U and are identified by the
 eigenvectors: the generalized kernel of A0 on U. On the complement the moving roots are the
 eigenvalues of A_V(K) = A0_V - K B_V C_V, a system with no root that stays put, so a root
 near 0 is just a root: slow roots -K_S/K still count as real. The locus of A_V is
-followed by eigenvalue continuation over K (:func:`track`) whose step is bounded by the gap
-between neighbouring roots: two roots that approach force the step down, so a meeting
-cannot be stepped over however narrow its bubble. Each meeting is then solved exactly:
+followed by eigenvalue continuation over K (:func:`track`) whose step is bounded by the
+change of the distances between roots: two roots that approach force the step down, so a
+meeting cannot be stepped over however narrow its bubble, while two that move together
+(nearly identical parts) do not, and a double root of identical parts is followed as one.
+Each meeting is then solved exactly:
 for real lambda the gains putting a root at lambda are K = -1/mu for the real eigenvalues
 mu of the m x m transfer matrix C (lambda I - A0)^-1 B, and a meeting is a stationary
 point of such a branch K(lambda); its zero of dK/dlambda (analytic) is bracketed and
@@ -118,17 +120,22 @@ class DriveSystem:
 
 @dataclasses.dataclass(frozen=True)
 class Meeting:
-    """A pair of roots meeting on the real axis at K = K_D, at lambda = lam (a double root)."""
+    """A pair of roots meeting on the real axis at K = K_D, at lambda = lam (a double root).
+
+    ``multiplicity``: how many pairs meet there at once (2 for two identical uncoupled
+    parts, whose pairs land together), from the real roots near lam just before and after.
+    """
 
     K_D: float
     lam: float
     kind: MeetingKind
     verified: bool
+    multiplicity: int = 1
 
     def as_dict(self) -> dict:
         """Return the meeting as plain data."""
         return {'K_D_star': self.K_D, 'lambda_star': self.lam, 'kind': str(self.kind),
-                'verified': self.verified}
+                'verified': self.verified, 'multiplicity': self.multiplicity}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -414,10 +421,36 @@ def _velocity(lam, yl, xr, BC) -> np.ndarray:
     return np.where(np.isfinite(v), v, 0.0)
 
 
-def _gaps(lam: np.ndarray) -> np.ndarray:
+def _gaps(lam: np.ndarray, twins: np.ndarray | None = None) -> np.ndarray:
+    """Return each root's distance to the nearest other root that is not its twin."""
     D = np.abs(lam[:, None] - lam[None, :])
     np.fill_diagonal(D, np.inf)
+    if twins is not None:
+        D[twins] = np.inf
     return D.min(axis=1) if len(lam) > 1 else np.full(len(lam), np.inf)
+
+
+def _twins(R: '_Roots', K: float, lam: np.ndarray, yl: np.ndarray, xr: np.ndarray) -> tuple:
+    """Return (twins, tol): the pairs of roots that are one double root within round-off.
+
+    ``twins`` (None: none): the pairs within the sum of their round-off (:func:`_floor`);
+    ``tol``: that round-off times each root's condition number (a cluster's roots are
+    ill-conditioned one by one), the jitter a step allows (:func:`_step`). Identical
+    uncoupled parts (two equal rotors on equal carriers) keep every
+    root double for every K: the two are one root to the continuation (no step can
+    separate them), and their pairs meet the axis together (:attr:`Meeting.multiplicity`).
+    Only where two roots are within MEET_RTOL of each other is any of it computed (tol 0).
+    """
+    D = np.abs(lam[:, None] - lam[None, :])
+    np.fill_diagonal(D, np.inf)
+    if not np.any(D <= MEET_RTOL * np.maximum(np.abs(lam)[:, None], 1e-300)):
+        return None, np.zeros(len(lam))
+    with np.errstate(divide='ignore'):
+        kappa = (np.linalg.norm(yl, axis=0) * np.linalg.norm(xr, axis=0)
+                 / np.abs(np.sum(yl.conj() * xr, axis=0)))
+    fl = _floor(R, K, lam)
+    twins = D <= fl[:, None] + fl[None, :]
+    return (twins if twins.any() else None), fl * np.minimum(kappa, 1e8)
 
 
 def _is_real(lam: np.ndarray) -> np.ndarray:
@@ -488,6 +521,13 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
     a, b = lam[i], lam[j]
     if a.imag == 0.0 and b.imag == 0.0:
         lo, hi = sorted((a.real, b.real))
+        if hi - lo <= 1e-2 * MEET_RTOL * abs(a):
+            # twins (identical parts: two pairs meet together, and these two are copies of
+            # one root, their distance the round-off of a nearly double root; a pair that
+            # approaches is found as it comes within MEET_RTOL, closing by at most a quarter
+            # a step): the bracket is the real roots of their cluster
+            near = lam[_is_real(lam) & (np.abs(lam - a) <= 1e-2 * abs(a))].real
+            lo, hi = float(near.min()), float(near.max())
         width = hi - lo
     elif abs(a - b.conjugate()) <= 1e-12 * abs(a):
         width = 2 * abs(a.imag)
@@ -503,7 +543,20 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
         return None
     K_star, x = res
     kind, ok = _classify(R, K_star, x)
-    return Meeting(K_D=float(K_star), lam=float(x), kind=kind, verified=ok)
+    return Meeting(K_D=float(K_star), lam=float(x), kind=kind, verified=ok,
+                   multiplicity=_multiplicity(R, K_star, x))
+
+
+def _multiplicity(R: _Roots, K: float, x: float) -> int:
+    """Return how many pairs meet at (K, x): half the change of the real roots near x.
+
+    Near: within 1 % of |x| (a pair splits like sqrt(K - K*), 3e-4 of the scale at
+    VERIFY_RTOL); real roots there before and after (another pair's) cancel.
+    """
+    def n_real(k):
+        lam = R(k, vectors=False)[0]
+        return int(np.sum(_is_real(lam) & (np.abs(lam - x) <= 1e-2 * max(abs(x), 1e-300))))
+    return max(1, abs(n_real(K * (1 + VERIFY_RTOL)) - n_real(K * (1 - VERIFY_RTOL))) // 2)
 
 
 def _floor(R: _Roots, K: float, lam: np.ndarray) -> np.ndarray:
@@ -576,22 +629,36 @@ def _ends(R: _Roots, K_ref, regime: bool = True) -> tuple:
     return lo, hi
 
 
-def _step(R: _Roots, K, lam, vel, gaps, h):
+def _step(R: _Roots, K, lam, vel, h, twins=None, tol=None):
     """One accepted continuation step from K (module doc of :func:`track`).
 
-    Returns (K_new, h, roots, left and right eigenvectors) with the roots in the order of
-    ``lam`` (matched to the first-order prediction).
+    Accepted when, for any two roots (not twins, :func:`_twins`), their distance changed
+    by at most a quarter of itself and their errors against the first-order prediction
+    differ by at most a twentieth of it: a pair that approaches or turns forces the step
+    down, two that move together (the nearly equal roots of nearly identical parts) do
+    not. Changes within the two roots' round-off (``tol``, :func:`_twins`) are allowed. The
+    roots are matched to the prediction by least squares, which keeps each pair's order
+    whenever their errors differ by less than their distance. Returns (K_new, h, roots,
+    left and right eigenvectors) with the roots in the order of ``lam``.
     """
     u = math.log(K)
+    d0 = lam[:, None] - lam[None, :]
+    apart = np.ones(d0.shape, bool) if twins is None else ~twins
+    np.fill_diagonal(apart, False)
+    limit = np.abs(d0[apart])
+    noise = 0.0 if tol is None else (tol[:, None] + tol[None, :])[apart]
     while True:
         K_new = math.exp(u + h)
         lam_n, yl_n, xr_n = R(K_new)
         pred = lam + (K_new - K) * vel
-        r, c = linear_sum_assignment(np.abs(pred[:, None] - lam_n[None, :]))
-        moved = np.abs(lam_n[c] - lam[r])
-        err = np.abs(lam_n[c] - pred[r])
-        g = gaps[r]
-        if (np.all(moved <= 0.25 * g) and np.all(err <= 0.05 * g)) or h < 1e-14:
+        r, c = linear_sum_assignment(np.abs(pred[:, None] - lam_n[None, :]) ** 2)
+        new = np.empty_like(lam_n)
+        new[r] = lam_n[c]
+        err = new - pred
+        moved = np.abs((new[:, None] - new[None, :]) - d0)[apart]
+        differ = np.abs(err[:, None] - err[None, :])[apart]
+        if (np.all(moved <= 0.25 * limit + noise) and np.all(differ <= 0.05 * limit + noise)
+                or h < 1e-14):
             break
         h *= 0.5
     order = np.empty(len(lam), int)
@@ -599,13 +666,15 @@ def _step(R: _Roots, K, lam, vel, gaps, h):
     return K_new, h, lam_n[order], yl_n[:, order], xr_n[:, order]
 
 
-def _close_pairs(lam: np.ndarray, gaps: np.ndarray) -> list:
-    """Pairs (i, j) of roots closer than MEET_RTOL of their size."""
+def _close_pairs(lam: np.ndarray, gaps: np.ndarray, twins=None) -> list:
+    """Pairs (i, j) of roots closer than MEET_RTOL of their size (never twins)."""
     close = np.flatnonzero(gaps <= MEET_RTOL * np.maximum(np.abs(lam), 1e-300))
     pairs = []
     for i in close:
         d = np.abs(lam - lam[i])
         d[i] = np.inf
+        if twins is not None:
+            d[twins[i]] = np.inf
         j = int(np.argmin(d))
         if (min(i, j), max(i, j)) not in pairs:
             pairs.append((min(int(i), j), max(int(i), j)))
@@ -637,9 +706,12 @@ def _crossed_pairs(lam_a: np.ndarray, lam_b: np.ndarray) -> list:
 
 
 def _add(meetings: list, mt: Meeting | None) -> bool:
-    """Append a meeting not found before; True if appended."""
-    if mt is None or any(abs(mt.K_D - o.K_D) <= 1e-9 * o.K_D
-                         and abs(mt.lam - o.lam) <= 1e-6 * abs(o.lam) for o in meetings):
+    """Append a meeting not found before; True if appended.
+
+    Found before: within the K and lambda that :func:`_multiplicity` counts together.
+    """
+    if mt is None or any(abs(mt.K_D - o.K_D) <= VERIFY_RTOL * o.K_D
+                         and abs(mt.lam - o.lam) <= 1e-2 * abs(o.lam) for o in meetings):
         return False
     meetings.append(mt)
     return True
@@ -650,9 +722,12 @@ def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = Non
     """Follow the roots of A0 - K B C over K in [K_lo, K_hi] and find every meeting.
 
     A0, B, C must have no fixed root (use the complement of :func:`fixed_subspace`). The
-    step in log K is accepted when every root moved by at most a quarter of its distance to
-    the nearest other root and the first-order prediction erred by at most a twentieth of
-    it; otherwise it is halved (:func:`_step`). Two roots closer than MEET_RTOL of their
+    step in log K is accepted when no distance between two roots changed by more than a
+    quarter of itself and their errors against the first-order prediction differ by at
+    most a twentieth of it; otherwise it is halved (:func:`_step`). A double root within
+    round-off (identical uncoupled parts: :func:`_twins`) is one root to the step, and its
+    pairs meet the axis together (:attr:`Meeting.multiplicity`). Two roots closer than
+    MEET_RTOL of their
     size are a meeting, solved exactly (module doc), and the continuation resumes just past
     it; a pair that changes between real and complex within a step is solved from the side
     where it is real. The default ends: from where no root is real yet to where the m fast
@@ -680,8 +755,9 @@ def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = Non
         if K >= K_end * (1 - 1e-12):
             break
         vel = _velocity(lam, yl, xr, R.BC)
-        gaps = _gaps(lam)
-        ahead = [mt for i, j in _close_pairs(lam, gaps)
+        twins, tol = _twins(R, K, lam, yl, xr)
+        gaps = _gaps(lam, twins)
+        ahead = [mt for i, j in _close_pairs(lam, gaps, twins)
                  if _add(meetings, mt := _meeting_near(R, K, lam, i, j))
                  and mt.K_D >= K]
         if ahead:
@@ -691,7 +767,7 @@ def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = Non
             h = min(h, 1e-6)
         else:
             h = min(h, math.log(K_end) - math.log(K))
-            K_new, h, lam_n, yl, xr = _step(R, K, lam, vel, gaps, h)
+            K_new, h, lam_n, yl, xr = _step(R, K, lam, vel, h, twins, tol)
             for side, i, j in _crossed_pairs(lam, lam_n):
                 _add(meetings, _meeting_near(R, (K, K_new)[side], (lam, lam_n)[side], i, j))
             K, lam = K_new, lam_n
@@ -948,12 +1024,14 @@ def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
 
 
 def _claim_d(loc: Locus, m: int) -> Claim:
-    net = sum(1 if mt.kind is MeetingKind.BREAK_IN else -1 for mt in loc.meetings)
+    net = sum((1 if mt.kind is MeetingKind.BREAK_IN else -1) * mt.multiplicity
+              for mt in loc.meetings)
     counted = (loc.real_counts[-1] - loc.real_counts[0]) // 2
     verified = all(mt.verified for mt in loc.meetings)
     negative = all(mt.lam < 0 for mt in loc.meetings)
     holds = bool(net == m and counted == net and verified and negative)
-    text = '; '.join(f'{mt.kind} at K_D* = {mt.K_D:.10g}, lambda* = {mt.lam:.8g} 1/s'
+    text = '; '.join(('' if mt.multiplicity == 1 else f'{mt.multiplicity} pairs: ')
+                     + f'{mt.kind} at K_D* = {mt.K_D:.10g}, lambda* = {mt.lam:.8g} 1/s'
                      + ('' if mt.verified else ' (NOT verified)') for mt in loc.meetings)
     detail = ((text or 'no pair meets on the real axis')
               + f'; net {net} (break-ins minus breakaways), real roots {loc.real_counts[0]} at '

@@ -48,8 +48,9 @@ def _print_claims(cr) -> None:
         if c.exception:
             print(f'      expected exception: {c.exception}')
     for mt in cr.meetings:
-        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {mt.kind}, double root at {mt.lam:.8g} 1/s'
-              + ('' if mt.verified else ' (NOT verified)'))
+        pairs = '' if mt.multiplicity == 1 else f' of {mt.multiplicity} pairs at once'
+        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {mt.kind}{pairs}, double root at '
+              f'{mt.lam:.8g} 1/s' + ('' if mt.verified else ' (NOT verified)'))
 
 
 def _grid(args, lin) -> np.ndarray:
