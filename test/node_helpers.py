@@ -11,6 +11,7 @@ import os
 from pathlib import Path
 import subprocess
 import sys
+import threading
 import time
 import warnings
 
@@ -69,6 +70,52 @@ def spin_until(executor, cond, timeout: float = 20.0, step: float = 0.02) -> Non
     while not cond():
         assert time.monotonic() < deadline
         executor.spin_once(timeout_sec=step)
+
+
+class NodeThread:
+    """A node spun by an executor of its own in a thread, as it runs in its own process.
+
+    A probe in the test's executor then waits only on its own subscriptions. With the node
+    in the probe's executor (every ``spin_once`` a wait set of the node's services, timers
+    and publisher events besides the probe's), under 4 CPU hogs and a second test process
+    the probe took 510 energy messages in 12.3 s while the node published 250 a second: its
+    backlog grew from test to test, and a test waiting for the sample after a reset waited
+    behind it (measured, stop 40). Quiet, the probe's thread costs 0.7 ms of CPU per message
+    this way against 0.9 ms before.
+    """
+
+    def __init__(self, node, context):
+        from rclpy.executors import SingleThreadedExecutor
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, name='node-executor', daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        """Stop spinning and shut the executor down (the node stays to be destroyed)."""
+        self._stop.set()
+        self._thread.join()
+        self.executor.shutdown()
+
+
+def drain(subscription, sink: list) -> None:
+    """Append every message waiting on ``subscription`` to ``sink``, without the executor.
+
+    The executor takes one message per ``spin_once`` (a wait set built each time: 0.7 ms of
+    CPU per message here). A probe that drains its queues after each spin takes whatever
+    arrived since in one go, so the less CPU it gets the more it takes per spin: under 4
+    CPU hogs it kept up with 500 messages a second on 0.13 of a core (backlog 0 to 8
+    messages over 12 s; measured, stop 40).
+    """
+    with subscription.handle:
+        while (taken := subscription.handle.take_message(subscription.msg_type,
+                                                         subscription.raw)) is not None:
+            sink.append(taken[0])
 
 
 def rostools_env() -> str:

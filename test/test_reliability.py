@@ -246,7 +246,7 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
 
 
 class _LiveRig:
-    """rotor_sim (rtf 1, 250 Hz, diagnostics every 0.2 s) and a probe in one executor."""
+    """rotor_sim (rtf 1, 250 Hz, diagnostics every 0.2 s) in a thread, a probe in another."""
 
     def __init__(self, name: str):
         import rclpy
@@ -261,18 +261,21 @@ class _LiveRig:
         self.node = RotorSimNode(context=self.ctx, parameter_overrides=[
             Parameter('scene', value='precession'), Parameter('real_time_factor', value=1.0),
             Parameter('publish_rate', value=250.0), Parameter('diagnostics_period', value=0.2)])
-        self.probe = rclpy.create_node(name, context=self.ctx)
+        self.sim_thread = node_helpers.NodeThread(self.node, self.ctx)
+        self.probe = rclpy.create_node(name, context=self.ctx, start_parameter_services=False)
         self.energy, self.diags = [], []
-        self.probe.create_subscription(Float64MultiArray, 'energy', self.energy.append,
-                                       QoSProfile(depth=20000,
-                                                  reliability=ReliabilityPolicy.RELIABLE))
+        self.queue = self.probe.create_subscription(
+            Float64MultiArray, 'energy', self.energy.append,
+            QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE))
         self.probe.create_subscription(DiagnosticArray, '/diagnostics', self.diags.append, 50)
         self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
         self.ex.add_node(self.probe)
 
     def spin_until(self, cond, timeout=30.0):
-        node_helpers.spin_until(self.ex, cond, timeout, step=0.02)
+        def drained():
+            node_helpers.drain(self.queue, self.energy)
+            return cond()
+        node_helpers.spin_until(self.ex, drained, timeout, step=0.02)
 
     def call(self, srv_type, name, request):
         """Call a service; return (response, wall seconds from sending to the answer)."""
@@ -293,6 +296,7 @@ class _LiveRig:
 
     def close(self):
         import rclpy
+        self.sim_thread.close()
         self.ex.shutdown()
         self.probe.destroy_node()
         self.node.destroy_node()
@@ -324,8 +328,12 @@ def test_an_exception_inside_the_timer_is_caught_reported_and_reset_recovers(mon
         rig.spin_until(lambda: len(rig.statuses(n_diag)) >= 2)
         level, msg, values = rig.statuses(n_diag)[-1]
         assert level == DiagnosticStatus.ERROR and 'ZeroDivisionError' in msg
+        # the last good sample arrives, and nothing after it
+        rig.spin_until(lambda: any(m.data[F['t_sim']] == t_stop for m in rig.energy[-500:]))
+        n_last = len(rig.energy)
+        rig.spin_until(lambda: len(rig.statuses(n_diag)) >= 3)
         rows = np.array([list(m.data) for m in rig.energy])
-        assert rows[-1, F['t_sim']] == t_stop              # nothing after the last good one
+        assert rows[-1, F['t_sim']] == t_stop and len(rig.energy) == n_last
         res, _ = rig.call(SetBool, '/rotor_sim/pause', SetBool.Request(data=False))
         assert res.success                                  # alive and serving
         res, _ = rig.call(Trigger, '/rotor_sim/perturb', Trigger.Request())
