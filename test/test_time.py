@@ -154,17 +154,22 @@ def test_time_is_monotonic_across_live_interventions():
     node = RotorSimNode(context=ctx, parameter_overrides=[
         Parameter('scene', value='precession'), Parameter('real_time_factor', value=1.0),
         Parameter('publish_rate', value=RATE), Parameter('publish_clock', value=True)])
-    probe = rclpy.create_node('probe_time', context=ctx)
+    sim_thread = node_helpers.NodeThread(node, ctx)
+    probe = rclpy.create_node('probe_time', context=ctx, start_parameter_services=False)
     deep = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE)
     energy, clock = [], []
-    probe.create_subscription(Float64MultiArray, 'energy', energy.append, deep)
-    probe.create_subscription(Clock, '/clock', clock.append, deep)
+    queues = [(probe.create_subscription(Float64MultiArray, 'energy', energy.append, deep),
+               energy), (probe.create_subscription(Clock, '/clock', clock.append, deep), clock)]
     ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(node)
     ex.add_node(probe)
 
+    def drained(cond):
+        for sub, sink in queues:
+            node_helpers.drain(sub, sink)
+        return cond()
+
     def spin_until(cond, timeout=20.0):
-        node_helpers.spin_until(ex, cond, timeout, step=0.01)
+        node_helpers.spin_until(ex, lambda: drained(cond), timeout, step=0.01)
 
     def more(n=10):
         n0 = len(energy)
@@ -199,6 +204,7 @@ def test_time_is_monotonic_across_live_interventions():
         spin_until(lambda: clock and _ns(clock[-1].clock) >= int(round(
             energy[-1].data[F['t_sim']] * 1e9)))
     finally:
+        sim_thread.close()
         ex.shutdown()
         probe.destroy_node()
         node.destroy_node()
