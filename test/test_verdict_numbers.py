@@ -14,6 +14,7 @@ from gyro_rotor.analysis.checks import RotorAnalyzer
 from gyro_rotor.analysis.samples import samples_from_trajectory
 from gyro_rotor.numerics.simulate import simulate
 from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
 import pytest
 
 
@@ -458,3 +459,66 @@ def test_the_alias_of_a_mode_above_nyquist_is_named_so_not_a_second_root():
     detail = _status(res, 'modes').detail
     assert 'Hz is a sampled alias of nutation: |9.709 - 1 x 13| = 3.291 Hz' in detail, detail
     assert 'second root' not in detail, detail
+
+
+def _drifting(t, rate, drift):
+    """Return a mode at 101.8 rad/s whose frequency drifts with its amplitude, and a slow one.
+
+    It decays at ``rate``; its frequency rises by ``drift`` x its squared amplitude (a
+    hardening nonlinearity).
+    """
+    a = np.exp(-rate * t)
+    phi = np.cumsum(101.8 + drift * a ** 2) * (t[1] - t[0])
+    return np.column_stack([a * np.cos(phi) + np.cos(0.4955 * t), 0.5 * a * np.sin(phi + 0.3)])
+
+
+def _two_modes():
+    from gyro_rotor.analysis.prediction import Prediction, PredictedMode
+    return Prediction('synthetic', 'general', (PredictedMode('fast', complex(-0.19, 101.8)),
+                                               PredictedMode('slow', complex(-1e-3, 0.4955))),
+                      -1e-3, 'asymptotically stable', 0.0, math.nan, math.nan, 0, 0.02)
+
+
+@pytest.mark.parametrize('rate, drift', [(0.1, 2.0), (0.1, 3.0), (0.19, 3.0)])
+def test_a_decaying_mode_whose_frequency_drifts_is_not_growth(rate, drift):
+    """Growth is a root whose amplitude grows, and no second root of a drifting mode.
+
+    A window of 2 s fits the drifting oscillation with a second pole of Re > 0 whose
+    halves agree (the demo of a gyroscopically stabilised system, window 0 .. 2 s, said
+    UNSTABLE: 'the motion grows' from Re 0.23 (0.043 .. 0.41) at 16.1 Hz). Each of these
+    cases had such a root (resolved, Re above the window's resolution, share >= 0.05).
+    A drift of 5 % at rate 0.19 still gives one (0.65 + 103.4j, beyond the mode's
+    tolerance).
+    """
+    from gyro_rotor.analysis.modes import check_modes, RESOLVABLE, UNEXPLAINED_SHARE
+    t = np.arange(501) * 0.004
+    found = check_modes(t, _drifting(t, rate, drift), _two_modes(), 2.0)
+    old_rule = [r for r in found.roots if r.resolved and r.share >= UNEXPLAINED_SHARE
+                and r.re.lo > RESOLVABLE / 2.0]
+    assert old_rule, 'the case no longer has the spurious root it was chosen for'
+    assert found.growing == []
+
+
+@pytest.mark.parametrize('rate', [0.1, 0.3, 1.0])
+def test_a_growing_mode_is_growth(rate):
+    from gyro_rotor.analysis.modes import check_modes
+    t = np.arange(501) * 0.004
+    a = np.exp(rate * t)
+    Y = np.column_stack([a * np.cos(101.8 * t) + np.cos(0.4955 * t),
+                         0.5 * a * np.sin(101.8 * t)])
+    found = check_modes(t, Y, _two_modes(), 2.0)
+    assert [round(r.value.real, 3) for r in found.growing] == [rate]
+    assert found.growing[0].growth == pytest.approx(math.exp(rate * 1.0), rel=0.01)
+
+
+@pytest.mark.parametrize('re, status', [(1.14e-10, 'not resolved'), (0.5, 'growing')])
+def test_a_predicted_growth_below_the_windows_resolution_is_not_growing_as_predicted(
+        re, status):
+    from gyro_rotor.analysis.modes import _judge, Root
+    from gyro_rotor.analysis.prediction import PredictedMode
+    from gyro_rotor.analysis.verdict import Measured
+    m = PredictedMode('beta', complex(re, 0.4956))
+    r = Root(complex(re, 0.4956), Measured.pm(re, 0.003), Measured.pm(0.4956, 0.0005), 1.0)
+    check = _judge(m, r, 8.0)
+    assert str(check.status).startswith(status)
+    assert ('growth not resolvable in this window' in check.note) == (status == 'not resolved')

@@ -367,7 +367,9 @@ def combine(criteria: list[Criterion], predicted: str, *, diverged: bool = False
         return Verdict.NOT_CONFIRMED, f'failed: {", ".join(failed)}' + (
             f'; not yet decided: {", ".join(missing)}' if missing else '')
     if missing:
-        return Verdict.INSUFFICIENT_DATA, f'not yet decided: {", ".join(missing)}'
+        return Verdict.INSUFFICIENT_DATA, f'not yet decided: {", ".join(missing)}' + (
+            '' if predicted in (Verdict.ASYMPTOTICALLY_STABLE, Verdict.MARGINAL) else
+            f'; the linear theory predicts {predicted}')
     if predicted == Verdict.MARGINAL:
         return Verdict.MARGINAL, ('every criterion passed; marginal as predicted: '
                                   + (', '.join(marginal_modes) or 'modes')
