@@ -537,8 +537,9 @@ def _least_window(R: _Roots, K: float, x: float) -> float:
 
     A(K) moves by ||B C|| per unit of K: the round-off of the roots near x (:func:`_floor`)
     is a change of K by it / ||B C||, and a window within that cannot tell the sides apart.
+    At least eps: K (1 -/+ w) is K itself below it.
     """
-    return float(_floor(R, K, np.array([x]))[0]) / (K * _norm2(R.BC))
+    return max(float(_floor(R, K, np.array([x]))[0]) / (K * _norm2(R.BC)), _EPS)
 
 
 def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeting | None:
