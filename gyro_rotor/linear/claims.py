@@ -40,7 +40,8 @@ Each meeting is then solved exactly:
 for real lambda the gains putting a root at lambda are K = -1/mu for the real eigenvalues
 mu of the m x m transfer matrix C (lambda I - A0)^-1 B, and a meeting is a stationary
 point of such a branch K(lambda); its zero of dK/dlambda (analytic) is bracketed and
-solved by Brent's method to round-off, then verified by the roots just before and after.
+solved by Brent's method to round-off, then verified by the roots just before and after,
+in a window of K small enough to leave out any other meeting near it (:func:`_verify`).
 """
 
 from __future__ import annotations
