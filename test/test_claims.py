@@ -16,7 +16,7 @@ from gyro_rotor.linear import claims as cl
 from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims as named_claims
 from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scene
-from hypothesis import given, HealthCheck, settings, strategies as st
+from hypothesis import example, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from random_systems import random_system_file
@@ -98,6 +98,9 @@ def bisect_meeting(sys, lo, hi, lam):
 # wall before: 300 examples took 403 s, then 216 s; 120 took 105 s).
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 4), m=st.integers(1, 3))
+# a break-in and a breakaway 3e-8 K apart (a real root passing a complex pair as it lands,
+# near a triple root): both were 'NOT verified' in the fixed window K* (1 -/+ 1e-7)
+@example(seed=213, n=2, m=1)
 def test_claims_hold_on_every_random_valid_system(seed, n, m):
     res = cl.check(random_system(seed, n, m))
     assert res.all_hold, {k: c.detail for k, c in res.claims.items()}
@@ -108,16 +111,23 @@ def test_claims_hold_on_every_random_valid_system(seed, n, m):
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 4), m=st.integers(1, 3))
+@example(seed=213, n=2, m=1)    # two meetings 3e-8 K apart: each in a window of 2.5e-8
 def test_every_meeting_is_a_real_root_count_change(seed, n, m):
-    """Each K* found changes the real-root count there (bisected independently) to 1e-10."""
+    """Each K* found changes the real-root count there (bisected independently) to 1e-10.
+
+    Counted at K* (1 -/+ w), w the meeting's window (at most 1e-7): a window reaching the
+    next meeting near lambda* would count that one's change too.
+    """
     sys = random_system(seed, n, m)
     A0, B, C = sys.locus_pieces()
     for mt in cl.check(sys).meetings:
-        below = n_real_near(A0, B, C, mt.K_D * (1 - 1e-7), mt.lam)
-        above = n_real_near(A0, B, C, mt.K_D * (1 + 1e-7), mt.lam)
+        w = mt.window
+        assert 0 < w <= 1e-7
+        below = n_real_near(A0, B, C, mt.K_D * (1 - w), mt.lam)
+        above = n_real_near(A0, B, C, mt.K_D * (1 + w), mt.lam)
         assert above - below == 2 * mt.multiplicity * (
             1 if mt.kind is cl.MeetingKind.BREAK_IN else -1)
-        K_ind = bisect_meeting(sys, mt.K_D * (1 - 1e-7), mt.K_D * (1 + 1e-7), mt.lam)
+        K_ind = bisect_meeting(sys, mt.K_D * (1 - w), mt.K_D * (1 + w), mt.lam)
         assert abs(K_ind - mt.K_D) <= 1e-10 * mt.K_D
 
 

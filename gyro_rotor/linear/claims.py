@@ -40,7 +40,8 @@ Each meeting is then solved exactly:
 for real lambda the gains putting a root at lambda are K = -1/mu for the real eigenvalues
 mu of the m x m transfer matrix C (lambda I - A0)^-1 B, and a meeting is a stationary
 point of such a branch K(lambda); its zero of dK/dlambda (analytic) is bracketed and
-solved by Brent's method to round-off, then verified by the roots just before and after.
+solved by Brent's method to round-off, then verified by the roots just before and after,
+in a window of K small enough to leave out any other meeting near it (:func:`_verify`).
 """
 
 from __future__ import annotations
@@ -68,7 +69,8 @@ FINE_DPS = 40
 ZERO_RTOL = 1e-28
 #: a pair of roots closer than this (relative to their size) is solved as a double root
 MEET_RTOL = 1e-6
-#: the meeting is verified by the roots at K* (1 -/+ VERIFY_RTOL)
+#: the meeting is verified by the roots at K* (1 -/+ w), its window w at most this
+#: (:func:`_verify`)
 VERIFY_RTOL = 1e-7
 
 
@@ -123,7 +125,9 @@ class Meeting:
     """A pair of roots meeting on the real axis at K = K_D, at lambda = lam (a double root).
 
     ``multiplicity``: how many pairs meet there at once (2 for two identical uncoupled
-    parts, whose pairs land together), from the real roots near lam just before and after.
+    parts, whose pairs land together), from the real roots near lam just before and after;
+    ``window``: the w of K_D (1 -/+ w), before and after, that it was verified at
+    (:func:`_verify`): no other meeting near lam lies inside.
     """
 
     K_D: float
@@ -131,6 +135,7 @@ class Meeting:
     kind: MeetingKind
     verified: bool
     multiplicity: int = 1
+    window: float = VERIFY_RTOL
 
     def as_dict(self) -> dict:
         """Return the meeting as plain data."""
@@ -503,17 +508,39 @@ def _pair_near(lam: np.ndarray, x: float) -> np.ndarray:
     return lam[np.argsort(np.abs(lam - x))[:2]]
 
 
-def _classify(R: _Roots, K: float, x: float) -> tuple:
-    """Return the kind of the meeting at (K, x) from the pair just below and above K."""
-    def real_pair(k):
-        p = _pair_near(R(k, vectors=False)[0], x)
+def _verify(R: _Roots, K: float, x: float) -> tuple:
+    """Return (kind, verified, multiplicity, window w) of the meeting at (K, x).
+
+    From the pair nearest x at K (1 - w) and K (1 + w): real after and not before is a
+    break-in, before and not after a breakaway. w starts at VERIFY_RTOL and is halved while
+    the pair is real on both sides or on neither: another meeting near x within the window
+    (a real root passing a complex pair where it lands, near a triple root: a break-in and
+    a breakaway 3e-8 K apart) undoes this one there, and a smaller window leaves it out.
+    Not below the meeting's round-off as a change of K (:func:`_least_window`), where the
+    sides prove nothing: not verified.
+    """
+    def real_pair(lam):
+        p = _pair_near(lam, x)
         return bool(np.all(np.abs(p.imag) <= 1e-9 * max(abs(x), 1e-300)))
-    below, above = real_pair(K * (1 - VERIFY_RTOL)), real_pair(K * (1 + VERIFY_RTOL))
-    if above and not below:
-        return MeetingKind.BREAK_IN, True
-    if below and not above:
-        return MeetingKind.BREAKAWAY, True
-    return MeetingKind.BREAK_IN, False
+    least, w = _least_window(R, K, x), VERIFY_RTOL
+    while True:
+        lam_b, lam_a = (R(K * (1 + s * w), vectors=False)[0] for s in (-1, 1))
+        below, above = real_pair(lam_b), real_pair(lam_a)
+        if below != above or w / 2 < least:
+            break
+        w /= 2
+    kind = MeetingKind.BREAKAWAY if below and not above else MeetingKind.BREAK_IN
+    return kind, below != above, _multiplicity(lam_b, lam_a, x), w
+
+
+def _least_window(R: _Roots, K: float, x: float) -> float:
+    """Return the least window w of :func:`_verify` at (K, x): the round-off as a change of K.
+
+    A(K) moves by ||B C|| per unit of K: the round-off of the roots near x (:func:`_floor`)
+    is a change of K by it / ||B C||, and a window within that cannot tell the sides apart.
+    At least eps: K (1 -/+ w) is K itself below it.
+    """
+    return max(float(_floor(R, K, np.array([x]))[0]) / (K * _norm2(R.BC)), _EPS)
 
 
 def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeting | None:
@@ -542,21 +569,21 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
     if res is None or not math.isfinite(res[0]) or res[1] >= 0:
         return None
     K_star, x = res
-    kind, ok = _classify(R, K_star, x)
+    kind, ok, n_pairs, w = _verify(R, K_star, x)
     return Meeting(K_D=float(K_star), lam=float(x), kind=kind, verified=ok,
-                   multiplicity=_multiplicity(R, K_star, x))
+                   multiplicity=n_pairs, window=w)
 
 
-def _multiplicity(R: _Roots, K: float, x: float) -> int:
-    """Return how many pairs meet at (K, x): half the change of the real roots near x.
+def _multiplicity(lam_b: np.ndarray, lam_a: np.ndarray, x: float) -> int:
+    """Return how many pairs meet at x: half the change of the real roots near x.
 
-    Near: within 1 % of |x| (a pair splits like sqrt(K - K*), 3e-4 of the scale at
-    VERIFY_RTOL); real roots there before and after (another pair's) cancel.
+    ``lam_b``, ``lam_a``: the roots just before and after (:func:`_verify`). Near: within
+    1 % of |x| (a pair splits like sqrt(K - K*), 3e-4 of the scale at VERIFY_RTOL); real
+    roots there before and after (another pair's) cancel.
     """
-    def n_real(k):
-        lam = R(k, vectors=False)[0]
+    def n_real(lam):
         return int(np.sum(_is_real(lam) & (np.abs(lam - x) <= 1e-2 * max(abs(x), 1e-300))))
-    return max(1, abs(n_real(K * (1 + VERIFY_RTOL)) - n_real(K * (1 - VERIFY_RTOL))) // 2)
+    return max(1, abs(n_real(lam_a) - n_real(lam_b)) // 2)
 
 
 def _floor(R: _Roots, K: float, lam: np.ndarray) -> np.ndarray:
@@ -708,9 +735,10 @@ def _crossed_pairs(lam_a: np.ndarray, lam_b: np.ndarray) -> list:
 def _add(meetings: list, mt: Meeting | None) -> bool:
     """Append a meeting not found before; True if appended.
 
-    Found before: within the K and lambda that :func:`_multiplicity` counts together.
+    Found before: within the K and lambda that :func:`_multiplicity` counts together, K
+    within either meeting's window (:attr:`Meeting.window`).
     """
-    if mt is None or any(abs(mt.K_D - o.K_D) <= VERIFY_RTOL * o.K_D
+    if mt is None or any(abs(mt.K_D - o.K_D) <= max(mt.window, o.window) * o.K_D
                          and abs(mt.lam - o.lam) <= 1e-2 * abs(o.lam) for o in meetings):
         return False
     meetings.append(mt)
@@ -761,8 +789,9 @@ def track(A0: np.ndarray, B: np.ndarray, C: np.ndarray, K_lo: float | None = Non
                  if _add(meetings, mt := _meeting_near(R, K, lam, i, j))
                  and mt.K_D >= K]
         if ahead:
-            # resume just past the meeting(s) ahead
-            K = max(mt.K_D for mt in ahead) * (1 + 10 * VERIFY_RTOL)
+            # resume just past the meeting(s) ahead, where each was verified: within its
+            # window no other meeting near it lies (:func:`_verify`)
+            K = max(mt.K_D * (1 + mt.window) for mt in ahead)
             lam, yl, xr = R(K)
             h = min(h, 1e-6)
         else:
