@@ -72,6 +72,10 @@ MEET_RTOL = 1e-6
 #: the meeting is verified by the roots at K* (1 -/+ w), its window w at most this
 #: (:func:`_verify`)
 VERIFY_RTOL = 1e-7
+#: the real roots within this of |lambda*| (relative) are the meeting's cluster: a pair
+#: splits like sqrt(K - K*), 3e-4 of the scale at VERIFY_RTOL; twins bracket, multiplicity
+#: counts and duplicates are told apart within it
+CLUSTER_RTOL = 1e-2
 
 
 class MeetingKind(enum.StrEnum):
@@ -553,7 +557,7 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
             # one root, their distance the round-off of a nearly double root; a pair that
             # approaches is found as it comes within MEET_RTOL, closing by at most a quarter
             # a step): the bracket is the real roots of their cluster
-            near = lam[_is_real(lam) & (np.abs(lam - a) <= 1e-2 * abs(a))].real
+            near = lam[_is_real(lam) & (np.abs(lam - a) <= CLUSTER_RTOL * abs(a))].real
             lo, hi = float(near.min()), float(near.max())
         width = hi - lo
     elif abs(a - b.conjugate()) <= 1e-12 * abs(a):
@@ -578,11 +582,11 @@ def _multiplicity(lam_b: np.ndarray, lam_a: np.ndarray, x: float) -> int:
     """Return how many pairs meet at x: half the change of the real roots near x.
 
     ``lam_b``, ``lam_a``: the roots just before and after (:func:`_verify`). Near: within
-    1 % of |x| (a pair splits like sqrt(K - K*), 3e-4 of the scale at VERIFY_RTOL); real
-    roots there before and after (another pair's) cancel.
+    :data:`CLUSTER_RTOL` of |x|; real roots there before and after (another pair's) cancel.
     """
     def n_real(lam):
-        return int(np.sum(_is_real(lam) & (np.abs(lam - x) <= 1e-2 * max(abs(x), 1e-300))))
+        return int(np.sum(_is_real(lam) & (np.abs(lam - x) <=
+                                           CLUSTER_RTOL * max(abs(x), 1e-300))))
     return max(1, abs(n_real(lam_a) - n_real(lam_b)) // 2)
 
 
@@ -739,7 +743,8 @@ def _add(meetings: list, mt: Meeting | None) -> bool:
     within either meeting's window (:attr:`Meeting.window`).
     """
     if mt is None or any(abs(mt.K_D - o.K_D) <= max(mt.window, o.window) * o.K_D
-                         and abs(mt.lam - o.lam) <= 1e-2 * abs(o.lam) for o in meetings):
+                         and abs(mt.lam - o.lam) <= CLUSTER_RTOL * abs(o.lam)
+                         for o in meetings):
         return False
     meetings.append(mt)
     return True
