@@ -334,9 +334,7 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
         Fc = e * np.einsum('ik,k->i', trig, c)
         own = Fc - np.einsum('ij,j->i', Q, QF @ c)
         res = y_perp - own
-        if not full:
-            return float(res @ res)
-        return float(res @ res), res, own, Fc, c
+        return (float(res @ res), res, own, Fc, c) if full else float(res @ res)
 
     r_min = RESOLVABLE / max(span, 1e-12)
     r_max = max(FREE_SPAN * rate0, 2.0 * r_min)
@@ -355,9 +353,8 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
         if v < rss_min:
             rate = math.exp(x)
     rss_min, res, own, term, c = fit(rate, full=True)
-    # the group's part no other column can take (rms), and the terms themselves over the
-    # last fifth of the window (rms): both must show above the noise floor; and each term's
-    # own part (what neither the other columns nor the group's other terms can take)
+    # the group's part no other column can take, the terms over the window's last fifth
+    # and each term's own part (rms): each must show above the noise floor (_measure)
     shown = (float(np.sqrt(np.mean(own ** 2))),
              float(np.sqrt(np.mean(term[tau >= 0.8 * span] ** 2))),
              _own_parts(np.exp(-rate * tau)[:, None] * trig, Q, c, group))
@@ -399,7 +396,6 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     predicted, like every term below the floor, and the rate measured from the terms that
     show by their own part; if none does, it is not measurable in the window.
     """
-    note = ''
     amp = dict(terms)
     if group is None:
         group = [mu for mu in mus if abs(-mu.real - free) <= 1e-9 * free]
@@ -432,27 +428,32 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     if measurable and weak and len(weak) < len(shown):
         keep = [mu for mu in group if mu not in [mu for _, mu in weak]]
         return _measure(tau, y, cols, mus, terms, free, floor, dt, noise, keep)
-    lo, hi = interval() if measurable and not weak else (math.nan, math.nan)
+    if measurable and not weak:
+        lo, hi = interval()
+        return rate, lo, hi, '', bool(other)
+    return math.nan, math.nan, math.nan, _why_not(own, end, weak, free, floor, amp), bool(other)
+
+
+def _why_not(own: float, end: float, weak: list, free: float, floor: float,
+             amp: dict) -> str:
+    """Say why the slowest shown terms (rate ``free``) give no rate (:func:`_measure`)."""
     if not own >= floor:
         # E_inf, the trend and the other terms mimic these terms but for less than the
         # noise floor: nothing of them is left to measure a rate from
-        note = (f'the part of its slowest shown terms ({free:.4g} 1/s) that E*_inf, the '
+        return (f'the part of its slowest shown terms ({free:.4g} 1/s) that E*_inf, the '
                 f'trend and the other terms cannot take is {own:.2g} J rms, below the '
                 f'noise floor {floor:.2g} J')
-        rate = lo = hi = math.nan
-    elif not end >= floor:
+    if not end >= floor:
         # what is left at the window's end is the remainder's, which a free rate fits too
-        note = (f'its slowest shown terms ({free:.4g} 1/s) fall below the noise floor '
+        return (f'its slowest shown terms ({free:.4g} 1/s) fall below the noise floor '
                 f'{floor:.2g} J within the window ({end:.2g} J rms over its last fifth)')
-        rate = lo = hi = math.nan
-    elif weak:
-        # every one of them the window cannot tell from the other columns
-        p, mu = min(weak, key=lambda w: w[0])
-        note = (f'the part of its slowest shown term {_fmt_mu(mu)} that E*_inf, the trend '
-                f'and the other terms cannot take is {p:.2g} J rms, below the noise floor '
-                f'{floor:.2g} J (of its {amp[mu]:.2g} J)')
-        rate = lo = hi = math.nan
-    return rate, lo, hi, note, bool(other)
+    if not weak:
+        return f'its slowest shown terms ({free:.4g} 1/s) give no rate in this window'
+    # every one of them the window cannot tell from the other columns
+    p, mu = min(weak, key=lambda w: w[0])
+    return (f'the part of its slowest shown term {_fmt_mu(mu)} that E*_inf, the trend '
+            f'and the other terms cannot take is {p:.2g} J rms, below the noise floor '
+            f'{floor:.2g} J (of its {amp[mu]:.2g} J)')
 
 
 def _fmt_mu(mu: complex) -> str:
