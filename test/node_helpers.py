@@ -64,12 +64,18 @@ def bag_on_disk(bag: Path, topic: str) -> list:
         return []
 
 
-def spin_until(executor, cond, timeout: float = 20.0, step: float = 0.02) -> None:
-    """Spin ``executor`` until ``cond()`` holds; fail after ``timeout`` seconds."""
+def spin_until(executor, cond, timeout: float = 20.0, step: float = 0.02,
+               queues=()) -> None:
+    """Spin ``executor`` until ``cond()`` holds; fail after ``timeout`` seconds.
+
+    ``queues``: ``(subscription, sink)`` pairs drained (:func:`drain`) after every spin.
+    """
     deadline = time.monotonic() + timeout
     while not cond():
-        assert time.monotonic() < deadline
+        assert time.monotonic() < deadline, f'condition not met within {timeout:g} s'
         executor.spin_once(timeout_sec=step)
+        for subscription, sink in queues:
+            drain(subscription, sink)
 
 
 class NodeThread:

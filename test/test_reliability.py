@@ -272,10 +272,7 @@ class _LiveRig:
         self.ex.add_node(self.probe)
 
     def spin_until(self, cond, timeout=30.0):
-        def drained():
-            node_helpers.drain(self.queue, self.energy)
-            return cond()
-        node_helpers.spin_until(self.ex, drained, timeout, step=0.02)
+        node_helpers.spin_until(self.ex, cond, timeout, queues=[(self.queue, self.energy)])
 
     def call(self, srv_type, name, request):
         """Call a service; return (response, wall seconds from sending to the answer)."""

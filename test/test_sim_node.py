@@ -20,7 +20,7 @@ from geometry_msgs.msg import PoseStamped, Vector3Stamped  # noqa: E402
 from gyro_rotor.numerics import guard  # noqa: E402
 from gyro_rotor.ros.messages import ENERGY_FIELDS, ENERGY_LABEL, JOINT_NAMES  # noqa: E402
 from gyro_rotor.ros.sim_node import RotorSimNode  # noqa: E402
-from node_helpers import drain, NodeThread  # noqa: E402
+from node_helpers import NodeThread, spin_until  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
@@ -59,21 +59,13 @@ class Rig:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.probe)
 
-    def spin_once(self, timeout):
-        self.executor.spin_once(timeout_sec=timeout)
-        for sub, sink in self.queues:
-            drain(sub, sink)
-
     def spin_until(self, cond, timeout=15.0):
-        deadline = time.monotonic() + timeout
-        while not cond():
-            assert time.monotonic() < deadline, 'condition not met before the deadline'
-            self.spin_once(0.02)
+        spin_until(self.executor, cond, timeout, queues=self.queues)
 
     def spin_for(self, seconds):
         end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.spin_once(0.01)
+        spin_until(self.executor, lambda: time.monotonic() >= end, seconds + 1.0, step=0.01,
+                   queues=self.queues)
 
     def call(self, srv_type, name, request):
         client = self.probe.create_client(srv_type, name)

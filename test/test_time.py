@@ -163,13 +163,8 @@ def test_time_is_monotonic_across_live_interventions():
     ex = SingleThreadedExecutor(context=ctx)
     ex.add_node(probe)
 
-    def drained(cond):
-        for sub, sink in queues:
-            node_helpers.drain(sub, sink)
-        return cond()
-
     def spin_until(cond, timeout=20.0):
-        node_helpers.spin_until(ex, lambda: drained(cond), timeout, step=0.01)
+        node_helpers.spin_until(ex, cond, timeout, step=0.01, queues=queues)
 
     def more(n=10):
         n0 = len(energy)
