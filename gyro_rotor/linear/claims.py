@@ -526,11 +526,14 @@ def _verify(R: _Roots, K: float, x: float) -> tuple:
     def real_pair(lam):
         p = _pair_near(lam, x)
         return bool(np.all(np.abs(p.imag) <= 1e-9 * max(abs(x), 1e-300)))
-    least, w = _least_window(R, K, x), VERIFY_RTOL
+    least, w = None, VERIFY_RTOL
     while True:
         lam_b, lam_a = (R(K * (1 + s * w), vectors=False)[0] for s in (-1, 1))
         below, above = real_pair(lam_b), real_pair(lam_a)
-        if below != above or w / 2 < least:
+        if below != above:
+            break
+        least = _least_window(R, K, x) if least is None else least   # only when halving
+        if w / 2 < least:
             break
         w /= 2
     kind = MeetingKind.BREAKAWAY if below and not above else MeetingKind.BREAK_IN
