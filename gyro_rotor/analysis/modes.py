@@ -76,18 +76,20 @@ class Root:
         """Found again in a half of the window: its frequency has a bounded uncertainty."""
         return self.im.bounded
 
-    @property
-    def grows(self) -> bool:
-        """Return whether it grows in this window: Re > 0 resolved, and larger later.
+    def grows(self, span: float) -> bool:
+        """Return whether it grows in a window of ``span`` seconds: Re > 0 resolved, larger later.
 
-        A pole of positive real part is growth only where the motion shows it: the root's
-        amplitude larger in the second half of the window than in the first. A mode whose
-        frequency drifts with its amplitude as it decays is fitted in a short window by a
-        pole of the wrong sign whose halves agree (both see the drift), while its amplitude
-        falls (``gyro-rotor demo`` on a gyroscopically stabilised system, window 0 .. 2 s:
-        Re 0.23 (interval 0.043 .. 0.41) at 16.1 Hz).
+        Resolved: its frequency found again in a half of the window, and Re above the least
+        the window resolves (its interval above RESOLVABLE / span). A pole of positive real
+        part is growth only where the motion shows it: the root's amplitude larger in the
+        second half of the window than in the first. A mode whose frequency drifts with its
+        amplitude as it decays is fitted in a short window by a pole of the wrong sign whose
+        halves agree (both see the drift), while its amplitude falls (``gyro-rotor demo``
+        on a gyroscopically stabilised system, window 0 .. 2 s: Re 0.23 (interval
+        0.043 .. 0.41) at 16.1 Hz).
         """
-        return self.resolved and self.re.lo > 0 and self.growth > 1.0
+        return (self.resolved and self.re.lo > RESOLVABLE / max(span, 1e-9)
+                and self.growth > 1.0)
 
     @property
     def freq_hz(self) -> float:
@@ -410,9 +412,8 @@ def check_modes(t: np.ndarray, D: np.ndarray, pred: Prediction, span: float, *,
     # growth: a root that grows, not one explained as a product of the modes or the second
     # root of a mode whose frequency drifts (a drifting oscillation fitted by two poles
     # may get one of positive real part while its amplitude falls)
-    res_re = RESOLVABLE / max(span, 1e-9)
-    growing = [r for r in roots if r.grows and r.re.lo > res_re and
-               r.share >= UNEXPLAINED_SHARE and id(r) not in combos]
+    growing = [r for r in roots if r.grows(span) and r.share >= UNEXPLAINED_SHARE
+               and id(r) not in combos]
     return ModesFound(checks, unexplained, combinations, growing, roots)
 
 
