@@ -430,10 +430,16 @@ def _velocity(lam, yl, xr, BC) -> np.ndarray:
     return np.where(np.isfinite(v), v, 0.0)
 
 
-def _gaps(lam: np.ndarray, twins: np.ndarray | None = None) -> np.ndarray:
-    """Return each root's distance to the nearest other root that is not its twin."""
+def _distances(lam: np.ndarray) -> np.ndarray:
+    """Return |lambda_i - lambda_j|, infinite on the diagonal (a root is not its own neighbour)."""
     D = np.abs(lam[:, None] - lam[None, :])
     np.fill_diagonal(D, np.inf)
+    return D
+
+
+def _gaps(lam: np.ndarray, twins: np.ndarray | None = None) -> np.ndarray:
+    """Return each root's distance to the nearest other root that is not its twin."""
+    D = _distances(lam)
     if twins is not None:
         D[twins] = np.inf
     return D.min(axis=1) if len(lam) > 1 else np.full(len(lam), np.inf)
@@ -450,8 +456,7 @@ def _twins(R: '_Roots', K: float, lam: np.ndarray, yl: np.ndarray, xr: np.ndarra
     separate them), and their pairs meet the axis together (:attr:`Meeting.multiplicity`).
     Only where two roots are within MEET_RTOL of each other is any of it computed (tol 0).
     """
-    D = np.abs(lam[:, None] - lam[None, :])
-    np.fill_diagonal(D, np.inf)
+    D = _distances(lam)
     if not np.any(D <= MEET_RTOL * np.maximum(np.abs(lam)[:, None], 1e-300)):
         return None, np.zeros(len(lam))
     with np.errstate(divide='ignore'):
