@@ -7,6 +7,7 @@ definite, G skew (gyroscopic), K = diag(Hessian of the potential, K_S). The meet
 checked against values computed here independently (the real-root count, bisected).
 """
 
+import dataclasses
 import math
 
 from gyro_rotor.core.params import RotorParams
@@ -439,3 +440,17 @@ def test_a_drive_without_stiffness_makes_c_and_d_not_applicable():
     assert res.meetings == () and res.claims['a'].applicable
     ds = linearize_scene(load_scene('twin_gimbal')).drive_system()
     assert cl.cyclic_drives(ds.A0, ds.C) == []
+
+
+def test_claim_d_counts_no_unverified_meeting_and_fails_on_one():
+    """An unverified meeting's kind is a guess: not in the net, and the claim fails on it."""
+    meetings = (cl.Meeting(K_D=2.0, lam=-3.0, kind=cl.MeetingKind.BREAK_IN, verified=True),
+                cl.Meeting(K_D=5.0, lam=-1.0, kind=cl.MeetingKind.BREAK_IN, verified=False))
+    loc = cl.Locus(K=np.array([1.0, 10.0]), roots=np.zeros((2, 4), complex), meetings=meetings,
+                   real_counts=(0, 4))
+    d = cl._claim_d(loc, 2)
+    assert d.data['net_meetings'] == 1 and d.data['unverified_pairs'] == 1
+    assert not d.holds and '1 pair(s) at meetings NOT verified, not counted' in d.detail
+    verified = dataclasses.replace(meetings[1], verified=True)
+    d = cl._claim_d(dataclasses.replace(loc, meetings=(meetings[0], verified)), 2)
+    assert d.holds and d.data['net_meetings'] == 2 and d.data['unverified_pairs'] == 0

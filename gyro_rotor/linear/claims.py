@@ -1066,24 +1066,29 @@ def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
 
 
 def _claim_d(loc: Locus, m: int) -> Claim:
+    # the net of the verified meetings only: an unverified one's kind is a guess, and it
+    # fails the claim on its own (named in the detail)
     net = sum((1 if mt.kind is MeetingKind.BREAK_IN else -1) * mt.multiplicity
-              for mt in loc.meetings)
+              for mt in loc.meetings if mt.verified)
+    unknown = sum(mt.multiplicity for mt in loc.meetings if not mt.verified)
     counted = (loc.real_counts[-1] - loc.real_counts[0]) // 2
-    verified = all(mt.verified for mt in loc.meetings)
+    verified = unknown == 0
     negative = all(mt.lam < 0 for mt in loc.meetings)
     holds = bool(net == m and counted == net and verified and negative)
     text = '; '.join(('' if mt.multiplicity == 1 else f'{mt.multiplicity} pairs: ')
                      + f'{mt.kind} at K_D* = {mt.K_D:.10g}, lambda* = {mt.lam:.8g} 1/s'
                      + ('' if mt.verified else ' (NOT verified)') for mt in loc.meetings)
     detail = ((text or 'no pair meets on the real axis')
-              + f'; net {net} (break-ins minus breakaways), real roots {loc.real_counts[0]} at '
+              + f'; net {net} (break-ins minus breakaways'
+              + (f'; {unknown} pair(s) at meetings NOT verified, not counted' if unknown else '')
+              + f'), real roots {loc.real_counts[0]} at '
               f'K_D = {loc.K[0]:.3g} and {loc.real_counts[-1]} at {loc.K[-1]:.3g} '
               f'(net {counted}); drives: {m}')
     return Claim('d', _STATEMENT['d'], holds, detail,
                  {'K_D_star': [mt.K_D for mt in loc.meetings],
                   'lambda_star': [mt.lam for mt in loc.meetings],
                   'kinds': [str(mt.kind) for mt in loc.meetings], 'net_meetings': net,
-                  'net_from_counts': counted})
+                  'net_from_counts': counted, 'unverified_pairs': unknown})
 
 
 def cyclic_drives(A0: np.ndarray, C: np.ndarray) -> list:
