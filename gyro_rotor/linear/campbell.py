@@ -33,8 +33,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from gyro_rotor.core.newton import damped_newton
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError, SceneError
-from gyro_rotor.linear.newton import damped_newton
 import numpy as np
 
 __all__ = ['Campbell', 'campbell']
