@@ -139,6 +139,10 @@ class Centrifuge:
                              f'{p.C_R:g}, G s = {p.Gs:g} N m, c_theta = {p.c_theta:g} N m/rad',
                              lines, found)
 
+    def speed_family(self, scene):
+        """Return W -> ``scene`` at field speed Omega0 = W (its steady motion: closed form)."""
+        return lambda W: dataclasses.replace(scene, system=self.with_params(Omega0=W))
+
     def steady_state(self, model: Model) -> np.ndarray:
         """State on its steady motion (I or II; the resting state for a body-mode scene)."""
         sm = self.steady()

@@ -70,7 +70,7 @@ import math
 import os
 from pathlib import Path
 import re
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 from gyro_rotor.core.centrifuge import CENTRIFUGE, Centrifuge, INITIAL_UNITS, InitialCondition
 from gyro_rotor.core.model import Model, perturb_state, PERTURBATION_KEYS
@@ -203,6 +203,15 @@ class Scene:
         system file: Newton from the scene's guess.
         """
         return self.system.steady_motions(theta0, self.name)
+
+    def speed_family(self) -> Callable[[float], 'Scene']:
+        """Return W -> the scene with every drive's Omega0 scaled by W / Omega0 of the first.
+
+        Its steady motion follows: the centrifuge's in closed form (eqs. 20-22), a system
+        file's re-solved by Newton continuation
+        (:class:`~gyro_rotor.core.system.continuation.Continuation`).
+        """
+        return self.system.speed_family(self)
 
     def with_params(self, **changes: Any) -> 'Scene':
         """Copy with some centrifuge parameters changed (validated)."""

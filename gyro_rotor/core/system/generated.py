@@ -16,6 +16,7 @@ import math
 from typing import Any, ClassVar, Mapping
 
 from gyro_rotor.core.newton import damped_newton, SteadyMotions
+from gyro_rotor.core.system.continuation import Continuation
 from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
 from gyro_rotor.errors import did_you_mean, ParameterError, SceneError
@@ -171,6 +172,10 @@ class GeneratedSystem:
                          + json.dumps(z.tolist()) + '}')
         return SteadyMotions(f'steady guess q = {list(self.steady_q)}, qdot = '
                              f'{list(self.steady_qdot)}, z = {list(self.steady_z)}', lines, ok)
+
+    def speed_family(self, scene) -> Continuation:
+        """Return W -> ``scene`` at field speed W, its steady motion re-solved by Newton."""
+        return Continuation(scene)
 
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick ``values`` checked, the other keys 0.
