@@ -209,7 +209,7 @@ class Scene:
 
         Its steady motion follows: the centrifuge's in closed form (eqs. 20-22), a system
         file's re-solved by Newton continuation
-        (:class:`~gyro_rotor.core.system.continuation.Continuation`).
+        (:class:`~gyro_rotor.core.system.generated.Continuation`).
         """
         return self.system.speed_family(self)
 
