@@ -143,6 +143,11 @@ class Centrifuge:
         """Return W -> ``scene`` at field speed Omega0 = W (its steady motion: closed form)."""
         return lambda W: dataclasses.replace(scene, system=self.with_params(Omega0=W))
 
+    def steady_terms(self) -> dict[str, Any]:
+        """Return its steady motion in its terms: ``theta0``, ``psidot0`` (eqs. 20-22)."""
+        sm = self.steady()
+        return {'theta0': sm.theta0, 'psidot0': sm.psidot0, 'steady': ()}
+
     def steady_state(self, model: Model) -> np.ndarray:
         """State on its steady motion (I or II; the resting state for a body-mode scene)."""
         sm = self.steady()

@@ -176,6 +176,11 @@ class GeneratedSystem:
         """Return W -> ``scene`` at field speed W, its steady motion re-solved by Newton."""
         return Continuation(scene)
 
+    def steady_terms(self) -> dict[str, Any]:
+        """Return its steady motion in its terms: ``steady`` (q, qdot, z); no theta0, psidot0."""
+        steady = tuple(tuple(v) for v in (self.steady_q, self.steady_qdot, self.steady_z))
+        return {'theta0': math.nan, 'psidot0': math.nan, 'steady': steady if any(steady) else ()}
+
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick ``values`` checked, the other keys 0.
 
