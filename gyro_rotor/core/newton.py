@@ -52,7 +52,7 @@ def damped_newton(acc, u, tol: float, *, max_iter: int = 60,
 
 @dataclasses.dataclass(frozen=True)
 class SteadyMotions:
-    """A scene's steady motions in words (:meth:`~gyro_rotor.core.scene.Scene.steady_motions`).
+    """A scene's steady motions in words (its system's ``steady_motions``).
 
     ``head``: the parameters or the guess they come from; ``lines``: one per motion (and
     note); ``found``: every motion asked for exists.

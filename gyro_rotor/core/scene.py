@@ -70,11 +70,10 @@ import math
 import os
 from pathlib import Path
 import re
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 from gyro_rotor.core.centrifuge import CENTRIFUGE, Centrifuge, INITIAL_UNITS, InitialCondition
 from gyro_rotor.core.model import Model, perturb_state, PERTURBATION_KEYS
-from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.params import PARAM_FIELDS
 from gyro_rotor.core.system.generated import (GeneratedSystem, key_sizes, lock, SYSTEM_DOC,
                                               vector)
@@ -194,24 +193,6 @@ class Scene:
         body-mode scene); a system file: its checked steady motion (q_s, qdot_s, z_s).
         """
         return self.system.steady_state(model or self.make_model())
-
-    def steady_motions(self, theta0: float | None = None) -> SteadyMotions:
-        """Return the steady motions the scene's system offers, in words.
-
-        The centrifuge: solution I and solution II on both branches in closed form (Magnus
-        1980, eqs. 20-22; ``theta0``: the tilt of II, default the scene's, else 0.1); a
-        system file: Newton from the scene's guess.
-        """
-        return self.system.steady_motions(theta0, self.name)
-
-    def speed_family(self) -> Callable[[float], 'Scene']:
-        """Return W -> the scene with every drive's Omega0 scaled by W / Omega0 of the first.
-
-        Its steady motion follows: the centrifuge's in closed form (eqs. 20-22), a system
-        file's re-solved by Newton continuation
-        (:class:`~gyro_rotor.core.system.generated.Continuation`).
-        """
-        return self.system.speed_family(self)
 
     def with_params(self, **changes: Any) -> 'Scene':
         """Copy with some centrifuge parameters changed (validated)."""

@@ -13,7 +13,7 @@ is real), its decay rate the slower -Re of the pair; a real part within its eige
 round-off (:mod:`gyro_rotor.linear.roundoff`) is 0: the mode is undamped there.
 
 Every drive's Omega0 is scaled with the first; at each speed the scene's steady motion is
-re-solved (:meth:`~gyro_rotor.core.scene.Scene.speed_family`: what its system offers),
+re-solved (``speed_family``: what its system offers, the centrifuge in closed form),
 linearized (:func:`gyro_rotor.linear.system.linearize_scene`);
 each mode is named as the linearization names its modes at one speed, the one nearest the
 scene's (:attr:`Campbell.named_at`: the name, the reach by the drives and the frequency of
@@ -189,11 +189,11 @@ class _Speeds:
     """The scene at any field speed W: its steady motion re-solved there, linearized."""
 
     def __init__(self, scene):
-        """Keep the scene and its family of steady motions (:meth:`Scene.speed_family`)."""
+        """Keep the scene and its family of steady motions (its system's ``speed_family``)."""
         self.ref = scene.Omega0
         if self.ref == 0:
             raise ParameterError('campbell: the first drive has Omega0 = 0; nothing to scale')
-        self.at = scene.speed_family()
+        self.at = scene.system.speed_family(scene)
         self.cache = {}
 
     def eig(self, W: float):

@@ -23,7 +23,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Print the steady motions the scene's system offers; an ERROR if one is not found."""
     scene = load_scene_with_sets(args.scene, args.set, check=False)
-    st = scene.steady_motions(args.theta0)
+    st = scene.system.steady_motions(args.theta0, scene.name)
     print(f'scene {scene.name}: system {scene.system_name}; {st.head}')
     for line in st.lines:
         print(f'  {line}')
