@@ -10,6 +10,7 @@ import dataclasses
 import math
 
 from gyro_rotor.core.scene import Scene
+from gyro_rotor.linear.linearize import Coords
 from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 
@@ -84,7 +85,7 @@ class Prediction:
 
 
 #: :attr:`Prediction.coords` of a system file's linearization (deviations of q, qdot, z, zdot)
-GENERAL_COORDS = 'general'
+GENERAL_COORDS = Coords.GENERAL
 
 
 def predict(scene: Scene) -> Prediction:
@@ -110,18 +111,15 @@ def predict(scene: Scene) -> Prediction:
                               structural=_zero(r))
                 for r in roots if r.eigenvalue.imag >= -1e-12 * scale)
     # the centrifuge's steady motion by theta0, psidot0; a system file's in its coordinates
-    sm = scene.system.steady() if scene.builtin else None
-    steady = () if scene.builtin else tuple(tuple(getattr(scene.system, k)) for k in (
-        'steady_q', 'steady_qdot', 'steady_z'))
+    terms = scene.system.steady_terms()
+    q_s = terms['steady'][0] if terms['steady'] else ()
     return Prediction(
-        scene=scene.name, coords=lin.analytic.coords if lin.analytic else GENERAL_COORDS,
-        modes=_unique_names(out), spectral_abscissa=float(verdict.spectral_abscissa),
-        verdict=str(verdict.verdict), E_inf=float(model.energy(scene.steady_state(model))),
-        theta0=sm.theta0 if sm else math.nan, psidot0=sm.psidot0 if sm else math.nan,
-        pole_pairs=max(scene.pole_pairs), K_D=float(lin.K_all.max()),
-        source='linear.system.assess', steady=steady if any(steady) else (),
+        scene=scene.name, coords=lin.coords, modes=_unique_names(out),
+        spectral_abscissa=float(verdict.spectral_abscissa), verdict=str(verdict.verdict),
+        E_inf=float(model.energy(scene.steady_state(model))), pole_pairs=max(scene.pole_pairs),
+        K_D=float(lin.K_all.max()), source='linear.system.assess',
         rotor_pole_pairs=scene.pole_pairs,
-        active_q=_position_channels(lin.A_scene(), 0 if sm else scene.system.n, scale))
+        active_q=_position_channels(lin.A_scene(), len(q_s), scale), **terms)
 
 
 def _zero(mode) -> bool:

@@ -19,10 +19,12 @@ from typing import Any, ClassVar, Mapping
 import warnings
 
 from gyro_rotor.core.model import make_model, Model, MODELS, PERTURBATION_KEYS
+from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.core.yamlio import short
-from gyro_rotor.errors import did_you_mean, ParameterError, SceneError
+from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, ParameterError,
+                               SceneError)
 import numpy as np
 
 __all__ = ['Centrifuge', 'InitialCondition', 'INITIAL_UNITS', 'CENTRIFUGE']
@@ -110,6 +112,41 @@ class Centrifuge:
         if ic.mode != 'steady':
             return steady_motion(self.params, 0.0, 0)
         return steady_motion(self.params, ic.theta0, ic.branch)
+
+    def steady_motions(self, theta0: float | None, scene: str = '') -> SteadyMotions:
+        """Return solutions I and II (both branches) in closed form, exact and by eq. (22).
+
+        ``theta0``: the tilt of II (default: the initial condition's, else 0.1).
+        """
+        p = self.params
+        if theta0 is None:
+            theta0 = self.initial.theta0 if self.initial.theta0 > 0 else 0.1
+        lines = ['I:  theta = 0, psidot = 0, rotor at Omega0 about the vertical, housing at rest']
+        found = True
+        for branch in (1, 2):
+            try:
+                sm = steady_motion(p, theta0, branch)
+            except NoSteadyMotionError as err:
+                lines.append(f'II branch {branch}: {err}')
+                found = False
+                continue
+            eq22 = (f'eq. (22) corrected: {sm.psidot0_eq22:.12g} rad/s; relative difference '
+                    f'{sm.relative_difference:+.3e}' if math.isfinite(sm.psidot0_eq22) else
+                    'eq. (22) corrected: not defined here (no real root, or cos(theta0) = 0)')
+            lines.append(f'{sm.name}: theta0 = {sm.theta0:.6g} rad, psidot0 = '
+                         f'{sm.psidot0:.12g} rad/s (exact); {eq22}')
+        return SteadyMotions(f'Omega0 = {p.Omega0:g} rad/s, I = {p.I:g} kg m^2, C_R = '
+                             f'{p.C_R:g}, G s = {p.Gs:g} N m, c_theta = {p.c_theta:g} N m/rad',
+                             lines, found)
+
+    def speed_family(self, scene):
+        """Return W -> ``scene`` at field speed Omega0 = W (its steady motion: closed form)."""
+        return lambda W: dataclasses.replace(scene, system=self.with_params(Omega0=W))
+
+    def steady_terms(self) -> dict[str, Any]:
+        """Return its steady motion in its terms: ``theta0``, ``psidot0`` (eqs. 20-22)."""
+        sm = self.steady()
+        return {'theta0': sm.theta0, 'psidot0': sm.psidot0, 'steady': ()}
 
     def steady_state(self, model: Model) -> np.ndarray:
         """State on its steady motion (I or II; the resting state for a body-mode scene)."""

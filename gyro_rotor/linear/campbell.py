@@ -13,7 +13,8 @@ is real), its decay rate the slower -Re of the pair; a real part within its eige
 round-off (:mod:`gyro_rotor.linear.roundoff`) is 0: the mode is undamped there.
 
 Every drive's Omega0 is scaled with the first; at each speed the scene's steady motion is
-re-solved (:func:`_family`), linearized (:func:`gyro_rotor.linear.system.linearize_scene`);
+re-solved (``speed_family``: what its system offers, the centrifuge in closed form),
+linearized (:func:`gyro_rotor.linear.system.linearize_scene`);
 each mode is named as the linearization names its modes at one speed, the one nearest the
 scene's (:attr:`Campbell.named_at`: the name, the reach by the drives and the frequency of
 the label are those there). The centrifuge's steady motion
@@ -34,7 +35,6 @@ import dataclasses
 import math
 
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError, SceneError
-from gyro_rotor.linear.newton import damped_newton
 import numpy as np
 
 __all__ = ['Campbell', 'campbell']
@@ -189,11 +189,11 @@ class _Speeds:
     """The scene at any field speed W: its steady motion re-solved there, linearized."""
 
     def __init__(self, scene):
-        """Keep the scene and its family of steady motions (:func:`_family`)."""
+        """Keep the scene and its family of steady motions (its system's ``speed_family``)."""
         self.ref = scene.Omega0
         if self.ref == 0:
             raise ParameterError('campbell: the first drive has Omega0 = 0; nothing to scale')
-        self.at = _family(scene)
+        self.at = scene.system.speed_family(scene)
         self.cache = {}
 
     def eig(self, W: float):
@@ -209,65 +209,6 @@ class _Speeds:
             res = np.array([res_r[int(np.argmin(np.abs(lam_r - x)))] for x in lam])
             self.cache[W] = (lam, V, res, lin)
         return self.cache[W]
-
-
-def _family(scene):
-    """Return W -> the scene with every drive's Omega0 scaled by W / Omega0 of the first.
-
-    The centrifuge's steady motion follows its parameters exactly (closed form); a system
-    file's is re-solved by :class:`_Continuation`.
-    """
-    if scene.builtin:
-        return lambda W: scene.with_params(Omega0=W)
-    return _Continuation(scene)
-
-
-class _Continuation:
-    """A system file's steady motion at any speed: drives scaled, Newton from the nearest."""
-
-    def __init__(self, scene):
-        """Keep the scene, its model's compiled code and the steady motion at its speed."""
-        from gyro_rotor.core.system.model import GeneralModel
-        self.scene, self.ref = scene, scene.Omega0
-        self.model = scene.make_model()
-        self._Model = GeneralModel
-        self.qdot = np.asarray(scene.system.steady_qdot, dtype=float)
-        self.moving = bool(np.any(self.qdot != 0))
-        # unknowns: the drive lags z and (moving) the size s of the rate pattern
-        self.solved = {self.ref: (np.asarray(scene.system.steady_z, dtype=float), 1.0)}
-
-    def __call__(self, W: float):
-        """Return the scene at field speed W, its steady motion solved."""
-        f = W / self.ref
-        drives = [d.replace(Omega0=d.Omega0 * f) for d in self.scene.system.drives]
-        sc = dataclasses.replace(self.scene, system=self.scene.system.with_drives(drives))
-        z, s = self._steady(sc, self._Model(sc.system.reduced, self.model.compiled), W)
-        return dataclasses.replace(sc, system=dataclasses.replace(
-            sc.system, steady_z=tuple(z.tolist()), steady_qdot=tuple((s * self.qdot).tolist())))
-
-    def _steady(self, sc, mdl, W):
-        if W in self.solved:
-            return self.solved[W]
-        near = min(self.solved, key=lambda w: abs(w - W))
-        z, s = self.solved[near]
-        m = mdl.m
-        q = np.asarray(sc.system.steady_q, dtype=float)
-
-        def acc(u):
-            zz, ss = u[:m], (u[m] if self.moving else 1.0)
-            return mdl.accelerations(mdl.state(q, ss * self.qdot, zz, np.zeros(m)))
-        u = np.concatenate([z, [s]]) if self.moving else z.copy()
-        tol = 1e-11 * max(1.0, float(np.abs(self.qdot).max()) ** 2 * max(s, 1.0) ** 2,
-                          mdl.rate())
-        u, r = damped_newton(acc, u, tol)
-        if not (np.all(np.isfinite(r)) and np.abs(r).max() <= 1e3 * tol):
-            raise NoSteadyMotionError(
-                f'scene {self.scene.name}: no steady motion of its family at Omega0 = {W:.6g} '
-                f'rad/s (the rates keep the pattern of steady.qdot, the other coordinates '
-                f'stay; largest acceleration {np.abs(r).max():.3g})')
-        out = (u[:m], float(u[m]) if self.moving else 1.0)
-        self.solved[W] = out
-        return out
 
 
 # -- modes from tracked roots -----------------------------------------------------------------

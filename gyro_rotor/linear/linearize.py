@@ -130,13 +130,16 @@ class Coords(enum.StrEnum):
     """The reduced coordinates of a linearization (module doc).
 
     II: about solution II (tilted axis, psi cyclic); I: about solution I (axis vertical,
-    tilt components); UPRIGHT: the upright_axis model; LOCKED: the locked_housing model.
+    tilt components); UPRIGHT: the upright_axis model; LOCKED: the locked_housing model;
+    GENERAL: a system file's own coordinates (deviations of q, z and their rates,
+    :func:`gyro_rotor.linear.system.linearize_scene`).
     """
 
     II = 'II'
     I = 'I'  # noqa: E741 -- the paper's name of solution I
     UPRIGHT = 'upright'
     LOCKED = 'locked'
+    GENERAL = 'general'
 
 
 def coordinates(model: str, motion: SteadyMotion) -> Coords:

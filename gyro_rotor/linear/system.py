@@ -45,7 +45,7 @@ from typing import Callable
 from gyro_rotor.core.scene import check_steady, Scene
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.errors import ParameterError, SceneError
-from gyro_rotor.linear.linearize import linearize, LinearSystem
+from gyro_rotor.linear.linearize import Coords, linearize, LinearSystem
 from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
@@ -67,8 +67,9 @@ class Linearization:
     ``names`` the states, ``coordinate`` the coordinate each state belongs to (a rate
     belongs to its angle); ``fast_rates`` the eigenvalues of c' b (the roots that escape
     like -K c' b); ``A_locked`` the locked system (the varied drives' z held at 0).
-    ``analytic``: the built-in centrifuge's analytic linearization, else None; ``about``
-    the steady motion in words; ``modes_at(lin, K)`` the named modes it offers
+    ``analytic``: the built-in centrifuge's analytic linearization, else None; ``coords``
+    the coordinates it is written in; ``about`` the steady motion in words;
+    ``modes_at(lin, K)`` the named modes it offers
     (:func:`modes`: the centrifuge's by modal energy, a system file's by coordinate).
     """
 
@@ -86,6 +87,7 @@ class Linearization:
     K_all: np.ndarray
     vary: tuple
     analytic: LinearSystem | None = None
+    coords: Coords = Coords.GENERAL
     about: str = ''
     modes_at: Callable = dataclasses.field(
         default=lambda lin, K: _modes_by_coordinate(lin, K), repr=False, compare=False)
@@ -235,7 +237,7 @@ def from_analytic(ls: LinearSystem) -> Linearization:
                          coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
                                           for x in ls.state_names),
                          fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=ls.A0,
-                         b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls,
+                         b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls, coords=ls.coords,
                          about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
                                f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
                          modes_at=lambda lin, K: named_modes(ls, K, lin.drive_system()))
