@@ -199,14 +199,14 @@ class _Speeds:
     def eig(self, W: float):
         """Return (eigenvalues, unit eigenvectors, resolutions, linearization) of A at W."""
         if W not in self.cache:
-            from gyro_rotor.linear.roundoff import resolutions
+            from gyro_rotor.linear.roundoff import nearest, resolutions
             from gyro_rotor.linear.spectrum import unit_eig
             from gyro_rotor.linear.system import linearize_scene
             lin = linearize_scene(self.at(W))
             A = lin.A_scene()
             lam, V = unit_eig(A)
             lam_r, res_r = resolutions(A, lin.A_cons)
-            res = np.array([res_r[int(np.argmin(np.abs(lam_r - x)))] for x in lam])
+            res = res_r[nearest(lam_r, lam)]
             self.cache[W] = (lam, V, res, lin)
         return self.cache[W]
 

@@ -23,7 +23,8 @@ from gyro_rotor.linear.spectrum import TOL_RE_REL
 import numpy as np
 import scipy.linalg as sla
 
-__all__ = ['floor', 'resolution', 'resolutions', 'shown', 'fmt_re', 'decay_text', 'TOL_RE_REL']
+__all__ = ['floor', 'nearest', 'resolution', 'resolutions', 'shown', 'fmt_re', 'decay_text',
+           'TOL_RE_REL']
 
 
 def resolution(A: np.ndarray, scale: float | None = None) -> tuple:
@@ -43,6 +44,16 @@ def resolution(A: np.ndarray, scale: float | None = None) -> tuple:
     kappa = 1.0 / np.maximum(s, 1e-300)
     norm = np.linalg.norm(A) if scale is None else float(scale)
     return lam, 100 * np.finfo(float).eps * norm * np.minimum(kappa, 1e16)
+
+
+def nearest(lam_r: np.ndarray, lam) -> np.ndarray:
+    """Return the index in ``lam_r`` of the root nearest each of ``lam``.
+
+    ``lam_r`` from :func:`resolution` (with its resolutions), ``lam`` the same roots from
+    another computation: the resolution of ``lam[i]`` is ``res_r[nearest(lam_r, lam)[i]]``.
+    """
+    lam = np.atleast_1d(np.asarray(lam))
+    return np.argmin(np.abs(np.asarray(lam_r)[None, :] - lam[:, None]), axis=1)
 
 
 def floor(A0: np.ndarray) -> float:

@@ -30,7 +30,7 @@ from typing import Sequence
 
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.linearize import LinearSystem
-from gyro_rotor.linear.roundoff import floor, resolution
+from gyro_rotor.linear.roundoff import floor, nearest, resolution
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
                                         zero_K_sensitivities, ZERO_ROOT, ZERO_ROOT_Z)
@@ -183,8 +183,7 @@ def zero_within_roundoff(lin: LinearSystem, lam: np.ndarray) -> np.ndarray:
     and its round-off a few rad/s.
     """
     lam_r, res_r = resolution(lin.A0, scale=max(np.linalg.norm(lin.A0), 1.0))
-    res = np.array([res_r[int(np.argmin(np.abs(lam_r - z)))] for z in lam])
-    return np.abs(lam) <= res
+    return np.abs(lam) <= res_r[nearest(lam_r, lam)]
 
 
 def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
@@ -198,7 +197,7 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
     lam_r, res_r = resolution(lin.A, scale=max(np.linalg.norm(lin.A0), 1.0))
 
     def complex_pair(z: complex) -> bool:
-        return abs(z.imag) > res_r[int(np.argmin(np.abs(lam_r - z)))]
+        return abs(z.imag) > res_r[nearest(lam_r, z)[0]]
     out = []
     for nm, idx in by_name.items():
         lams = lam_K[idx]

@@ -307,7 +307,7 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     (:func:`gyro_rotor.linear.roundoff.resolutions`). A zero root whose
     eigenvector is mostly a rotor angle z is ``rotor_angle`` (no drive stiffness).
     """
-    from gyro_rotor.linear.roundoff import floor, resolution
+    from gyro_rotor.linear.roundoff import floor, nearest, resolution
     from gyro_rotor.linear.spectrum import unit_eig
     from gyro_rotor.linear.stability import classify
     Ks = lin.K_all if K is None else np.full(len(lin.K_all), float(K))
@@ -330,7 +330,7 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
         coord = dominant(lin, _on_kernel(null, v) if zero else v)
         value = complex(value)
         re = value.real
-        near = int(np.argmin(np.abs(lam_r - value)))
+        near = int(nearest(lam_r, value)[0])
         res = float(res_r[near])
         # complex beyond the root's own round-off at the scale of A_cons (as the centrifuge's
         # pencil: not of the escaping roots of a large K), not beyond a scale of the whole
