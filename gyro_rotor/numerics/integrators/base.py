@@ -232,7 +232,9 @@ class Integrator:
         if te[0] < self.t or te[-1] > self.t_bound:
             raise ParameterError(f't_eval must lie in [{self.t}, {self.t_bound}], got '
                                  f'[{te[0]}, {te[-1]}]')
-        Y = np.full((te.size, self.model.n), np.nan)
+        # the rows the loop stores are whole; column 0 NaN marks those it did not reach
+        Y = np.empty((te.size, self.model.n))
+        Y[:, 0] = np.nan
         counts = np.zeros(6)
         status = int(self._run(te, Y, counts))
         self.nfev += int(counts[0])
@@ -309,7 +311,11 @@ def kernel_args(model, params) -> tuple:
     generated right-hand side as a first-class function with its own parameter array.
     """
     if isinstance(model, Model):
-        return kernels.KIND[model.name], kernels.pack_params(params), model_rate(params)
+        try:
+            kind, P, rate = _centrifuge_args(model.name, params)
+        except TypeError:       # an unhashable parameter object: computed each time
+            return kernels.KIND[model.name], kernels.pack_params(params), model_rate(params)
+        return kind, P.copy(), rate
     if hasattr(model, 'kernel_rhs'):
         return model.kernel_rhs, model.pack(params), model.rate(params)
     raise TypeError('model must be a gyro_rotor.core.model.Model or a general system '
@@ -340,3 +346,13 @@ def rates_of(p) -> tuple[float, float]:
 
 
 _rates_cached = functools.lru_cache(maxsize=256)(drive_rates)
+
+
+@functools.lru_cache(maxsize=256)
+def _centrifuge_args(name: str, params) -> tuple:
+    """Return :func:`kernel_args` of a centrifuge model, remembered per (frozen) parameter set.
+
+    Packing the parameters and their rates was about a third of an integrator's construction,
+    a fixed cost of every run; the caller gets its own copy of P.
+    """
+    return kernels.KIND[name], kernels.pack_params(params), model_rate(params)

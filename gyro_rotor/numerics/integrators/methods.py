@@ -153,23 +153,28 @@ class EmbeddedRK(Integrator):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
-        n = self.model.n
-        self._s, rows, coefs = self.sizes()
-        self._n_extra = rows - self._s - 1
-        gen = kernels.rk_generated
-        self._kstep = getattr(gen, f'{self.name}_step')
-        self._kdense = getattr(gen, f'{self.name}_dense')
-        self._keval = getattr(gen, f'{self.name}_eval')
-        self._krun = getattr(gen, f'{self.name}_run')
-        self._K = np.empty((rows, n))
-        self._F = np.empty((coefs, n))
-        self._ytmp = np.empty(n)
-        self._ynew = np.empty(n)
-        self._fnew = np.empty(n)
         self._y_old = None
         self._h_next = 0.0
+        self._K = None      # the stepping API's work arrays (_buffers; run() needs none)
+
+    def _buffers(self) -> None:
+        """Allocate the work arrays of :meth:`step` and :meth:`dense_output` on first use."""
+        if self._K is None:
+            n = self.model.n
+            self._s, rows, coefs = self.sizes()
+            self._n_extra = rows - self._s - 1
+            gen = kernels.rk_generated
+            self._kstep = getattr(gen, f'{self.name}_step')
+            self._kdense = getattr(gen, f'{self.name}_dense')
+            self._keval = getattr(gen, f'{self.name}_eval')
+            self._K = np.empty((rows, n))
+            self._F = np.empty((coefs, n))
+            self._ytmp = np.empty(n)
+            self._ynew = np.empty(n)
+            self._fnew = np.empty(n)
 
     def _step_impl(self, t_limit):
+        self._buffers()
         expo = -1.0 / self.order
         if self._h_next <= 0.0:
             self._h_next = kernels.initial_step(self.kind, self.P, self.y, self.f, self.rtol,
@@ -222,9 +227,9 @@ class EmbeddedRK(Integrator):
         return out
 
     def _run(self, t_eval, Y, counts):
-        return self._krun(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol,
-                          self.h_max, self._h_next, self.renormalize,
-                          self.max_steps - self.nsteps, Y, counts)
+        krun = getattr(kernels.rk_generated, f'{self.name}_run')
+        return krun(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol, self.h_max,
+                    self._h_next, self.renormalize, self.max_steps - self.nsteps, Y, counts)
 
 
 class DOP853(EmbeddedRK):
