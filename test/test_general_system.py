@@ -720,6 +720,40 @@ def test_campbell_flags_growing_roots(tmp_path, capsys, c_b2, grows):
         assert -np.array(doc['decay_rates'])[i, k] == pytest.approx(lam.real.max(), rel=1e-6)
 
 
+def test_campbell_and_eig_judge_a_roots_sign_by_one_rule(tmp_path, capsys, monkeypatch):
+    """Damping destroys gyroscopic stabilisation (Kelvin-Tait-Chetaev): both commands say so.
+
+    s_gyro: an unstable potential (ka, kb < 0) held by the rotor's spin; with K_D > 0 the slow
+    mode (beta, 0.079 Hz) grows at +1.1e-10 1/s at 300 rad/s, below the double-precision
+    resolution of its root: the one rule (claims.damped, 40 digits) decides it, in eig and in
+    campbell at every speed (campbell judged it by double precision only: undamped above
+    about 200 rad/s).
+    """
+    import json
+    import pathlib
+    import shutil
+    for name in ('s_gyro.yaml', 'sc_gyro.yaml'):
+        shutil.copy(pathlib.Path(__file__).parent / 'data' / name, tmp_path / name)
+    monkeypatch.chdir(tmp_path)
+    assert main(['campbell', 'sc_gyro.yaml', '--omega-min', '300', '--omega-max', '600',
+                 '--points', '7', '--json', 'c.json']) == 0
+    assert main(['eig', 'sc_gyro.yaml', '--json', 'e.json']) == 0
+    text = capsys.readouterr().out
+    doc, eig = (json.loads((tmp_path / f).read_text()) for f in ('c.json', 'e.json'))
+    i = doc['Omega0'].index(300.0)
+    roots = [complex(*z) for z in doc['roots'][i]]
+    reached = [m for m in eig['modes'] if m['reached']]
+    assert reached and any(not m['damped'] for m in reached)
+    for m in reached:
+        z = complex(*m['eigenvalue'])
+        j = min(range(len(roots)), key=lambda c: abs(roots[c] - z))
+        k = next(k for k, cols in enumerate(doc['mode_roots']) if j in cols)
+        # the same decision: damped in eig exactly where campbell's decay rate is positive
+        assert (doc['decay_rates'][i][k] > 0) == m['damped'], (m['name'], z)
+    grows = [k for k in doc['unstable_modes'] if all(u[k] for u in doc['unstable'])]
+    assert grows and 'growing root (Re above its resolution) at 7 of the 7 speeds' in text
+
+
 # -- the project's integrators and the ensemble run general systems ----------------------------
 # method: (keyword arguments, largest state difference to dop853 at rtol 1e-13 after 0.5 s)
 GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),

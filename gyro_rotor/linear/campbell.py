@@ -207,8 +207,97 @@ class _Speeds:
             lam, V = unit_eig(A)
             lam_r, res_r = resolutions(A, lin.A_cons)
             res = res_r[nearest(lam_r, lam)]
+            if not _settled(lin, lam, res):
+                lam, res = _one_rule(lin, lam, res)
             self.cache[W] = (lam, V, res, lin)
         return self.cache[W]
+
+
+#: a root whose |Re| exceeds this many times its resolution has its sign settled in double
+SETTLED = 4.0
+
+
+def _settled(lin, lam: np.ndarray, res: np.ndarray) -> bool:
+    """Return True if the double-precision resolutions decide as the one rule would here.
+
+    The one rule is :func:`~gyro_rotor.linear.claims.damped`; here it is not called (its
+    40-digit fixed subspace costs more than the rest of the diagram at each speed).
+    A reached root's resolution there is at most its resolution in A (its condition number
+    on the complement of the fixed subspace is at most that in A), so a root with |Re| above
+    :data:`SETTLED` resolutions is damped or grows by its sign under either rule. Each other
+    root must be certified unreached: a root of the block A[S, S] of the states S that no
+    drive and no other state sees (C[:, S] = 0, A0[~S, S] = 0: an exactly invariant
+    subspace in ker C), or a zero root of the exact kernel of [A0; C] beyond
+    those of the block (in :func:`~gyro_rotor.linear.claims.fixed_subspace` too); if it is not,
+    the caller decides by the one rule.
+    """
+    from scipy.optimize import linear_sum_assignment
+    open_ = np.abs(lam.real) <= SETTLED * res
+    if not open_.any():
+        return True
+    A0, C = lin.A_cons, lin.c_all.T
+    S = np.all(C == 0, axis=0)
+    while S.any():
+        seen = np.any(A0[np.ix_(~S, S)] != 0, axis=0)
+        if not seen.any():
+            break
+        S[np.flatnonzero(S)[seen]] = False
+    if S.any():
+        lam_s = np.linalg.eigvals(A0[np.ix_(S, S)])
+        r, _ = linear_sum_assignment(np.abs(lam[:, None] - lam_s[None, :]))
+        open_[r] = False
+    if not open_.any():
+        return True
+    if np.any(np.abs(lam[open_]) > SETTLED * res[open_]):
+        return False
+    # the zero roots of the kernel beyond those of the block A[S, S] (counted there)
+    extra = _nullity(np.vstack([A0, C])) - (_nullity(A0[:, S]) if S.any() else 0)
+    return int(open_.sum()) <= extra
+
+
+def _nullity(M: np.ndarray) -> int:
+    """Dimension of the kernel of M in exact arithmetic of the double data.
+
+    Each u with A0 u = 0 and C u = 0 exactly (M = [A0; C]) lies in the fixed subspace: its
+    40-digit staircase sees it at its working precision, far below its zero threshold.
+    """
+    from fractions import Fraction
+    rows = [[Fraction(float(x)) for x in row] for row in M]
+    rank, n = 0, len(rows[0]) if rows else 0
+    for col in range(n):
+        piv = next((i for i in range(rank, len(rows)) if rows[i][col]), None)
+        if piv is None:
+            continue
+        rows[rank], rows[piv] = rows[piv], rows[rank]
+        p = rows[rank]
+        for i in range(rank + 1, len(rows)):
+            if rows[i][col]:
+                f = rows[i][col] / p[col]
+                rows[i] = [x - f * y for x, y in zip(rows[i], p)]
+        rank += 1
+    return n - rank
+
+
+def _one_rule(lin, lam: np.ndarray, res: np.ndarray) -> tuple:
+    """Return (roots, resolutions): the reached ones' by :func:`claims.damped`.
+
+    Each reached root takes the one rule's value and resolution (a root damped there reads
+    damped, one not damped reads undamped or growing); the unreached keep theirs.
+    """
+    from scipy.optimize import linear_sum_assignment
+    from gyro_rotor.linear import claims as cl
+    sys = lin.drive_system()
+    dm = cl.damped(sys, sys.K_scene, cl.split(sys.A0, sys.C)[1])
+    lam, res = lam.astype(complex), res.copy()
+    i, j = linear_sum_assignment(np.abs(lam[:, None] - dm.lam[None, :]))
+    for a, b in zip(i, j):
+        z, r = complex(dm.lam[b]), float(dm.res[b])
+        if dm.damped[b] and z.real >= -r:
+            r = -z.real / 2
+        elif not dm.damped[b] and z.real < -r:
+            r = -z.real
+        lam[a], res[a] = z, r
+    return lam, res
 
 
 # -- modes from tracked roots -----------------------------------------------------------------
