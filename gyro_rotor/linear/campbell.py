@@ -10,7 +10,11 @@ with Im >= 0 changes there; the table of frequencies keeps its shape).
 A *mode* is a pair of tracks that are complex conjugates somewhere in the range, or a
 root that stays real over the whole range. Its frequency is |Im| / 2 pi (0 while the pair
 is real), its decay rate the slower -Re of the pair; a real part within its eigenvalue's
-round-off (:mod:`gyro_rotor.linear.roundoff`) is 0: the mode is undamped there.
+round-off (:mod:`gyro_rotor.linear.roundoff`) is 0: the mode is undamped there. Whether a
+root is damped is decided as ``eig`` decides it, by the one rule
+(:func:`gyro_rotor.linear.claims.damped`, 40 digits below round-off), wherever double
+precision cannot settle it (:func:`_settled`): a root of |Re| above :data:`SETTLED`
+resolutions is settled by its sign, one within them only if it is certified unreached.
 
 Every drive's Omega0 is scaled with the first; at each speed the scene's steady motion is
 re-solved (``speed_family``: what its system offers, the centrifuge in closed form),
