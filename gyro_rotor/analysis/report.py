@@ -100,7 +100,7 @@ def text_report(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
 
 def verdict_line(res: AnalysisResult, bag: BagAnalysis | None = None) -> str:
     """Return the verdict line, with the cut of a truncated recording (analysed up to the cut)."""
-    line = f'verdict: {str(res.verdict).upper()}  [{res.level}]: {res.reason}'
+    line = f'verdict: {str(res.verdict).upper()}: {res.reason}'
     if res.truncated:
         line += f' -- {res.truncated}'
     return line

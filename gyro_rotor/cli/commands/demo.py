@@ -200,6 +200,21 @@ def _num(x: float, spec: str) -> str:
     return format(x, spec) if math.isfinite(x) else '-'.rjust(int(spec.split('.')[0]))
 
 
+def _rate_cell(a: dict) -> str:
+    """Return the rate of E* - E*_inf; in parentheses while criterion D has not decided.
+
+    Undecided (D NOT YET), the rate is that of the terms the window shows, not one the
+    bound applies to (the slowest term may be merged into E*_inf): the parentheses keep it
+    from reading as a rate that clears the bound beside it.
+    """
+    rate = a.get('energy_decay_rate', math.nan)
+    status = a.get('decay_status', math.nan)
+    decided = math.isfinite(status) and _STATUS_MARK.get(int(status)) in ('+', 'X')
+    if decided or not math.isfinite(rate):
+        return _num(rate, '9.4f')
+    return f'({rate:.4f})'.rjust(9)
+
+
 def _line(view: _LiveView) -> str:
     e, a = view.energy, view.analysis
     nan = math.nan
@@ -208,7 +223,7 @@ def _line(view: _LiveView) -> str:
                     for f, _ in _CRITERIA)
     cells = [_num(t, '7.2f'), _num(e.get('E_star', nan), '11.7f'),
              _num(e.get('residual', nan), '9.1e'),
-             _num(a.get('energy_decay_rate', nan), '9.4f'),
+             _rate_cell(a),
              _num(a.get('decay_rate_bound', nan), '9.4f'),
              f'{int(a["pole_slips"]) if "pole_slips" in a else "-":>5}', f'{marks:7s}']
     modes = '  '.join(f'{_short(name)} {_mode_cell(row)}'
@@ -220,7 +235,8 @@ def _line(view: _LiveView) -> str:
 HEADER = ('  t [s]       E* [J]  residual  E* decay   >= bound  slips  LEDMdSF  modes: '
           'predicted/identified frequency [Hz]  live verdict\n'
           '  (criteria L Lyapunov, E energy balance, D decay, M modes, d data, S synchronism,'
-          ' F the data fit the scene: + PASS, X FAIL, . NOT YET)')
+          ' F the data fit the scene: + PASS, X FAIL, . NOT YET; E* decay in parentheses:'
+          ' D has not decided, the rate is not yet held against the bound)')
 
 
 def expected_outcome(scene, duration: float) -> dict:
