@@ -47,7 +47,7 @@ import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
            'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay',
-           'decay_interval', 'system_metrics', 'wells']
+           'decay_interval', 'system_metrics', 'wells', 'point_metrics']
 
 #: default settling tolerance of the drive amplitude a [rad]
 DEFAULT_TOL = 1e-3
@@ -237,3 +237,19 @@ def system_metrics(model, steady_q: np.ndarray, t: np.ndarray, y: np.ndarray, me
     if Metric.ENERGY in metrics:
         out['final_E_star'] = float(model.energy(y[-1:])[0])
     return out
+
+
+def point_metrics(scene, model, t: np.ndarray, y: np.ndarray, metrics, *,
+                  tol: float = DEFAULT_TOL) -> dict:
+    """Column -> value for one trajectory of any scene (samples ``y`` (m, n) at ``t``, finite).
+
+    ``scene`` and ``model`` are the point's, with its numbers. The metrics are taken in the
+    terms of the model (module doc): the centrifuge's hand-written :class:`Model` by its
+    drive lag (:func:`trajectory_metrics`), a system file's model by the deviation from the
+    scene's steady motion (:func:`system_metrics`). The spectral abscissa is computed by
+    the caller.
+    """
+    if isinstance(model, Model):
+        return trajectory_metrics(model, t, y, metrics, tol=tol)
+    steady_q = scene.steady_state(model)[model.slices()[0]]
+    return system_metrics(model, steady_q, t, y, metrics, tol=tol)
