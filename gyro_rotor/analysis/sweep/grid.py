@@ -1,13 +1,13 @@
 """Grid axes of a sweep: ``KEY=START:STOP:COUNT[:lin|log]`` over scene keys, and their product.
 
-Any numeric scene key that changes the motion may be swept: every
+A centrifuge scene sweeps any numeric key that changes the motion: every
 :class:`~gyro_rotor.core.params.RotorParams` field (``K_D``, ``K_S``, ``Omega0``,
 ``pole_pairs``, ...) and the initial condition (``initial.dzdot``, ``initial.dz``,
 ``initial.theta0``, ``initial.branch``, ...). The points are the Cartesian product of the
 axes in the order given, the first axis varying slowest (C order); point ``i`` has the
 multi-index ``numpy.unravel_index(i, shape)``. Every value of every axis is checked
 against the scene (with the other keys at the scene's values) before any work starts, so
-a value the parameters refuse is an error up front, not a column of failed points.
+a value the scene refuses is an error up front, not a column of failed points.
 
 A system file's scene sweeps ``constants.NAME`` (a constant of the system), ``K_S``,
 ``K_D``, ``Omega0`` (every rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's). Which keys
