@@ -27,7 +27,8 @@ column                 definition                                               
                        :func:`gyro_rotor.linear.system.modes`)
 =====================  ===============================================================  =====
 
-Every system offers every metric. A scene with a ``system`` key (eqs. 1-17 of any rotor
+Every system offers every metric; :func:`point_metrics` measures a point of any scene in
+its model's terms. A scene with a ``system`` key (eqs. 1-17 of any rotor
 system) has no single drive lag: its ``peak``, ``settling`` and ``decay``
 (:func:`system_metrics`) are taken of the deviation amplitude a = max_i |q_i - steady.q_i|
 over the coordinates that move (peak: max a; settling: the first time after which a stays
