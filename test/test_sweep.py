@@ -156,6 +156,57 @@ def test_resume_computes_only_missing_blocks(serial_result, tmp_path):
     assert run_sweep(_spec(), out, executor=Executor.SERIAL, resume=True).blocks_run == []
 
 
+def _as_older_version(out, general):
+    """Rewrite a sweep's directory as a version with the ``general`` key wrote it.
+
+    Its sweep.json gets the key and its blocks the hash of that text (as that version put
+    its own sweep.json's hash into each block).
+    """
+    import hashlib
+    import json
+
+    import pyarrow.parquet as pq
+    from gyro_rotor.analysis.sweep.store import BLOCK_KEY
+    manifest = out / 'sweep.json'
+    d = json.loads(manifest.read_text(encoding='utf-8'))
+    d['general'] = general
+    text = json.dumps(d, indent=1, sort_keys=True)
+    manifest.write_text(text, encoding='utf-8')
+    for f in (out / 'blocks').glob('block-*.parquet'):
+        table = pq.read_table(f)
+        info = json.loads(table.schema.metadata[BLOCK_KEY])
+        info['spec_sha256'] = hashlib.sha256(text.encode()).hexdigest()
+        pq.write_table(table.replace_schema_metadata({BLOCK_KEY: json.dumps(info).encode()}), f)
+
+
+def test_resume_of_an_older_sweep_json(tmp_path, capsys):
+    """A sweep.json with the dropped ``general`` key: resumed with its blocks kept.
+
+    A centrifuge's (``general: false``) reads as before the key was dropped (issue 25) and
+    its blocks count; a system file's (``general: true``, its base held only t_end) is
+    refused with one line.
+    """
+    for scene, general in (('pole_slip', False), ('twin_gimbal', True)):
+        out = tmp_path / scene
+        args = ['sweep', scene, '--grid', 'K_D=0.05:0.2:2', '--t-end', '0.1', '--out',
+                str(out), '--serial', '--metrics', 'peak', '--quiet', '--no-maps']
+        assert main(args) == 0
+        before = _columns(out)
+        _as_older_version(out, general)
+        capsys.readouterr()
+        if general:
+            assert main(args + ['--resume']) == 1
+            err = capsys.readouterr().err
+            assert 'older version' in err and err.count('\n') == 1, err
+            continue
+        assert SweepStore(out).read().num_rows == 2
+        assert main(args + ['--resume']) == 0
+        assert '0 blocks run, 1 already there' in capsys.readouterr().out
+        got = _columns(out)
+        np.testing.assert_array_equal(got['peak_deviation'], before['peak_deviation'])
+        assert 'general' not in make_spec(scene, ['K_D=0.05:0.2:2']).to_json()
+
+
 def test_cli_resume_and_refusals(tmp_path, capsys):
     """The command: a sweep, the refusal to overwrite it, --resume with nothing to do."""
     out = str(tmp_path / 'cli')
@@ -265,7 +316,7 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
     from gyro_rotor.core.scene import load_scene
     from gyro_rotor.numerics.simulate import integrate
     spec = _general_spec()
-    assert spec.general and spec.n_points == 4 and spec.n_blocks == 2
+    assert spec.n_points == 4 and spec.n_blocks == 2
     r = run_sweep(spec, tmp_path / 'g', executor=Executor.SERIAL)
     assert sorted(r.blocks_run) == [0, 1]
     got = _columns(tmp_path / 'g')

@@ -18,16 +18,18 @@ import math
 from typing import Any, ClassVar, Mapping
 import warnings
 
-from gyro_rotor.core.model import make_model, Model, MODELS, PERTURBATION_KEYS
+from gyro_rotor.core.model import drive_rates, make_model, Model, MODELS, PERTURBATION_KEYS
 from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.core.yamlio import short
-from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, ParameterError,
-                               SceneError)
+from gyro_rotor.errors import (did_you_mean, GyroRotorError, NoSteadyMotionError,
+                               ParameterError, SceneError)
+from gyro_rotor.node_settings import NODE_KEYS
 import numpy as np
 
-__all__ = ['Centrifuge', 'InitialCondition', 'INITIAL_UNITS', 'CENTRIFUGE']
+__all__ = ['Centrifuge', 'InitialCondition', 'INITIAL_UNITS', 'CENTRIFUGE', 'SCENE_KEYS',
+           'SWEEP_KEYS']
 
 #: the built-in system's name: ``system: centrifuge`` in a scene file
 CENTRIFUGE = 'centrifuge'
@@ -36,6 +38,19 @@ CENTRIFUGE = 'centrifuge'
 INITIAL_UNITS = {'theta0': 'rad', 'dtheta': 'rad', 'dthetadot': 'rad/s', 'dpsidot': 'rad/s',
                  'dchi': 'rad', 'dz': 'rad', 'dzdot': 'rad/s', 'z': 'rad', 'zdot': 'rad/s',
                  'chi': 'rad', 'branch': '-'}
+
+#: keys of a centrifuge scene (module doc of :mod:`gyro_rotor.core.scene`)
+SCENE_KEYS: dict[str, type] = {
+    'scene': str, 'description': str, 'system': str, 'model': str, 't_end': float,
+    **{name: (int if name == 'pole_pairs' else float) for name in PARAM_FIELDS},
+    'initial.mode': str, 'initial.branch': int, 'initial.quaternion': list,
+    'initial.omega_body': list,
+    **{f'initial.{k}': float for k in INITIAL_UNITS if k != 'branch'},
+    **{f'perturbation.{k}': float for k in PERTURBATION_KEYS},
+    **{name: spec[0] for name, spec in NODE_KEYS.items()},
+}
+#: the keys a sweep's grid may run over: the parameters and numeric initial conditions
+SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in INITIAL_UNITS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -147,6 +162,44 @@ class Centrifuge:
         """Return its steady motion in its terms: ``theta0``, ``psidot0`` (eqs. 20-22)."""
         sm = self.steady()
         return {'theta0': sm.theta0, 'psidot0': sm.psidot0, 'steady': ()}
+
+    # -- a sweep's grid (gyro_rotor.analysis.sweep) ----------------------------------------
+    def check_sweep_key(self, axis) -> None:
+        """Refuse a grid axis (``key``, ``values``, ``is_int``, ``spec``) it cannot sweep.
+
+        Its parameters and numeric initial conditions (:data:`SWEEP_KEYS`), integers for
+        an integer key. Raises ParameterError naming the problem.
+        """
+        if axis.key not in SCENE_KEYS:
+            raise ParameterError(f"--grid: unknown key '{axis.key}'"
+                                 f'{did_you_mean(axis.key, SWEEP_KEYS)}')
+        if axis.key not in SWEEP_KEYS:
+            hint = ' (use --t-end for the duration)' if axis.key == 't_end' else ''
+            raise ParameterError(f"--grid: key '{axis.key}' cannot be swept{hint}; sweepable: "
+                                 f"the parameters and initial.{{{', '.join(INITIAL_UNITS)}}}")
+        vals = axis.values
+        if axis.is_int and not np.all(vals == np.round(vals)):
+            raise ParameterError(f'--grid {axis.spec}: {axis.key} takes integers; the grid '
+                                 f'gives {vals[vals != np.round(vals)][0]:g}')
+
+    def sweep_rate(self, axes, scenes) -> float:
+        """Return its fastest model rate [1/s] over a sweep's grid (the step's scale).
+
+        Over every combination of the parameter axes (an initial condition does not change
+        it; ``scenes``, the scene at each value of each axis alone, are not needed); a
+        combination the parameters refuse is left out (its points are recorded as failed).
+        """
+        param_axes = [a for a in axes if a.key in PARAM_FIELDS]
+        fastest = 0.0
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            for idx in np.ndindex(*(a.count for a in param_axes)):
+                ch = {a.key: a.scene_value(a.values[i]) for a, i in zip(param_axes, idx)}
+                try:
+                    fastest = max(fastest, *drive_rates(self.params.replace(**ch)))
+                except GyroRotorError:
+                    continue
+        return fastest
 
     def steady_state(self, model: Model) -> np.ndarray:
         """State on its steady motion (I or II; the resting state for a body-mode scene)."""

@@ -72,9 +72,9 @@ from pathlib import Path
 import re
 from typing import Any, Mapping
 
-from gyro_rotor.core.centrifuge import CENTRIFUGE, Centrifuge, INITIAL_UNITS, InitialCondition
+from gyro_rotor.core.centrifuge import (CENTRIFUGE, Centrifuge, INITIAL_UNITS,
+                                        InitialCondition, SCENE_KEYS)
 from gyro_rotor.core.model import Model, perturb_state, PERTURBATION_KEYS
-from gyro_rotor.core.params import PARAM_FIELDS
 from gyro_rotor.core.system.generated import (GeneratedSystem, key_sizes, lock, SYSTEM_DOC,
                                               vector)
 from gyro_rotor.core.system.model import GeneralModel
@@ -92,17 +92,6 @@ __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'sce
            'GeneratedSystem']
 
 DEFAULT_SCENE = 'precession'
-#: keys of a centrifuge scene
-SCENE_KEYS: dict[str, type] = {
-    'scene': str, 'description': str, 'system': str, 'model': str, 't_end': float,
-    **{name: (int if name == 'pole_pairs' else float) for name in PARAM_FIELDS},
-    'initial.mode': str, 'initial.branch': int, 'initial.quaternion': list,
-    'initial.omega_body': list,
-    **{f'initial.{k}': float for k in INITIAL_UNITS if k != 'branch'},
-    **{f'perturbation.{k}': float for k in PERTURBATION_KEYS},
-    **{name: spec[0] for name, spec in NODE_KEYS.items()},
-}
-
 #: fixed keys of a system file's scene (constants.NAME and drive.ROTOR.KEY come on top)
 SYSTEM_SCENE_KEYS: dict[str, type] = {
     'scene': str, 'description': str, 'system': str, 't_end': float,

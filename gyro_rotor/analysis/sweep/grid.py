@@ -1,18 +1,20 @@
 """Grid axes of a sweep: ``KEY=START:STOP:COUNT[:lin|log]`` over scene keys, and their product.
 
-Any numeric scene key that changes the motion may be swept: every
+A centrifuge scene sweeps any numeric key that changes the motion: every
 :class:`~gyro_rotor.core.params.RotorParams` field (``K_D``, ``K_S``, ``Omega0``,
 ``pole_pairs``, ...) and the initial condition (``initial.dzdot``, ``initial.dz``,
 ``initial.theta0``, ``initial.branch``, ...). The points are the Cartesian product of the
 axes in the order given, the first axis varying slowest (C order); point ``i`` has the
 multi-index ``numpy.unravel_index(i, shape)``. Every value of every axis is checked
 against the scene (with the other keys at the scene's values) before any work starts, so
-a value the parameters refuse is an error up front, not a column of failed points.
+a value the scene refuses is an error up front, not a column of failed points.
 
-A scene with a ``system`` key sweeps ``constants.NAME`` (a constant of the system),
-``K_S``, ``K_D``, ``Omega0`` (every rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's);
-:meth:`SweepGrid.check_system` loads each value of each axis with
-:func:`~gyro_rotor.core.scene.load_scene` (the loader's own checks) before any work.
+A system file's scene sweeps ``constants.NAME`` (a constant of the system), ``K_S``,
+``K_D``, ``Omega0`` (every rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's). Which keys
+a scene sweeps is asked of its system (``check_sweep_key`` of
+:class:`~gyro_rotor.core.centrifuge.Centrifuge` and
+:class:`~gyro_rotor.core.system.generated.GeneratedSystem`); :meth:`SweepGrid.check` does
+the rest the same way for every scene.
 """
 
 from __future__ import annotations
@@ -22,21 +24,15 @@ import enum
 import math
 from typing import Any, Mapping, Sequence
 
-from gyro_rotor.core.params import PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import INITIAL_UNITS, load_scene, scene_from_mapping, SCENE_KEYS
-from gyro_rotor.errors import did_you_mean, GyroRotorError, ParameterError
+from gyro_rotor.core.params import PARAM_UNITS
+from gyro_rotor.core.scene import INITIAL_UNITS, Scene, SCENE_KEYS
+from gyro_rotor.errors import GyroRotorError, ParameterError
 import numpy as np
 
-__all__ = ['Spacing', 'GridAxis', 'SweepGrid', 'parse_axis', 'SWEEP_KEYS', 'key_unit',
-           'MAX_POINTS', 'SYSTEM_DRIVE_KEYS']
+__all__ = ['Spacing', 'GridAxis', 'SweepGrid', 'parse_axis', 'key_unit', 'MAX_POINTS']
 
 #: most points of one sweep (the grid product)
 MAX_POINTS = 100_000_000
-
-#: the scene keys a grid may run over: parameters and numeric initial conditions
-SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in INITIAL_UNITS)
-#: the drive keys a system's grid may run over, for every rotor or as drive.ROTOR.KEY
-SYSTEM_DRIVE_KEYS = ('K_S', 'K_D', 'Omega0')
 
 
 def key_unit(key: str) -> str:
@@ -189,52 +185,20 @@ class SweepGrid:
         """Scene overrides of the ``j``-th of the points in ``coords``."""
         return {a.key: a.scene_value(coords[a.key][j]) for a in self.axes}
 
-    def check(self, base: Mapping[str, Any]) -> None:
-        """Refuse unknown or unsweepable keys and any value the scene refuses.
+    def check(self, scene: Scene) -> list:
+        """Refuse a key the scene's system cannot sweep and any value the scene refuses.
 
-        ``base`` is the scene's flat mapping. Each value of each axis is tried with the
-        other keys at the scene's values.
+        Each key is asked of the scene's system (``check_sweep_key``); each value of each
+        axis is tried with the other keys at the scene's values (:meth:`Scene.with_changes`,
+        the scene's own checks). Return those scenes, one per distinct value of each axis.
         """
         for a in self.axes:
-            if a.key not in SCENE_KEYS:
-                raise ParameterError(f"--grid: unknown key '{a.key}'"
-                                     f'{did_you_mean(a.key, SWEEP_KEYS)}')
-            if a.key not in SWEEP_KEYS:
-                hint = (' (use --t-end for the duration)' if a.key == 't_end' else '')
-                raise ParameterError(f"--grid: key '{a.key}' cannot be swept{hint}; sweepable: "
-                                     f"the parameters and initial.{{{', '.join(INITIAL_UNITS)}}}")
-            vals = a.values
-            if a.is_int and not np.all(vals == np.round(vals)):
-                raise ParameterError(f'--grid {a.spec}: {a.key} takes integers; the grid gives '
-                                     f'{vals[vals != np.round(vals)][0]:g}')
+            scene.system.check_sweep_key(a)
+        scenes = []
         for a in self.axes:
             for v in np.unique(a.values):
-                flat = {**base, a.key: a.scene_value(v)}
                 try:
-                    scene_from_mapping(flat, strict_float=False)
-                except GyroRotorError as err:
-                    raise ParameterError(f'--grid {a.spec}: the value {a.key} = {v:g} is '
-                                         f'refused: {err}') from None
-
-    def check_system(self, scene: str) -> list:
-        """Refuse keys a system's scene cannot sweep and any value its loader refuses.
-
-        ``scene`` names the scene file. Return the loaded scenes: the scene itself, then
-        one per distinct value of each axis (the other keys at the scene's values).
-        """
-        scenes = [load_scene(scene)]
-        for a in self.axes:
-            parts = a.key.split('.')
-            ok = (a.key in SYSTEM_DRIVE_KEYS or (parts[0] == 'constants' and len(parts) == 2)
-                  or (parts[0] == 'drive' and len(parts) == 3
-                      and parts[2] in SYSTEM_DRIVE_KEYS))
-            if not ok:
-                raise ParameterError(f"--grid: key '{a.key}' cannot be swept in a general "
-                                     'scene; sweepable: constants.NAME, K_S, K_D, Omega0, '
-                                     'drive.ROTOR.{K_S,K_D,Omega0}')
-            for v in np.unique(a.values):
-                try:
-                    scenes.append(load_scene(scene, overrides={a.key: float(v)}))
+                    scenes.append(scene.with_changes({a.key: a.scene_value(v)}))
                 except GyroRotorError as err:
                     raise ParameterError(f'--grid {a.spec}: the value {a.key} = {v:g} is '
                                          f'refused: {err}') from None

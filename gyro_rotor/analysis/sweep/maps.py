@@ -59,15 +59,18 @@ def metric_grid(table, spec: SweepSpec, column: str) -> tuple[np.ndarray, np.nda
 
 
 def linear_optimum(spec: SweepSpec, K_S_values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return K_S and the best K_D of :func:`~gyro_rotor.linear.tune.tune` at each."""
-    from gyro_rotor.core.scene import scene_from_mapping
+    """Return K_S and the best K_D of :func:`~gyro_rotor.linear.tune.tune` at each.
+
+    Any scene: its K_S (every rotor's) set by :meth:`Scene.with_changes`, as the sweep's
+    points are; a K_S where tune finds no optimum is left out.
+    """
     from gyro_rotor.linear.system import linearize_scene
     from gyro_rotor.linear.tune import tune
-    scene = scene_from_mapping(dict(spec.base), strict_float=False)
+    scene = spec.base_scene
     ks, kd = [], []
     for k in K_S_values:
         try:
-            kd.append(tune(linearize_scene(scene.with_params(K_S=float(k)))).K_D_best)
+            kd.append(tune(linearize_scene(scene.with_changes({'K_S': float(k)}))).K_D_best)
             ks.append(float(k))
         except (GyroRotorError, ArithmeticError, np.linalg.LinAlgError):
             continue
@@ -102,6 +105,18 @@ def _draw_scene_point(ax, spec: SweepSpec, key0: str, key1: str) -> None:
         ax.legend(loc='best', fontsize=7)
 
 
+def _draw_optimum(ax, spec: SweepSpec, a0: GridAxis, a1: GridAxis) -> None:
+    """Draw the linear optimum K_D(K_S) over a (K_S, K_D) map, where tune finds one."""
+    ks_axis = a0 if a0.key == 'K_S' else a1
+    sel = ks_axis.values[np.unique(np.linspace(0, ks_axis.count - 1,
+                                               min(12, ks_axis.count)).astype(int))]
+    ks, kd = linear_optimum(spec, sel)
+    if ks.size:
+        xs, ys = (ks, kd) if a0.key == 'K_S' else (kd, ks)
+        ax.plot(xs, ys, 'w--o', ms=3, lw=1.2, label='linear optimum K_D(K_S) (tune)')
+        ax.legend(loc='best', fontsize=7)
+
+
 def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
     import matplotlib
     matplotlib.use('Agg')
@@ -130,14 +145,8 @@ def _heatmap(table, spec: SweepSpec, column: str, path: Path) -> None:
             _draw_slips(ax, table, spec, a0.values, a1.values)
             title += ' (numbers/lines: pole slips)'
         keys = (a0.key, a1.key)
-        if column == 'settling_time' and set(keys) == {'K_S', 'K_D'} and not spec.general:
-            ks_axis = a0 if a0.key == 'K_S' else a1
-            sel = ks_axis.values[np.unique(np.linspace(0, ks_axis.count - 1,
-                                                       min(12, ks_axis.count)).astype(int))]
-            ks, kd = linear_optimum(spec, sel)
-            xs, ys = (ks, kd) if a0.key == 'K_S' else (kd, ks)
-            ax.plot(xs, ys, 'w--o', ms=3, lw=1.2, label='linear optimum K_D(K_S) (tune)')
-            ax.legend(loc='best', fontsize=7)
+        if column == 'settling_time' and set(keys) == {'K_S', 'K_D'}:
+            _draw_optimum(ax, spec, a0, a1)
         _draw_scene_point(ax, spec, a0.key, a1.key)
         ax.set_xlabel(_label(a0.key))
         ax.set_ylabel(_label(a1.key))

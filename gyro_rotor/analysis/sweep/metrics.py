@@ -27,7 +27,8 @@ column                 definition                                               
                        :func:`gyro_rotor.linear.system.modes`)
 =====================  ===============================================================  =====
 
-Every system offers every metric. A scene with a ``system`` key (eqs. 1-17 of any rotor
+Every system offers every metric; :func:`point_metrics` measures a point of any scene in
+its model's terms. A scene with a ``system`` key (eqs. 1-17 of any rotor
 system) has no single drive lag: its ``peak``, ``settling`` and ``decay``
 (:func:`system_metrics`) are taken of the deviation amplitude a = max_i |q_i - steady.q_i|
 over the coordinates that move (peak: max a; settling: the first time after which a stays
@@ -47,7 +48,7 @@ import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
            'trajectory_metrics', 'well_passages', 'DEFAULT_TOL', 'settle_time', 'fit_decay',
-           'decay_interval', 'system_metrics', 'wells']
+           'decay_interval', 'system_metrics', 'wells', 'point_metrics']
 
 #: default settling tolerance of the drive amplitude a [rad]
 DEFAULT_TOL = 1e-3
@@ -237,3 +238,19 @@ def system_metrics(model, steady_q: np.ndarray, t: np.ndarray, y: np.ndarray, me
     if Metric.ENERGY in metrics:
         out['final_E_star'] = float(model.energy(y[-1:])[0])
     return out
+
+
+def point_metrics(scene, model, t: np.ndarray, y: np.ndarray, metrics, *,
+                  tol: float = DEFAULT_TOL) -> dict:
+    """Column -> value for one trajectory of any scene (samples ``y`` (m, n) at ``t``, finite).
+
+    ``scene`` and ``model`` are the point's, with its numbers. The metrics are taken in the
+    terms of the model (module doc): the centrifuge's hand-written :class:`Model` by its
+    drive lag (:func:`trajectory_metrics`), a system file's model by the deviation from the
+    scene's steady motion (:func:`system_metrics`). The spectral abscissa is computed by
+    the caller.
+    """
+    if isinstance(model, Model):
+        return trajectory_metrics(model, t, y, metrics, tol=tol)
+    steady_q = scene.steady_state(model)[model.slices()[0]]
+    return system_metrics(model, steady_q, t, y, metrics, tol=tol)

@@ -19,7 +19,9 @@ sweep's and its ``point`` column is exactly the block's range; any other file (a
 under another name, one of another sweep, an older one without the key, a foreign
 ``block-000999``) is named and left out, and its block computed again. A ``sweep.json``
 that does not read is refused with one line, and so is a ``blocks/`` directory without it
-(nothing would say what its blocks were computed with).
+(nothing would say what its blocks were computed with). A ``sweep.json`` of an older version,
+with a ``general`` key (issue 25), reads and keeps its blocks; one of a system file's scene
+is refused (its ``base`` held none of the scene's keys).
 """
 
 from __future__ import annotations
@@ -128,7 +130,23 @@ class SweepStore:
         """File of block ``b``."""
         return self.blocks_dir / f'block-{b:06d}.parquet'
 
-    def _check_block(self, f: Path, spec: SweepSpec, digest: str) -> int:
+    def _digests(self, spec: SweepSpec) -> set:
+        """Return the hashes a block of ``spec`` in this directory may carry.
+
+        The specification's own and, if this directory's ``sweep.json`` reads as ``spec``,
+        that of its text as written: the blocks of a ``sweep.json`` of an older version
+        (its ``general`` key is dropped on reading, :meth:`SweepSpec.from_json`) are kept.
+        """
+        digests = {spec_hash(spec)}
+        try:
+            text = self.manifest.read_text(encoding='utf-8')
+            if SweepSpec.from_json(text) == spec:
+                digests.add(hashlib.sha256(text.encode()).hexdigest())
+        except (OSError, ValueError, TypeError, KeyError):
+            pass                        # no sweep.json of this spec: its own hash only
+        return digests
+
+    def _check_block(self, f: Path, spec: SweepSpec, digests: set) -> int:
         """Return the block index of file ``f`` if it is a finished block of ``spec``.
 
         Raises ValueError naming why not.
@@ -145,7 +163,7 @@ class SweepStore:
             raise ValueError('no block metadata (written by another program or version)')
         info = json.loads(meta[BLOCK_KEY])
         pts = spec.block_points(b)
-        if info.get('spec_sha256') != digest:
+        if info.get('spec_sha256') not in digests:
             raise ValueError('computed for another specification')
         if (info.get('block'), info.get('first_point'), info.get('points')) != \
                 (b, int(pts[0]), int(pts.size)):
@@ -162,12 +180,12 @@ class SweepStore:
         found: dict[int, Path] = {}
         if not self.blocks_dir.is_dir():
             return found
-        digest = spec_hash(spec)
+        digests = self._digests(spec)
         for f in sorted(self.blocks_dir.iterdir()):
             if f.name.endswith('.parquet') or (f.name.startswith('block-')
                                                and '.tmp' not in f.name):
                 try:
-                    found[self._check_block(f, spec, digest)] = f
+                    found[self._check_block(f, spec, digests)] = f
                 except (ValueError, OSError, KeyError, TypeError, ParameterError) as err:
                     self.refused[str(f)] = str(err)[:200]
                 except Exception as err:    # noqa: B902 -- pyarrow's own errors: a bad file

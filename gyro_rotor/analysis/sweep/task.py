@@ -10,13 +10,14 @@ local cluster or on a remote one, the results are the same to the last bit.
 
 Every scene takes the same path: :func:`make_spec` checks the grid and the metrics and fixes
 the step, :func:`run_block` sets up the block's points, integrates them in one ensemble and
-measures each. What differs by the scene's kind is only what a point is: the built-in
-centrifuge's points change its parameters and initial condition and are integrated by
-:func:`gyro_rotor.numerics.ensemble.run_ensemble` (metrics
-:func:`~gyro_rotor.analysis.sweep.metrics.trajectory_metrics`); a system file's points are
-its scene loaded with their values (:func:`~gyro_rotor.core.scene.load_scene`), one
-:class:`RotorSystem` per trajectory of :func:`gyro_rotor.numerics.ensemble.run_ensemble`
-(metrics :func:`~gyro_rotor.analysis.sweep.metrics.system_metrics`).
+measures each. A point is the scene with the point's values (:meth:`Scene.with_changes`,
+the scene's own checks), one model with its numbers per trajectory of
+:func:`gyro_rotor.numerics.ensemble.run_ensemble`, measured by
+:func:`~gyro_rotor.analysis.sweep.metrics.point_metrics`. What differs by the scene's system
+is asked of it: which keys it sweeps (``check_sweep_key``) and its fastest rate over the
+grid (``sweep_rate``, the step's scale), methods of
+:class:`~gyro_rotor.core.centrifuge.Centrifuge` and
+:class:`~gyro_rotor.core.system.generated.GeneratedSystem`.
 """
 
 from __future__ import annotations
@@ -25,19 +26,15 @@ import dataclasses
 import json
 import math
 import time
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 import warnings
 
 from gyro_rotor.analysis.sweep.grid import SweepGrid
-from gyro_rotor.analysis.sweep.metrics import (Metric, METRIC_COLUMNS, PointStatus,
-                                               system_metrics, trajectory_metrics)
-from gyro_rotor.core.model import make_model
-from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
-from gyro_rotor.core.scene import flatten, load_scene, Scene, scene_from_mapping, scene_path
+from gyro_rotor.analysis.sweep.metrics import Metric, METRIC_COLUMNS, point_metrics, PointStatus
+from gyro_rotor.core.scene import flatten, Scene, scene_from_mapping, scene_path
 from gyro_rotor.errors import GyroRotorError, ParameterError, SceneError
 from gyro_rotor.node_settings import NODE_NAMES
 from gyro_rotor.numerics.ensemble import run_ensemble
-from gyro_rotor.numerics.integrators.base import model_rate
 from gyro_rotor.numerics.simulate import MAX_SAMPLES
 import numpy as np
 
@@ -82,7 +79,11 @@ class SweepSpec:
     metrics: Sequence[str]
     tol: float
     block_size: int
-    general: bool = False
+
+    @property
+    def base_scene(self) -> Scene:
+        """Return the scene of ``base`` (its keys as the file had them when the sweep began)."""
+        return scene_from_mapping(dict(self.base), path=self.scene, strict_float=False)
 
     @property
     def sweep_grid(self) -> SweepGrid:
@@ -136,26 +137,16 @@ class SweepSpec:
 
     @classmethod
     def from_json(cls, text: str) -> 'SweepSpec':
-        """Inverse of :meth:`to_json`."""
+        """Inverse of :meth:`to_json`; also reads a ``sweep.json`` with the older ``general`` key.
+
+        That key said whether the scene is a system file's, whose ``base`` then held only
+        ``t_end``: such a specification does not say what its points are (ValueError).
+        """
         d = json.loads(text)
+        if d.pop('general', False):
+            raise ValueError("written by an older version for a system file's scene, its "
+                             'base holds no keys of the scene')
         return cls(**{**d, 'grid': tuple(d['grid']), 'metrics': tuple(d['metrics'])})
-
-
-def _fastest_rate(base: Mapping[str, Any], grid: SweepGrid) -> float:
-    """Max model rate over the parameter axes (initial axes do not change it)."""
-    param_axes = [a for a in grid.axes if a.key in PARAM_FIELDS]
-    fixed = {k: base[k] for k in PARAM_FIELDS if k in base}
-    shape = tuple(a.count for a in param_axes)
-    fastest = 0.0
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore')
-        for idx in np.ndindex(*shape):
-            ch = {a.key: a.scene_value(a.values[i]) for a, i in zip(param_axes, idx)}
-            try:
-                fastest = max(fastest, model_rate(RotorParams(**{**fixed, **ch})))
-            except GyroRotorError:
-                continue                  # such a point is recorded as failed
-    return fastest
 
 
 def _check_metrics(wanted) -> None:
@@ -175,20 +166,14 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
     Raises :class:`~gyro_rotor.errors.ParameterError` or ``SceneError`` naming the problem.
     """
     grid = SweepGrid.parse(grid_specs)
-    loaded = load_scene(scene)
-    general = not loaded.builtin
+    base, path = scene_flat(scene)
+    loaded = scene_from_mapping(base, path=path, strict_float=False)
     wanted = tuple(Metric) if metrics is None else tuple(metrics)
     _check_metrics(wanted)
-    if general:
-        from gyro_rotor.core.system.model import system_rate
-        path = str(loaded.path)
-        base = {'t_end': loaded.t_end}
-        fastest = max(system_rate(sc.system.reduced) for sc in grid.check_system(path))
-    else:
-        base, path = scene_flat(scene)
-        grid.check(base)
-        fastest = None if step is not None else _fastest_rate(base, grid)
-    t_end = float(base.get('t_end', 10.0)) if t_end is None else float(t_end)
+    checked = grid.check(loaded)
+    fastest = (None if step is not None
+               else loaded.system.sweep_rate(grid.axes, [loaded, *checked]))
+    t_end = loaded.t_end if t_end is None else float(t_end)
     for name, v in (('--t-end', t_end), ('--rate', rate), ('--tol', tol)):
         if not (math.isfinite(v) and v > 0):
             raise ParameterError(f'{name} must be positive and finite, got {v!r}')
@@ -203,7 +188,7 @@ def make_spec(scene: str, grid_specs: Sequence[str], *, t_end: float | None = No
         raise ParameterError(f'--step must be positive and finite, got {step!r}')
     spec = SweepSpec(scene=path, base=base, grid=tuple(a.spec for a in grid.axes), t_end=t_end,
                      rate=float(rate), step=h, metrics=tuple(str(m) for m in wanted),
-                     tol=float(tol), block_size=1, general=general)
+                     tol=float(tol), block_size=1)
     if block_size is None:
         per_point = spec.steps_per_trajectory * US_PER_TRAJECTORY_STEP * 1e-6
         mem = MAX_BLOCK_BYTES / (spec.t_eval.size * 10 * 8.0)
@@ -225,114 +210,53 @@ class BlockResult:
 
 @dataclasses.dataclass
 class _Points:
-    """A block's points as set up: what the kinds of scene differ in (module doc).
+    """A block's points as set up.
 
     ``idx``: the points set up (indices into the block), ``msg``: a set-up error per point,
-    ``Y0``: the initial states of ``idx`` (len(idx), n); ``run(sel)`` integrates the rows
-    ``sel`` of ``Y0`` in one ensemble; ``measure(j, y)`` gives point j's metric columns.
+    ``scenes``, ``models``: each point's scene and model (None where not set up), ``Y0``:
+    the initial states of ``idx`` (len(idx), n).
     """
 
     idx: list
     msg: list
+    scenes: list
+    models: list
     Y0: np.ndarray | None = None
-    run: Callable | None = None
-    measure: Callable | None = None
 
 
-def _centrifuge_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
-                       metrics: set) -> _Points:
-    """Points of the built-in centrifuge: its parameters and initial condition changed.
-
-    The scene's other keys were checked with :meth:`SweepGrid.check`; a point changes
-    only its parameters (validated by :class:`RotorParams`, one object per distinct set)
-    and its initial condition (validated by ``Scene.initial_state``).
-    """
-    base = scene_from_mapping(dict(spec.base), strict_float=False)
+def _points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int) -> _Points:
+    """Set up a block's points: the scene with each point's values, its model and state."""
+    base = spec.base_scene
     scenes: list = [None] * n
+    models: list = [None] * n
     Y0: list = [None] * n
     msg = [''] * n
-    params: dict = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore')
-        for j in range(n):
-            ch = grid.overrides(coords, j)
-            pc = tuple((k, v) for k, v in ch.items() if k in PARAM_FIELDS)
-            ic = {k.split('.', 1)[1]: v for k, v in ch.items() if k.startswith('initial.')}
-            try:
-                if pc not in params:
-                    params[pc] = base.system.params.replace(**dict(pc))
-                sc = dataclasses.replace(base, system=dataclasses.replace(
-                    base.system, params=params[pc],
-                    initial=dataclasses.replace(base.system.initial, **ic)))
-                scenes[j], Y0[j] = sc, sc.initial_state()
-            except (GyroRotorError, ZeroDivisionError, ValueError) as err:
-                msg[j] = f'set-up: {err}'
-    idx = [j for j in range(n) if scenes[j] is not None]
-    if not idx:
-        return _Points(idx, msg)
-    model_name = str(spec.base.get('model', 'full'))
-
-    def measured(j: int, y: np.ndarray) -> dict:
-        return trajectory_metrics(make_model(model_name, scenes[j].system.params), spec.t_eval, y,
-                                  metrics, tol=spec.tol)
-    return _ensemble(spec, scenes, idx, msg, make_model(model_name, scenes[idx[0]].system.params),
-                     np.array([Y0[j] for j in idx]), [scenes[j].system.params for j in idx],
-                     measured, metrics)
-
-
-def _system_points(spec: SweepSpec, grid: SweepGrid, coords: dict, n: int,
-                   metrics: set) -> _Points:
-    """Points of a system file's scene: the scene loaded with each point's values."""
-    from gyro_rotor.core.system.model import GeneralModel
-    msg = [''] * n
-    scenes: list = [None] * n
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
         for j in range(n):
             try:
-                scenes[j] = load_scene(spec.scene, overrides=grid.overrides(coords, j))
+                sc = base.with_changes(grid.overrides(coords, j))
+                model = sc.make_model()
+                Y0[j] = sc.initial_state(model)
+                scenes[j], models[j] = sc, model
             except (GyroRotorError, ArithmeticError, ValueError) as err:
                 msg[j] = f'set-up: {err}'
     idx = [j for j in range(n) if scenes[j] is not None]
-    if not idx:
-        return _Points(idx, msg)
-    model = scenes[idx[0]].make_model()
-
-    def measured(j: int, y: np.ndarray) -> dict:
-        bound = GeneralModel(scenes[j].system.reduced, compiled=model.compiled)
-        steady_q = np.asarray(scenes[j].system.steady_q, dtype=float)
-        return system_metrics(bound, steady_q, spec.t_eval, y, metrics, tol=spec.tol)
-    return _ensemble(spec, scenes, idx, msg, model,
-                     np.array([scenes[j].initial_state(model) for j in idx]),
-                     [scenes[j].system.reduced for j in idx], measured, metrics)
+    return _Points(idx, msg, scenes, models, np.array([Y0[j] for j in idx]) if idx else None)
 
 
-def _ensemble(spec: SweepSpec, scenes: list, idx: list, msg: list, model, Y: np.ndarray,
-              params: list, measured: Callable, metrics: set) -> _Points:
-    """Return the :class:`_Points` of any system: one ensemble, each point's parameters.
+def _integrate(spec: SweepSpec, pts: _Points, m: int):
+    """Integrate the set-up points: samples (m, N, n); on an exception point by point.
 
-    ``params``: the centrifuge's RotorParams or a system file's system of each point set
-    up; ``measured(j, y)``: point j's metrics of its kind, the spectral abscissa added
-    (:func:`_abscissa`, once per distinct linearization).
+    One ensemble of the first point's model, each trajectory with its own point's numbers.
     """
-    cache: dict = {}
+    params = [pts.models[j].params for j in pts.idx]
 
     def run(sel: slice):
-        return run_ensemble(model, Y[sel], spec.t_eval, method='rk4', step=spec.step,
-                            params=params[sel])
-
-    def measure(j: int, y: np.ndarray) -> dict:
-        out = measured(j, y)
-        if Metric.ABSCISSA in metrics:
-            out['spectral_abscissa'] = _abscissa(scenes[j], cache)
-        return out
-    return _Points(idx, msg, Y, run, measure)
-
-
-def _integrate(pts: _Points, m: int):
-    """Integrate the set-up points: samples (m, N, n); on an exception point by point."""
+        return run_ensemble(pts.models[pts.idx[0]], pts.Y0[sel], spec.t_eval, method='rk4',
+                            step=spec.step, params=params[sel])
     try:
-        res = pts.run(slice(None))
+        res = run(slice(None))
         return res.y, int(res.nsteps), {}
     except (ArithmeticError, ValueError, GyroRotorError):
         pass
@@ -340,7 +264,7 @@ def _integrate(pts: _Points, m: int):
     errors, nsteps = {}, 0
     for c in range(len(pts.idx)):
         try:
-            r = pts.run(slice(c, c + 1))
+            r = run(slice(c, c + 1))
             out[:, c, :], nsteps = r.y[:, 0, :], int(r.nsteps)
         except (ArithmeticError, ValueError, GyroRotorError) as err:
             errors[c] = f'integration: {type(err).__name__}: {err}'
@@ -373,8 +297,8 @@ def run_block(spec: SweepSpec, b: int) -> BlockResult:
     n = points.size
     coords = grid.coordinates(points)
     metrics = {Metric(m) for m in spec.metrics}
-    setup = _system_points if spec.general else _centrifuge_points
-    pts = setup(spec, grid, coords, n, metrics)
+    pts = _points(spec, grid, coords, n)
+    cache: dict = {}
     t_eval = spec.t_eval
     msg = pts.msg
     names = [c for m in Metric if m in metrics for c in METRIC_COLUMNS[m]]
@@ -382,7 +306,7 @@ def run_block(spec: SweepSpec, b: int) -> BlockResult:
     status = np.full(n, int(PointStatus.FAILED), dtype=np.int8)
     nsteps = 0
     if pts.idx:
-        Y, nsteps, errors = _integrate(pts, t_eval.size)
+        Y, nsteps, errors = _integrate(spec, pts, t_eval.size)
         for c, j in enumerate(pts.idx):
             if c in errors:
                 msg[j] = errors[c]
@@ -393,7 +317,10 @@ def run_block(spec: SweepSpec, b: int) -> BlockResult:
                 status[j] = PointStatus.DIVERGED
                 msg[j] = f'non-finite state at t = {t_eval[np.argmin(fin)]:.6g} s'
                 continue
-            for k, v in pts.measure(j, y).items():
+            out = point_metrics(pts.scenes[j], pts.models[j], t_eval, y, metrics, tol=spec.tol)
+            if Metric.ABSCISSA in metrics:
+                out['spectral_abscissa'] = _abscissa(pts.scenes[j], cache)
+            for k, v in out.items():
                 cols[k][j] = v
             status[j] = PointStatus.OK
     columns = {'point': points.astype(np.int64), 'block': np.full(n, b, dtype=np.int32),

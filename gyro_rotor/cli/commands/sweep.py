@@ -32,7 +32,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help='sample rate the metrics are taken from [Hz] (default 100)')
     p.add_argument('--metrics', default=None,
                    help=f"comma-separated subset of {','.join(m.value for m in Metric)} "
-                        '(default: all; general scenes: settling,peak,decay,energy)')
+                        '(default: all; every scene offers every metric)')
     p.add_argument('--tol', type=float, default=1e-3,
                    help='settling tolerance of the drive amplitude [rad] (default 1e-3)')
     p.add_argument('--out', required=True, help='output directory (Parquet blocks, maps)')

@@ -16,16 +16,19 @@ import math
 from typing import Any, ClassVar, Mapping
 
 from gyro_rotor.core.newton import damped_newton, SteadyMotions
-from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS
+from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS, system_rate
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
 from gyro_rotor.errors import did_you_mean, NoSteadyMotionError, ParameterError, SceneError
 import numpy as np
 import sympy
 
-__all__ = ['GeneratedSystem', 'lock', 'vector', 'key_sizes', 'SYSTEM_DOC', 'Continuation']
+__all__ = ['GeneratedSystem', 'lock', 'vector', 'key_sizes', 'SYSTEM_DOC', 'Continuation',
+           'SWEEP_DRIVE_KEYS']
 
 #: key of the embedded system document in :meth:`Scene.to_flat`
 SYSTEM_DOC = 'system_doc'
+#: the drive keys a sweep's grid may run over, for every rotor or as drive.ROTOR.KEY
+SWEEP_DRIVE_KEYS = ('K_S', 'K_D', 'Omega0')
 
 
 @dataclasses.dataclass(frozen=True)
@@ -180,6 +183,30 @@ class GeneratedSystem:
         """Return its steady motion in its terms: ``steady`` (q, qdot, z); no theta0, psidot0."""
         steady = tuple(tuple(v) for v in (self.steady_q, self.steady_qdot, self.steady_z))
         return {'theta0': math.nan, 'psidot0': math.nan, 'steady': steady if any(steady) else ()}
+
+    # -- a sweep's grid (gyro_rotor.analysis.sweep) ----------------------------------------
+    def check_sweep_key(self, axis) -> None:
+        """Refuse a grid axis (``key``) whose key it cannot sweep (ParameterError).
+
+        ``constants.NAME`` (a constant of the system), ``K_S``, ``K_D``, ``Omega0`` (every
+        rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's); an unknown constant or rotor
+        is refused by the scene's loader when a value is tried.
+        """
+        parts = axis.key.split('.')
+        if not (axis.key in SWEEP_DRIVE_KEYS or (parts[0] == 'constants' and len(parts) == 2)
+                or (parts[0] == 'drive' and len(parts) == 3
+                    and parts[2] in SWEEP_DRIVE_KEYS)):
+            raise ParameterError(f"--grid: key '{axis.key}' cannot be swept in a general "
+                                 'scene; sweepable: constants.NAME, K_S, K_D, Omega0, '
+                                 'drive.ROTOR.{K_S,K_D,Omega0}')
+
+    def sweep_rate(self, axes, scenes) -> float:
+        """Return its fastest rate [1/s] over a sweep's grid (the step's scale).
+
+        The largest of :func:`~gyro_rotor.core.system.model.system_rate` over ``scenes``:
+        the scene and the scene at each value of each of the ``axes`` alone.
+        """
+        return max(system_rate(sc.system.reduced) for sc in scenes)
 
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick ``values`` checked, the other keys 0.
