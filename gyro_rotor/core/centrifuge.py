@@ -18,6 +18,7 @@ import math
 from typing import Any, ClassVar, Mapping
 import warnings
 
+from gyro_rotor.core.linearize import analytic_parts, linearize, LinearParts
 from gyro_rotor.core.model import make_model, Model, MODELS, PERTURBATION_KEYS
 from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
@@ -147,6 +148,18 @@ class Centrifuge:
         """Return its steady motion in its terms: ``theta0``, ``psidot0`` (eqs. 20-22)."""
         sm = self.steady()
         return {'theta0': sm.theta0, 'psidot0': sm.psidot0, 'steady': ()}
+
+    def linear_parts(self, scene, drive: str | None = None, model=None) -> LinearParts:
+        """Return its linear pieces: the analytic linearization (eqs. 18, 19, 23), one drive.
+
+        About its steady motion (I or II on its branch; a body-mode scene: solution I), in
+        the coordinates of its model (:func:`~gyro_rotor.core.linearize.linearize`).
+        ``drive``: refused (one drive); ``scene``, ``model``: not needed.
+        """
+        if drive is not None:
+            raise ParameterError('--drive is for the scenes of system files; the centrifuge '
+                                 'has one drive')
+        return analytic_parts(linearize(self.params, self.steady(), self.model))
 
     def steady_state(self, model: Model) -> np.ndarray:
         """State on its steady motion (I or II; the resting state for a body-mode scene)."""
