@@ -24,8 +24,8 @@ from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.core.yamlio import short
-from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, ParameterError,
-                               SceneError)
+from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, NotApplicableError,
+                               ParameterError, SceneError)
 import numpy as np
 
 __all__ = ['Centrifuge', 'InitialCondition', 'INITIAL_UNITS', 'CENTRIFUGE']
@@ -154,11 +154,11 @@ class Centrifuge:
 
         About its steady motion (I or II on its branch; a body-mode scene: solution I), in
         the coordinates of its model (:func:`~gyro_rotor.core.linearize.linearize`).
-        ``drive``: refused (one drive); ``scene``, ``model``: not needed.
+        ``drive``: refused, NotApplicableError (one drive); ``scene``, ``model``: not needed.
         """
         if drive is not None:
-            raise ParameterError('--drive is for the scenes of system files; the centrifuge '
-                                 'has one drive')
+            raise NotApplicableError('drive is for the scenes of system files; the centrifuge '
+                                     'has one drive')
         return analytic_parts(linearize(self.params, self.steady(), self.model))
 
     def steady_state(self, model: Model) -> np.ndarray:

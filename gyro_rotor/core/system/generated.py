@@ -19,7 +19,8 @@ from gyro_rotor.core.linearize import LinearParts
 from gyro_rotor.core.newton import damped_newton, SteadyMotions
 from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
-from gyro_rotor.errors import did_you_mean, NoSteadyMotionError, ParameterError, SceneError
+from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, NotApplicableError,
+                               ParameterError, SceneError)
 import numpy as np
 import sympy
 
@@ -160,14 +161,14 @@ class GeneratedSystem:
         """Return the accelerations at the steady guess and the steady motion Newton finds.
 
         Newton (:func:`~gyro_rotor.core.newton.damped_newton`) for (q, z) with qdot =
-        steady.qdot held. Raises ParameterError for a ``theta0`` (the tilt of the
+        steady.qdot held. Raises NotApplicableError for a ``theta0`` (the tilt of the
         centrifuge's solution II); ``scene``: its name, for that message.
         """
         if theta0 is not None:
-            raise ParameterError(
-                f'--theta0 applies to the centrifuge (its solution II, tilted by theta0); '
+            raise NotApplicableError(
+                f'theta0 applies to the centrifuge (its solution II, tilted by theta0); '
                 f'scene {scene} runs system {self.name}, whose steady motion Newton solves '
-                "from the scene's steady guess: set that with --set steady.q=[...]")
+                "from the scene's steady guess")
         model = self.make_model()
         n, m = model.n, model.m
         names = [f'{c}_ddot' for c in self.coordinates] + [f'zddot_{r}' for r in self.rotors]
