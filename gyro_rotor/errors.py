@@ -7,8 +7,8 @@ and exits non-zero.
 """
 
 __all__ = [
-    'GyroRotorError', 'ParameterError', 'SceneError', 'SystemFileError', 'NoSteadyMotionError',
-    'IntegrationError', 'BagError', 'AnalysisError',
+    'GyroRotorError', 'ParameterError', 'NotApplicableError', 'SceneError', 'SystemFileError',
+    'NoSteadyMotionError', 'IntegrationError', 'BagError', 'AnalysisError',
 ]
 
 
@@ -18,6 +18,14 @@ class GyroRotorError(Exception):
 
 class ParameterError(GyroRotorError, ValueError):
     """A physical or numerical parameter is invalid; the message names field and value."""
+
+
+class NotApplicableError(ParameterError):
+    """A value was given that the system does not have; the message begins with its name.
+
+    The centrifuge's tilt theta0 for a system file, a rotor to vary for the centrifuge's
+    one drive; the command line names its option there.
+    """
 
 
 class SceneError(GyroRotorError, ValueError):

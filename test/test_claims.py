@@ -10,11 +10,11 @@ checked against values computed here independently (the real-root count, bisecte
 import dataclasses
 import math
 
+from gyro_rotor.core.linearize import linearize
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.linear import claims as cl
-from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.locus import check_claims as named_claims
 from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scene
 from hypothesis import example, given, HealthCheck, settings, strategies as st

@@ -5,6 +5,7 @@ import random
 import re
 
 from gyro_rotor.cli.main import main
+from gyro_rotor.core.linearize import linearize
 from gyro_rotor.core.model import FullModel
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.scene import list_scenes, load_scene
@@ -14,7 +15,6 @@ from gyro_rotor.core.system.expression import parse_expression
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
 from gyro_rotor.errors import ParameterError, SystemFileError
-from gyro_rotor.linear.linearize import linearize
 from gyro_rotor.linear.stability import ModeKind
 from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scene, modes
 from gyro_rotor.numerics.ensemble import run_ensemble

@@ -10,11 +10,11 @@ import sys
 from types import SimpleNamespace
 
 import gyro_rotor.cli.main as cli
+from gyro_rotor.core.linearize import jacobian_fd, linearize, reduced_rhs, reduced_rhs_lagrange
 from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion
 from gyro_rotor.errors import NoSteadyMotionError, ParameterError
-from gyro_rotor.linear.linearize import jacobian_fd, linearize, reduced_rhs, reduced_rhs_lagrange
 from gyro_rotor.linear.locus import check_claims, regimes, root_locus
 from gyro_rotor.linear.stability import (ModeKind, sensitivities, spectrum, ZERO_ROOT,
                                          ZERO_ROOT_Z)
@@ -598,7 +598,7 @@ def test_cli_locus_png(tmp_path):
 
 
 def test_stability_modules_do_not_import_rclpy_or_matplotlib():
-    code = ('import sys, gyro_rotor.linear.stability, gyro_rotor.linear.linearize; '
+    code = ('import sys, gyro_rotor.linear.stability, gyro_rotor.core.linearize; '
             'import gyro_rotor.linear.sysid; '
             'print("rclpy" in sys.modules, "matplotlib" in sys.modules)')
     res = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,

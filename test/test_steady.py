@@ -6,7 +6,7 @@ from gyro_rotor.core.model import FullModel
 from gyro_rotor.core.params import RotorParams, StaticallyUnstableWarning
 from gyro_rotor.core.scene import load_scene
 from gyro_rotor.core.steady import steady_motion, steady_state
-from gyro_rotor.errors import NoSteadyMotionError, ParameterError
+from gyro_rotor.errors import NoSteadyMotionError, NotApplicableError, ParameterError
 from gyro_rotor.numerics.simulate import simulate
 import numpy as np
 import pytest
@@ -113,3 +113,12 @@ def test_eq22_is_not_defined_at_a_right_angle_tilt(capsys):
     assert main(['steady', 'precession', '--theta0', repr(math.pi / 2)]) == 0
     out = capsys.readouterr().out
     assert out.count('eq. (22) corrected: not defined here') == 2 and 'e+17' not in out
+
+
+def test_values_a_system_does_not_have_are_refused_without_naming_an_option():
+    """Core says which value does not apply; the command line names its option (issue #25)."""
+    twin, prec = load_scene('twin_gimbal'), load_scene('precession')
+    with pytest.raises(NotApplicableError, match=r'^theta0 applies to the centrifuge'):
+        twin.system.steady_motions(0.1, twin.name)
+    with pytest.raises(NotApplicableError, match=r'^drive is for the scenes of system files'):
+        prec.system.linear_parts(prec, 'R')

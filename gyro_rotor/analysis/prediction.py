@@ -9,8 +9,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from gyro_rotor.core.linearize import Coords
 from gyro_rotor.core.scene import Scene
-from gyro_rotor.linear.linearize import Coords
 from gyro_rotor.linear.stability import ModeKind
 import numpy as np
 

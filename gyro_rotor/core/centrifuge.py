@@ -18,13 +18,14 @@ import math
 from typing import Any, ClassVar, Mapping
 import warnings
 
+from gyro_rotor.core.linearize import analytic_parts, linearize, LinearParts
 from gyro_rotor.core.model import drive_rates, make_model, Model, MODELS, PERTURBATION_KEYS
 from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.core.yamlio import short
 from gyro_rotor.errors import (did_you_mean, GyroRotorError, NoSteadyMotionError,
-                               ParameterError, SceneError)
+                               NotApplicableError, ParameterError, SceneError)
 from gyro_rotor.node_settings import NODE_KEYS
 import numpy as np
 
@@ -200,6 +201,18 @@ class Centrifuge:
                 except GyroRotorError:
                     continue
         return fastest
+
+    def linear_parts(self, scene, drive: str | None = None, model=None) -> LinearParts:
+        """Return its linear pieces: the analytic linearization (eqs. 18, 19, 23), one drive.
+
+        About its steady motion (I or II on its branch; a body-mode scene: solution I), in
+        the coordinates of its model (:func:`~gyro_rotor.core.linearize.linearize`).
+        ``drive``: refused, NotApplicableError (one drive); ``scene``, ``model``: not needed.
+        """
+        if drive is not None:
+            raise NotApplicableError('drive is for the scenes of system files; the centrifuge '
+                                     'has one drive')
+        return analytic_parts(linearize(self.params, self.steady(), self.model))
 
     def steady_state(self, model: Model) -> np.ndarray:
         """State on its steady motion (I or II; the resting state for a body-mode scene)."""

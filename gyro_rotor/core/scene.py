@@ -56,8 +56,9 @@ A system file's scene::
 
 A steady motion is one where the accelerations vanish (z = steady.z, zdot = 0); the
 coordinates that move (steady.qdot != 0) must be cyclic up to that motion, so that the
-linearization does not change along it. :func:`check_steady` says by how much a guess
-misses; ``gyro-rotor steady SCENE`` solves for one from the guess.
+linearization does not change along it.
+:meth:`~gyro_rotor.core.system.generated.GeneratedSystem.check_steady` says by how much a
+guess misses; ``gyro-rotor steady SCENE`` solves for one from the guess.
 
 ROS 2 parameter files are typed: a float parameter written as ``98`` is an integer there
 and the node could not take it, so the loader refuses it with a hint to write ``98.0``.
@@ -88,7 +89,7 @@ import numpy as np
 __all__ = ['Scene', 'InitialCondition', 'load_scene', 'scene_from_mapping', 'scene_from_flat',
            'list_scenes', 'scene_path', 'perturb_state', 'PERTURBATION_KEYS',
            'SCENE_KEYS', 'SYSTEM_SCENE_KEYS', 'DEFAULT_SCENE', 'CENTRIFUGE', 'INITIAL_UNITS',
-           'lock', 'check_steady', 'steady_residual', 'SYSTEM_DOC', 'config_dirs', 'Centrifuge',
+           'lock', 'SYSTEM_DOC', 'config_dirs', 'Centrifuge',
            'GeneratedSystem']
 
 DEFAULT_SCENE = 'precession'
@@ -565,7 +566,7 @@ def _system_scene(flat: Mapping[str, Any], *, path: str | None = None,
         if any(k.startswith('steady.') for k in vals):
             _check_mass(scene, model, scene.steady_state(model), 'steady', where)
             if check:
-                check_steady(scene, model, where)
+                scene.system.check_steady(model, where, scene.path or scene.name)
     return scene
 
 
@@ -624,27 +625,3 @@ def _check_energy(scene: Scene, model: GeneralModel, where: str) -> None:
             raise SceneError(f'{where}: the equations of motion of system '
                              f'{scene.system.name} are not finite at the {what} state q = '
                              f'{y[:model.n].tolist()}')
-
-
-def steady_residual(scene: Scene, model: GeneralModel | None = None) -> np.ndarray:
-    """Accelerations (qddot, zddot) on the steady motion (zero if it is steady)."""
-    model = model or scene.make_model()
-    return model.accelerations(scene.steady_state(model))
-
-
-def check_steady(scene: Scene, model: GeneralModel | None = None,
-                 where: str | None = None) -> None:
-    """Raise SceneError if the accelerations on the steady motion do not vanish."""
-    model = model or scene.make_model()
-    acc = steady_residual(scene, model)
-    v = np.abs(np.concatenate([scene.system.steady_qdot, [1.0]])).max()
-    tol = 1e-9 * max(1.0, v * v, model.rate())
-    worst = int(np.argmax(np.abs(acc))) if acc.size else 0
-    if acc.size and abs(acc[worst]) > tol:
-        names = [f'{c}_ddot' for c in scene.system.coordinates] + [
-            f'zddot_{r}' for r in scene.system.rotors]
-        raise SceneError(
-            f'{where or "scene " + scene.name}: steady.q/steady.qdot is not a steady motion: '
-            f'the accelerations do not vanish there ({names[worst]} = {acc[worst]:.6g}, '
-            f'largest of {np.abs(acc).max():.3g} > {tol:.3g}); `gyro-rotor steady '
-            f'{scene.path or scene.name}` solves for one from this guess')

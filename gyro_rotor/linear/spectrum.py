@@ -1,6 +1,6 @@
 """Spectra of x' = A(K_D) x: eigen-decomposition at any K_D, mode names, continuity.
 
-A(K_D) = A0 - K_D b c^T (:mod:`gyro_rotor.linear.linearize`). :func:`spectrum` uses A itself
+A(K_D) = A0 - K_D b c^T (:mod:`gyro_rotor.core.linearize`). :func:`spectrum` uses A itself
 for small K_D and the pencil ``[[A0, -b], [c^T, -1/K_D]] - lambda diag(1,..,1,0)`` for large
 K_D (its entries stay of the size of A0, so nearly undamped roots keep their small real parts
 to ~1e-13 absolute even at K_D = 1e9; K_D = inf gives the asymptotes). Modes are named once,
@@ -15,8 +15,8 @@ import dataclasses
 import math
 from typing import Callable, Sequence
 
+from gyro_rotor.core.linearize import Coords, LinearSystem
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import Coords, LinearSystem
 import numpy as np
 
 __all__ = ['spectrum', 'K_ref', 'track', 'drive_sensitivity', 'zero_K_sensitivities',
@@ -107,7 +107,7 @@ def K_ref(lin) -> float:
     """Return the characteristic drive damping: the spectral radius of A0 over min eig(c'b).
 
     ``lin``: any linearization with A0, b, c (the centrifuge's analytic
-    :class:`~gyro_rotor.linear.linearize.LinearSystem`, b and c vectors, or a
+    :class:`~gyro_rotor.core.linearize.LinearSystem`, b and c vectors, or a
     :class:`~gyro_rotor.linear.system.Linearization`, one column a drive).
     """
     cb = np.atleast_2d(lin.c.T @ lin.b)

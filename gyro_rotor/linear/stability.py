@@ -1,6 +1,6 @@
 """Linear stability of the steady motions: named modes, drive penetration, verdict.
 
-Built on :mod:`gyro_rotor.linear.linearize` (``A(K_D) = A0 - K_D b c^T``) and the
+Built on :mod:`gyro_rotor.core.linearize` (``A(K_D) = A0 - K_D b c^T``) and the
 eigen-decompositions of :mod:`gyro_rotor.linear.spectrum`. The root locus over K_D and the
 paper's claims (a) to (d) live in :mod:`gyro_rotor.linear.locus`, the best K_D
 (``gyro-rotor tune``) in :mod:`gyro_rotor.linear.tune`.
@@ -28,8 +28,8 @@ import enum
 import math
 from typing import Sequence
 
+from gyro_rotor.core.linearize import LinearSystem
 from gyro_rotor.errors import ParameterError
-from gyro_rotor.linear.linearize import LinearSystem
 from gyro_rotor.linear.roundoff import floor, nearest, resolution
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
                                         K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,

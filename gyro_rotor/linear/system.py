@@ -4,19 +4,21 @@ About a steady motion (q0, qdot0, z0, zdot = 0) the state x = (q, z, qdot, zdot)
 
     x' = A(K) x,   A(K) = [[0, I], [Mbar^-1 G_x, Mbar^-1 G_v]] = A_0 - K b c',
 
-with Mbar, G_x = [dF/dq | dQ/dz], G_v = dF/dv + [0; dQ/dzdot] from the generated
-equations (:mod:`gyro_rotor.core.system.codegen`), exact (symbolic) derivatives. K is the
-common drive damping of the drives varied (all, or one); c' picks their zdot, b =
-[0; Mbar^-1 e_z]. The coordinates that move on the steady motion must enter the
-equations only through combinations that stay constant, so that A does not change along
-the motion; :func:`linearize_scene` checks this.
-
-The built-in centrifuge offers the same pieces from its analytic linearization
-(:mod:`gyro_rotor.linear.linearize`: Magnus 1980, eqs. 18, 19, 23 in the coordinates of
-solution II or I, and its reduced models), one drive: b, c its torque direction and zdot.
-:func:`linearize_scene` returns one :class:`Linearization` for any scene; the centrifuge's
-carries its :class:`~gyro_rotor.linear.linearize.LinearSystem` as ``analytic`` (its modes
-are named by modal energy and tracked from K_D = 0, :mod:`gyro_rotor.linear.stability`).
+K the common drive damping of the drives varied (all, or one); c' picks their zdot, b =
+[0; Mbar^-1 e_z]. Every system offers these pieces itself, as
+:class:`~gyro_rotor.core.linearize.LinearParts` (``linear_parts`` of the scene's system):
+a system file's are the exact (symbolic) derivatives of its generated equations
+(:mod:`gyro_rotor.core.system.codegen`), Mbar, G_x = [dF/dq | dQ/dz], G_v = dF/dv +
+[0; dQ/dzdot], about its checked steady motion
+(:meth:`~gyro_rotor.core.system.generated.GeneratedSystem.linear_parts`: the coordinates
+that move must enter the equations only through combinations that stay constant, so that
+A does not change along the motion); the built-in centrifuge's come from its analytic
+linearization (:mod:`gyro_rotor.core.linearize`: Magnus 1980, eqs. 18, 19, 23 in the
+coordinates of solution II or I, and its reduced models), one drive: b, c its torque
+direction and zdot. :func:`linearize_scene` builds one :class:`Linearization` of them for
+any scene; the centrifuge's carries its
+:class:`~gyro_rotor.core.linearize.LinearSystem` as ``analytic`` (its modes are named by
+modal energy and tracked from K_D = 0, :mod:`gyro_rotor.linear.stability`).
 
 The claims (Magnus 1980, eqs. 13-17 and the footnote; docs MODEL.md section 8):
 
@@ -40,22 +42,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Callable
 
-from gyro_rotor.core.scene import check_steady, Scene
+from gyro_rotor.core.linearize import analytic_parts, Coords, LinearParts, LinearSystem
+from gyro_rotor.core.scene import Scene
 from gyro_rotor.core.system.model import GeneralModel
-from gyro_rotor.errors import ParameterError, SceneError
-from gyro_rotor.linear.linearize import Coords, linearize, LinearSystem
 from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
 __all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
            'dominant', 'name_roots']
-
-#: the coordinate of each state of the centrifuge's analytic linearizations (the rates'
-#: coordinates: thetadot is theta's, W_1 alpha's, ...)
-_CENTRIFUGE_COORDINATE = {'thetadot': 'theta', 'psidot': 'psi', 'chidot': 'chi', 'zdot': 'z',
-                          'W_1': 'alpha', 'W_2': 'beta'}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,10 +62,9 @@ class Linearization:
     ``names`` the states, ``coordinate`` the coordinate each state belongs to (a rate
     belongs to its angle); ``fast_rates`` the eigenvalues of c' b (the roots that escape
     like -K c' b); ``A_locked`` the locked system (the varied drives' z held at 0).
-    ``analytic``: the built-in centrifuge's analytic linearization, else None; ``coords``
-    the coordinates it is written in; ``about`` the steady motion in words;
-    ``modes_at(lin, K)`` the named modes it offers
-    (:func:`modes`: the centrifuge's by modal energy, a system file's by coordinate).
+    ``analytic``: the built-in centrifuge's analytic linearization, else None (its modes
+    are named by modal energy, a system file's by coordinate: :func:`modes`); ``coords``
+    the coordinates it is written in; ``about`` the steady motion in words.
     """
 
     A0: np.ndarray
@@ -89,8 +83,6 @@ class Linearization:
     analytic: LinearSystem | None = None
     coords: Coords = Coords.GENERAL
     about: str = ''
-    modes_at: Callable = dataclasses.field(
-        default=lambda lin, K: _modes_by_coordinate(lin, K), repr=False, compare=False)
     #: the modes already classified, by K (:func:`modes`: once per K and command)
     classified: dict = dataclasses.field(default_factory=dict, init=False, repr=False,
                                          compare=False)
@@ -142,105 +134,34 @@ def _locked(A0: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     return (P @ A0)[np.ix_(keep, keep)]
 
 
-def _drive_parts(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:
-    """A0 (varied drives undamped), b, c of the varied drives, A_cons (all undamped)."""
-    n, m, N = model.n, model.m, model.N
-    Mbar, Fq, Fv = model.lin(y)
-    Gx = np.zeros((N, N))
-    Gx[:, :n] = Fq
-    Gv = Fv.copy()
-    z = y[2 * n:2 * n + m]
-    for k, d in enumerate(drives):
-        p = d.pole_pairs
-        Gx[n + k, n + k] = -d.K_S * (math.cos(p * z[k]) if p else 1.0)
-    Minv = np.linalg.inv(Mbar)
-    A_cons = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
-    for k, d in enumerate(drives):
-        if k not in which:
-            Gv[n + k, n + k] -= d.K_D
-    A0 = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
-    E = np.zeros((N, len(which)))
-    for j, k in enumerate(which):
-        E[n + k, j] = 1.0
-    b = np.vstack([np.zeros((N, len(which))), Minv @ E])
-    c = np.vstack([np.zeros((N, len(which))), E])
-    return A0, b, c, A_cons
-
-
 def linearize_scene(scene: Scene, *, drive: str | None = None,
                     model: GeneralModel | None = None) -> Linearization:
-    """Linearize any scene about its steady motion (a system file's: checked steady).
+    """Linearize any scene about its steady motion: the linear pieces its system offers.
 
-    The built-in centrifuge: its analytic linearization (:func:`_centrifuge`); a system
-    file: the exact derivatives of its generated equations. ``drive``: vary only that
-    rotor's K_D (default: all drives together).
+    ``linear_parts`` of the scene's system (the centrifuge's analytic linearization, a
+    system file's exact derivatives of its generated equations about its checked steady
+    motion); ``drive``: vary only that rotor's K_D (default: all drives together).
     """
-    if scene.builtin:
-        return _centrifuge(scene, drive)
-    model = model or scene.make_model()
-    check_steady(scene, model)
-    system = scene.system.reduced
-    if drive is None:
-        which = list(range(system.m))
-    elif drive in system.rotors:
-        which = [system.rotors.index(drive)]
-    else:
-        raise ParameterError(f"unknown rotor '{drive}'; rotors of {system.name}: "
-                             f"{', '.join(system.rotors)}")
-    y0 = scene.steady_state(model)
-    A0, b, c, A_cons = _drive_parts(model, y0, system.drives, which)
-    everyone = list(range(system.m))
-    _, b_all, c_all, _ = _drive_parts(model, y0, system.drives, everyone)
-    if np.any(np.asarray(scene.system.steady_qdot) != 0):
-        y1 = y0.copy()
-        y1[:model.n] += 0.37 * np.asarray(scene.system.steady_qdot)
-        A1 = _drive_parts(model, y1, system.drives, which)[0]
-        if not np.allclose(A0, A1, rtol=1e-8, atol=1e-10 * np.abs(A0).max()):
-            raise SceneError(f'scene {scene.name}: the linearization changes along the steady '
-                             'motion (the moving coordinates are not cyclic): no constant '
-                             'A matrix to analyse')
-    if not np.all(np.isfinite(A0)):
-        raise SceneError(f'scene {scene.name}: the linearization is not finite')
-    Ks = np.array([system.drives[k].K_D for k in which])
-    sm = scene.system
-    about = f'q = {list(sm.steady_q)}, qdot = {list(sm.steady_qdot)}, z = {list(sm.steady_z)}'
-    positions = tuple(system.coordinates) + tuple(f'z_{r}' for r in system.rotors)
-    names = positions + tuple(f'{q}_dot' for q in system.coordinates) + tuple(
-        f'zdot_{r}' for r in system.rotors)
-    return Linearization(A0=A0, b=b, c=c, K_D=float(Ks.max()), A_locked=_locked(A0, b, c),
-                         names=names, coordinate=positions * 2,
-                         fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=A_cons,
-                         b_all=b_all, c_all=c_all,
-                         K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which),
-                         about=about)
-
-
-def _centrifuge(scene: Scene, drive: str | None) -> Linearization:
-    """Return the built-in centrifuge's pieces: its analytic A0, b, c (one drive).
-
-    About the scene's steady motion (I or II on its branch; a body-mode scene: solution I).
-    """
-    if drive is not None:
-        raise ParameterError('--drive is for the scenes of system files; the centrifuge '
-                             'has one drive')
-    return from_analytic(linearize(scene.system.params, scene.system.steady(),
-                                   scene.system.model))
+    return _linearization(scene.system.linear_parts(scene, drive, model))
 
 
 def from_analytic(ls: LinearSystem) -> Linearization:
     """Return the centrifuge's analytic linearization ``ls`` as a :class:`Linearization`."""
-    b, c = ls.b[:, None], ls.c[:, None]
-    p, sm = ls.params, ls.motion
-    K = np.array([p.K_D], dtype=float)
-    return Linearization(A0=ls.A0, b=b, c=c, K_D=ls.params.K_D, A_locked=_locked(ls.A0, b, c),
-                         names=ls.state_names,
-                         coordinate=tuple(_CENTRIFUGE_COORDINATE.get(x, x)
-                                          for x in ls.state_names),
-                         fast_rates=np.linalg.eigvalsh(c.T @ b), A_cons=ls.A0,
-                         b_all=b, c_all=c, K_all=K, vary=(0,), analytic=ls, coords=ls.coords,
-                         about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
-                               f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
-                         modes_at=lambda lin, K: named_modes(ls, K, lin.drive_system()))
+    return _linearization(analytic_parts(ls))
+
+
+def _linearization(parts: LinearParts) -> Linearization:
+    """Return the :class:`Linearization` of a system's linear pieces (module doc).
+
+    K_D the largest of the varied drives', the locked system (:func:`_locked`) and the
+    fast rates (eigenvalues of c' b) from A0, b, c.
+    """
+    p = parts
+    return Linearization(A0=p.A0, b=p.b, c=p.c, K_D=float(p.K_all[list(p.vary)].max()),
+                         A_locked=_locked(p.A0, p.b, p.c), names=p.names,
+                         coordinate=p.coordinate, fast_rates=np.linalg.eigvalsh(p.c.T @ p.b),
+                         A_cons=p.A_cons, b_all=p.b_all, c_all=p.c_all, K_all=p.K_all,
+                         vary=p.vary, analytic=p.analytic, coords=p.coords, about=p.about)
 
 
 def dominant(lin: Linearization, v: np.ndarray) -> str:
@@ -284,7 +205,9 @@ def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
     """
     key = None if K is None else float(K)
     if key not in lin.classified:
-        lin.classified[key] = tuple(lin.modes_at(lin, K))
+        lin.classified[key] = tuple(
+            _modes_by_coordinate(lin, K) if lin.analytic is None else
+            named_modes(lin.analytic, K, lin.drive_system()))
     return list(lin.classified[key])
 
 

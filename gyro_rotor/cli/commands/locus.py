@@ -7,7 +7,7 @@ import csv
 
 from gyro_rotor.cli.util import (check_number, check_output_file, load_scene_with_sets,
                                  write_json, write_output)
-from gyro_rotor.errors import ParameterError
+from gyro_rotor.errors import NotApplicableError, ParameterError
 from gyro_rotor.linear.locus import check_claims, K_ref, regimes, root_locus
 from gyro_rotor.linear.roundoff import shown
 from gyro_rotor.linear.system import linearize_scene
@@ -75,7 +75,10 @@ def run(args: argparse.Namespace) -> int:
     if not 2 <= args.points <= MAX_POINTS:
         raise ParameterError(f'--points must be from 2 to {MAX_POINTS}, got {args.points}')
     scene = load_scene_with_sets(args.scene, args.set)
-    lin = linearize_scene(scene, drive=args.drive)
+    try:
+        lin = linearize_scene(scene, drive=args.drive)
+    except NotApplicableError as err:       # the option that gave it
+        raise ParameterError(f'--{err}') from None
     grid = _grid(args, lin)
     loc = root_locus(lin, grid)
     cr = check_claims(lin)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from gyro_rotor.cli.util import load_scene_with_sets
-from gyro_rotor.errors import ParameterError
+from gyro_rotor.errors import NotApplicableError, ParameterError
 
 HELP = ('print the steady motions (the centrifuge: solution I; II on both branches, exact and '
         'eq. 22; a system file: Newton from the guess)')
@@ -23,7 +23,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Print the steady motions the scene's system offers; an ERROR if one is not found."""
     scene = load_scene_with_sets(args.scene, args.set, check=False)
-    st = scene.system.steady_motions(args.theta0, scene.name)
+    try:
+        st = scene.system.steady_motions(args.theta0, scene.name)
+    except NotApplicableError as err:       # the option that gave it
+        raise ParameterError(f'--{err}: set that with --set steady.q=[...]') from None
     print(f'scene {scene.name}: system {scene.system_name}; {st.head}')
     for line in st.lines:
         print(f'  {line}')

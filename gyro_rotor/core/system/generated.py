@@ -15,10 +15,12 @@ import json
 import math
 from typing import Any, ClassVar, Mapping
 
+from gyro_rotor.core.linearize import LinearParts
 from gyro_rotor.core.newton import damped_newton, SteadyMotions
 from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS, system_rate
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
-from gyro_rotor.errors import did_you_mean, NoSteadyMotionError, ParameterError, SceneError
+from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, NotApplicableError,
+                               ParameterError, SceneError)
 import numpy as np
 import sympy
 
@@ -141,18 +143,35 @@ class GeneratedSystem:
         return model.state(self.steady_q, self.steady_qdot, self.steady_z,
                            np.zeros(self.reduced.m))
 
+    def check_steady(self, model: GeneralModel, where: str, scene: str) -> None:
+        """Raise SceneError if the accelerations on its steady motion do not vanish.
+
+        ``where``: the message's place; ``scene``: the scene's path or name (for the hint).
+        """
+        acc = model.accelerations(self.steady_state(model))
+        v = np.abs(np.concatenate([self.steady_qdot, [1.0]])).max()
+        tol = 1e-9 * max(1.0, v * v, model.rate())
+        worst = int(np.argmax(np.abs(acc))) if acc.size else 0
+        if acc.size and abs(acc[worst]) > tol:
+            names = [f'{c}_ddot' for c in self.coordinates] + [f'zddot_{r}' for r in self.rotors]
+            raise SceneError(
+                f'{where}: steady.q/steady.qdot is not a steady motion: '
+                f'the accelerations do not vanish there ({names[worst]} = {acc[worst]:.6g}, '
+                f'largest of {np.abs(acc).max():.3g} > {tol:.3g}); `gyro-rotor steady '
+                f'{scene}` solves for one from this guess')
+
     def steady_motions(self, theta0: float | None, scene: str = '') -> SteadyMotions:
         """Return the accelerations at the steady guess and the steady motion Newton finds.
 
         Newton (:func:`~gyro_rotor.core.newton.damped_newton`) for (q, z) with qdot =
-        steady.qdot held. Raises ParameterError for a ``theta0`` (the tilt of the
+        steady.qdot held. Raises NotApplicableError for a ``theta0`` (the tilt of the
         centrifuge's solution II); ``scene``: its name, for that message.
         """
         if theta0 is not None:
-            raise ParameterError(
-                f'--theta0 applies to the centrifuge (its solution II, tilted by theta0); '
+            raise NotApplicableError(
+                f'theta0 applies to the centrifuge (its solution II, tilted by theta0); '
                 f'scene {scene} runs system {self.name}, whose steady motion Newton solves '
-                "from the scene's steady guess: set that with --set steady.q=[...]")
+                "from the scene's steady guess")
         model = self.make_model()
         n, m = model.n, model.m
         names = [f'{c}_ddot' for c in self.coordinates] + [f'zddot_{r}' for r in self.rotors]
@@ -207,6 +226,48 @@ class GeneratedSystem:
         the scene and the scene at each value of each of the ``axes`` alone.
         """
         return max(system_rate(sc.system.reduced) for sc in scenes)
+
+    def linear_parts(self, scene, drive: str | None = None,
+                     model: GeneralModel | None = None) -> LinearParts:
+        """Return its linear pieces about its checked steady motion: exact derivatives.
+
+        About (q_s, qdot_s, z_s, zdot = 0) the state x = (q, z, qdot, zdot) obeys x' =
+        (A_0 - K b c') x, A_0 = [[0, I], [Mbar^-1 G_x, Mbar^-1 G_v]] from the generated
+        equations (:func:`_drive_parts`); K the common drive damping of the drives varied
+        (``drive``: that rotor's alone, default all). The coordinates that move must enter
+        only through combinations that stay constant: A_0 must not change along the motion.
+        """
+        model = model or self.make_model()
+        self.check_steady(model, f'scene {scene.name}', scene.path or scene.name)
+        system = self.reduced
+        if drive is None:
+            which = list(range(system.m))
+        elif drive in system.rotors:
+            which = [system.rotors.index(drive)]
+        else:
+            raise ParameterError(f"unknown rotor '{drive}'; rotors of {system.name}: "
+                                 f"{', '.join(system.rotors)}")
+        y0 = self.steady_state(model)
+        A0, b, c, A_cons = _drive_parts(model, y0, system.drives, which)
+        _, b_all, c_all, _ = _drive_parts(model, y0, system.drives, list(range(system.m)))
+        if np.any(np.asarray(self.steady_qdot) != 0):
+            y1 = y0.copy()
+            y1[:model.n] += 0.37 * np.asarray(self.steady_qdot)
+            A1 = _drive_parts(model, y1, system.drives, which)[0]
+            if not np.allclose(A0, A1, rtol=1e-8, atol=1e-10 * np.abs(A0).max()):
+                raise SceneError(f'scene {scene.name}: the linearization changes along the '
+                                 'steady motion (the moving coordinates are not cyclic): no '
+                                 'constant A matrix to analyse')
+        if not np.all(np.isfinite(A0)):
+            raise SceneError(f'scene {scene.name}: the linearization is not finite')
+        positions = tuple(system.coordinates) + tuple(f'z_{r}' for r in system.rotors)
+        names = positions + tuple(f'{q}_dot' for q in system.coordinates) + tuple(
+            f'zdot_{r}' for r in system.rotors)
+        return LinearParts(A0=A0, b=b, c=c, A_cons=A_cons, b_all=b_all, c_all=c_all,
+                           K_all=np.array([d.K_D for d in system.drives]), vary=tuple(which),
+                           names=names, coordinate=positions * 2,
+                           about=f'q = {list(self.steady_q)}, qdot = {list(self.steady_qdot)}, '
+                                 f'z = {list(self.steady_z)}')
 
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick ``values`` checked, the other keys 0.
@@ -313,6 +374,35 @@ class GeneratedSystem:
         return cls(reduced=lock(system, locked, sq), full=system, q0=pick(q0), qdot0=pick(qd0),
                    z0=z0, zdot0=zd0, steady_q=pick(sq), steady_qdot=pick(sqd), steady_z=sz,
                    locked=tuple(locked))
+
+
+def _drive_parts(model: GeneralModel, y: np.ndarray, drives, which) -> tuple:
+    """A0 (varied drives undamped), b, c of the varied drives ``which``, A_cons (all undamped).
+
+    Mbar, F_q, F_v at the state ``y`` (:meth:`GeneralModel.lin`); G_x = [F_q | dQ/dz] with
+    the drives' stiffness K_S cos(p z) (K_S for the linear law p = 0), G_v = F_v.
+    """
+    n, m, N = model.n, model.m, model.N
+    Mbar, Fq, Fv = model.lin(y)
+    Gx = np.zeros((N, N))
+    Gx[:, :n] = Fq
+    Gv = Fv.copy()
+    z = y[2 * n:2 * n + m]
+    for k, d in enumerate(drives):
+        p = d.pole_pairs
+        Gx[n + k, n + k] = -d.K_S * (math.cos(p * z[k]) if p else 1.0)
+    Minv = np.linalg.inv(Mbar)
+    A_cons = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
+    for k, d in enumerate(drives):
+        if k not in which:
+            Gv[n + k, n + k] -= d.K_D
+    A0 = np.block([[np.zeros((N, N)), np.eye(N)], [Minv @ Gx, Minv @ Gv]])
+    E = np.zeros((N, len(which)))
+    for j, k in enumerate(which):
+        E[n + k, j] = 1.0
+    b = np.vstack([np.zeros((N, len(which))), Minv @ E])
+    c = np.vstack([np.zeros((N, len(which))), E])
+    return A0, b, c, A_cons
 
 
 def key_sizes(system: RotorSystem) -> dict[str, tuple[int, str]]:

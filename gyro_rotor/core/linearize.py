@@ -61,6 +61,12 @@ modes (Hagedorn's exclusion in the paper's footnote).
 
 Reduced models: ``upright_axis`` x = (chi, chidot, z, zdot) (the last block above) and
 ``locked_housing`` x = (z, zdot), C_R z'' = Q (eq. 8).
+
+Every system offers its linear pieces as :class:`LinearParts` (``linear_parts`` of the
+centrifuge, :func:`analytic_parts` of its analytic linearization, and of a system file's
+:class:`~gyro_rotor.core.system.generated.GeneratedSystem`, the exact derivatives of its
+generated equations); :func:`gyro_rotor.linear.system.linearize_scene` builds the one
+linearization of every scene from them.
 """
 
 from __future__ import annotations
@@ -75,7 +81,7 @@ from gyro_rotor.core.steady import SteadyMotion
 from gyro_rotor.errors import ParameterError
 import numpy as np
 
-__all__ = ['Coords', 'LinearSystem', 'linearize', 'jacobian_fd',
+__all__ = ['Coords', 'LinearSystem', 'LinearParts', 'linearize', 'analytic_parts', 'jacobian_fd',
            'reduced_rhs', 'reduced_rhs_lagrange', 'equilibrium', 'coordinates',
            'STATE_NAMES_II', 'STATE_NAMES_I', 'STATE_NAMES_UPRIGHT', 'STATE_NAMES_LOCKED']
 
@@ -83,6 +89,11 @@ STATE_NAMES_II = ('theta', 'thetadot', 'psidot', 'chi', 'chidot', 'z', 'zdot')
 STATE_NAMES_I = ('alpha', 'beta', 'W_1', 'W_2', 'chi', 'chidot', 'z', 'zdot')
 STATE_NAMES_UPRIGHT = ('chi', 'chidot', 'z', 'zdot')
 STATE_NAMES_LOCKED = ('z', 'zdot')
+
+#: the coordinate of each state of the analytic linearizations (the rates' coordinates:
+#: thetadot is theta's, W_1 alpha's, ...)
+_COORDINATE = {'thetadot': 'theta', 'psidot': 'psi', 'chidot': 'chi', 'zdot': 'z',
+               'W_1': 'alpha', 'W_2': 'beta'}
 
 #: relative step of the central finite differences (of order eps^(1/3))
 FD_STEP = 1e-6
@@ -132,7 +143,7 @@ class Coords(enum.StrEnum):
     II: about solution II (tilted axis, psi cyclic); I: about solution I (axis vertical,
     tilt components); UPRIGHT: the upright_axis model; LOCKED: the locked_housing model;
     GENERAL: a system file's own coordinates (deviations of q, z and their rates,
-    :func:`gyro_rotor.linear.system.linearize_scene`).
+    ``linear_parts`` of :class:`~gyro_rotor.core.system.generated.GeneratedSystem`).
     """
 
     II = 'II'
@@ -140,6 +151,32 @@ class Coords(enum.StrEnum):
     UPRIGHT = 'upright'
     LOCKED = 'locked'
     GENERAL = 'general'
+
+
+@dataclasses.dataclass(frozen=True)
+class LinearParts:
+    """A system's linear pieces about its steady motion: A(K) = A0 - K b c' (module doc).
+
+    ``A0``, ``b``, ``c``: the drives varied (``vary``, their indices) undamped, the others
+    at their K_D; ``A_cons``, ``b_all``, ``c_all``, ``K_all``: every drive (A_cons: all
+    undamped); ``names`` the states, ``coordinate`` the coordinate each state belongs to
+    (a rate belongs to its angle); ``about`` the steady motion in words; ``analytic`` the
+    centrifuge's analytic linearization (else None) and ``coords`` its coordinates.
+    """
+
+    A0: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    A_cons: np.ndarray
+    b_all: np.ndarray
+    c_all: np.ndarray
+    K_all: np.ndarray
+    vary: tuple
+    names: tuple
+    coordinate: tuple
+    about: str
+    analytic: LinearSystem | None = None
+    coords: Coords = Coords.GENERAL
 
 
 def coordinates(model: str, motion: SteadyMotion) -> Coords:
@@ -376,3 +413,18 @@ def linearize(params: RotorParams, steady_motion: SteadyMotion,
                         b=b, c=c, groups=GROUPS[coords],
                         weights=_weights(params, coords, steady_motion),
                         coords=coords, motion=steady_motion, model=model, params=params)
+
+
+def analytic_parts(ls: LinearSystem) -> LinearParts:
+    """Return the centrifuge's analytic linearization ``ls`` as its :class:`LinearParts`.
+
+    One drive: b its torque direction, c its zdot; A_cons = A0 (the drive is the one varied).
+    """
+    b, c = ls.b[:, None], ls.c[:, None]
+    p, sm = ls.params, ls.motion
+    return LinearParts(A0=ls.A0, b=b, c=c, A_cons=ls.A0, b_all=b, c_all=c,
+                       K_all=np.array([p.K_D], dtype=float), vary=(0,), names=ls.state_names,
+                       coordinate=tuple(_COORDINATE.get(x, x) for x in ls.state_names),
+                       about=f'{sm.name}: theta0 = {sm.theta0:g} rad, psidot0 = '
+                             f'{sm.psidot0:.9g} rad/s (model {ls.model}, K_S = {p.K_S:g})',
+                       analytic=ls, coords=ls.coords)
