@@ -754,6 +754,30 @@ def test_campbell_and_eig_judge_a_roots_sign_by_one_rule(tmp_path, capsys, monke
     assert grows and 'growing root (Re above its resolution) at 7 of the 7 speeds' in text
 
 
+def test_campbell_counts_unreached_nilpotent_zero_roots_exactly():
+    """The exact nilpotent invariant subspace in ker C (campbell's _zeros_exact, integers).
+
+    A chain e2 -> 3e6 e1 -> 3e-3 e0 -> 0 beside a root 0.1 (entries of very different
+    sizes and not exact in binary: the doubles are scaled to integers by one power of 2):
+    all three chain states unreached with C = 0 or with C seeing only the fourth state,
+    two if C sees e2, none if C sees e0; ``enough`` stops at the first step that has as many.
+    """
+    from gyro_rotor.linear.campbell import _zeros_exact
+    A0 = np.zeros((4, 4))
+    A0[0, 1], A0[1, 2], A0[3, 3] = 1e-9 * 3e6, 3e6, 0.1
+    for c, dim in ((None, 3), (3, 3), (2, 2), (0, 0)):
+        C = np.zeros((1, 4))
+        if c is not None:
+            C[0, c] = 0.7
+        assert _zeros_exact(A0, C) == dim, c
+    assert _zeros_exact(A0, np.zeros((1, 4)), enough=1) == 1
+    # the same chain seen in other coordinates (an exact binary change of basis)
+    T = np.eye(4) + np.triu(np.full((4, 4), 0.5), 1)
+    Ti = np.linalg.inv(T)
+    assert np.array_equal(T @ Ti, np.eye(4))
+    assert _zeros_exact(T @ A0 @ Ti, np.array([[0.0, 0.0, 0.0, 1.0]]) @ Ti) == 3
+
+
 # -- the project's integrators and the ensemble run general systems ----------------------------
 # method: (keyword arguments, largest state difference to dop853 at rtol 1e-13 after 0.5 s)
 GENERAL_RUNS = {'dop853': ({'rtol': 1e-10, 'atol': 1e-12}, 1e-8),

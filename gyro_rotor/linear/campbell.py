@@ -271,25 +271,47 @@ def _zeros_exact(A0: np.ndarray, C: np.ndarray, enough: int | None = None) -> in
     k growing until W_k stops growing (or has ``enough`` dimensions): an invariant
     subspace in ker C whose roots are all 0, so within the fixed subspace (its 40-digit
     staircase sees each such u at its working precision, far below its zero threshold).
+    The data are exact integers (each matrix times a power of 2, :func:`_integers`) and each
+    row of C A0^i and A0^k is divided by its gcd: a row's scale leaves the kernel as it is.
     """
-    from fractions import Fraction
     n = len(A0)
-    A = [[Fraction(float(x)) for x in row] for row in A0]
-    obs = [[Fraction(float(x)) for x in row] for row in C]
-    new, P, last = obs, A, -1
+    A = np.array(_integers(A0), dtype=object).reshape(n, n)
+    new = np.array(_integers(C), dtype=object).reshape(len(C), n)
+    obs, P, last = [list(r) for r in new], [list(r) for r in A], -1
     for _ in range(n):
         dim = _nullity(obs + P)
         if dim in (last, 0) or enough is not None and dim >= enough:
             return dim
         last = dim
-        new = [[sum(c[k] * A[k][j] for k in range(n)) for j in range(n)] for c in new]
-        obs = obs + new
-        P = [[sum(p[k] * A[k][j] for k in range(n)) for j in range(n)] for p in P]
+        new = _reduced(new.dot(A))
+        obs = obs + [list(r) for r in new]
+        P = [list(r) for r in _reduced(np.array(P, dtype=object).dot(A))]
     return last
 
 
+def _integers(M: np.ndarray) -> list:
+    """Return the rows of the double matrix M times the power of 2 that makes all integers."""
+    ratios = [[float(x).as_integer_ratio() for x in row] for row in M]
+    k = max((d.bit_length() for row in ratios for _, d in row), default=1)
+    return [[m << (k - d.bit_length()) for m, d in row] for row in ratios]
+
+
+def _reduced(M: np.ndarray) -> np.ndarray:
+    """Return the integer rows of M (object array), each divided by the gcd of its entries."""
+    out = M.copy()
+    for i, row in enumerate(M):
+        g = math.gcd(*row)
+        if g > 1:
+            out[i] = [x // g for x in row]
+    return out
+
+
 def _nullity(rows: list) -> int:
-    """Return the dimension of the kernel of the matrix of exact ``rows`` (Fractions)."""
+    """Return the dimension of the kernel of the matrix of integer ``rows``, exactly.
+
+    Fraction-free Gaussian elimination: each row below the pivot row p becomes
+    p[col] row - row[col] p (divided by its gcd), integers throughout.
+    """
     rows = [list(x) for x in rows]
     rank, n = 0, len(rows[0]) if rows else 0
     for col in range(n):
@@ -299,9 +321,11 @@ def _nullity(rows: list) -> int:
         rows[rank], rows[piv] = rows[piv], rows[rank]
         p = rows[rank]
         for i in range(rank + 1, len(rows)):
-            if rows[i][col]:
-                f = rows[i][col] / p[col]
-                rows[i] = [x - f * y for x, y in zip(rows[i], p)]
+            b = rows[i][col]
+            if b:
+                r = [p[col] * x - b * y for x, y in zip(rows[i], p)]
+                g = math.gcd(*r)
+                rows[i] = [x // g for x in r] if g > 1 else r
         rank += 1
     return n - rank
 
