@@ -225,7 +225,9 @@ def _settled(lin, lam: np.ndarray, res: np.ndarray) -> bool:
     """Return True if the double-precision resolutions decide as the one rule would here.
 
     The one rule is :func:`~gyro_rotor.linear.claims.damped`; here it is not called (its
-    40-digit fixed subspace costs more than the rest of the diagram at each speed).
+    40-digit fixed subspace and, where a drive damps, its 40-digit roots at K and at K = 0
+    cost more than the rest of the diagram at each speed: on stiff_drive the roots about
+    twice the subspace, on conservative (K_D = 0) the subspace alone).
     A reached root's resolution there is at most its resolution in A (its condition number
     on the complement of the fixed subspace is at most that in A), so a root with |Re| above
     :data:`SETTLED` resolutions is damped or grows by its sign under either rule. Each other
