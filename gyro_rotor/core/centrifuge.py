@@ -166,22 +166,21 @@ class Centrifuge:
 
     # -- a sweep's grid (gyro_rotor.analysis.sweep) ----------------------------------------
     def check_sweep_key(self, axis) -> None:
-        """Refuse a grid axis (``key``, ``values``, ``is_int``, ``spec``) it cannot sweep.
+        """Refuse a grid axis (``key``, ``values``, ``is_int``) it cannot sweep.
 
         Its parameters and numeric initial conditions (:data:`SWEEP_KEYS`), integers for
-        an integer key. Raises ParameterError naming the problem.
+        an integer key. Raises ParameterError naming the problem (the caller names the axis).
         """
         if axis.key not in SCENE_KEYS:
-            raise ParameterError(f"--grid: unknown key '{axis.key}'"
+            raise ParameterError(f"unknown key '{axis.key}'"
                                  f'{did_you_mean(axis.key, SWEEP_KEYS)}')
         if axis.key not in SWEEP_KEYS:
-            hint = ' (use --t-end for the duration)' if axis.key == 't_end' else ''
-            raise ParameterError(f"--grid: key '{axis.key}' cannot be swept{hint}; sweepable: "
-                                 f"the parameters and initial.{{{', '.join(INITIAL_UNITS)}}}")
+            raise ParameterError(f"key '{axis.key}' cannot be swept; sweepable: the "
+                                 f"parameters and initial.{{{', '.join(INITIAL_UNITS)}}}")
         vals = axis.values
         if axis.is_int and not np.all(vals == np.round(vals)):
-            raise ParameterError(f'--grid {axis.spec}: {axis.key} takes integers; the grid '
-                                 f'gives {vals[vals != np.round(vals)][0]:g}')
+            raise ParameterError(f'{axis.key} takes integers; the grid gives '
+                                 f'{vals[vals != np.round(vals)][0]:g}')
 
     def sweep_rate(self, axes, scenes) -> float:
         """Return its fastest model rate [1/s] over a sweep's grid (the step's scale).

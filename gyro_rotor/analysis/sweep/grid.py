@@ -193,7 +193,11 @@ class SweepGrid:
         the scene's own checks). Return those scenes, one per distinct value of each axis.
         """
         for a in self.axes:
-            scene.system.check_sweep_key(a)
+            try:
+                scene.system.check_sweep_key(a)
+            except ParameterError as err:
+                hint = ' (use --t-end for the duration)' if a.key == 't_end' else ''
+                raise ParameterError(f'--grid {a.spec}: {err}{hint}') from None
         scenes = []
         for a in self.axes:
             for v in np.unique(a.values):

@@ -205,7 +205,7 @@ class GeneratedSystem:
 
     # -- a sweep's grid (gyro_rotor.analysis.sweep) ----------------------------------------
     def check_sweep_key(self, axis) -> None:
-        """Refuse a grid axis (``key``) whose key it cannot sweep (ParameterError).
+        """Refuse a grid axis (``key``) whose key it cannot sweep (ParameterError, unprefixed).
 
         ``constants.NAME`` (a constant of the system), ``K_S``, ``K_D``, ``Omega0`` (every
         rotor's drive) and ``drive.ROTOR.KEY`` (one rotor's); an unknown constant or rotor
@@ -215,8 +215,8 @@ class GeneratedSystem:
         if not (axis.key in SWEEP_DRIVE_KEYS or (parts[0] == 'constants' and len(parts) == 2)
                 or (parts[0] == 'drive' and len(parts) == 3
                     and parts[2] in SWEEP_DRIVE_KEYS)):
-            raise ParameterError(f"--grid: key '{axis.key}' cannot be swept in a general "
-                                 'scene; sweepable: constants.NAME, K_S, K_D, Omega0, '
+            raise ParameterError(f"key '{axis.key}' cannot be swept in a general scene; "
+                                 'sweepable: constants.NAME, K_S, K_D, Omega0, '
                                  'drive.ROTOR.{K_S,K_D,Omega0}')
 
     def sweep_rate(self, axes, scenes) -> float:
