@@ -1066,21 +1066,27 @@ def _claim_c(A0v, Bv, Cv, K1: float, scale: float, fixed: np.ndarray) -> Claim:
 
 
 def _claim_d(loc: Locus, m: int) -> Claim:
-    # the net of the verified meetings only: an unverified one's kind is a guess, and it
-    # fails the claim on its own (named in the detail)
+    # the net of the verified meetings. An unverified one (:func:`_verify`: its pair real,
+    # or complex, on both sides down to the round-off window) adds 0 whatever it is: no
+    # meeting (two real roots of nearly identical parts passing each other), or a break-in
+    # and a breakaway within round-off. Its guessed kind is not counted, and the real roots
+    # counted at both ends (an independent count) must still agree with the net: a
+    # meeting whose sides were misread fails the claim there.
     net = sum((1 if mt.kind is MeetingKind.BREAK_IN else -1) * mt.multiplicity
               for mt in loc.meetings if mt.verified)
     unknown = sum(mt.multiplicity for mt in loc.meetings if not mt.verified)
     counted = (loc.real_counts[-1] - loc.real_counts[0]) // 2
-    verified = unknown == 0
     negative = all(mt.lam < 0 for mt in loc.meetings)
-    holds = bool(net == m and counted == net and verified and negative)
+    holds = bool(net == m and counted == net and negative)
     text = '; '.join(('' if mt.multiplicity == 1 else f'{mt.multiplicity} pairs: ')
-                     + f'{mt.kind} at K_D* = {mt.K_D:.10g}, lambda* = {mt.lam:.8g} 1/s'
-                     + ('' if mt.verified else ' (NOT verified)') for mt in loc.meetings)
+                     + (f'{mt.kind} at' if mt.verified else 'unresolved event at')
+                     + f' K_D* = {mt.K_D:.10g}, lambda* = {mt.lam:.8g} 1/s'
+                     + ('' if mt.verified else ' (NOT verified: net 0)')
+                     for mt in loc.meetings)
     detail = ((text or 'no pair meets on the real axis')
               + f'; net {net} (break-ins minus breakaways'
-              + (f'; {unknown} pair(s) at meetings NOT verified, not counted' if unknown else '')
+              + (f'; {unknown} pair(s) at events NOT verified, the same on both sides down '
+                 'to round-off: net 0 either way' if unknown else '')
               + f'), real roots {loc.real_counts[0]} at '
               f'K_D = {loc.K[0]:.3g} and {loc.real_counts[-1]} at {loc.K[-1]:.3g} '
               f'(net {counted}); drives: {m}')

@@ -49,8 +49,10 @@ def _print_claims(cr) -> None:
             print(f'      expected exception: {c.exception}')
     for mt in cr.meetings:
         pairs = '' if mt.multiplicity == 1 else f' of {mt.multiplicity} pairs at once'
-        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {mt.kind}{pairs}, double root at '
-              f'{mt.lam:.8g} 1/s' + ('' if mt.verified else ' (NOT verified)'))
+        what = mt.kind if mt.verified else 'unresolved event'
+        print(f'  K_D* = {mt.K_D:.10g} N m s/rad: {what}{pairs}, double root at '
+              f'{mt.lam:.8g} 1/s' + ('' if mt.verified else ' (NOT verified: the same on '
+                                     'both sides down to round-off, net 0)'))
 
 
 def _grid(args, lin) -> np.ndarray:
