@@ -27,16 +27,22 @@ __all__ = ['floor', 'nearest', 'resolution', 'resolutions', 'shown', 'fmt_re', '
            'TOL_RE_REL']
 
 
-def resolution(A: np.ndarray, scale: float | None = None) -> tuple:
+def resolution(A: np.ndarray, scale: float | None = None, balanced: bool = False) -> tuple:
     """Return (eigenvalues, resolution of each): 100 eps ||A|| times its condition number.
 
     The condition number 1/|y^H x| (unit left and right eigenvectors) bounds how far round-off
     in A moves the eigenvalue: a real part within it is not distinguishable from 0.
     ``scale`` replaces ||A|| where the roots are computed from a better-scaled form (the
-    pencil of A0 and the drive, whose round-off is that of A0 at any K_D).
+    pencil of A0 and the drive, whose round-off is that of A0 at any K_D). ``balanced``:
+    the bound of the roots LAPACK's eig computes, of the balanced matrix D^-1 A D (its
+    norm and condition numbers): a stiff drive (K_S = 1e12) makes ||A|| 1.8e14 while
+    ||D^-1 A D|| is 1.9e7, and the twist's 25.8 rad/s is resolved to 1.7e-5, not 62.
     """
     if len(A) == 0:
         return np.zeros(0, complex), np.zeros(0)
+    if balanced:
+        A = sla.matrix_balance(A, permute=False)[0]
+        scale = None
     lam, yl, xr = sla.eig(A, left=True, right=True)
     yl = yl / np.linalg.norm(yl, axis=0)
     xr = xr / np.linalg.norm(xr, axis=0)

@@ -245,12 +245,20 @@ def zero_K_sensitivities(A0: np.ndarray, BC: np.ndarray) -> tuple:
             np.hstack([unit(Q @ V), N.astype(complex)]), Q, r)
 
 
+def by_pencil(lin: LinearSystem, K_D: float) -> bool:
+    """Return True if :func:`spectrum` computes the roots at ``K_D`` from the pencil.
+
+    K_D ||b|| ||c|| beyond ||A0||: the roots of the pencil of A0 and the drive (QZ, no
+    scaling: their round-off is that of A0), else of A(K_D) itself (LAPACK's eig, balanced).
+    """
+    c_norm = max(np.linalg.norm(lin.c), 1e-300)
+    return bool(K_D * np.linalg.norm(lin.b) > np.linalg.norm(lin.A0) / c_norm)
+
+
 def _spectrum(lin: LinearSystem, K_D: float, left: bool):
     import scipy.linalg as sl
     n = len(lin.c)
-    c_norm = max(np.linalg.norm(lin.c), 1e-300)
-    big = K_D * np.linalg.norm(lin.b) > np.linalg.norm(lin.A0) / c_norm
-    if not big:
+    if not by_pencil(lin, K_D):
         if left:
             lam, W, V = sl.eig(lin.with_K_D(K_D), left=True, right=True)
         else:

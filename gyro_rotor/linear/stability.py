@@ -32,8 +32,9 @@ from gyro_rotor.core.linearize import LinearSystem
 from gyro_rotor.errors import ParameterError
 from gyro_rotor.linear.roundoff import floor, nearest, resolution
 from gyro_rotor.linear.spectrum import (_cyclic_z, _name_at_zero,  # noqa: F401
-                                        K_ref, spectrum, STRUCTURAL, TOL_RE_REL, track, unit,
-                                        zero_K_sensitivities, ZERO_ROOT, ZERO_ROOT_Z)
+                                        by_pencil, K_ref, spectrum, STRUCTURAL, TOL_RE_REL,
+                                        track, unit, zero_K_sensitivities, ZERO_ROOT,
+                                        ZERO_ROOT_Z)
 import numpy as np
 
 # the spectra (eigen-decomposition at any K_D, mode names, continuity): linear/spectrum.py
@@ -178,11 +179,11 @@ def zero_within_roundoff(lin: LinearSystem, lam: np.ndarray) -> np.ndarray:
     """Return which roots ``lam`` of A0 are 0 within their own round-off.
 
     A root is 0 when its modulus is within its resolution (condition number x the scale
-    of A0, :func:`~gyro_rotor.linear.roundoff.resolution`), not within a fraction of
-    ||A0||: a stiff drive (K_S = 1e11) makes ||A0|| 1.8e13 while the nutation is 61 rad/s
-    and its round-off a few rad/s.
+    of balanced A0, the matrix LAPACK's eig factors: :func:`~gyro_rotor.linear.roundoff.
+    resolution`), not within a fraction of ||A0||: a stiff drive (K_S = 1e12) makes ||A0||
+    1.8e14 while the twist is 25.8 rad/s and its round-off 1.7e-5 rad/s.
     """
-    lam_r, res_r = resolution(lin.A0, scale=max(np.linalg.norm(lin.A0), 1.0))
+    lam_r, res_r = resolution(lin.A0, balanced=True)
     return np.abs(lam) <= res_r[nearest(lam_r, lam)]
 
 
@@ -191,10 +192,14 @@ def _modes_from(lin, lam_K, names, lam0, d0, tol_re) -> list:
     by_name: dict = {}
     for j, nm in enumerate(names):
         by_name.setdefault(nm, []).append(j)
-    # a pair is complex beyond its own round-off (condition number x the scale of A0: the
-    # pencil keeps the roots to it at any K_D), not beyond a scale of the whole matrix: a
-    # stiff drive (K_S = 1e9) makes ||A0|| 1.8e11 while the nutation is 61 rad/s
-    lam_r, res_r = resolution(lin.A, scale=max(np.linalg.norm(lin.A0), 1.0))
+    # a pair is complex beyond its own round-off (condition number x the scale of the
+    # matrix the roots come from: balanced A, or A0 for the pencil), not beyond a scale of
+    # the whole matrix: a stiff drive (K_S = 1e12) makes ||A0|| 1.8e14 while the twist is
+    # 25.8 rad/s
+    if by_pencil(lin, lin.params.K_D):
+        lam_r, res_r = resolution(lin.A, scale=max(np.linalg.norm(lin.A0), 1.0))
+    else:
+        lam_r, res_r = resolution(lin.A, balanced=True)
 
     def complex_pair(z: complex) -> bool:
         return abs(z.imag) > res_r[nearest(lam_r, z)[0]]
