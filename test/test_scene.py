@@ -155,6 +155,42 @@ def test_both_kinds_of_system_offer_what_a_scene_asks_of_its_system():
         assert scene.with_changes({'t_end': 3.0}).t_end == 3.0
 
 
+def test_with_changes_takes_what_rotor_sim_may_override_at_start():
+    """Issue 25: rotor_sim builds every scene with with_changes, the centrifuge's as well.
+
+    The same scene as its file with those values; another initial.mode drops the keys of the
+    old one; a refusal names the scene, not its file.
+    """
+    base = load_scene('precession')
+    changed = base.with_changes({'K_D': 0.2, 'initial.theta0': 0.3, 'perturbation.dz': 0.1})
+    assert changed == load_scene('precession', {'K_D': 0.2, 'initial.theta0': 0.3,
+                                                'perturbation.dz': 0.1})
+    body = base.with_changes({'initial.mode': 'body'})
+    assert body.system.initial.mode == 'body' and body.system.initial.theta0 == 0.0
+    with pytest.raises(ParameterError, match='^scene precession: parameter K_D must not'):
+        base.with_changes({'K_D': -1.0})
+    twin = load_scene('twin_gimbal')
+    assert twin.with_changes({'drive.R1.K_D': 0.2}) == load_scene('twin_gimbal',
+                                                                  {'drive.R1.K_D': 0.2})
+
+
+def test_parameter_specs_are_scene_keys_of_their_system():
+    """Every parameter a system gives rotor_sim is a key of its scene, of the key's type."""
+    from gyro_rotor.core.scene import SCENE_KEYS, SYSTEM_SCENE_KEYS
+    for name in list_scenes():
+        scene = load_scene(name)
+        given = {}
+        for spec in scene.system.parameter_specs(scene, given):
+            given[spec.key] = spec.default
+            assert isinstance(spec.default, spec.typ), spec
+            assert spec.kick == spec.key.startswith('perturbation.'), spec
+            if scene.builtin:
+                assert SCENE_KEYS[spec.key] is spec.typ, spec
+            elif not spec.key.startswith(('constants.', 'drive.')):
+                assert SYSTEM_SCENE_KEYS[spec.key] is spec.typ, spec
+        assert [k for k in given if k == 'system'] == ['system']
+
+
 def test_a_system_file_given_as_a_scene_is_named_as_such():
     """Adversarial finding: it said 'no rotor_sim (or /**) section; found name, ...'."""
     from pathlib import Path

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterator, Mapping
 import warnings
 
 from gyro_rotor.core.linearize import analytic_parts, linearize, LinearParts
 from gyro_rotor.core.model import drive_rates, make_model, Model, MODELS, PERTURBATION_KEYS
 from gyro_rotor.core.newton import SteadyMotions
-from gyro_rotor.core.params import PARAM_FIELDS, RotorParams
+from gyro_rotor.core.param_spec import ParamSpec
+from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS, RotorParams
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.core.yamlio import short
 from gyro_rotor.errors import (did_you_mean, GyroRotorError, NoSteadyMotionError,
@@ -52,6 +53,19 @@ SCENE_KEYS: dict[str, type] = {
 }
 #: the keys a sweep's grid may run over: the parameters and numeric initial conditions
 SWEEP_KEYS = tuple(PARAM_FIELDS) + tuple(f'initial.{k}' for k in INITIAL_UNITS)
+
+
+#: documentation of the initial-condition parameters of rotor_sim
+_INITIAL_DOC = {
+    'mode': 'initial condition: steady (on a steady motion) or body (quaternion, rates)',
+    'theta0': 'tilt of the steady motion [rad]', 'branch': 'steady motion: 0 = solution I, '
+    '1 = precession, 2 = nutation branch', 'dtheta': 'offset of theta [rad]',
+    'dthetadot': 'offset of thetadot [rad/s]', 'dpsidot': 'offset of psidot [rad/s]',
+    'dchi': 'offset of the twist chi [rad]', 'dz': 'offset of z [rad]',
+    'dzdot': 'offset of zdot [rad/s]', 'quaternion': 'stator quaternion [w, x, y, z]',
+    'omega_body': 'stator body rates [rad/s]', 'z': 'rotor lag z [rad]',
+    'zdot': 'rate of z [rad/s]', 'chi': 'twist chi [rad]',
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -243,6 +257,41 @@ class Centrifuge:
             chi = ic.chi if ic.chi is not None else 2.0 * math.atan2(q[3], q[0])
             return np.array([chi, W[2], ic.z, ic.zdot, 0.0])
         return np.array([ic.z, ic.zdot, 0.0])
+
+    # -- rotor_sim's parameters (gyro_rotor.ros.sim_params) --------------------------------
+    def parameter_specs(self, scene, given: Mapping[str, Any]) -> Iterator[ParamSpec]:
+        """Yield the parameters of ``scene`` (``system`` to the kick), in declaration order.
+
+        ``system`` (fixed), ``description``, ``model``, ``t_end``, the RotorParams fields
+        (live), ``initial.*`` of the mode given at start (``given['initial.mode']``, read
+        after that key is yielded) and ``perturbation.*`` (:data:`PERTURBATION_KEYS`, the
+        kick, live). The node's keys are not the system's.
+        """
+        def spec(key, default, doc, read_only=False, kick=False, fixed=False):
+            return ParamSpec(key, default, doc, read_only, SCENE_KEYS[key], kick, fixed)
+        yield spec('system', CENTRIFUGE, 'the rotor system: the built-in centrifuge (that of '
+                   'the scene file)', True, fixed=True)
+        yield spec('description', scene.description, 'what the scene shows', True)
+        yield spec('model', self.model, 'full | locked_housing | upright_axis', True)
+        yield spec('t_end', scene.t_end, 'scene duration [s] (the node stops there if '
+                   'stop_at_t_end)')
+        for f in PARAM_FIELDS:
+            yield spec(f, getattr(self.params, f), f'{PARAM_DESCRIPTIONS[f]} [{PARAM_UNITS[f]}]; '
+                       'live')
+        ic = self.initial
+        yield spec('initial.mode', ic.mode, _INITIAL_DOC['mode'], True)
+        keys = (('theta0', 'branch', *PERTURBATION_KEYS) if given['initial.mode'] == 'steady'
+                else ('quaternion', 'omega_body', 'z', 'zdot'))
+        if given['initial.mode'] == 'body' and ic.chi is not None:
+            keys = (*keys, 'chi')
+        for k in keys:
+            v = getattr(ic, k)
+            yield spec(f'initial.{k}', [float(x) for x in v] if isinstance(v, tuple) else v,
+                       _INITIAL_DOC[k] + ('' if k == 'chi' else '; read at start and by '
+                                          '~/reset'), True)
+        for k in PERTURBATION_KEYS:
+            yield spec(f'perturbation.{k}', float(scene.perturbation.get(k, 0.0)),
+                       f'kick of ~/perturb [{INITIAL_UNITS[k]}]; live', kick=True)
 
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick ``values`` (keys :data:`PERTURBATION_KEYS`, numbers), the rest 0."""

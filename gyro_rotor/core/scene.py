@@ -196,8 +196,10 @@ class Scene:
     def with_changes(self, changes: Mapping[str, Any]) -> 'Scene':
         """Copy with flat keys changed (constants.NAME, drive.ROTOR.KEY, K_D, ..., t_end).
 
-        Validated as in a scene file (SceneError names the problem); a system file's steady
-        motion is checked again, since constants move it.
+        Validated as in a scene file (SceneError, or ParameterError for a parameter,
+        ``scene NAME: ...``); a system file's steady motion is checked again, since
+        constants move it. Another ``initial.mode`` drops the scene's ``initial.*`` keys
+        (those of the other mode).
         """
         flat = {**self.to_flat(), **self.node}
         flat.pop(SYSTEM_DOC, None)
@@ -205,6 +207,8 @@ class Scene:
             if key in DRIVE_KEYS:
                 flat = {k: v for k, v in flat.items()
                         if not (k.startswith('drive.') and k.endswith(f'.{key}'))}
+        if changes.get('initial.mode', flat.get('initial.mode')) != flat.get('initial.mode'):
+            flat = {k: v for k, v in flat.items() if not k.startswith('initial.')}
         flat.update(changes)
         return scene_from_mapping(flat, path=self.path, strict_float=False,
                                   system=self.system.base, where=f'scene {self.name}')
@@ -453,7 +457,7 @@ def scene_from_mapping(flat: Mapping[str, Any], path: str | None = None,
     """
     if system is None and _names_centrifuge(flat):
         return _centrifuge_scene(flat, path, path is not None if strict_float is None
-                                 else strict_float)
+                                 else strict_float, where)
     return _system_scene(flat, path=path, system=system, check=check, where=where)
 
 
@@ -474,9 +478,10 @@ def scene_from_flat(flat: Mapping[str, Any], *, check: bool = True) -> Scene:
                               where=f"scene '{flat.get('scene', '?')}'")
 
 
-def _centrifuge_scene(flat: Mapping[str, Any], path: str | None, strict: bool) -> Scene:
-    """Build a centrifuge scene from its flat keys (module doc)."""
-    where = f'scene file {path}' if path else 'scene'
+def _centrifuge_scene(flat: Mapping[str, Any], path: str | None, strict: bool,
+                      where: str | None = None) -> Scene:
+    """Build a centrifuge scene from its flat keys (module doc); ``where``: for messages."""
+    where = where or (f'scene file {path}' if path else 'scene')
     vals: dict[str, Any] = {}
     for key, value in flat.items():
         if key not in SCENE_KEYS:

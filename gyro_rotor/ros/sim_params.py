@@ -12,12 +12,9 @@ the right type).
 
 from __future__ import annotations
 
-import dataclasses
 import warnings
 
-from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS
-from gyro_rotor.core.scene import (CENTRIFUGE, DEFAULT_SCENE, INITIAL_UNITS, load_scene,
-                                   PERTURBATION_KEYS, scene_from_mapping, SCENE_KEYS)
+from gyro_rotor.core.scene import DEFAULT_SCENE, load_scene, SCENE_KEYS
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.node_settings import NODE_KEYS, NODE_RANGES
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -44,16 +41,6 @@ _TYPE_NAMES = {Parameter.Type.DOUBLE: 'a double',
                Parameter.Type.INTEGER: 'an integer', Parameter.Type.BOOL: 'true or false',
                Parameter.Type.STRING: 'a string',
                Parameter.Type.DOUBLE_ARRAY: 'a list of doubles such as [1.0, 0.0]'}
-_INITIAL_DOC = {
-    'mode': 'initial condition: steady (on a steady motion) or body (quaternion, rates)',
-    'theta0': 'tilt of the steady motion [rad]', 'branch': 'steady motion: 0 = solution I, '
-    '1 = precession, 2 = nutation branch', 'dtheta': 'offset of theta [rad]',
-    'dthetadot': 'offset of thetadot [rad/s]', 'dpsidot': 'offset of psidot [rad/s]',
-    'dchi': 'offset of the twist chi [rad]', 'dz': 'offset of z [rad]',
-    'dzdot': 'offset of zdot [rad/s]', 'quaternion': 'stator quaternion [w, x, y, z]',
-    'omega_body': 'stator body rates [rad/s]', 'z': 'rotor lag z [rad]',
-    'zdot': 'rate of z [rad/s]', 'chi': 'twist chi [rad]',
-}
 
 
 def _range(name: str) -> tuple | None:
@@ -125,59 +112,37 @@ def declare_node_parameter(node: Node, name: str, default, doc: str,
 def declare_parameters(node: Node) -> tuple:
     """Declare every parameter; return (scene, node keys, perturbation) as given at start.
 
-    The parameters of the built-in centrifuge are its RotorParams and initial condition;
-    a system file's scene has its own (:func:`_declare_system`).
+    The parameters are the scene's system's (``parameter_specs`` of
+    :class:`~gyro_rotor.core.param_spec.ParamSpec`), then the node's keys; the scene is the
+    scene file's with the values given at start that differ from it
+    (:meth:`~gyro_rotor.core.scene.Scene.with_changes`). The perturbation is the kick's
+    keys without the ``perturbation.`` prefix.
     """
     name = _declare(node, 'scene', DEFAULT_SCENE, 'scene name (config/<name>.yaml), a general '
                     "scene's name (config/systems/scenes) or a path to a scene file; loaded "
                     'at start, the other parameters override it', True)
     base = load_scene(name)
-    if not base.builtin:
-        return _declare_system(node, base)
-    flat: dict = {'scene': base.name}
-    flat['system'] = _declare(node, 'system', CENTRIFUGE, 'the rotor system: the built-in '
-                              'centrifuge (that of the scene file)', True)
-    if flat['system'] != CENTRIFUGE:
-        raise ParameterError(f"parameter system: '{flat['system']}' is not the system of "
-                             f"scene '{base.name}' ('{CENTRIFUGE}'); give a scene of that system")
-    flat['description'] = _declare(node, 'description', base.description,
-                                   'what the scene shows', True)
-    flat['model'] = _declare(node, 'model', base.system.model,
-                             'full | locked_housing | upright_axis',
-                             True)
-    flat['t_end'] = _declare(node, 't_end', base.t_end, 'scene duration [s] (the node stops '
-                             'there if stop_at_t_end)')
-    for f in PARAM_FIELDS:
-        flat[f] = _declare(node, f, getattr(base.system.params, f),
-                           f'{PARAM_DESCRIPTIONS[f]} [{PARAM_UNITS[f]}]; live')
-    ic = base.system.initial
-    mode = _declare(node, 'initial.mode', ic.mode, _INITIAL_DOC['mode'], True)
-    keys = (('theta0', 'branch', *PERTURBATION_KEYS) if mode == 'steady'
-            else ('quaternion', 'omega_body', 'z', 'zdot'))
-    flat['initial.mode'] = mode
-    if mode == 'body' and ic.chi is not None:
-        keys = (*keys, 'chi')
-    for k in keys:
-        v = getattr(ic, k)
-        v = [float(x) for x in v] if isinstance(v, tuple) else v
-        flat[f'initial.{k}'] = _declare(node, f'initial.{k}', v, _INITIAL_DOC[k] + (
-            '' if k == 'chi' else '; read at start and by ~/reset'), True)
-    for k in PERTURBATION_KEYS:
-        flat[f'perturbation.{k}'] = _declare(
-            node, f'perturbation.{k}', float(base.perturbation.get(k, 0.0)),
-            f'kick of ~/perturb [{INITIAL_UNITS[k]}]; live')
-    flat.update(_node_keys(node, base.node))
-    try:           # the scene file loaded: what fails now comes from the parameters
+    given, overrides, kick = {}, {}, {}
+    for spec in base.system.parameter_specs(base, given):
+        value = _declare(node, spec.key, spec.default, spec.doc, spec.read_only, spec.typ)
+        given[spec.key] = list(value) if spec.typ is list else value  # (an array.array)
+        if spec.fixed and given[spec.key] != spec.default:
+            raise ParameterError(f"parameter {spec.key}: '{value}' is not the {spec.key} of "
+                                 f"scene '{base.name}' ('{spec.default}'); give a scene of "
+                                 f'that {spec.key}')
+        if spec.kick:
+            kick[spec.key.removeprefix('perturbation.')] = value
+        if given[spec.key] != spec.default:
+            overrides[spec.key] = given[spec.key]
+    cfg = _node_keys(node, base.node)
+    try:        # rebuilt only for values given at start that differ from the scene file's
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')
-            scene = scene_from_mapping(flat, strict_float=False)
+            scene = base.with_changes(overrides) if overrides else base
     except GyroRotorError as err:
         raise ParameterError(f"parameters of scene '{base.name}': "
-                             f"{str(err).removeprefix('scene: ')}") from None
-    scene = dataclasses.replace(scene, path=base.path)
-    cfg = {k: flat[k] for k in NODE_KEYS if k != 'use_sim_time'}
-    perturbation = {k: flat[f'perturbation.{k}'] for k in PERTURBATION_KEYS}
-    return scene, cfg, perturbation
+                             f"{str(err).removeprefix(f'scene {base.name}: ')}") from None
+    return scene, cfg, kick
 
 
 def _node_keys(node: Node, base_node: dict) -> dict:
@@ -185,66 +150,3 @@ def _node_keys(node: Node, base_node: dict) -> dict:
     return {k: _declare(node, k, base_node.get(k, default),
                         doc + ('' if k in READ_ONLY else '; live'), k in READ_ONLY)
             for k, (typ, default, doc) in NODE_KEYS.items() if k != 'use_sim_time'}
-
-
-def _declare_system(node: Node, base) -> tuple:
-    """Declare the parameters of a system file's scene; return (scene, keys, perturbation).
-
-    ``system`` (read only), ``t_end``, ``constants.NAME`` and ``drive.ROTOR.KEY`` (live),
-    ``initial.q``/``qdot``/``z``/``zdot`` and ``steady.*`` (read at start),
-    ``perturbation.q``/``qdot``/``z``/``zdot`` (the kick of ~/perturb, live) and the node
-    keys.
-    """
-    from gyro_rotor.core.system.system_file import DRIVE_KEYS
-    system, flat = base.system.full, dict(base.flat)
-    decl, overrides = {}, {}
-
-    def scene_key(key, default, doc, read_only=False, typ=float):
-        """Declare a key of the scene; a value other than the scene's is an override."""
-        value = _declare(node, key, default, doc, read_only, typ)
-        decl[key] = list(value) if typ is list else value    # (an array.array for lists)
-        if decl[key] != default:
-            overrides[key] = decl[key]
-
-    scene_key('description', base.description, 'what the scene shows', True, str)
-    system_name = _declare(node, 'system', flat['system'], 'the rotor system (a name or a '
-                           'system file; that of the scene file)', True, str)
-    if system_name != flat['system']:
-        raise ParameterError(f"parameter system: '{system_name}' is not the system of scene "
-                             f"'{base.name}' ('{flat['system']}'); give a scene of that system")
-    scene_key('t_end', base.t_end, 'scene duration [s]')
-    for c, v in system.constants.items():
-        scene_key(f'constants.{c}', float(v), f'constant {c} of system {system.name}; live')
-    for r, d in zip(system.rotors, system.drives):
-        for k in DRIVE_KEYS:
-            typ = int if k == 'pole_pairs' else float
-            scene_key(f'drive.{r}.{k}', typ(getattr(d, k)),
-                      f'drive of rotor {r}: {_DRIVE_DOC[k]}; live', typ=typ)
-    sizes = {'q': system.n, 'qdot': system.n, 'z': system.m, 'zdot': system.m}
-    for part in ('initial', 'steady'):
-        for k, size in sizes.items():
-            key = f'{part}.{k}'
-            default = [float(x) for x in flat.get(key, [0.0] * size)]
-            if (part, k) == ('steady', 'zdot') or not default:
-                continue        # no such key; an empty list has no ROS type: nothing to set
-            scene_key(key, default, f'{part} {k} ({size} numbers); read at start'
-                      + (' and by ~/reset' if part == 'initial' else ''), True, list)
-    kick = {}
-    for k, size in sizes.items():
-        if size:
-            kick[k] = _declare(node, f'perturbation.{k}',
-                               [float(x) for x in flat.get(f'perturbation.{k}', [0.0] * size)],
-                               f'kick of ~/perturb added to {k} ({size} numbers); live',
-                               typ=list)
-    cfg = _node_keys(node, base.node)
-    try:        # rebuilt only for values given at start that differ from the scene file's
-        scene = base.with_changes(overrides) if overrides else base
-    except GyroRotorError as err:
-        raise ParameterError(f"parameters of scene '{base.name}': {err}") from None
-    return scene, cfg, kick
-
-
-_DRIVE_DOC = {'K_S': 'synchronizing stiffness K_S [N m/rad] (eq. 8)',
-              'K_D': 'damping K_D [N m s/rad] (eq. 8)',
-              'Omega0': 'field speed Omega0 [rad/s] (eq. 7)',
-              'pole_pairs': 'pole pairs p (0: linear law, > 0: sine law)'}

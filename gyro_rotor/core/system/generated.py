@@ -13,10 +13,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterator, Mapping
 
 from gyro_rotor.core.linearize import LinearParts
 from gyro_rotor.core.newton import damped_newton, SteadyMotions
+from gyro_rotor.core.param_spec import ParamSpec
 from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS, system_rate
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
 from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, NotApplicableError,
@@ -31,6 +32,11 @@ __all__ = ['GeneratedSystem', 'lock', 'vector', 'key_sizes', 'SYSTEM_DOC', 'Cont
 SYSTEM_DOC = 'system_doc'
 #: the drive keys a sweep's grid may run over, for every rotor or as drive.ROTOR.KEY
 SWEEP_DRIVE_KEYS = ('K_S', 'K_D', 'Omega0')
+#: documentation of the drive parameters of rotor_sim (drive.ROTOR.KEY)
+_DRIVE_DOC = {'K_S': 'synchronizing stiffness K_S [N m/rad] (eq. 8)',
+              'K_D': 'damping K_D [N m s/rad] (eq. 8)',
+              'Omega0': 'field speed Omega0 [rad/s] (eq. 7)',
+              'pole_pairs': 'pole pairs p (0: linear law, > 0: sine law)'}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -268,6 +274,43 @@ class GeneratedSystem:
                            names=names, coordinate=positions * 2,
                            about=f'q = {list(self.steady_q)}, qdot = {list(self.steady_qdot)}, '
                                  f'z = {list(self.steady_z)}')
+
+    # -- rotor_sim's parameters (gyro_rotor.ros.sim_params) --------------------------------
+    def parameter_specs(self, scene, given: Mapping[str, Any]) -> Iterator[ParamSpec]:
+        """Yield the parameters of ``scene`` (``description`` to the kick), in declaration order.
+
+        ``description``, ``system`` (fixed), ``t_end``, ``constants.NAME`` and
+        ``drive.ROTOR.KEY`` (live), ``initial.q``/``qdot``/``z``/``zdot`` and ``steady.*``
+        (read at start; a key of no numbers has no ROS type and is left out) and
+        ``perturbation.q``/``qdot``/``z``/``zdot`` (the kick, live). ``given``: not needed.
+        The node's keys are not the system's.
+        """
+        system, flat = self.full, scene.flat
+        yield ParamSpec('description', scene.description, 'what the scene shows', True, str)
+        yield ParamSpec('system', flat['system'], 'the rotor system (a name or a system file; '
+                        'that of the scene file)', True, str, fixed=True)
+        yield ParamSpec('t_end', scene.t_end, 'scene duration [s]')
+        for c, v in system.constants.items():
+            yield ParamSpec(f'constants.{c}', float(v), f'constant {c} of system {system.name}; '
+                            'live')
+        for r, d in zip(system.rotors, system.drives):
+            for k in DRIVE_KEYS:
+                typ = int if k == 'pole_pairs' else float
+                yield ParamSpec(f'drive.{r}.{k}', typ(getattr(d, k)),
+                                f'drive of rotor {r}: {_DRIVE_DOC[k]}; live', typ=typ)
+        sizes = {'q': system.n, 'qdot': system.n, 'z': system.m, 'zdot': system.m}
+        for part in ('initial', 'steady'):
+            for k, size in sizes.items():
+                default = [float(x) for x in flat.get(f'{part}.{k}', [0.0] * size)]
+                if (part, k) != ('steady', 'zdot') and default:
+                    yield ParamSpec(f'{part}.{k}', default, f'{part} {k} ({size} numbers); '
+                                    'read at start' + (' and by ~/reset' if part == 'initial'
+                                                       else ''), True, list)
+        for k, size in sizes.items():
+            if size:
+                yield ParamSpec(f'perturbation.{k}', [float(x) for x in flat.get(
+                    f'perturbation.{k}', [0.0] * size)], f'kick of ~/perturb added to {k} '
+                    f'({size} numbers); live', typ=list, kick=True)
 
     def kick_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Return the kick ``values`` checked, the other keys 0.
