@@ -150,6 +150,9 @@ def _doubled(sys, tweak=0.0):
 
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 2), m=st.integers(1, 2))
+# a break-in and a breakaway 3e-8 K apart: the pair nearest the first at K* (1 + 1e-7) was
+# two copies of one real root (the other copy's), not the pair; net 3 against the count's 2
+@example(seed=213, n=2, m=1)
 def test_two_identical_uncoupled_parts_meet_the_axis_in_pairs(seed, n, m):
     """Adversarial finding: two equal rotors on equal carriers keep every root double.
 

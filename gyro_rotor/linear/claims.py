@@ -73,8 +73,8 @@ MEET_RTOL = 1e-6
 #: (:func:`_verify`)
 VERIFY_RTOL = 1e-7
 #: the real roots within this of |lambda*| (relative) are the meeting's cluster: a pair
-#: splits like sqrt(K - K*), 3e-4 of the scale at VERIFY_RTOL; twins bracket, multiplicity
-#: counts and duplicates are told apart within it
+#: splits like sqrt(K - K*), 3e-4 of the scale at VERIFY_RTOL; twins bracket and duplicates
+#: are told apart within it
 CLUSTER_RTOL = 1e-2
 
 
@@ -513,28 +513,42 @@ def _solve_meeting(A0, B, C, lo: float, hi: float, K_near: float) -> tuple | Non
     return _branch_K(A0, B, C, x, K_near)[0], x
 
 
-def _pair_near(lam: np.ndarray, x: float) -> np.ndarray:
-    return lam[np.argsort(np.abs(lam - x))[:2]]
+def _copies(lam: np.ndarray, x: float) -> int | None:
+    """Return how many copies of the root nearest x there are, if that root is complex.
+
+    A pair of a meeting is split by 2 |Im| on its complex side; a root within a hundredth
+    of that of the nearest root is that root again: identical uncoupled parts give every
+    root once per part, and their pairs meet together (:attr:`Meeting.multiplicity`).
+    None where the nearest root is real.
+    """
+    r0 = lam[np.argmin(np.abs(lam - x))]
+    if abs(r0.imag) <= 1e-9 * max(abs(x), 1e-300):
+        return None
+    return int(np.sum(np.abs(lam - r0) <= 1e-2 * abs(r0.imag)))
 
 
 def _verify(R: _Roots, K: float, x: float) -> tuple:
-    """Return (kind, verified, multiplicity, window w) of the meeting at (K, x).
+    """Return (kind, verified, multiplicity q, window w) of the meeting at (K, x).
 
-    From the pair nearest x at K (1 - w) and K (1 + w): real after and not before is a
-    break-in, before and not after a breakaway. w starts at VERIFY_RTOL and is halved while
-    the pair is real on both sides or on neither: another meeting near x within the window
-    (a real root passing a complex pair where it lands, near a triple root: a break-in and
-    a breakaway 3e-8 K apart) undoes this one there, and a smaller window leaves it out.
-    Not below the meeting's round-off as a change of K (:func:`_least_window`), where the
-    sides prove nothing: not verified.
+    q: the copies of the root nearest x where it is complex (:func:`_copies`; 1 in a system
+    of distinct parts). From the 2 q roots nearest x at K (1 - w) and K (1 + w): real after
+    and not before is a break-in, before and not after a breakaway (two copies of one real
+    root are not its pair: with 2 roots, a break-in beside a breakaway in two identical
+    parts read as real on both sides of the wrong window). w starts at VERIFY_RTOL and is
+    halved while they are real on both sides or on neither: another meeting near x within
+    the window (a real root passing a complex pair where it lands, near a triple root: a
+    break-in and a breakaway 3e-8 K apart) undoes this one there, and a smaller window
+    leaves it out. Not below the meeting's round-off as a change of K
+    (:func:`_least_window`), where the sides prove nothing: not verified.
     """
-    def real_pair(lam):
-        p = _pair_near(lam, x)
-        return bool(np.all(np.abs(p.imag) <= 1e-9 * max(abs(x), 1e-300)))
+    def real(lam, q):
+        near = lam[np.argsort(np.abs(lam - x))[:2 * q]]
+        return bool(np.all(np.abs(near.imag) <= 1e-9 * max(abs(x), 1e-300)))
     least, w = None, VERIFY_RTOL
     while True:
         lam_b, lam_a = (R(K * (1 + s * w), vectors=False)[0] for s in (-1, 1))
-        below, above = real_pair(lam_b), real_pair(lam_a)
+        q = max(_copies(lam_b, x) or 1, _copies(lam_a, x) or 1)
+        below, above = real(lam_b, q), real(lam_a, q)
         if below != above:
             break
         least = _least_window(R, K, x) if least is None else least   # only when halving
@@ -542,7 +556,7 @@ def _verify(R: _Roots, K: float, x: float) -> tuple:
             break
         w /= 2
     kind = MeetingKind.BREAKAWAY if below and not above else MeetingKind.BREAK_IN
-    return kind, below != above, _multiplicity(lam_b, lam_a, x), w
+    return kind, below != above, q, w
 
 
 def _least_window(R: _Roots, K: float, x: float) -> float:
@@ -584,18 +598,6 @@ def _meeting_near(R: _Roots, K: float, lam: np.ndarray, i: int, j: int) -> Meeti
     kind, ok, n_pairs, w = _verify(R, K_star, x)
     return Meeting(K_D=float(K_star), lam=float(x), kind=kind, verified=ok,
                    multiplicity=n_pairs, window=w)
-
-
-def _multiplicity(lam_b: np.ndarray, lam_a: np.ndarray, x: float) -> int:
-    """Return how many pairs meet at x: half the change of the real roots near x.
-
-    ``lam_b``, ``lam_a``: the roots just before and after (:func:`_verify`). Near: within
-    :data:`CLUSTER_RTOL` of |x|; real roots there before and after (another pair's) cancel.
-    """
-    def n_real(lam):
-        return int(np.sum(_is_real(lam) & (np.abs(lam - x) <=
-                                           CLUSTER_RTOL * max(abs(x), 1e-300))))
-    return max(1, abs(n_real(lam_a) - n_real(lam_b)) // 2)
 
 
 def _floor(R: _Roots, K: float, lam: np.ndarray) -> np.ndarray:
@@ -747,8 +749,8 @@ def _crossed_pairs(lam_a: np.ndarray, lam_b: np.ndarray) -> list:
 def _add(meetings: list, mt: Meeting | None) -> bool:
     """Append a meeting not found before; True if appended.
 
-    Found before: within the K and lambda that :func:`_multiplicity` counts together, K
-    within either meeting's window (:attr:`Meeting.window`).
+    Found before: lambda within CLUSTER_RTOL of the other's, K within either meeting's
+    window (:attr:`Meeting.window`).
     """
     if mt is None or any(abs(mt.K_D - o.K_D) <= max(mt.window, o.window) * o.K_D
                          and abs(mt.lam - o.lam) <= CLUSTER_RTOL * abs(o.lam)
