@@ -255,7 +255,8 @@ class GeneratedSystem:
                                  f"{', '.join(system.rotors)}")
         y0 = self.steady_state(model)
         A0, b, c, A_cons = _drive_parts(model, y0, system.drives, which)
-        _, b_all, c_all, _ = _drive_parts(model, y0, system.drives, list(range(system.m)))
+        b_all, c_all = (b, c) if drive is None else _drive_parts(
+            model, y0, system.drives, list(range(system.m)))[1:3]
         if np.any(np.asarray(self.steady_qdot) != 0):
             y1 = y0.copy()
             y1[:model.n] += 0.37 * np.asarray(self.steady_qdot)
