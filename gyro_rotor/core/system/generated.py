@@ -64,6 +64,8 @@ class GeneratedSystem:
 
     #: generated from a system file (the centrifuge is the hand-written built-in one)
     builtin: ClassVar[bool] = False
+    #: which equations the benchmark's compiled peers copy: its generated ones (numba lambdify)
+    peer_equations: ClassVar[str | None] = 'generated'
 
     # -- the system's own terms -------------------------------------------------------------
     @property
