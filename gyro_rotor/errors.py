@@ -7,8 +7,8 @@ and exits non-zero.
 """
 
 __all__ = [
-    'GyroRotorError', 'ParameterError', 'NotApplicableError', 'SceneError', 'SystemFileError',
-    'NoSteadyMotionError', 'IntegrationError', 'BagError', 'AnalysisError',
+    'GyroRotorError', 'ParameterError', 'NotApplicableError', 'SceneError', 'NotSteadyError',
+    'SystemFileError', 'NoSteadyMotionError', 'IntegrationError', 'BagError', 'AnalysisError',
 ]
 
 
@@ -30,6 +30,21 @@ class NotApplicableError(ParameterError):
 
 class SceneError(GyroRotorError, ValueError):
     """A scene file is malformed, has an unknown key or a value of the wrong type."""
+
+
+class NotSteadyError(SceneError):
+    """A system file's scene whose steady motion is not one: the accelerations do not vanish.
+
+    ``scene``: the scene's path or name; the command line names the command that solves
+    for a steady motion from the scene's guess.
+    """
+
+    def __init__(self, message: str, scene: str = ''):
+        super().__init__(message)
+        self.scene = scene
+
+    def __reduce__(self):
+        return type(self), (str(self), self.scene)
 
 
 class SystemFileError(GyroRotorError, ValueError):

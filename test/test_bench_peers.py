@@ -99,3 +99,22 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
                            3, clock=lambda: now[0])
     assert calls == ['A', 'B', 'A', 'B', 'A', 'B']
     assert [(r.name, r.wall_per_sim) for r in rows] == [('A', 2.0e-3), ('B', 2.0e-3)]
+
+
+@pytest.mark.parametrize('quick', [True, False])
+def test_the_bench_picks_peers_by_the_equations_the_system_says_they_copy(monkeypatch, quick):
+    """The peers are those of the system's ``peer_equations``, not of ``builtin`` (issue #25).
+
+    The centrifuge's full model: CyRK and numbalsoda; its other models: none; a system
+    file's: CyRK on its generated equations.
+    """
+    from gyro_rotor.numerics import bench
+    monkeypatch.setattr(bench_peers, 'available', lambda: ('cyrk', 'numbalsoda'))
+    monkeypatch.setattr(bench_peers, 'make_peer_rhs', lambda params, have: ('full', have))
+    monkeypatch.setattr(bench_peers, 'make_general_peer', lambda scene: ('generated', scene))
+    full = bench.QUICK_PEERS if quick else bench_peers.PEER_METHODS
+    general = bench.QUICK_PEERS['cyrk'] if quick else bench_peers.GENERAL_PEER_METHODS
+    prec, twin = load_scene('precession'), load_scene('twin_gimbal')
+    assert bench._peers(prec, quick) == (('full', list(full)), dict(full))
+    assert bench._peers(load_scene('locked_housing'), quick) == (None, {})
+    assert bench._peers(twin, quick) == (('generated', twin), {'cyrk': general})

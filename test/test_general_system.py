@@ -14,7 +14,7 @@ from gyro_rotor.core.system.codegen import compile_system
 from gyro_rotor.core.system.expression import parse_expression
 from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
-from gyro_rotor.errors import ParameterError, SystemFileError
+from gyro_rotor.errors import NotSteadyError, ParameterError, SystemFileError
 from gyro_rotor.linear.stability import ModeKind
 from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scene, modes
 from gyro_rotor.numerics.ensemble import run_ensemble
@@ -542,6 +542,15 @@ def test_non_steady_motion_names_its_size_and_the_steady_command(tmp_path, capsy
     # the steady motion is x = 0 (V = k x^2/2): to round-off, not necessarily printed 0.0
     q = re.search(r'steady motion \(Newton[^:]*: q = \[([^\]]*)\]', out).group(1)
     assert abs(float(q)) < 1e-12, out
+
+
+def test_core_says_what_is_not_steady_and_the_command_line_names_the_command(tmp_path):
+    """Core's NotSteadyError names no command; the CLI adds ``gyro-rotor steady`` (issue #25)."""
+    path = _write_scene(tmp_path, _doc(), {'steady': {'q': [0.3]}})
+    with pytest.raises(NotSteadyError, match=r'\(x_ddot = -0.6, largest of 0.6 > 1e-08\)$') \
+            as info:
+        load_scene(path)
+    assert 'gyro-rotor' not in str(info.value) and info.value.scene == path
 
 
 def test_steady_command_without_equilibrium_exits_1(tmp_path, capsys):

@@ -15,6 +15,7 @@ import importlib
 import os
 import sys
 
+from gyro_rotor.cli.util import error_hint
 from gyro_rotor.errors import GyroRotorError
 
 #: subcommand name -> module in gyro_rotor.cli.commands (listed in the order of --help)
@@ -98,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.flush()      # inside the try: a closed pipe is handled below
         return status
     except GyroRotorError as err:
-        print(f'ERROR: {err}', file=sys.stderr)
+        print(f'ERROR: {err}{error_hint(err)}', file=sys.stderr)
         return 1
     except BrokenPipeError:
         # the reader of stdout went away (`gyro-rotor ... | head`): not an error of ours.

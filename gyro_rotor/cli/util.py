@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 from typing import Any
 
-from gyro_rotor.errors import ParameterError, SceneError
+from gyro_rotor.errors import NotSteadyError, ParameterError, SceneError
 
 
 _NON_FINITE = {'nan': float('nan'), 'inf': float('inf'), '+inf': float('inf'),
@@ -29,6 +29,23 @@ def parse_sets(items: list[str]) -> dict[str, Any]:
             value = _NON_FINITE[value.strip().lower()]      # nan, inf written plainly
         out[name.strip()] = value
     return out
+
+
+def error_hint(err: BaseException) -> str:
+    """Return what the command line adds to the message of ``err`` ('' if nothing).
+
+    A system file's steady motion that is not one (:class:`~gyro_rotor.errors.NotSteadyError`,
+    ``err`` or the error it was raised from, whose message ends ``err``'s): the command
+    ``steady`` solves for one from the scene's guess.
+    """
+    found = None
+    while err is not None:
+        if isinstance(err, NotSteadyError):
+            found = err
+        err = err.__cause__
+    if found is None:
+        return ''
+    return f'; `gyro-rotor steady {found.scene}` solves for one from this guess'
 
 
 def load_scene_with_sets(scene: str, sets: list[str], *, check: bool = True):

@@ -108,6 +108,15 @@ class Centrifuge:
     base: ClassVar[None] = None
 
     @property
+    def peer_equations(self) -> str | None:
+        """Return which equations the benchmark's compiled peers copy (None: no copy).
+
+        ``'centrifuge_full'``: the full model's (:func:`~gyro_rotor.core.model.full_rhs`
+        without D), written again by hand for the peers; its other models have none.
+        """
+        return 'centrifuge_full' if self.model == 'full' else None
+
+    @property
     def pole_pairs(self) -> tuple:
         """Pole pairs of the rotor's drive (0: linear law), one per rotor."""
         return (int(self.params.pole_pairs),)

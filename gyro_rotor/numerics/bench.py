@@ -328,18 +328,33 @@ def _load() -> float:
         return math.nan
 
 
-def _peers(scene: Scene, quick: bool):
-    """Return (compiled peer or None, {package: methods}) of the scene's sweep."""
-    if scene.builtin:
-        if scene.system.model != 'full':
-            return None, {}
-        table = QUICK_PEERS if quick else bench_peers.PEER_METHODS
-        have = {p: table[p] for p in bench_peers.available() if p in table}
-        return (bench_peers.make_peer_rhs(scene.system.params, list(have)) if have else None), have
+def _centrifuge_full_peers(scene: Scene, quick: bool):
+    """Return the peers of the centrifuge's full model: CyRK and numbalsoda, as installed."""
+    table = QUICK_PEERS if quick else bench_peers.PEER_METHODS
+    have = {p: table[p] for p in bench_peers.available() if p in table}
+    return (bench_peers.make_peer_rhs(scene.system.params, list(have)) if have else None), have
+
+
+def _generated_peers(scene: Scene, quick: bool):
+    """Return the peer of a system file's generated equations: CyRK, if installed."""
     if 'cyrk' not in bench_peers.available():
         return None, {}
     methods = QUICK_PEERS['cyrk'] if quick else bench_peers.GENERAL_PEER_METHODS
     return bench_peers.make_general_peer(scene), {'cyrk': methods}
+
+
+#: the compiled peers of each system's ``peer_equations``
+PEERS = {'centrifuge_full': _centrifuge_full_peers, 'generated': _generated_peers}
+
+
+def _peers(scene: Scene, quick: bool):
+    """Return (compiled peer or None, {package: methods}) of the scene's sweep.
+
+    The peers of the equations its system says they copy (``peer_equations``, :data:`PEERS`);
+    none if they copy none.
+    """
+    make = PEERS.get(scene.system.peer_equations)
+    return make(scene, quick) if make else (None, {})
 
 
 def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool = True,

@@ -205,5 +205,5 @@ class SweepGrid:
                     scenes.append(scene.with_changes({a.key: a.scene_value(v)}))
                 except GyroRotorError as err:
                     raise ParameterError(f'--grid {a.spec}: the value {a.key} = {v:g} is '
-                                         f'refused: {err}') from None
+                                         f'refused: {err}') from err
         return scenes

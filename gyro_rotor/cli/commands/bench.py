@@ -40,7 +40,7 @@ import platform
 import sys
 import time
 
-from gyro_rotor.cli.util import check_number, make_unique_dir, RUNS_DIR
+from gyro_rotor.cli.util import check_number, error_hint, make_unique_dir, RUNS_DIR
 from gyro_rotor.errors import GyroRotorError, ParameterError
 import gyro_rotor.numerics.bench as bench
 
@@ -339,7 +339,7 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
     try:
         scenes = [bench.parse_scene_spec(spec)[0] for spec in specs]
     except (GyroRotorError, ValueError) as err:
-        return f'--scenes: {err}'
+        return f'--scenes: {err}{error_hint(err)}'
     if not specs:
         return '--scenes names no scene'
     if table != BenchTable.WORK_PRECISION:

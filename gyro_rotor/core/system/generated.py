@@ -21,7 +21,7 @@ from gyro_rotor.core.param_spec import ParamSpec
 from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS, system_rate
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
 from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, NotApplicableError,
-                               ParameterError, SceneError)
+                               NotSteadyError, ParameterError, SceneError)
 import numpy as np
 import sympy
 
@@ -64,6 +64,8 @@ class GeneratedSystem:
 
     #: generated from a system file (the centrifuge is the hand-written built-in one)
     builtin: ClassVar[bool] = False
+    #: which equations the benchmark's compiled peers copy: its generated ones (numba lambdify)
+    peer_equations: ClassVar[str | None] = 'generated'
 
     # -- the system's own terms -------------------------------------------------------------
     @property
@@ -150,9 +152,10 @@ class GeneratedSystem:
                            np.zeros(self.reduced.m))
 
     def check_steady(self, model: GeneralModel, where: str, scene: str) -> None:
-        """Raise SceneError if the accelerations on its steady motion do not vanish.
+        """Raise NotSteadyError if the accelerations on its steady motion do not vanish.
 
-        ``where``: the message's place; ``scene``: the scene's path or name (for the hint).
+        ``where``: the message's place; ``scene``: the scene's path or name (the error's
+        ``scene``: the caller names the way to a steady motion).
         """
         acc = model.accelerations(self.steady_state(model))
         v = np.abs(np.concatenate([self.steady_qdot, [1.0]])).max()
@@ -160,11 +163,10 @@ class GeneratedSystem:
         worst = int(np.argmax(np.abs(acc))) if acc.size else 0
         if acc.size and abs(acc[worst]) > tol:
             names = [f'{c}_ddot' for c in self.coordinates] + [f'zddot_{r}' for r in self.rotors]
-            raise SceneError(
+            raise NotSteadyError(
                 f'{where}: steady.q/steady.qdot is not a steady motion: '
                 f'the accelerations do not vanish there ({names[worst]} = {acc[worst]:.6g}, '
-                f'largest of {np.abs(acc).max():.3g} > {tol:.3g}); `gyro-rotor steady '
-                f'{scene}` solves for one from this guess')
+                f'largest of {np.abs(acc).max():.3g} > {tol:.3g})', scene)
 
     def steady_motions(self, theta0: float | None, scene: str = '') -> SteadyMotions:
         """Return the accelerations at the steady guess and the steady motion Newton finds.
@@ -255,7 +257,8 @@ class GeneratedSystem:
                                  f"{', '.join(system.rotors)}")
         y0 = self.steady_state(model)
         A0, b, c, A_cons = _drive_parts(model, y0, system.drives, which)
-        _, b_all, c_all, _ = _drive_parts(model, y0, system.drives, list(range(system.m)))
+        b_all, c_all = (b, c) if drive is None else _drive_parts(
+            model, y0, system.drives, list(range(system.m)))[1:3]
         if np.any(np.asarray(self.steady_qdot) != 0):
             y1 = y0.copy()
             y1[:model.n] += 0.37 * np.asarray(self.steady_qdot)
