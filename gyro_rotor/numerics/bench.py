@@ -200,8 +200,9 @@ def reference(scene: Scene, t_eval: np.ndarray) -> np.ndarray:
     return res.y
 
 
-def _axis(Y: np.ndarray) -> np.ndarray:
-    q = Y[:, 0:4] / np.linalg.norm(Y[:, 0:4], axis=1)[:, None]
+def _axis(q: np.ndarray) -> np.ndarray:
+    """Return the symmetry axis in the laboratory frame of each quaternion (rows of q)."""
+    q = q / np.linalg.norm(q, axis=1)[:, None]
     w, x, y, z = q.T
     return np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x),
                             w * w - x * x - y * y + z * z])
@@ -224,7 +225,9 @@ def errors(model, Y: np.ndarray | None, R: np.ndarray) -> dict:
         axis_err = float(np.max(np.abs(Y[:, q] - R[:, q]), initial=0.0))
         z_err = float(np.max(np.abs(Y[:, z] - R[:, z]), initial=0.0))
     else:
-        a, b = _axis(Y), _axis(R)
+        # each model's own attitude (the reduced models' states hold no quaternion: the
+        # locked housing's 3 states were unpacked as one, a traceback)
+        a, b = _axis(model.quaternion(Y)), _axis(model.quaternion(R))
         ang = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1))
         axis_err = float(np.max(ang))
         z_err = float(np.max(np.abs(Y[:, model.iz] - R[:, model.iz])))
