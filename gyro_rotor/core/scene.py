@@ -328,9 +328,9 @@ def _read(path: Path) -> dict[str, Any]:
             break
     if section is None and {'coordinates', 'rotors', 'mass_matrix'} & set(map(str, doc)):
         name = doc.get('name', path.stem)
-        raise SceneError(f'{path} is a system file, not a scene file: give its name (e.g. '
-                         f'gyro-rotor simulate {name}) or a scene file whose parameters name '
-                         f'it (system: {name})')
+        raise SceneError(f'{path} is a system file, not a scene file: give its name '
+                         f'({name}) as the scene, or a scene file whose parameters name it '
+                         f'(system: {name})')
     if section is None:
         raise SceneError(f'scene file {path}: no rotor_sim (or /**) section; found '
                          f'{", ".join(map(str, doc)) or "nothing"}')
