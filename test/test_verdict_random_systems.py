@@ -46,13 +46,17 @@ import yaml
 DURATIONS = (4.0, 10.0, 20.0)
 #: what the theorem allows on such a system: confirmed, or not decided yet
 HONEST = (Verdict.ASYMPTOTICALLY_STABLE, Verdict.INSUFFICIENT_DATA)
-#: found by the soak (/tmp/h19/soak_verdict.py, 2026-11-29): about a third of the draws
+#: found by a soak of these two checks (315 draws of n 1..3, m 1..2, 4 to 40 s): 119 runs
+#: not confirmed, every one by decay (115 of them in a window shorter than 8 s), none at
+#: n = m = 1; no other criterion FAILed, no status contradicted its numbers, no crash
 DECAY_DEFECT = (
-    'known defect: the decay criterion FAILs in one window of a correct run where the '
-    'slowest predicted term of E* it holds the free rate against is barely resolved (the '
-    'window short, 2-4 s at the start of a segment, or r T ~ 0.1 in an 8-s window): the '
-    'interval of the free rate excludes the true rate (0.0063, interval 0.0000 .. 0.0106 '
-    'against the 0.01239 1/s of the term), and one failed window fails the run')
+    'known defect: the decay criterion FAILs in one window of a correct run (and one failed '
+    'window fails the run). Mostly the free rate: where the slowest predicted term of E* it '
+    'is held against is barely resolved (the window short, 2-4 s at the start of a '
+    'segment, or r T ~ 0.1 in an 8-s window) its interval excludes the true rate (0.0063, '
+    'interval 0.0000 .. 0.0106 against the 0.01239 1/s of the term); rarely the fit of '
+    'E*(t) with the predicted rates (rms residual 0.089 of its spread, bound 0.05, with '
+    'two modes the drive reaches weakly)')
 
 
 def write_scene(folder: Path, seed: int, n: int, m: int, duration: float) -> Path:
@@ -119,8 +123,10 @@ def check_numbers(res) -> None:
         if c.status is Status.PASS:
             _CHECKS.get(c.name, lambda c, res: None)(c, res)
         if c.status is Status.FAIL and c.name is CriterionName.DECAY:
-            # a FAIL prints a measured rate wholly below the bound beside it
-            assert any(float(hi) < float(b) for _, hi, b in _RATE.findall(c.detail)), c.detail
+            # a FAIL prints a measured rate wholly below the bound beside it, or a fit of
+            # E*(t) whose residual is beyond its bound
+            assert any(float(hi) < float(b) for _, hi, b in _RATE.findall(c.detail)) or \
+                any(float(r) > float(b) for r, b in _MISFIT.findall(c.detail)), c.detail
     seg = res.judged
     for m in (seg.modes if seg is not None else []):
         tol_im, tol_re = mode_tolerances(m.predicted, m.window_s)
@@ -151,6 +157,11 @@ _RATE = re.compile(r'decays at \S+ \(interval (\S+) \.\. (\S+)\) 1/s[^;]*?, boun
                    r'\(1 - [\d.]+\) x [^=]*= (\S+) 1/s')
 
 
+#: a fit of E*(t) that misses the predicted rates, its residual and bound (criteria.decay)
+_MISFIT = re.compile(r'does not follow the predicted rates \(rms residual (\S+) of its '
+                     r'spread, bound (\S+)\)')
+
+
 def _decay(c, res) -> None:
     n = c.numbers
     if 'rate_lo' in n and math.isfinite(n.get('rate_bound', math.nan)):
@@ -178,7 +189,7 @@ _CHECKS = {CriterionName.LYAPUNOV: _lyapunov, CriterionName.ENERGY_BALANCE: _bal
            CriterionName.DECAY: _decay, CriterionName.MODES: _modes, CriterionName.DATA: _data}
 
 
-@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 3), m=st.integers(1, 2),
        duration=st.sampled_from(DURATIONS))
 def test_a_random_valid_system_is_judged_by_its_numbers(seed, n, m, duration,
@@ -194,6 +205,7 @@ def test_a_random_valid_system_is_judged_by_its_numbers(seed, n, m, duration,
        duration=st.sampled_from(DURATIONS))
 @example(seed=242886303, n=1, m=2, duration=4.0)
 @example(seed=2206632489, n=3, m=2, duration=12.0)
+@example(seed=1525903120, n=2, m=1, duration=4.0)
 def test_a_random_valid_system_is_never_refuted(seed, n, m, duration, tmp_path_factory):
     """Confirmed or not yet decided, never a FAIL (module doc; the known defect: xfail)."""
     folder = tmp_path_factory.mktemp('sys')
