@@ -19,6 +19,10 @@ simulation time, the last at its end). Two properties:
   hold yet: the decay criterion FAILs in about a third of the draws (:data:`DECAY_DEFECT`,
   the ``@example`` s reproduce it), so the test is a strict xfail until that is fixed.
 
+A third, strict xfail too, holds a confirmed run to :class:`~gyro_rotor.analysis.verdict.
+Measured`'s contract: no printed interval of zero width (the decay's free rate has one in
+4 of 27 confirmed runs of a short soak).
+
 No duration is asserted to reach the confirmation: whether the 8-s window resolves the
 slowest decay depends on the random K_D and guidance (a mode the drive reaches weakly
 decays slower than any window shows; ``stiff_drive`` is such a scene), which is the
@@ -36,7 +40,7 @@ from gyro_rotor.analysis.analyzer import RotorAnalyzer
 from gyro_rotor.analysis.modes import mode_tolerances
 from gyro_rotor.analysis.verdict import CriterionName, Status, Verdict
 from gyro_rotor.core.scene import load_scene
-from hypothesis import example, given, HealthCheck, settings, strategies as st
+from hypothesis import example, given, HealthCheck, Phase, settings, strategies as st
 import numpy as np
 import pytest
 from random_systems import random_system_file
@@ -171,7 +175,7 @@ def _decay(c, res) -> None:
     printed = _RATE.findall(c.detail.split(' (passed in ')[0])
     for lo, _, bound in printed:
         assert float(lo) >= float(bound), c.detail
-    assert printed or 'no mode decays' in c.detail, c.detail
+    assert printed or 'no mode decays' in c.detail or 'no decaying mode' in c.detail, c.detail
 
 
 def _modes(c, res) -> None:
@@ -210,3 +214,32 @@ def test_a_random_valid_system_is_never_refuted(seed, n, m, duration, tmp_path_f
     """Confirmed or not yet decided, never a FAIL (module doc; the known defect: xfail)."""
     folder = tmp_path_factory.mktemp('sys')
     run_and_judge(write_scene(folder, seed, n, m, duration), duration, check_honest)
+
+
+#: an interval as :func:`~gyro_rotor.analysis.verdict.fmt_interval` prints it
+_INTERVAL = re.compile(r'\(interval (\S+) \.\. (\S+)\)')
+
+
+def check_widths(res) -> None:
+    """Check that no printed interval has zero width (:class:`~.verdict.Measured`)."""
+    for c in res.criteria:
+        assert all(lo != hi for lo, hi in _INTERVAL.findall(c.detail)), c.line()
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    'known defect: the free rate of the decay criterion is printed with an interval of '
+    'zero width, in PASS lines too: 2.3502713 (interval 2.3502713 .. 2.3502713) 1/s over '
+    'the last 75 % of a 4-s window against the 0.2104 1/s of the term: interval() in '
+    'analysis/decay.py returns (rate, rate) when the residual profile is above its cut '
+    'level at every point its bisection probes, on both sides of the rate'))
+@settings(phases=[Phase.explicit], deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 3), m=st.integers(1, 2),
+       duration=st.sampled_from(DURATIONS))
+@example(seed=400559544, n=3, m=2, duration=4.0)
+def test_a_confirmed_decay_prints_no_interval_of_zero_width(seed, n, m, duration,
+                                                            tmp_path_factory):
+    """A confirmed run (every criterion PASS) whose decay interval has zero width."""
+    folder = tmp_path_factory.mktemp('sys')
+    res, _ = run_and_judge(write_scene(folder, seed, n, m, duration), duration)
+    assert res.confirmed, res.reason
+    check_widths(res)
