@@ -450,6 +450,23 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     return math.nan, math.nan, math.nan, _why_not(own, end, weak, free, floor, amp), bool(other)
 
 
+def _measure_hull(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
+                  free: float, floor: float, dt: float, noise: float, slow: bool) -> tuple:
+    """Return :func:`_measure`'s (rate, lo, hi, note, scaled), the interval widened.
+
+    ``slow``: predicted terms too slow for the window are merged into ``cols`` (E_inf and a
+    line); the interval then also holds the rate measured with the slow part to second
+    order, a parabola (module doc): the rate may not depend on the slow part's next term.
+    """
+    rate, lo, hi, note, scaled = _measure(tau, y, cols, mus, terms, free, floor, dt, noise)
+    if slow and math.isfinite(rate):
+        second = _measure(tau, y, cols + [(tau - tau[-1]) ** 2], mus, terms, free, floor, dt,
+                          noise)
+        if math.isfinite(second[0]):
+            lo, hi = min(lo, second[1]), max(hi, second[2])
+    return rate, lo, hi, note, scaled
+
+
 def _why_not(own: float, end: float, weak: list, free: float, floor: float,
              amp: dict) -> str:
     """Say why the slowest shown terms (rate ``free``) give no rate (:func:`_measure`)."""
@@ -484,18 +501,6 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
                tail_from: float = TAIL_FROM) -> EnergyFit:
     """Fit E*(t) = E_inf + sum of terms with the exponents of the predicted ``eigs``.
 
-    :func:`_fit_energy`, with numpy's BLAS on one thread: its hundreds of least-squares
-    fits of a few columns (:func:`_projected_fit`) each woke the BLAS threads, 14 ms a fit
-    on this 2-core machine under load against 0.3 ms on one thread.
-    """
-    with threadpool_limits(limits=1, user_api='blas'):
-        return _fit_energy(t, E, eigs, noise, remainder, tail_from)
-
-
-def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: float,
-                remainder: float, tail_from: float) -> EnergyFit:
-    """Fit E*(t) = E_inf + sum of terms with the exponents of the predicted ``eigs``.
-
     ``eigs`` are the predicted eigenvalues with Im >= 0 (one of each conjugate pair),
     without the structural zero roots; ``noise`` the noise level of E* [J] (at least
     its rounding); ``remainder`` [J] what the linearization leaves out of E*
@@ -512,7 +517,18 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
     window resolves, fitted free (:func:`_measure`, the module doc: eq. 17, E* decays by
     the drive damping at twice the modes' Re lambda). Where faster terms were scaled by
     one factor, ``tail`` is the same fit from ``tail_from`` of the window on.
+
+    Computed with numpy's BLAS on one thread: the hundreds of least-squares fits of a few
+    columns (:func:`_projected_fit`) each woke the BLAS threads, 14 ms a fit on this 2-core
+    machine under load against 0.3 ms on one thread.
     """
+    with threadpool_limits(limits=1, user_api='blas'):
+        return _fit_energy(t, E, eigs, noise, remainder, tail_from)
+
+
+def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: float,
+                remainder: float, tail_from: float) -> EnergyFit:
+    """Return :func:`fit_energy`'s fit (its doc), BLAS threads as the caller left them."""
     t = np.asarray(t, dtype=float)
     E = np.asarray(E, dtype=float)
     t0 = float(t[0])
@@ -563,14 +579,8 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
     rate = lo = hi = math.nan
     note, tail = 'no predicted term of E* - E*_inf decays resolvably above its noise floor', None
     if math.isfinite(free):
-        rate, lo, hi, note, scaled = _measure(tau, E - E[-1], cols, mus, terms, free, floor,
-                                              dt, noise)
-        if slow and math.isfinite(rate):
-            # the merged slow part to second order: the rate may not depend on its next term
-            second = _measure(tau, E - E[-1], cols + [(tau - span) ** 2], mus, terms, free,
-                              floor, dt, noise)
-            if math.isfinite(second[0]):
-                lo, hi = min(lo, second[1]), max(hi, second[2])
+        rate, lo, hi, note, scaled = _measure_hull(tau, E - E[-1], cols, mus, terms, free,
+                                                   floor, dt, noise, bool(slow))
         if scaled and math.isfinite(rate) and tail_from > 0:
             late = tau >= tail_from * span
             tail = _fit_energy(t[late], E[late], eigs, noise, remainder, 0.0)
