@@ -379,13 +379,17 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
     level = rss_min + SIGMAS ** 2 * s2
 
     def edge(inside: float, outside: float) -> float:
+        # the profile narrower than the bisection resolves (every probe outside: exact
+        # data, 4.5596708 (interval 4.5596708 .. 4.5596708) 1/s): the nearest probe
+        # outside bounds it, not the rate itself (an interval of zero width)
+        start = inside
         for _ in range(_BISECT):
             mid = math.sqrt(inside * outside)
             if fit(mid) <= level:
                 inside = mid
             else:
                 outside = mid
-        return inside
+        return outside if inside == start else inside
 
     def interval() -> tuple[float, float]:
         below = [i for i in range(len(grid)) if grid[i] < rate and rss[i] > level]
