@@ -23,6 +23,7 @@ from gyro_rotor.core.model import drive_rates, make_model, Model, MODELS, PERTUR
 from gyro_rotor.core.newton import SteadyMotions
 from gyro_rotor.core.param_spec import ParamSpec
 from gyro_rotor.core.params import PARAM_DESCRIPTIONS, PARAM_FIELDS, PARAM_UNITS, RotorParams
+from gyro_rotor.core.peer_equations import PeerEquations
 from gyro_rotor.core.steady import steady_motion, SteadyMotion
 from gyro_rotor.core.yamlio import short
 from gyro_rotor.errors import (did_you_mean, GyroRotorError, NoSteadyMotionError,
@@ -108,13 +109,12 @@ class Centrifuge:
     base: ClassVar[None] = None
 
     @property
-    def peer_equations(self) -> str | None:
+    def peer_equations(self) -> PeerEquations | None:
         """Return which equations the benchmark's compiled peers copy (None: no copy).
 
-        ``'centrifuge_full'``: the full model's (:func:`~gyro_rotor.core.model.full_rhs`
-        without D), written again by hand for the peers; its other models have none.
+        The full model's (:attr:`PeerEquations.CENTRIFUGE_FULL`); its other models have none.
         """
-        return 'centrifuge_full' if self.model == 'full' else None
+        return PeerEquations.CENTRIFUGE_FULL if self.model == 'full' else None
 
     @property
     def pole_pairs(self) -> tuple:

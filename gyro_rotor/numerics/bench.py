@@ -76,6 +76,7 @@ import tempfile
 import time
 from typing import Callable
 
+from gyro_rotor.core.peer_equations import PeerEquations
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.core.system.codegen import pack
 from gyro_rotor.core.system.model import GeneralModel
@@ -347,7 +348,8 @@ def _generated_peers(scene: Scene, quick: bool):
 
 
 #: the compiled peers of each system's ``peer_equations``
-PEERS = {'centrifuge_full': _centrifuge_full_peers, 'generated': _generated_peers}
+PEERS = {PeerEquations.CENTRIFUGE_FULL: _centrifuge_full_peers,
+         PeerEquations.GENERATED: _generated_peers}
 
 
 def _peers(scene: Scene, quick: bool):

@@ -18,6 +18,7 @@ from typing import Any, ClassVar, Iterator, Mapping
 from gyro_rotor.core.linearize import LinearParts
 from gyro_rotor.core.newton import damped_newton, SteadyMotions
 from gyro_rotor.core.param_spec import ParamSpec
+from gyro_rotor.core.peer_equations import PeerEquations
 from gyro_rotor.core.system.model import GeneralModel, joint_names, KICK_KEYS, system_rate
 from gyro_rotor.core.system.system_file import DRIVE_KEYS, RotorSystem
 from gyro_rotor.errors import (did_you_mean, NoSteadyMotionError, NotApplicableError,
@@ -65,7 +66,7 @@ class GeneratedSystem:
     #: generated from a system file (the centrifuge is the hand-written built-in one)
     builtin: ClassVar[bool] = False
     #: which equations the benchmark's compiled peers copy: its generated ones (numba lambdify)
-    peer_equations: ClassVar[str | None] = 'generated'
+    peer_equations: ClassVar[PeerEquations | None] = PeerEquations.GENERATED
 
     # -- the system's own terms -------------------------------------------------------------
     @property
