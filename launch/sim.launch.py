@@ -5,7 +5,7 @@
 Arguments (``ros2 launch gyro_rotor sim.launch.py --show-args``):
 
 * ``scene``: rotor_sim's ``scene`` parameter: a shipped centrifuge scene
-  (``share/gyro_rotor/config/<scene>.yaml``), a shipped general scene of any rotor system
+  (``share/gyro_rotor/config/<scene>.yaml``), a shipped system file's scene of any rotor system
   (``share/gyro_rotor/config/systems/scenes/<scene>.yaml``, such as ``twin_gimbal``) or
   the path of a scene file; rotor_sim reads the file and declares every key of it as a
   parameter;

@@ -334,7 +334,7 @@ def _system(tmp_path: Path, name: str = 'sys', **changes: str) -> Path:
     return path
 
 
-def _general_scene(tmp_path: Path, system: Path) -> Path:
+def _system_file_scene(tmp_path: Path, system: Path) -> Path:
     path = tmp_path / 'gscene.yaml'
     path.write_text('rotor_sim:\n  ros__parameters:\n    scene: g\n'
                     f'    system: {system}\n    t_end: 1.0\n')
@@ -372,7 +372,7 @@ def test_infinite_potential_is_refused_before_anything_runs(tmp_path):
     """Finding 9: a potential infinite everywhere: E*(0) = inf, residual nan, exit 0."""
     system = _system(tmp_path, **{'c_a*alpha**2/2 +': 'c_a*alpha**2/2 + 1/(sin(alpha)**2 + '
                                   'cos(alpha)**2 - 1) +'})
-    scene = _general_scene(tmp_path, system)
+    scene = _system_file_scene(tmp_path, system)
     for cmd in (['simulate', str(scene), '--t-end', '0.1', '--out',
                  str(tmp_path / 'o.csv')], ['eig', str(scene)]):
         assert cli.main(cmd) == 1

@@ -510,7 +510,7 @@ def _feed(mon, topic, msg):
     mon._callback(topic, type(msg))(serialize_message(msg))
 
 
-def _general_scene_doc():
+def _system_file_scene_doc():
     import yaml
     return yaml.safe_dump({'scene': 'twin_gimbal', 'system': 'twin_gimbal', 't_end': 20.0,
                            'joint_names': ['alpha', 'beta1', 'beta2', 'z_R1', 'z_R2'],
@@ -544,7 +544,7 @@ def test_monitor_log_prints_only_what_changed_and_the_scene_once():
     mon = Monitor(node=None)
     for t in ('/axis', '/stator_pose', '/axis_marker'):       # in the graph, never published
         mon.stats[t] = TopicStats(t, 'x')
-    doc = _general_scene_doc()
+    doc = _system_file_scene_doc()
     _feed(mon, '/rotor_sim/scene', String(data=doc))
     js = JointState(name=['alpha', 'beta1', 'beta2', 'z_R1', 'z_R2'],
                     position=[0.1, 0.2, 0.3, 0.4, 0.5])
@@ -592,7 +592,7 @@ def test_monitor_names_missed_messages_as_the_monitor_s_own():
     s.add(0.1, seq=74)
     assert s.gaps == 73
     assert system_topics('scene: precession\nt_end: 10\n')['absent'] == ()
-    absent = system_topics(_general_scene_doc())['absent']
+    absent = system_topics(_system_file_scene_doc())['absent']
     assert absent == ('axis', 'stator_pose', 'axis_marker')
     assert system_topics('just a verdict') is None
     c = Changes()

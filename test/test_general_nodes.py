@@ -1,7 +1,7 @@
 """Any rotor system in the nodes (issue 16 item 1).
 
-The live simulation of a general scene, rotor_sim's parameters for it, and ``gyro-rotor
-demo`` on every shipped general scene (the bag read by three readers, offline verdict ==
+The live simulation of a system file's scene, rotor_sim's parameters for it, and ``gyro-rotor
+demo`` on every shipped system file's scene (the bag read by three readers, offline verdict ==
 live verdict == the linear theory's).
 """
 
@@ -41,7 +41,7 @@ def _run_to(sim, t):
     return blocks
 
 
-def test_the_shipped_general_scenes_are_the_ones_tested():
+def test_the_shipped_system_file_scenes_are_the_ones_tested():
     assert tuple(list_scenes(builtin=False)) == SHIPPED
 
 
@@ -152,7 +152,7 @@ def _readers(bag: Path) -> dict:
 @pytest.mark.ros
 @pytest.mark.slow
 @pytest.mark.parametrize('name', SHIPPED)
-def test_demo_of_a_general_scene_live_equals_offline_equals_theory(name, tmp_path):
+def test_demo_of_a_system_file_scene_live_equals_offline_equals_theory(name, tmp_path):
     out = tmp_path / 'demo'
     r = subprocess.run([sys.executable, '-m', 'gyro_rotor', 'demo', name, '--duration', '10',
                         '--rtf', '0', '--quiet', '--out', str(out)], capture_output=True,
@@ -205,7 +205,7 @@ def test_a_centrifuge_bag_is_not_analysed_as_a_general_system():
 
 
 @pytest.mark.ros
-def test_rotor_sim_declares_a_general_scenes_parameters_and_checks_changes():
+def test_rotor_sim_declares_a_system_file_scenes_parameters_and_checks_changes():
     rclpy = pytest.importorskip('rclpy')
     from gyro_rotor.ros.sim_node import RotorSimNode
     from rclpy.parameter import Parameter
@@ -282,7 +282,7 @@ def test_a_scene_document_of_the_same_scene_changes_nothing_in_the_analysis():
     assert a.set_scene(scene.with_changes({'drive.R1.K_D': 0.05})) and a.param_changes == 1
 
 
-def test_the_scene_list_names_the_general_scenes(capsys):
+def test_the_scene_list_names_the_system_file_scenes(capsys):
     from gyro_rotor.cli.main import main
     assert main(['scenes']) == 0
     lines = capsys.readouterr().out.splitlines()

@@ -854,7 +854,7 @@ def test_ensemble_runs_a_general_system_with_its_own_numbers_per_trajectory():
         run_ensemble(model, Y0[:1], te, params=[load_system('elastic_frame')])
 
 
-def test_simulate_general_scene_with_each_method(tmp_path, capsys):
+def test_simulate_system_file_scene_with_each_method(tmp_path, capsys):
     for method in ('rk4', 'rodas4'):
         assert main(['simulate', 'twin_gimbal', '--t-end', '0.2', '--method', method]) == 0
         assert f'{method}: steps' in capsys.readouterr().out

@@ -308,7 +308,7 @@ def _general_spec():
 
 
 def test_general_sweep_matches_a_direct_integration(tmp_path):
-    """A general scene's sweep point equals the scene loaded with the point's values, run alone.
+    """A sweep point of a system file's scene equals the scene loaded with its values, run alone.
 
     Reference: the project's dop853 at rtol 1e-11 (not the sweep's RK4 ensemble) on
     ``load_scene(twin_gimbal, {constants.c_a: 40, K_D: 0.2})``.
@@ -340,7 +340,7 @@ def test_general_sweep_matches_a_direct_integration(tmp_path):
 
 
 def test_general_sweep_same_on_a_local_cluster(cluster2, tmp_path):
-    """Serial and 2 worker processes give the same numbers for a general scene (to 1e-12)."""
+    """Serial and 2 worker processes give the same numbers for a system file's scene (to 1e-12)."""
     run_sweep(_general_spec(), tmp_path / 's', executor=Executor.SERIAL)
     r = run_sweep(_general_spec(), tmp_path / 'd', executor=Executor.LOCAL, client=cluster2)
     assert r.workers == 2 and sorted(r.blocks_run) == [0, 1]
@@ -354,11 +354,11 @@ def test_general_sweep_same_on_a_local_cluster(cluster2, tmp_path):
     (['--grid', 'drive.R9.K_D=0.1:0.2:2'], "unknown key 'drive.R9.K_D'"),
     (['--grid', 'constants.J_g=-1:1:3'], 'not positive definite'),
     (['--grid', 'K_D=-1:1:3'], 'must not be negative'),
-    (['--grid', 'initial.q=0:1:2'], 'cannot be swept in a general scene'),
+    (['--grid', 'initial.q=0:1:2'], "cannot be swept in a system file's scene"),
     (['--grid', 'K_D=0.1:0.2:2', '--metrics', 'wells'], "unknown metric 'wells'"),
 ])
 def test_bad_general_grid_is_an_error_before_any_work(extra, message, tmp_path, capsys):
-    """General scenes: one ERROR line naming the problem, exit 1, nothing written."""
+    """Scenes of system files: one ERROR line naming the problem, exit 1, nothing written."""
     out = tmp_path / 'never'
     assert main(['sweep', 'twin_gimbal', '--out', str(out), '--serial'] + extra) == 1
     err = capsys.readouterr().err

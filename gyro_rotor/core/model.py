@@ -374,6 +374,19 @@ class Model:
         theta = self.outputs(np.zeros(1), np.asarray(y, dtype=float)[None])['theta'][0]
         return AXIS_DOWN if np.pi - abs(theta) < 1e-6 else ''
 
+    def coordinate_errors(self, Y, R) -> tuple[float, float]:
+        """Return the largest (attitude, rotor angle) errors of states Y against R [rad].
+
+        The attitude error is the angle between the symmetry axes (each model's own
+        attitude: the reduced models' states hold no quaternion); the rotor angle's is
+        the largest |z - z_ref|. Rows of Y and R are taken at the same times.
+        """
+        a = axis_from_quaternion(self.quaternion(Y))
+        b = axis_from_quaternion(self.quaternion(R))
+        ang = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1))
+        return (float(np.max(ang)),
+                float(np.max(np.abs(np.asarray(Y)[:, self.iz] - np.asarray(R)[:, self.iz]))))
+
     def quaternion_norm_error(self, Y) -> np.ndarray:
         """|q| - 1 (zero for the reduced models, whose orientation is exact)."""
         Y = np.asarray(Y, dtype=float)

@@ -79,7 +79,6 @@ from typing import Callable
 from gyro_rotor.core.peer_equations import PeerEquations
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.core.system.codegen import pack
-from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.numerics import bench_peers
 from gyro_rotor.numerics.integrators import choose_method, integrate, kernels, METHODS
 from gyro_rotor.numerics.integrators.base import kernel_args
@@ -201,14 +200,6 @@ def reference(scene: Scene, t_eval: np.ndarray) -> np.ndarray:
     return res.y
 
 
-def _axis(q: np.ndarray) -> np.ndarray:
-    """Return the symmetry axis in the laboratory frame of each quaternion (rows of q)."""
-    q = q / np.linalg.norm(q, axis=1)[:, None]
-    w, x, y, z = q.T
-    return np.column_stack([2 * (x * z + w * y), 2 * (y * z - w * x),
-                            w * w - x * x - y * y + z * z])
-
-
 def errors(model, Y: np.ndarray | None, R: np.ndarray) -> dict:
     """Error measures of samples Y against the reference R (same times), any model.
 
@@ -221,17 +212,7 @@ def errors(model, Y: np.ndarray | None, R: np.ndarray) -> dict:
         nan = math.nan
         return {'err': nan, 'axis_err': nan, 'z_err': nan, 'end_err': nan,
                 'residual': nan, 'qnorm': nan}
-    if isinstance(model, GeneralModel):
-        q, _, z, _ = model.slices()
-        axis_err = float(np.max(np.abs(Y[:, q] - R[:, q]), initial=0.0))
-        z_err = float(np.max(np.abs(Y[:, z] - R[:, z]), initial=0.0))
-    else:
-        # each model's own attitude (the reduced models' states hold no quaternion: the
-        # locked housing's 3 states were unpacked as one, a traceback)
-        a, b = _axis(model.quaternion(Y)), _axis(model.quaternion(R))
-        ang = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1))
-        axis_err = float(np.max(ang))
-        z_err = float(np.max(np.abs(Y[:, model.iz] - R[:, model.iz])))
+    axis_err, z_err = model.coordinate_errors(Y, R)
     return {'err': max(axis_err, z_err), 'axis_err': axis_err, 'z_err': z_err,
             'end_err': float(np.max(np.abs(Y[-1] - R[-1]))),
             'residual': float(np.max(np.abs(model.residual(Y)))),

@@ -234,7 +234,7 @@ def peer_run(peer: PeerRHS, package: str, method: str, y0, t_eval, rtol, atol,
 
 # -- general rotor systems ---------------------------------------------------------------------
 def _general_body(scene):
-    """Return the njit ``body(y, dy)`` of a general scene: numba on sympy's lambdify.
+    """Return the njit ``body(y, dy)`` of a system file's scene: numba on sympy's lambdify.
 
     The user's path: the mass matrix Mbar and the force vector F of the derived equations
     (:func:`gyro_rotor.core.system.equations.derive`) lambdified to numpy with common
@@ -285,7 +285,7 @@ def body(y, dy):
 
 
 def make_general_peer(scene) -> PeerRHS:
-    """Compile CyRK's right-hand side of a general scene (numba lambdify, module doc)."""
+    """Compile CyRK's right-hand side of a system file's scene (numba lambdify, module doc)."""
     body, size = _general_body(scene)
     if 'cyrk' not in available():
         return PeerRHS(size, None, None, ())

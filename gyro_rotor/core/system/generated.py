@@ -224,7 +224,7 @@ class GeneratedSystem:
         if not (axis.key in SWEEP_DRIVE_KEYS or (parts[0] == 'constants' and len(parts) == 2)
                 or (parts[0] == 'drive' and len(parts) == 3
                     and parts[2] in SWEEP_DRIVE_KEYS)):
-            raise ParameterError(f"key '{axis.key}' cannot be swept in a general scene; "
+            raise ParameterError(f"key '{axis.key}' cannot be swept in a system file's scene; "
                                  'sweepable: constants.NAME, K_S, K_D, Omega0, '
                                  'drive.ROTOR.{K_S,K_D,Omega0}')
 
@@ -328,7 +328,7 @@ class GeneratedSystem:
         out = {k: [0.0] * size for k, size in sizes.items()}
         for key, value in values.items():
             if key not in sizes:
-                raise ParameterError(f"unknown key 'perturbation.{key}': a general scene "
+                raise ParameterError(f"unknown key 'perturbation.{key}': a system file's scene "
                                      f"kicks perturbation.{', perturbation.'.join(sizes)}")
             try:    # a list, a tuple, or the array.array('d') of a ROS double-array parameter
                 v = [float(x) for x in np.atleast_1d(np.asarray(value, dtype=float))]

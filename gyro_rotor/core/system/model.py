@@ -139,6 +139,17 @@ class GeneralModel:
         y[self.slices()[3]] -= self.field_speeds() - old.field_speeds()
         return y
 
+    def coordinate_errors(self, Y, R) -> tuple[float, float]:
+        """Return the largest (|q - q_ref|, |z - z_ref|) of states Y against R (same times).
+
+        A system file's coordinates q are its own generalized coordinates: compared as
+        numbers, as its joints are (:attr:`joint_angles`).
+        """
+        Y, R = np.asarray(Y, dtype=float), np.asarray(R, dtype=float)
+        q, _, z, _ = self.slices()
+        return (float(np.max(np.abs(Y[:, q] - R[:, q]), initial=0.0)),
+                float(np.max(np.abs(Y[:, z] - R[:, z]), initial=0.0)))
+
     def quaternion_norm_error(self, Y) -> np.ndarray:
         """Zero: a system file's state holds no quaternion."""
         return np.zeros(np.asarray(Y, dtype=float).shape[:-1])
