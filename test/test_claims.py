@@ -429,6 +429,42 @@ def test_nearly_equal_drives_reach_the_asymptotic_regime_at_a_finite_K(tmp_path)
     assert hi == 1e4 * K_ref
 
 
+@pytest.mark.parametrize('seed, n, frac', [(103, 2, 1e-3), (31, 2, 0.1), (138, 1, 0.9),
+                                           (63, 2, 1.0)])
+def test_below_K_inv_the_floor_is_the_round_off_of_A_K(seed, n, frac):
+    """Finding: the floor was min(||A||, ||A^-1|| |lambda|^2) where only A(K) was used.
+
+    At or below K_inv every root is A(K)'s (:meth:`_Roots.forms`) and a slow one's error
+    is eps ||A(K)||'s: the slowest root's, against 50 digits, was 0.04 to 0.14 eps ||A(K)||
+    here, 2.2e2 to 3.6e3 eps ||A^-1|| |lambda|^2 (seed 103, K = 1e-3 K_inv). Above K_inv the
+    roots taken from A(K)^-1 have its bound.
+    """
+    import mpmath
+    from scipy.optimize import linear_sum_assignment
+    eps = np.finfo(float).eps
+    A0l, Bl, Cl = random_system(seed, n, 2).locus_pieces()
+    _, V = cl.split(A0l, Cl)
+    R = cl._Roots(V.T @ A0l @ V, V.T @ Bl, Cl @ V)
+    K = frac * R.K_inv
+    lam = R(K, vectors=False)[0]
+    with mpmath.workdps(50):
+        exact = mpmath.eig(mpmath.matrix(R.A(K).tolist()))[0]
+    exact = np.array([complex(z) for z in exact])
+    r, c = linear_sum_assignment(np.abs(lam[:, None] - exact[None, :]))
+    s = np.argmin(np.abs(exact[c]))
+    err = abs(lam[r[s]] - exact[c[s]])
+    floor = cl._floor(R, K, lam)
+    assert np.all(floor == 1e4 * eps * cl._norm2(R.A(K)))
+    assert 0.01 * floor[r[s]] / 1e4 < err <= 0.2 * floor[r[s]] / 1e4
+    assert err > 100 * eps * cl._norm2(R._inverse(K)) * abs(exact[c[s]]) ** 2
+    K = 10 * R.K_inv
+    lam, (A, Ai) = R(K, vectors=False)[0], R.forms(K)
+    mu = np.linalg.eigvals(A)
+    inv = lam != mu[np.argmin(np.abs(lam[:, None] - mu[None, :]), axis=1)]
+    assert inv.any()
+    assert np.all(cl._floor(R, K, lam)[inv] == 1e4 * eps * (cl._norm2(Ai) * np.abs(lam[inv]) ** 2))
+
+
 def test_a_drive_without_stiffness_makes_c_and_d_not_applicable():
     """Finding 4: K_S = 0 on drive R2 is outside the theorem: (c), (d) say so, no K_D*."""
     from gyro_rotor.cli.util import load_scene_with_sets
