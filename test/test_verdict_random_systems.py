@@ -19,10 +19,12 @@ simulation time, the last at its end). Two properties:
   draws (n 1..3, m 1..2, 4 to 40 s) found 119 runs not confirmed, every one by decay; the
   ``@example`` s are its cases (module :mod:`gyro_rotor.analysis.decay`: the free rate's
   fits by normal equations that cancelled, a slow beat of two modes fitted as a line).
-  Not yet resolved: with those fixed, 2 of 86 draws still FAILed decay (a term barely
-  resolved in the 8-s window: 0.0063 (0 .. 0.0086) 1/s for 0.01117 with E*'s residual
-  1e-13 of its spread: the profile interval counts no model error), so this test draws
-  derandomized examples.
+  With the least residual at the slowest resolvable rate read as no rate, a soak of 176
+  new draws had none refuted (141 confirmed, 35 insufficient data). Not yet resolved:
+  three draws of other soaks still FAIL decay, with a narrow interval off the truth (over
+  a 1.5-s window's last part 0.0708 (0.0688 .. 0.0726) 1/s for 0.0916, seed 3431486997;
+  seeds 2554297627 and 1048793445): the profile interval counts the residual, not the
+  model error the columns absorb, so this test draws derandomized examples.
 
 A third holds a confirmed run to :class:`~gyro_rotor.analysis.verdict.Measured`'s
 contract: no printed interval of zero width (the decay's free rate had one in 4 of 27
@@ -197,10 +199,9 @@ def test_a_random_valid_system_is_judged_by_its_numbers(seed, n, m, duration,
     run_and_judge(write_scene(folder, seed, n, m, duration), duration, check_consistent)
 
 
-# derandomized: the soak of this check with every fix in (86 draws, 4 to 40 s) still had
-# 2 runs not confirmed (decay, 40 s): a known defect, stated in the module doc; the
-# suite draws the same examples every time, a soak (run_and_judge over new seeds, with
-# check_honest) draws new ones
+# derandomized: soaks of this check still find a run not confirmed now and then (decay,
+# module doc): a known defect; the suite draws the same examples every time, a soak
+# (run_and_judge over new seeds, with check_honest) draws new ones
 @settings(max_examples=4, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 3), m=st.integers(1, 2),
@@ -208,12 +209,16 @@ def test_a_random_valid_system_is_judged_by_its_numbers(seed, n, m, duration,
 @example(seed=242886303, n=1, m=2, duration=4.0)
 @example(seed=2206632489, n=3, m=2, duration=12.0)
 @example(seed=1525903120, n=2, m=1, duration=4.0)
+@example(seed=2950835647, n=3, m=2, duration=10.0)
+@example(seed=1350158065, n=1, m=2, duration=4.0)
 def test_a_random_valid_system_is_never_refuted(seed, n, m, duration, tmp_path_factory):
     """Confirmed or not yet decided, never a FAIL (module doc).
 
     The examples FAILed decay: the free rate over the last 1.5 s of a 2-s window 0.14096983
     (a zero-width interval) for 0.3996 1/s; 0.0063 (0 .. 0.0106) for 0.01239 1/s; the fit's
-    rms residual 0.089 of E*'s spread over 0 .. 4 s.
+    rms residual 0.089 of E*'s spread over 0 .. 4 s; the least residual at the slowest
+    rate the window resolves, 0.00625 (0 .. 0.0086) for 0.01117 1/s over 0 .. 8 s and
+    0.033 (0 .. 0.48) for 4.19 1/s over 0.5 .. 2 s.
     """
     folder = tmp_path_factory.mktemp('sys')
     run_and_judge(write_scene(folder, seed, n, m, duration), duration, check_honest)

@@ -24,6 +24,13 @@ the profile assumes its model exact, and a term the window barely resolves (r T 
 trades its rate against the slow part's curvature. A random system over 0 .. 8 s
 measured 0.0063 (0 .. 0.0072) with the line and 0.0123 (0.0122 .. 0.0125) with the
 parabola for the true 0.01239 1/s: FAIL by the line alone, NOT YET by both. The
+least residual at the search's lower end, the slowest rate the window resolves
+(:data:`RESOLVABLE` / T), means the data prefer a decay the window cannot resolve: no rate
+is measured there. A term barely resolved (r T = 0.089 over 8 s) has little but its
+curvature to tell its rate from E_inf and the line, and the slow part merged into them
+has curvature too: a random system measured 0.00625 (0 .. 0.0086) 1/s, the search's
+lower end, for the true 0.01117 with E*'s residual 1e-13 of its spread (FAIL for a valid
+system); another 0.033 (0 .. 0.48), the lower end over a 1.5-s window, for 4.19. The
 faster terms that show get their predicted rates times one common factor, fitted
 alternately with r (:func:`_faster_scale`): fixed as predicted, their error leaked into r
 (elastic_frame at 0.8 K_D: 0.531 measured, 0.367 true). The rate is measured only while
@@ -334,9 +341,10 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
 
     ``Xf``: the columns kept as predicted; the terms of ``group`` (real part -``rate0``)
     get the real part -r, frequencies kept; at each r the fit is linear (variable
-    projection). The rate is the r of least residual; the interval every r whose residual
-    sum of squares exceeds the least by at most SIGMAS^2 s^2 (s^2 counted over
-    :func:`_n_eff` pieces, at least the noise level's), down to 0 at the slowest
+    projection). The rate is the r of least residual, none (NaN) where that is the slowest
+    rate the window resolves (:data:`RESOLVABLE` / span, module doc); the interval every r
+    whose residual sum of squares exceeds the least by at most SIGMAS^2 s^2 (s^2 counted
+    over :func:`_n_eff` pieces, at least the noise level's), down to 0 at the slowest
     resolvable rate, open above at the fastest searched one.
     """
     n = len(tau)
@@ -374,6 +382,10 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
     shown = (float(np.sqrt(np.mean(own ** 2))),
              float(np.sqrt(np.mean(term[tau >= 0.8 * span] ** 2))),
              _own_parts(np.exp(-rate * tau)[:, None] * trig, Q, c, group))
+    if k == 0:
+        # the least residual at the slowest rate the window resolves: the data prefer a
+        # decay it cannot resolve, and measure none (module doc)
+        return math.nan, lambda: (math.nan, math.nan), shown
     dof = max(n - Q.shape[1] - 2 * len(group) - 1, 1)
     s2 = max(rss_min / dof, noise * noise) * (n / _n_eff(res))
     level = rss_min + SIGMAS ** 2 * s2
@@ -451,7 +463,8 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     if measurable and not weak:
         lo, hi = interval()
         return rate, lo, hi, '', bool(other)
-    return math.nan, math.nan, math.nan, _why_not(own, end, weak, free, floor, amp), bool(other)
+    return (math.nan, math.nan, math.nan, _why_not(own, end, weak, free, floor, amp, tau[-1]),
+            bool(other))
 
 
 def _measure_hull(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
@@ -472,7 +485,7 @@ def _measure_hull(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: 
 
 
 def _why_not(own: float, end: float, weak: list, free: float, floor: float,
-             amp: dict) -> str:
+             amp: dict, span: float) -> str:
     """Say why the slowest shown terms (rate ``free``) give no rate (:func:`_measure`)."""
     if not own >= floor:
         # E_inf, the trend and the other terms mimic these terms but for less than the
@@ -485,7 +498,10 @@ def _why_not(own: float, end: float, weak: list, free: float, floor: float,
         return (f'its slowest shown terms ({free:.4g} 1/s) fall below the noise floor '
                 f'{floor:.2g} J within the window ({end:.2g} J rms over its last fifth)')
     if not weak:
-        return f'its slowest shown terms ({free:.4g} 1/s) give no rate in this window'
+        # their least residual at the search's lower end (_free_rate)
+        return (f'its slowest shown terms ({free:.4g} 1/s) fit best at the slowest rate '
+                f'this {span:.3g} s window resolves ({RESOLVABLE / span:.3g} 1/s): no decay '
+                f'of theirs is resolved in it')
     # every one of them the window cannot tell from the other columns
     p, mu = min(weak, key=lambda w: w[0])
     return (f'the part of its slowest shown term {_fmt_mu(mu)} that E*_inf, the trend '
