@@ -356,13 +356,15 @@ class _Roots:
     relative to it is smaller (eps ||A|| / |lambda| against eps ||A^-1|| |lambda|); at or
     below K_inv, or where A0 is not invertible, every root from A(K). Which forms there are
     at K is :meth:`forms`, which one each root is from :func:`_from_inverse`: the roots
-    (:meth:`__call__`) and their round-off (:func:`_floor`) both ask them.
+    (:meth:`__call__`) and their round-off (:func:`_floor`) both ask them, and the forms of
+    the last K asked are kept, so that the two at one K build them once.
     """
 
     def __init__(self, A0: np.ndarray, B: np.ndarray, C: np.ndarray):
         """Keep the pieces; the inverse form only where A0 is invertible."""
         self.A0, self.B, self.C, self.BC = A0, B, C, B @ C
         self.inv = None
+        self._last = (None, None)       # (K, its forms): :meth:`forms`
         # below K_inv (the fast root still within the spectrum's scale) no root is slow
         scale = float(np.max(np.abs(np.linalg.eigvals(A0)), initial=0.0))
         gain = float(np.max(np.abs(np.linalg.eigvals(C @ B)), initial=0.0))
@@ -384,11 +386,17 @@ class _Roots:
         """Return (A(K), A(K)^-1): the forms the roots at K are taken from.
 
         A(K)^-1 is None at or below K_inv and where A0 is not invertible: there every
-        root is from A(K) (class doc).
+        root is from A(K) (class doc). Built once for the last K asked (the roots at K,
+        then their round-off, :func:`_floor`), read-only.
         """
-        if self.inv is None or K <= self.K_inv:
-            return self.A(K), None
-        return self.A(K), self._inverse(K)
+        if self._last[0] != K:
+            A = self.A(K)
+            Ai = None if self.inv is None or K <= self.K_inv else self._inverse(K)
+            A.flags.writeable = False       # the same arrays go to every caller at K
+            if Ai is not None:
+                Ai.flags.writeable = False
+            self._last = (K, (A, Ai))
+        return self._last[1]
 
     def __call__(self, K: float, vectors: bool = True) -> tuple:
         """Return (roots, left, right eigenvectors) at K (vectors None if not asked)."""
