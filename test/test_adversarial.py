@@ -586,11 +586,12 @@ def test_command_line_values_are_checked_before_any_work(argv, message, tmp_path
 
     eig and locus refuse an unwritable output and a huge grid before they compute anything.
     """
-    import gyro_rotor.cli.commands.eig as eig_cmd
-    import gyro_rotor.cli.commands.locus as locus_cmd
+    # the commands import these when they run (not at import: --help starts fast)
+    import gyro_rotor.linear.locus as locus
+    import gyro_rotor.linear.system as system
     called = []
-    monkeypatch.setattr(eig_cmd, 'linearize_scene', lambda *a, **k: called.append(1))
-    monkeypatch.setattr(locus_cmd, 'check_claims', lambda *a, **k: called.append(1))
+    monkeypatch.setattr(system, 'linearize_scene', lambda *a, **k: called.append(1))
+    monkeypatch.setattr(locus, 'check_claims', lambda *a, **k: called.append(1))
     assert cli.main([a.replace('{tmp}', str(tmp_path)) for a in argv]) == 1
     err = capsys.readouterr().err
     assert message in err and err.startswith('ERROR: ') and 'Traceback' not in err, err

@@ -502,3 +502,28 @@ def test_a_run_out_of_steps_is_stopped_not_diverged(monkeypatch, capsys):
     assert main(['simulate', 'precession', '--t-end', '1']) == 2
     out = capsys.readouterr().out
     assert 'STOPPED: ' in out and 'budget' in out and 'DIVERGED' not in out
+
+
+#: what ``gyro-rotor --help``, a command's ``--help`` and a bad argument must not wait for
+_HEAVY = ('sympy', 'numba', 'scipy', 'dask', 'distributed', 'mcap', 'matplotlib', 'rclpy')
+
+
+@pytest.mark.parametrize('argv', [['--help'], ['eig', '--help'], ['sweep', '--help'],
+                                  ['eig', '--bogus'], ['nosuch']])
+def test_help_and_usage_errors_import_no_heavy_package(argv):
+    """The parser of every command is built without sympy, numba, scipy, dask, ... (issue 21).
+
+    Each command imports what its work needs when it runs: ``--help`` and a usage error
+    (one ``ERROR:`` line, exit 1) start in a fraction of a second.
+    """
+    code = ('import sys\nfrom gyro_rotor.cli.main import main\ntry:\n'
+            f'    sys.exit(main({argv!r}))\nfinally:\n'     # --help exits inside argparse
+            f'    print(sorted(m for m in {_HEAVY!r} if m in sys.modules), file=sys.stderr)\n')
+    r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                       timeout=120)
+    *lines, loaded = r.stderr.splitlines()
+    assert loaded == '[]', f'{argv}: {loaded}'
+    if argv[-1] == '--help':
+        assert r.returncode == 0 and r.stdout.startswith('usage: gyro-rotor')
+    else:
+        assert r.returncode == 1 and len(lines) == 1 and lines[0].startswith('ERROR: ')

@@ -80,6 +80,7 @@ from gyro_rotor.core.peer_equations import PeerEquations
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.core.system.codegen import pack
 from gyro_rotor.numerics import bench_peers
+from gyro_rotor.numerics.bench_scenes import DEFAULT_SCENES, QUICK_SCENES, SYSTEM_SCENES
 from gyro_rotor.numerics.integrators import choose_method, integrate, kernels, METHODS
 from gyro_rotor.numerics.integrators.base import kernel_args
 from gyro_rotor.numerics.kernel_system import kernel_model, methods_for
@@ -96,11 +97,6 @@ __all__ = ['BenchRow', 'DEFAULT_SCENES', 'QUICK_SCENES', 'run_sweep', 'reference
 
 SAMPLE_RATE = 100.0
 ERROR_LEVELS = (1e-3, 1e-6, 1e-9)
-DEFAULT_SCENES = ('precession', 'nutation', 'upright', 'stiff_drive@K_D=100', 'stiff_drive',
-                  'stiff_drive@K_D=1e6', 'fast_spin', 'conservative', 'conservative@t_end=100',
-                  'pole_slip')
-#: the short sweep (``--quick``, under a minute): one scene per kind of method
-QUICK_SCENES = ('precession', 'stiff_drive', 'conservative')
 SCIPY = ('RK45', 'DOP853', 'Radau', 'LSODA')
 QUICK_SCIPY = ('LSODA',)
 #: the quick sweep's compiled peer (where installed): CyRK's DOP853 only
@@ -532,8 +528,6 @@ def pole_counts(methods=('dop853', 'rodas4', 'radau9', 'rk4', 'rk8', 'gauss6', '
 
 
 # -- generated systems (issue 15): the right-hand side, compilation, work precision -----------
-#: the system files' scenes of the table ``general``
-SYSTEM_SCENES = ('centrifuge_euler', 'twin_gimbal', 'elastic_frame')
 #: the label of our rows in the table ``general``: simulate.integrate with method 'auto'
 DEFAULT_LABEL = 'default'
 #: the label prefix of the compiled peer's rows (CyRK on a numba lambdify)

@@ -28,7 +28,8 @@ from typing import Any, Mapping
 from gyro_rotor.core.model import AXIS_DOWN, Model
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.errors import IntegrationError, ParameterError
-from gyro_rotor.numerics.defaults import DEFAULT_ATOL, DEFAULT_RTOL, SCIPY_METHODS
+from gyro_rotor.numerics.defaults import (DEFAULT_ATOL, DEFAULT_RATE, DEFAULT_RTOL,
+                                          SCIPY_METHODS)
 from gyro_rotor.numerics.integrators import (choose_method as choose_integrator,
                                              integrate as integrate_kernels, make_integrator)
 from gyro_rotor.numerics.integrators.primitives import Status
@@ -39,7 +40,6 @@ __all__ = ['Trajectory', 'simulate', 'integrate', 'Run', 'DEFAULT_METHOD', 'DEFA
            'DEFAULT_ATOL', 'check_tolerances', 'auto_method', 'SCIPY_METHODS']
 
 DEFAULT_METHOD = 'auto'
-DEFAULT_RATE = 100.0
 #: most output samples of one simulate() call (t_end x rate)
 MAX_SAMPLES = 5e7
 

@@ -19,8 +19,6 @@ import collections
 import dataclasses
 import math
 
-from gyro_rotor.bag.wire import array_labels
-
 __all__ = ['TopicStats', 'array_values', 'message_values', 'known_values', 'system_topics',
            'system_from_joints', 'Changes', 'CENTRIFUGE_ONLY']
 
@@ -59,6 +57,9 @@ def array_values(labels: list[list[str]], data) -> dict:
 
 def message_values(msg) -> dict:
     """Name the numbers of a Float64MultiArray message by its labels (:func:`array_values`)."""
+    # imported here: bag.wire brings the model (numba), which ``gyro-rotor --help`` and the
+    # monitor's start need not wait for
+    from gyro_rotor.bag.wire import array_labels
     return array_values(array_labels(msg.layout.dim), msg.data)
 
 

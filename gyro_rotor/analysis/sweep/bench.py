@@ -20,9 +20,6 @@ import tempfile
 import time
 from typing import Callable, Sequence
 
-from gyro_rotor.analysis.sweep.runner import Executor, run_sweep, start_client, SweepRun
-from gyro_rotor.analysis.sweep.task import make_spec, SweepSpec
-
 __all__ = ['BenchRow', 'run_bench', 'bench_table', 'BENCH_GRID', 'noop_overhead']
 
 #: 500 x 200 = 10^5 points: initial slip speed and initial lag of the pole_slip drive
@@ -60,14 +57,14 @@ def noop_overhead(client, n_tasks: int = 200) -> float:
     return (time.perf_counter() - t0) * workers / n_tasks
 
 
-def _warm(spec: SweepSpec) -> float:
-    from gyro_rotor.analysis.sweep.task import run_block
+def _warm(spec) -> float:
+    from gyro_rotor.analysis.sweep.task import make_spec, run_block
     t0 = time.perf_counter()
     run_block(make_spec(spec.scene, ['initial.dzdot=-60:-60:1'], t_end=0.05), 0)
     return time.perf_counter() - t0
 
 
-def _row(label: str, r: SweepRun, o_task: float, rate1: float | None,
+def _row(label: str, r, o_task: float, rate1: float | None,
          load0: float) -> BenchRow:
     w = max(1, r.workers)
     block_work = r.work_s / max(1, len(r.blocks_run))
@@ -87,6 +84,9 @@ def run_bench(out_dir: str | None = None, *, t_end: float = 0.3,
     The sweeps' Parquet files go to a temporary directory under ``out_dir`` (default: the
     system's temporary directory), removed at the end.
     """
+    # imported here: the grid (``gyro-rotor sweep-bench --help``) need not load the sweep
+    from gyro_rotor.analysis.sweep.runner import Executor, run_sweep, start_client
+    from gyro_rotor.analysis.sweep.task import make_spec
     say = progress or (lambda s: None)
     spec = make_spec('pole_slip', list(grid), t_end=t_end)
     _warm(spec)

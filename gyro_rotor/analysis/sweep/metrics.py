@@ -43,7 +43,6 @@ from __future__ import annotations
 import enum
 import math
 
-from gyro_rotor.core.model import Model
 import numpy as np
 
 __all__ = ['Metric', 'METRIC_COLUMNS', 'COLUMN_UNITS', 'INT_COLUMNS', 'PointStatus',
@@ -180,12 +179,13 @@ def settle_time(t: np.ndarray, a: np.ndarray, tol: float) -> float:
     return float(t[above[-1] + 1])
 
 
-def trajectory_metrics(model: Model, t: np.ndarray, y: np.ndarray, metrics, *,
+def trajectory_metrics(model, t: np.ndarray, y: np.ndarray, metrics, *,
                        tol: float = DEFAULT_TOL) -> dict:
     """Column -> value for one trajectory (samples ``y`` (m, n) at ``t`` (m,), all finite).
 
-    ``model`` carries the point's parameters; ``metrics`` is a set of :class:`Metric`
-    (the linear spectral abscissa is computed by the caller, once per parameter set).
+    ``model`` (a :class:`~gyro_rotor.core.model.Model`) carries the point's parameters;
+    ``metrics`` is a set of :class:`Metric` (the linear spectral abscissa is computed by
+    the caller, once per parameter set).
     """
     p = model.params
     pp = p.pole_pairs
@@ -250,6 +250,8 @@ def point_metrics(scene, model, t: np.ndarray, y: np.ndarray, metrics, *,
     scene's steady motion (:func:`system_metrics`). The spectral abscissa is computed by
     the caller.
     """
+    # imported here: the metric names (``gyro-rotor sweep --help``) need not load the model
+    from gyro_rotor.core.model import Model
     if isinstance(model, Model):
         return trajectory_metrics(model, t, y, metrics, tol=tol)
     steady_q = scene.steady_state(model)[model.slices()[0]]

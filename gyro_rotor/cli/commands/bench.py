@@ -42,7 +42,7 @@ import time
 
 from gyro_rotor.cli.util import check_number, error_hint, make_unique_dir, RUNS_DIR
 from gyro_rotor.errors import GyroRotorError, ParameterError
-import gyro_rotor.numerics.bench as bench
+from gyro_rotor.numerics.bench_scenes import DEFAULT_SCENES, QUICK_SCENES, SYSTEM_SCENES
 
 HELP = ('benchmark any scene: work precision of the integrators against scipy and the '
         'compiled peers, the generated systems, stiff drives')
@@ -66,8 +66,8 @@ class BenchTable(enum.StrEnum):
 MAX_T_END_S = 1e4
 
 #: per table: the default scenes, repeats and error level (the full sweep's)
-_DEFAULT_SCENES = {BenchTable.WORK_PRECISION: bench.DEFAULT_SCENES,
-                   BenchTable.GENERAL: bench.SYSTEM_SCENES, BenchTable.STIFF: ('twin_gimbal',)}
+_DEFAULT_SCENES = {BenchTable.WORK_PRECISION: DEFAULT_SCENES,
+                   BenchTable.GENERAL: SYSTEM_SCENES, BenchTable.STIFF: ('twin_gimbal',)}
 _DEFAULT_LEVEL = {BenchTable.GENERAL: 1e-9, BenchTable.STIFF: 1e-6}
 
 
@@ -80,7 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--scenes', default=None,
                    help='comma-separated scene specs, centrifuge or system file, e.g. '
                    "precession,stiff_drive@K_D=1e6,twin_gimbal (default: the table's "
-                   'scenes; with --quick: ' + ','.join(bench.QUICK_SCENES) + ')')
+                   'scenes; with --quick: ' + ','.join(QUICK_SCENES) + ')')
     p.add_argument('--quick', action='store_true',
                    help='a smoke run of well under a minute (see the module doc)')
     p.add_argument('--repeats', type=int, default=None,
@@ -132,6 +132,7 @@ def _auto_best(rows, scene, level):
 
     The label names the method auto chose at that setting (it chooses per tolerance).
     """
+    import gyro_rotor.numerics.bench as bench
     best = None
     for r in rows:
         if (r.scene == scene and r.method == bench.AUTO and r.status == 0
@@ -153,6 +154,7 @@ def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
     auto (the speed-up of auto, > 1 = auto faster) and auto / own best (1.00 = auto is the
     fastest own method). Costs in ms per simulated second.
     """
+    import gyro_rotor.numerics.bench as bench
     idx = [bench.ERROR_LEVELS.index(lev) for lev in levels]
     best = bench.best_table(rows)
     fam = _families(rows)
@@ -177,6 +179,7 @@ def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
 
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     """Write the markdown report and return its text."""
+    import gyro_rotor.numerics.bench as bench
     best = bench.best_table(rows)
     load = (getattr(args, 'load_before', math.nan), getattr(args, 'load_after', math.nan))
     scenes = list(dict.fromkeys(r.scene for r in rows))
@@ -272,6 +275,7 @@ def work_precision_figure(rows):
     circles gyro_rotor's, squares scipy's, triangles the compiled peers; grey lines the
     error levels of the tables.
     """
+    import gyro_rotor.numerics.bench as bench
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -311,6 +315,7 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
     :func:`run`, unique): the committed ``bench/`` is written only when ``--out bench`` is
     given.
     """
+    import gyro_rotor.numerics.bench as bench
     table = args.table
     if args.repeats is None:
         args.repeats = 1 if args.quick else 3
@@ -320,7 +325,7 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
         args.level = _DEFAULT_LEVEL.get(table, 1e-9)
     if args.scenes is None:
         quick = args.quick and table == BenchTable.WORK_PRECISION
-        args.scenes = ','.join(bench.QUICK_SCENES if quick else _DEFAULT_SCENES[table])
+        args.scenes = ','.join(QUICK_SCENES if quick else _DEFAULT_SCENES[table])
     if args.out is None:
         args.out = os.path.join(RUNS_DIR, bench.default_out_dir())
         args.out_is_default = True
@@ -390,6 +395,7 @@ def _write(args: argparse.Namespace, lines: list) -> int:
 
 def _work_precision(args: argparse.Namespace, specs: list) -> int:
     """Run the work-precision sweep and write CSV, markdown and plot."""
+    import gyro_rotor.numerics.bench as bench
     t0 = time.perf_counter()
     rows = []
     for spec in specs:
@@ -424,6 +430,7 @@ def _work_precision(args: argparse.Namespace, specs: list) -> int:
 
 def general_lines(args: argparse.Namespace, specs: list) -> list:
     """Return the table ``general`` (generated systems) as markdown lines."""
+    import gyro_rotor.numerics.bench as bench
     lines = ['# General rotor systems: benchmark', '',
              f'Command: `{_command(args)}`', '']
     cost = bench.rhs_cost()
@@ -470,6 +477,7 @@ def general_lines(args: argparse.Namespace, specs: list) -> list:
 
 def _shape(spec: str) -> str:
     """Return '3 coordinates, 2 rotors) with K_D set for both rotors' of a system file's scene."""
+    import gyro_rotor.numerics.bench as bench
     system = bench.parse_scene_spec(spec)[0].system
     rotors = 'both rotors' if system.m == 2 else 'every rotor'
     return f'{system.n} coordinates, {system.m} rotors) with K_D set for {rotors}'
@@ -477,6 +485,7 @@ def _shape(spec: str) -> str:
 
 def stiff_lines(args: argparse.Namespace, spec: str) -> list:
     """Return the table ``stiff`` (:func:`~gyro_rotor.numerics.bench.stiff_table`) as markdown."""
+    import gyro_rotor.numerics.bench as bench
     rows, checks = bench.stiff_table(name=spec, t_end=args.t_end, level=args.level,
                                      repeats=args.repeats)
     lines = ['# Stiff drive on a generated system: auto vs scipy', '',

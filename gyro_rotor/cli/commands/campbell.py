@@ -8,7 +8,6 @@ import math
 from gyro_rotor.cli.util import (check_output_file, load_scene_with_sets, write_json,
                                  write_output)
 from gyro_rotor.errors import ParameterError
-import numpy as np
 
 HELP = ('Campbell diagram of a scene: frequencies and decay rates of every mode (tracked by '
         'continuity) over the field speed Omega0, critical speeds marked')
@@ -52,6 +51,7 @@ def _speed_range(args, W0: float) -> tuple:
 def run(args: argparse.Namespace) -> int:
     """Compute, print and write the Campbell diagram."""
     from gyro_rotor.linear.campbell import campbell
+    import numpy as np
     if args.json:
         check_output_file(args.json, ('.json',))
     if args.out:
@@ -119,6 +119,7 @@ def campbell_figure(cb, name: str):
         from matplotlib.ticker import MaxNLocator
     except ImportError:
         raise ParameterError('--out needs matplotlib') from None
+    import numpy as np
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(9.5, 7.5), sharex=True,
                                  gridspec_kw={'height_ratios': (3, 2)})
     rpm = cb.Omega0 * 30 / math.pi

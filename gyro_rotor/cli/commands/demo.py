@@ -30,7 +30,6 @@ import sys
 import time
 
 from gyro_rotor.cli.util import check_number
-from gyro_rotor.core.scene import DEFAULT_SCENE, load_scene
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.tools.launch import claim_domain_id, make_output_dir, NodeProcess, SideNode
 from gyro_rotor.tools.monitor import message_values
@@ -41,7 +40,7 @@ HELP = ('live demo: simulation + analysis nodes, a kick, a live table, an MCAP b
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Arguments of ``demo``."""
-    p.add_argument('scene', nargs='?', default=DEFAULT_SCENE, help='scene name or path')
+    p.add_argument('scene', nargs='?', default='precession', help='scene name or path')
     p.add_argument('--duration', type=float, default=20.0,
                    help='simulated seconds to run (default 20)')
     p.add_argument('--rtf', type=float, default=1.0,
@@ -467,6 +466,8 @@ def _conclude(out: Path, exp: dict, codes: dict, interrupted: bool = False,
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo; 0 if confirmed, 1 if not, 130 if interrupted (module doc)."""
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.core.scene import load_scene
     _check(args)
     scene = load_scene(args.scene)
     kick_at = args.kick_at

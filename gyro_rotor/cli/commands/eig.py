@@ -6,10 +6,6 @@ import argparse
 import math
 
 from gyro_rotor.cli.util import check_output_file, load_scene_with_sets, write_json
-from gyro_rotor.linear.roundoff import decay_text, fmt_re, shown
-from gyro_rotor.linear.stability import ModeKind
-from gyro_rotor.linear.system import assess, linearize_scene
-import numpy as np
 
 HELP = 'eigenvalues, named modes, drive penetration and the stability verdict of a scene'
 
@@ -30,6 +26,12 @@ def run(args: argparse.Namespace) -> int:
     the mode as undamped (no decay time from round-off), the verdict of
     :func:`gyro_rotor.linear.stability.judge`.
     """
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.linear.roundoff import decay_text, fmt_re, shown
+    from gyro_rotor.linear.stability import ModeKind
+    from gyro_rotor.linear.system import assess, linearize_scene
+    import numpy as np
+
     if args.json:
         check_output_file(args.json)
     scene = load_scene_with_sets(args.scene, args.set)

@@ -8,10 +8,6 @@ import csv
 from gyro_rotor.cli.util import (check_number, check_output_file, load_scene_with_sets,
                                  write_json, write_output)
 from gyro_rotor.errors import NotApplicableError, ParameterError
-from gyro_rotor.linear.locus import check_claims, K_ref, regimes, root_locus
-from gyro_rotor.linear.roundoff import shown
-from gyro_rotor.linear.system import linearize_scene
-import numpy as np
 
 #: most points of the --points grid (each is an eigen-decomposition, plus tracking)
 MAX_POINTS = 100000
@@ -55,8 +51,11 @@ def _print_claims(cr) -> None:
                                      'both sides down to round-off, net 0)'))
 
 
-def _grid(args, lin) -> np.ndarray:
+def _grid(args, lin):
     """Return [0] and the log grid of --points from --kd-min to --kd-max (K_ref: 1e-4, 1e4)."""
+    from gyro_rotor.linear.locus import K_ref
+    import numpy as np
+
     K = K_ref(lin)
     lo = 1e-4 * K if args.kd_min is None else args.kd_min
     hi = 1e4 * K if args.kd_max is None else args.kd_max
@@ -71,6 +70,11 @@ def _grid(args, lin) -> np.ndarray:
 
 def run(args: argparse.Namespace) -> int:
     """Compute, print the claims, write the requested files; 0 if all claims hold, else 2."""
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.linear.locus import check_claims, regimes, root_locus
+    from gyro_rotor.linear.roundoff import shown
+    from gyro_rotor.linear.system import linearize_scene
+
     for path, suffixes in ((args.csv, ()), (args.json, ()), (args.out, ('.png',))):
         if path:
             check_output_file(path, suffixes)

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from gyro_rotor.core.scene import list_scenes, load_scene
-
 HELP = 'list the shipped scenes'
 
 
@@ -15,6 +13,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print one line per scene: its system (and the centrifuge's model), t_end, what."""
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.core.scene import list_scenes, load_scene
+
     for name in list_scenes():
         s = load_scene(name)
         what = f'centrifuge {s.system.model}' if s.builtin else f'system {s.system.name}'

@@ -25,8 +25,7 @@ import argparse
 from gyro_rotor.cli.util import (check_number, check_output_file, load_scene_with_sets,
                                  write_output)
 from gyro_rotor.node_settings import NODE_KEYS
-from gyro_rotor.numerics.guard import describe_break, first_break
-from gyro_rotor.numerics.simulate import DEFAULT_RATE, simulate
+from gyro_rotor.numerics.defaults import DEFAULT_RATE
 
 HELP = ('simulate a scene (name or YAML path) and print a summary; exit 2 if the run '
         'diverged or grew')
@@ -74,6 +73,7 @@ def _guard(tr):
     stopped early (:func:`simulate` ``keep_failed``) is cut there: why is its message, the
     identity not broken.
     """
+    from gyro_rotor.numerics.guard import describe_break, first_break
     E, r = tr.out['E_star'], tr.out['residual']
     E_ref = E[0] + tr.y[0, tr.model.idiss] - r[0]
     limit = tr.scene.node.get('max_residual', NODE_KEYS['max_residual'][1])
@@ -118,6 +118,9 @@ def _verdict(guard: str, broken: bool, res, tr, min_fit_s: float) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulation and print the summary; 2 if it diverged or grew (module doc)."""
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.numerics.simulate import simulate
+
     if args.out:
         check_output_file(args.out, ('.csv', '.npz'), overwrite=args.force)
     for name, tol in (('--rtol', args.rtol), ('--atol', args.atol)):

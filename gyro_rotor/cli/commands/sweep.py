@@ -11,11 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from gyro_rotor.analysis.sweep.maps import plot_maps
 from gyro_rotor.analysis.sweep.metrics import Metric, PointStatus
-from gyro_rotor.analysis.sweep.runner import Executor, run_sweep
-from gyro_rotor.analysis.sweep.store import SweepStore
-from gyro_rotor.analysis.sweep.task import make_spec
 from gyro_rotor.errors import ParameterError
 
 HELP = 'sweep a scene over grids of parameters/initial conditions on Dask; Parquet + maps'
@@ -91,6 +87,12 @@ def _step_text(spec) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Check everything, run the sweep, draw the maps, print a summary."""
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.analysis.sweep.maps import plot_maps
+    from gyro_rotor.analysis.sweep.runner import Executor, run_sweep
+    from gyro_rotor.analysis.sweep.store import SweepStore
+    from gyro_rotor.analysis.sweep.task import make_spec
+
     if args.workers is not None and args.workers < 1:
         raise ParameterError(f'--workers must be positive, got {args.workers}')
     metrics = (None if args.metrics is None else

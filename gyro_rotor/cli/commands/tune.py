@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 
 from gyro_rotor.cli.util import load_scene_with_sets
-from gyro_rotor.linear.system import linearize_scene
-from gyro_rotor.linear.tune import tune
 
 HELP = "best drive damping K_D for the scene's K_S (fastest slowest decay) and its sensitivity"
 
@@ -21,6 +19,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the best common K_D of the drives and the sensitivity around it (every scene)."""
+    # imported here, not at the top: ``gyro-rotor --help`` loads every command's module
+    from gyro_rotor.linear.system import linearize_scene
+    from gyro_rotor.linear.tune import tune
+
     sets = args.set + ([f'K_S={args.K_S!r}'] if args.K_S is not None else [])
     scene = load_scene_with_sets(args.scene, sets)
     lin = linearize_scene(scene)

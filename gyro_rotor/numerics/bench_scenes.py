@@ -1,0 +1,15 @@
+"""The benchmark's scene sets (:mod:`~gyro_rotor.numerics.bench`), without its imports.
+
+``gyro-rotor bench --help`` names them; this module lets it do so without loading the
+integrators, the scenes and the peers that the benchmark itself needs.
+"""
+
+__all__ = ['DEFAULT_SCENES', 'QUICK_SCENES', 'SYSTEM_SCENES']
+
+DEFAULT_SCENES = ('precession', 'nutation', 'upright', 'stiff_drive@K_D=100', 'stiff_drive',
+                  'stiff_drive@K_D=1e6', 'fast_spin', 'conservative', 'conservative@t_end=100',
+                  'pole_slip')
+#: the short sweep (``--quick``, under a minute): one scene per kind of method
+QUICK_SCENES = ('precession', 'stiff_drive', 'conservative')
+#: the system files' scenes of the table ``general``
+SYSTEM_SCENES = ('centrifuge_euler', 'twin_gimbal', 'elastic_frame')
