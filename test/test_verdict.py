@@ -59,13 +59,16 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 SCENES = tuple(list_scenes())
 DURATIONS = (10.0, 20.0, 60.0)
-#: scenes whose decay no 8 s window can resolve: 'insufficient data' is their honest verdict.
-#: twin_gimbal: the slowest term of E* that shows is the 6.11 Hz gimbal mode's (0.062 1/s),
-#: nearly collinear with E*_inf and the trend over 8 s: its own part (what they cannot
-#: take) at most about the noise floor, its free rate's interval across its bound where
-#: measured; it passed against 2|alpha| = 0.00014 1/s of the 2.52 Hz mode, whose terms no
-#: window resolves
-UNRESOLVABLE = {'stiff_drive', 'twin_gimbal'}
+#: scenes whose decay the 8 s windows resolve late or never, and the run's duration from
+#: which they do (inf: never): before it 'insufficient data' is their honest verdict.
+#: stiff_drive: the modes the drive reaches decay at 0.004 1/s and slower. twin_gimbal: the
+#: slowest term of E* that shows is a cross term of the 6.11 Hz gimbal mode and the weakly
+#: damped 2.52 Hz one (0.0312 1/s), nearly collinear with E*_inf and the trend over 8 s:
+#: at 10 s its own part is below the noise floor, at 20 s its interval 0.0257 .. 0.0355
+#: straddles the bound 0.0281 ('needs about 30.7 s'), at 60 s 0.0307 (0.0290 .. 0.0324)
+#: passes. (Before E*'s fit went to round-off, test_decay_third_order, its 60 s verdict
+#: was 'insufficient data' too.)
+LATE = {'stiff_drive': math.inf, 'twin_gimbal': 60.0}
 _RUNS: dict = {}
 
 
@@ -182,7 +185,7 @@ def test_verdict_matrix_live(name):
     for T in DURATIONS:
         v = at[round(T)]
         assert 'FAIL' not in v.statuses.values(), (name, T, v.reason)
-        if name not in UNRESOLVABLE:
+        if T >= LATE.get(name, 0.0):
             assert v.verdict == exp, (name, T, v.reason)
     check_honest(final, exp, name, 'live at 60 s')
     # once the linear theory's verdict is reached it stays
@@ -241,7 +244,7 @@ def test_verdict_matrix_offline(bags, name):
         res = ana.result
         assert res.samples == int(round(T * 250)) + 1 and res.unpaired == 0, (name, T)
         check_honest(res, exp, name, f'offline at {T:g} s')
-        if name not in UNRESOLVABLE:
+        if T >= LATE.get(name, 0.0):
             assert str(res.verdict) == exp and res.confirmed, (name, T, res.evidence)
         else:
             assert str(res.verdict) == 'insufficient data'
@@ -286,7 +289,7 @@ def _mutations(scene) -> dict:
 def test_mutations_of_the_prediction_never_confirm(name):
     scene, samples = _first(name)
     res = _verdict(scene, samples)
-    if name in UNRESOLVABLE:        # every criterion but the undecided decay passes
+    if name in LATE:                # every criterion but the undecided decay passes (20 s)
         assert [str(c.name) for c in res.criteria if c.status is not Status.PASS] == \
             ['decay'] and str(res.verdict) == 'insufficient data', res.evidence
     else:
@@ -298,8 +301,8 @@ def test_mutations_of_the_prediction_never_confirm(name):
 
 
 # -- the decay criterion's own property ---------------------------------------------------------
-#: scenes where the decay criterion decides: a decaying mode predicted, not UNRESOLVABLE
-DECAYING = tuple(n for n in SCENES if n not in UNRESOLVABLE and math.isfinite(
+#: scenes where the decay criterion decides: a decaying mode predicted, not LATE
+DECAYING = tuple(n for n in SCENES if n not in LATE and math.isfinite(
     RotorAnalyzer(load_scene(n), checkpoint_s=0).prediction.decaying_abscissa))
 #: the slower runs last this long: the kick at 2 s, then 8 s windows up to 12 s
 SLOW_RUN_S = 12.0

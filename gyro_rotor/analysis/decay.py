@@ -30,8 +30,17 @@ is measured there. A term barely resolved (r T = 0.089 over 8 s) has little but 
 curvature to tell its rate from E_inf and the line, and the slow part merged into them
 has curvature too: a random system measured 0.00625 (0 .. 0.0086) 1/s, the search's
 lower end, for the true 0.01117 with E*'s residual 1e-13 of its spread (FAIL for a valid
-system); another 0.033 (0 .. 0.48), the lower end over a 1.5-s window, for 4.19. The
-faster terms that show get their predicted rates times one common factor, fitted
+system); another 0.033 (0 .. 0.48), the lower end over a 1.5-s window, for 4.19.
+
+The profile interval counts the residual, not what the columns cannot fit; a fit short of
+E* moves the rate outside it. So the fit goes to E*'s round-off: no singular value above
+it is cut (:func:`_rcond`), and where the quadratic form of eq. 13 leaves more than
+:data:`NOISE_K` times the noise, E*'s third-order terms as slow as the free ones join the
+kept columns (:func:`_third_order`): a random system with a mode the drive barely
+reaches measured 0.4448 (0.4414 .. 0.4481) 1/s for its 0.5237 over 2 .. 10 s, residual
+1.8e-7 J, and with them the residual is round-off.
+
+The faster terms that show get their predicted rates times one common factor, fitted
 alternately with r (:func:`_faster_scale`): fixed as predicted, their error leaked into r
 (elastic_frame at 0.8 K_D: 0.531 measured, 0.367 true). The rate is measured only while
 the slowest shown terms show above the noise floor, by the part of them no other column
@@ -119,6 +128,8 @@ class EnergyFit:
     free_rate: float = math.nan
     #: the same fit over the window's last part (from :data:`TAIL_FROM` of it on), or None
     tail: 'EnergyFit | None' = None
+    #: exponents of E*'s third-order terms kept as columns (:func:`_third_order`)
+    third: tuple = ()
 
     def terms(self) -> list[tuple[complex, float]]:
         """Return (exponent, amplitude at the window's start [J]) of each fitted term."""
@@ -240,12 +251,25 @@ def _tdot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum('ij,i...->j...', a, b)
 
 
+def _rcond(X: np.ndarray) -> float:
+    """Return the relative size below which a singular value of X is round-off: eps max(m, n).
+
+    numpy's own rank tolerance (``matrix_rank``). E* is simulated to round-off, so a
+    direction of the columns above it carries the data: cut at 1e-12 (4500 eps for 501
+    samples), a random system's fit over the last 1.5 s of a 2-s window (condition 3.4e13)
+    lost directions its terms need, left a residual of 8.9e-15 J against round-off
+    1.4e-17 J, and the free rate took up the loss: 0.0708 (0.0697 .. 0.0718) 1/s for the
+    true 0.0916 (FAIL for a valid system).
+    """
+    return float(np.finfo(float).eps * max(X.shape))
+
+
 def _orth(X: np.ndarray) -> np.ndarray:
-    """Return an orthonormal basis of the columns of X (rank-revealing SVD)."""
+    """Return an orthonormal basis of the columns of X (rank-revealing SVD, :func:`_rcond`)."""
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
     U, S, _ = np.linalg.svd(X / scale, full_matrices=False)
-    return U[:, S > 1e-12 * S[0]]
+    return U[:, S > _rcond(X) * S[0]]
 
 
 def _project_out(Q: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -270,7 +294,7 @@ def _projected_fit(P: np.ndarray, y: np.ndarray) -> tuple:
     """
     d = np.linalg.norm(P, axis=0)
     d[d == 0] = 1.0
-    c = np.linalg.lstsq(P / d, y, rcond=1e-12)[0] / d
+    c = np.linalg.lstsq(P / d, y, rcond=_rcond(P))[0] / d
     return c, P @ c
 
 
@@ -463,8 +487,8 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     if measurable and not weak:
         lo, hi = interval()
         return rate, lo, hi, '', bool(other)
-    return (math.nan, math.nan, math.nan, _why_not(own, end, weak, free, floor, amp, tau[-1]),
-            bool(other))
+    note = _why_not(own, end, weak, free, floor, amp, tau[-1], math.isfinite(rate))
+    return math.nan, math.nan, math.nan, note, bool(other)
 
 
 def _measure_hull(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
@@ -485,8 +509,17 @@ def _measure_hull(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: 
 
 
 def _why_not(own: float, end: float, weak: list, free: float, floor: float,
-             amp: dict, span: float) -> str:
-    """Say why the slowest shown terms (rate ``free``) give no rate (:func:`_measure`)."""
+             amp: dict, span: float, resolved: bool) -> str:
+    """Say why the slowest shown terms (rate ``free``) give no rate (:func:`_measure`).
+
+    ``resolved``: the free rate's least residual lay above the search's lower end; where
+    it did not, that is the reason, whatever the parts at that end show.
+    """
+    if not resolved:
+        # their least residual at the search's lower end (_free_rate)
+        return (f'its slowest shown terms ({free:.4g} 1/s) fit best at the slowest rate '
+                f'this {span:.3g} s window resolves ({RESOLVABLE / span:.3g} 1/s): no decay '
+                f'of theirs is resolved in it')
     if not own >= floor:
         # E_inf, the trend and the other terms mimic these terms but for less than the
         # noise floor: nothing of them is left to measure a rate from
@@ -497,11 +530,6 @@ def _why_not(own: float, end: float, weak: list, free: float, floor: float,
         # what is left at the window's end is the remainder's, which a free rate fits too
         return (f'its slowest shown terms ({free:.4g} 1/s) fall below the noise floor '
                 f'{floor:.2g} J within the window ({end:.2g} J rms over its last fifth)')
-    if not weak:
-        # their least residual at the search's lower end (_free_rate)
-        return (f'its slowest shown terms ({free:.4g} 1/s) fit best at the slowest rate '
-                f'this {span:.3g} s window resolves ({RESOLVABLE / span:.3g} 1/s): no decay '
-                f'of theirs is resolved in it')
     # every one of them the window cannot tell from the other columns
     p, mu = min(weak, key=lambda w: w[0])
     return (f'the part of its slowest shown term {_fmt_mu(mu)} that E*_inf, the trend '
@@ -546,6 +574,61 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
         return _fit_energy(t, E, eigs, noise, remainder, tail_from)
 
 
+def _linear_fit(tau: np.ndarray, y: np.ndarray, cols: list, mus: list) -> tuple:
+    """Return (coef, res, s2, cov00) of y on the columns ``cols`` and the terms ``mus``.
+
+    Scaled columns, least squares by SVD (:func:`_rcond`); s2 the residual variance counted
+    over :func:`_n_eff` pieces, cov00 the variance of the first coefficient (E_inf).
+    """
+    X = np.column_stack(cols + [_basis(tau, mus)])
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    coef, _, rank, _ = np.linalg.lstsq(Xs, y, rcond=_rcond(Xs))
+    res = y - Xs @ coef
+    s2 = float(res @ res) / max(len(y) - rank, 1) * (len(y) / _n_eff(res))
+    # covariance of the scaled coefficients via the pseudo-inverse (rank-revealing SVD)
+    _, S, Vt = np.linalg.svd(Xs, full_matrices=False)
+    keep = S > _rcond(Xs) * S[0]
+    cov00 = float(np.sum((Vt[keep, 0] / S[keep]) ** 2)) * s2
+    return coef / scale, res, s2, cov00
+
+
+def _third_order(eigs: Sequence[complex], known: list, free: float, dt: float,
+                 span: float) -> list[complex]:
+    """Exponents lambda_i + lambda_j + lambda_k of E*'s third-order terms no faster than ``free``.
+
+    E* is quadratic in the deviations only to first order: its cubic part, and its
+    quadratic form of the deviations' own second-order parts, are terms
+    exp((lambda_i + lambda_j + lambda_k) t) (conjugates among them). With a mode the drive
+    barely reaches (Re lambda_j ~ 0) they hold lambda_i + 2 Re lambda_j ~ lambda_i, half
+    the rate of the terms of eq. 13: fitted by the free rate, they pulled a random
+    system's 0.5237 1/s down to 0.4448 (0.4414 .. 0.4481) over 2 .. 10 s, residual 1.8e-7
+    J; with them as columns the residual is round-off (1.3e-17 J) and the rate 0.52377
+    (0.52357 .. 0.52381). Those the window resolves, told apart from ``known`` and each
+    other (by RESOLVABLE / span in rate or frequency), alive for a sample (``dt``),
+    decaying no faster than ``free`` (the faster ones die before it).
+    """
+    lam = [complex(z) for z in eigs]
+    lam += [z.conjugate() for z in lam if abs(z.imag) > 1e-12]
+    out: list[complex] = []
+    n = len(lam)
+    for i in range(n):
+        for j in range(i, n):
+            for k in range(j, n):
+                mu = lam[i] + lam[j] + lam[k]
+                mu = complex(mu.real, abs(mu.imag))
+                if (-mu.real > free * (1.0 + 1e-9) or mu.real * dt <= -MAX_EXPONENT
+                        or max(abs(mu.real), abs(mu.imag)) * span < RESOLVABLE):
+                    continue          # faster than the free terms, dead, or merged
+                # one the window cannot tell from a term it has (lambda_i + lambda_j +
+                # 2 Re lambda_k with Re lambda_k ~ 0 is lambda_i + lambda_j) is that term
+                if all(max(abs(mu.real - m.real), abs(mu.imag - m.imag)) * span >= RESOLVABLE
+                       for m in out + known):
+                    out.append(mu)
+    return out
+
+
 def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: float,
                 remainder: float, tail_from: float) -> EnergyFit:
     """Return :func:`fit_energy`'s fit (its doc), BLAS threads as the caller left them."""
@@ -569,37 +652,34 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
     # the slow terms merged into E_inf: their first order, a straight line, stays a column
     # (measured from the window's end, so that E_inf is the slow part's value there)
     cols = [np.ones_like(tau)] + ([tau - span] if slow else [])
-    X = np.column_stack(cols + [_basis(tau, mus)])
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    Xs = X / scale
-    coef, _, rank, _ = np.linalg.lstsq(Xs, E - E[-1], rcond=1e-12)
-    res = (E - E[-1]) - Xs @ coef
-    n_eff = _n_eff(res)
-    dof = max(len(E) - rank, 1)
-    s2 = float(res @ res) / dof * (len(E) / n_eff)
-    # covariance of the scaled coefficients via the pseudo-inverse (rank-revealing SVD)
-    _, S, Vt = np.linalg.svd(Xs, full_matrices=False)
-    keep = S > 1e-12 * S[0]
-    cov00 = float(np.sum((Vt[keep, 0] / S[keep]) ** 2)) * s2
-    coef = coef / scale
+    y = E - E[-1]
+    third: list[complex] = []
+    for _ in range(2):
+        # E*'s third-order terms as slow as the free terms join the kept columns (once)
+        cols += list(_basis(tau, third).T)
+        coef, res, s2, cov00 = _linear_fit(tau, y, cols, mus)
+        rms = float(np.sqrt(np.mean(res * res)))
+        floor = NOISE_K * max(noise, rms)
+        terms = EnergyFit(t0, 0.0, 0.0, math.nan, math.nan, math.nan, 0.0, 0.0, 0.0, span,
+                          tuple(mus), tuple(float(c) for c in coef[len(cols):]),
+                          floor=floor).terms()
+        shown = [-mu.real for mu, a in terms if a >= floor and -mu.real * span >= RESOLVABLE]
+        free = min(shown, default=math.nan)
+        if third or not math.isfinite(free) or rms < NOISE_K * noise:
+            break                       # the quadratic form fits E* to its noise: enough
+        third = _third_order(eigs, mus, free, dt, span)
+        if not third:
+            break
     E_inf = float(coef[0] + E[-1])
     trend = float(coef[1]) if slow else 0.0
     sigma = max(math.sqrt(max(cov00, 0.0)), noise)
     spread = float(np.std(E))
-    rms = float(np.sqrt(np.mean(res * res)))
     rel = rms / spread if spread > 0 else 0.0
-    floor = NOISE_K * max(noise, rms)
     settled = float(np.ptp(E)) <= NOISE_K * max(noise, remainder)
-    terms = EnergyFit(t0, E_inf, sigma, math.nan, math.nan, math.nan, rel, spread, trend,
-                      span, tuple(mus), tuple(float(c) for c in coef[len(cols):]),
-                      floor=floor).terms()
-    shown = [-mu.real for mu, a in terms if a >= floor and -mu.real * span >= RESOLVABLE]
-    free = min(shown, default=math.nan)
     rate = lo = hi = math.nan
     note, tail = 'no predicted term of E* - E*_inf decays resolvably above its noise floor', None
     if math.isfinite(free):
-        rate, lo, hi, note, scaled = _measure_hull(tau, E - E[-1], cols, mus, terms, free,
+        rate, lo, hi, note, scaled = _measure_hull(tau, y, cols, mus, terms, free,
                                                    floor, dt, noise, bool(slow))
         if scaled and math.isfinite(rate) and tail_from > 0:
             late = tau >= tail_from * span
@@ -608,8 +688,8 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
                      rate_hi=hi, rel_residual=rel, spread=spread, trend=trend, span=span,
                      exponents=tuple(mus), coef=tuple(float(c) for c in coef[len(cols):]),
                      noise=noise, floor=floor, remainder=remainder, settled=settled,
-                     residual_rms=rms, n_eff=n_eff, rate_note=note, slow=bool(slow),
-                     free_rate=free, tail=tail)
+                     residual_rms=rms, n_eff=_n_eff(res), rate_note=note, slow=bool(slow),
+                     free_rate=free, tail=tail, third=tuple(third))
 
 
 def envelope_decay_rate(t: np.ndarray, D: np.ndarray, freqs_hz: Sequence[float]) -> float:
