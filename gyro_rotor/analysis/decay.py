@@ -133,15 +133,7 @@ class EnergyFit:
 
     def terms(self) -> list[tuple[complex, float]]:
         """Return (exponent, amplitude at the window's start [J]) of each fitted term."""
-        out, i = [], 0
-        for mu in self.exponents:
-            if abs(mu.imag) <= 1e-12:
-                out.append((mu, abs(self.coef[i])))
-                i += 1
-            else:
-                out.append((mu, math.hypot(self.coef[i], self.coef[i + 1])))
-                i += 2
-        return out
+        return _amplitudes(self.exponents, self.coef)
 
     def shown_decay(self) -> float:
         """Return the slowest decay rate [1/s] of the terms that show in the measured rate.
@@ -161,6 +153,19 @@ class EnergyFit:
         tau = np.asarray(t, dtype=float) - self.t0
         X = _basis(tau, self.exponents)
         return self.E_inf + self.trend * (tau - self.span) + X @ np.asarray(self.coef)
+
+
+def _amplitudes(mus: Sequence[complex], coef: Sequence[float]) -> list[tuple[complex, float]]:
+    """Return (exponent, amplitude [J]) of each term: a real column, or a cos/sin pair."""
+    out, i = [], 0
+    for mu in mus:
+        if abs(mu.imag) <= 1e-12:
+            out.append((mu, abs(coef[i])))
+            i += 1
+        else:
+            out.append((mu, math.hypot(coef[i], coef[i + 1])))
+            i += 2
+    return out
 
 
 def _golden_log(f, a: float, b: float, steps: int) -> tuple[float, float]:
@@ -575,10 +580,10 @@ def fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex],
 
 
 def _linear_fit(tau: np.ndarray, y: np.ndarray, cols: list, mus: list) -> tuple:
-    """Return (coef, res, s2, cov00) of y on the columns ``cols`` and the terms ``mus``.
+    """Return (coef, res, cov00) of y on the columns ``cols`` and the terms ``mus``.
 
-    Scaled columns, least squares by SVD (:func:`_rcond`); s2 the residual variance counted
-    over :func:`_n_eff` pieces, cov00 the variance of the first coefficient (E_inf).
+    Scaled columns, least squares by SVD (:func:`_rcond`); cov00 the variance of the first
+    coefficient (E_inf), from the residual variance counted over :func:`_n_eff` pieces.
     """
     X = np.column_stack(cols + [_basis(tau, mus)])
     scale = np.linalg.norm(X, axis=0)
@@ -591,7 +596,7 @@ def _linear_fit(tau: np.ndarray, y: np.ndarray, cols: list, mus: list) -> tuple:
     _, S, Vt = np.linalg.svd(Xs, full_matrices=False)
     keep = S > _rcond(Xs) * S[0]
     cov00 = float(np.sum((Vt[keep, 0] / S[keep]) ** 2)) * s2
-    return coef / scale, res, s2, cov00
+    return coef / scale, res, cov00
 
 
 def _third_order(eigs: Sequence[complex], known: list, free: float, dt: float,
@@ -629,6 +634,22 @@ def _third_order(eigs: Sequence[complex], known: list, free: float, dt: float,
     return out
 
 
+def _quadratic_fit(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, noise: float,
+                   span: float) -> tuple:
+    """Return (coef, res, cov00, rms, floor, terms, free): the fit of eq. 13's terms.
+
+    :func:`_linear_fit`'s (coef, res, cov00); the rms residual, the noise floor, the
+    (exponent, amplitude) of each term, and the slowest rate of the terms that show above
+    the floor and decay resolvably in the window (NaN if none): the rate fitted free.
+    """
+    coef, res, cov00 = _linear_fit(tau, y, cols, mus)
+    rms = float(np.sqrt(np.mean(res * res)))
+    floor = NOISE_K * max(noise, rms)
+    terms = _amplitudes(mus, coef[len(cols):])
+    shown = [-mu.real for mu, a in terms if a >= floor and -mu.real * span >= RESOLVABLE]
+    return coef, res, cov00, rms, floor, terms, min(shown, default=math.nan)
+
+
 def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: float,
                 remainder: float, tail_from: float) -> EnergyFit:
     """Return :func:`fit_energy`'s fit (its doc), BLAS threads as the caller left them."""
@@ -653,23 +674,16 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
     # (measured from the window's end, so that E_inf is the slow part's value there)
     cols = [np.ones_like(tau)] + ([tau - span] if slow else [])
     y = E - E[-1]
+    coef, res, cov00, rms, floor, terms, free = _quadratic_fit(tau, y, cols, mus, noise, span)
     third: list[complex] = []
-    for _ in range(2):
-        # E*'s third-order terms as slow as the free terms join the kept columns (once)
-        cols += list(_basis(tau, third).T)
-        coef, res, s2, cov00 = _linear_fit(tau, y, cols, mus)
-        rms = float(np.sqrt(np.mean(res * res)))
-        floor = NOISE_K * max(noise, rms)
-        terms = EnergyFit(t0, 0.0, 0.0, math.nan, math.nan, math.nan, 0.0, 0.0, 0.0, span,
-                          tuple(mus), tuple(float(c) for c in coef[len(cols):]),
-                          floor=floor).terms()
-        shown = [-mu.real for mu, a in terms if a >= floor and -mu.real * span >= RESOLVABLE]
-        free = min(shown, default=math.nan)
-        if third or not math.isfinite(free) or rms < NOISE_K * noise:
-            break                       # the quadratic form fits E* to its noise: enough
+    if math.isfinite(free) and rms >= NOISE_K * noise:
+        # more than noise left: E*'s third-order terms as slow as the free terms join the
+        # kept columns (one refit)
         third = _third_order(eigs, mus, free, dt, span)
-        if not third:
-            break
+        if third:
+            cols = cols + list(_basis(tau, third).T)
+            coef, res, cov00, rms, floor, terms, free = _quadratic_fit(tau, y, cols, mus,
+                                                                       noise, span)
     E_inf = float(coef[0] + E[-1])
     trend = float(coef[1]) if slow else 0.0
     sigma = max(math.sqrt(max(cov00, 0.0)), noise)
