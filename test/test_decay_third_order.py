@@ -12,6 +12,28 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   (Re lambda = -8e-7 1/s) makes E*'s third-order terms lambda_i + 2 Re lambda_j ~ lambda_i,
   half the rate of the slowest shown terms of eq. 13 (0.5237 1/s); fitted without them
   the free rate follows them (0.4448 (0.4414 .. 0.4481) over 2 .. 10 s: FAIL).
+- ``cubic`` (seed 3435928384, n 2, m 2; t = 0 .. 4 s): the quadratic form fits E* to its
+  noise, yet a free rate for the slowest shown terms (3.792 1/s, frequency 1.406 rad/s)
+  fits best at 0.035 (0 .. 2.25) 1/s: E*'s third-order term 2 lambda_b + conj lambda_b of
+  the all but undamped mode lambda_b = -6e-5 + 1.406 i at the same frequency, below the
+  fit's floor but not below the profile's level (FAIL). Not yet mended (xfail): measured
+  again with the third-order terms as columns it has no rate (NOT YET), but with that
+  check (and the parabola's below) 7 of 60 replayed soak draws went from confirmed to
+  insufficient data, most by losing right rates to those columns.
+- ``near`` (seed 4130726406, n 2, m 2; t = 2 .. 10 s): the third-order terms
+  lambda_d + 2 Re lambda_j with Re lambda_j ~ -1e-3 decay at 2.9141 1/s, faster than the
+  free terms' 2.9133 by less than the window resolves; left out as 'faster', the free
+  rate measured 1.116 (1.004 .. 1.219) 1/s (FAIL). Not yet mended (xfail): kept as
+  columns, they cost measurable rates elsewhere (the ``late`` window measured none).
+- ``curved`` (seed 721218819, n 1, m 2; t = 2 .. 10 s): over the last 6 s the 2|alpha|
+  term (0.00746 1/s) is merged into E_inf and a line, whose curvature the fit leaves
+  (rms residual 1.4e-7 J): the free rate 0.539 (0.532 .. 0.545) for 0.6288, a false FAIL.
+  The rate measured with the slow part to second order (a parabola) was discarded: its
+  terms were judged against the line's floor (10 x 1.4e-7 J), not its own fit's. With its
+  own floor it measures 0.6285, and the interval 0.532 .. 0.6288 holds the truth.
+- ``line`` (seed 4208142203, n 1, m 2; t = 0 .. 2 s): the same, its 2|alpha| term
+  (0.0128 1/s) merged: 1.58 (1.00 .. 2.34) 1/s for 7.881 (FAIL); with the parabola's
+  measurement 1.00 .. 7.886.
 """
 
 from __future__ import annotations
@@ -73,3 +95,28 @@ def test_third_order_terms_take_the_late_window_to_round_off(windows):
     assert not set(fit.third) & set(quadratic)
     assert all(-mu.real <= 0.5237 * (1 + 1e-4) for mu in fit.third)
     assert fit.residual_rms < 100 * fit.noise
+
+
+@pytest.mark.xfail(strict=True, reason="an undamped third-order term below the fit's floor "
+                   'draws the free rate: 0.035 (0 .. 2.25) for 3.792; measured again with '
+                   'them as columns, right rates were lost elsewhere')
+def test_a_third_order_term_below_the_floor_at_the_free_terms_frequency(windows):
+    fit = _fit(windows, 'cubic')
+    assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
+
+
+@pytest.mark.parametrize('name', ['curved', 'line'])
+def test_the_merged_slow_parts_curvature_widens_the_interval(windows, name):
+    """The parabola's measurement, with its own fit's floor, joins the line's interval."""
+    fit = _fit(windows, name)
+    parts = [fit] + ([fit.tail] if fit.tail is not None else [])
+    assert any(math.isfinite(f.rate) for f in parts)
+    for f in parts:
+        assert _holds(f, f.free_rate), (f.t0, f.rate, f.rate_lo, f.rate_hi, f.free_rate)
+
+
+@pytest.mark.xfail(strict=True, reason='third-order terms faster than the free ones by less '
+                   'than the window resolves are left out: 1.116 (1.004 .. 1.219) for 2.913')
+def test_third_order_terms_barely_faster_than_the_free_ones(windows):
+    fit = _fit(windows, 'near')
+    assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
