@@ -66,28 +66,3 @@ def test_demo_ctrl_c_at_a_live_row_stops_cleanly_with_130(tmp_path, rows):
     report = json.loads((out / 'report' / 'report.json').read_text())
     assert report['verdict'], report
     assert 'interrupted (Ctrl-C)' in stdout, both
-
-
-def test_demo_signals_are_recorded_not_raised():
-    """The demo's handler records the first signal; the loops raise at their boundaries."""
-    import os
-    from gyro_rotor.cli.commands import demo
-    before = {s: signal.getsignal(s) for s in demo._Signals.SIGNALS}
-    sig = demo._Signals().install()
-    try:
-        sig.check()                                 # nothing yet
-        os.kill(os.getpid(), signal.SIGINT)         # no KeyboardInterrupt here
-        os.kill(os.getpid(), signal.SIGTERM)        # a second one: the first one counts
-        assert sig.signum == signal.SIGINT
-        with pytest.raises(demo._Stop) as stop:
-            sig.check()
-        assert stop.value.signum == signal.SIGINT
-        late = demo._Signals().install()
-        late.ignore()                               # the nodes are being stopped
-        os.kill(os.getpid(), signal.SIGHUP)
-        late.check()
-        assert late.signum == 0
-        late.restore()
-    finally:
-        sig.restore()
-    assert {s: signal.getsignal(s) for s in demo._Signals.SIGNALS} == before

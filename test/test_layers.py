@@ -37,14 +37,16 @@ MODULES = sorted(p for p in PKG.rglob('*.py') if '__pycache__' not in p.parts)
 
 
 def test_every_module_is_in_a_layer():
-    """Only the package's entry files, errors.py and node_settings.py live outside the layers.
+    """Only the entry files, errors.py, signals.py and node_settings.py are outside the layers.
 
-    The last two are below every layer (their imports are checked by test_layer_rule: none
-    of a layer): the exception types, and the simulation node's settings that a scene file
-    carries (the scene reader in core accepts them, the node declares them).
+    The last three are below every layer (their imports are checked by test_layer_rule: none
+    of a layer): the exception types, the stop request that every process of the package
+    (a node's main() in ros, the soak in tools, the commands in cli) takes its signals as,
+    and the simulation node's settings that a scene file carries (the scene reader in core
+    accepts them, the node declares them).
     """
     loose = {p.name for p in MODULES if p.parent == PKG}
-    assert loose <= {'__init__.py', '__main__.py', 'errors.py', 'node_settings.py'}
+    assert loose <= {'__init__.py', '__main__.py', 'errors.py', 'signals.py', 'node_settings.py'}
 
 
 @pytest.mark.parametrize('path', MODULES, ids=[str(p.relative_to(PKG)) for p in MODULES])

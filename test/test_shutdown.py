@@ -26,7 +26,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 # -- the handler ------------------------------------------------------------------------------
 def test_stop_signals_remember_the_first_count_the_rest_and_restore():
-    from gyro_rotor.ros.runner import StopSignals
+    from gyro_rotor.signals import StopSignals
     before = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
     woken = []
     stop = StopSignals().install(wake=lambda: woken.append(1))

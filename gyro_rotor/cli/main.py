@@ -6,6 +6,12 @@ command-line argument (argparse's usage errors, :class:`_Parser`), into one ``ER
 line on stderr and exit status 1 (``--help`` exits 0). Exit status 2 is left to the
 commands' own meaning (``locus``: a claim failed; ``analyze``: a verdict not confirmed;
 ``simulate``: the run diverged or grew).
+
+A signal ends a command with ``interrupted`` (SIGINT) or ``terminated`` on stderr and the
+shell's status 128 + its number (130 for Ctrl-C), never with a traceback: also where
+rclpy's C code turned the KeyboardInterrupt into another exception (the handler installed
+here remembers the Ctrl-C, :class:`~gyro_rotor.signals.StopSignals`), and where a command
+acts on a signal at a loop boundary of its own (:class:`~gyro_rotor.signals.Stopped`).
 """
 
 from __future__ import annotations
@@ -13,10 +19,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 
 from gyro_rotor.cli.util import error_hint
 from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.signals import exit_status, StopSignals
 
 #: subcommand name -> module in gyro_rotor.cli.commands (listed in the order of --help)
 COMMANDS = {
@@ -82,6 +90,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
+    interrupt = StopSignals((signal.SIGINT,), at_once=True).install()
+    try:
+        return _main(argv)
+    except KeyboardInterrupt as err:
+        return _stopped(getattr(err, 'signum', signal.SIGINT))
+    except Exception:  # noqa: B902 -- only the interrupt's, as the test below says
+        if not interrupt.requested:
+            raise
+        return _stopped(interrupt.signum)      # rclpy made another exception of it
+    finally:
+        interrupt.restore()
+
+
+def _stopped(signum: int) -> int:
+    print('interrupted' if signum == signal.SIGINT else 'terminated', file=sys.stderr)
+    return exit_status(signum)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args, extra = parser.parse_known_args(argv)
@@ -117,9 +144,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f'ERROR: the numbers asked for are too large: {type(err).__name__}: {err}',
               file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print('interrupted', file=sys.stderr)
-        return 130
 
 
 if __name__ == '__main__':

@@ -3,22 +3,23 @@
 **Signals.** rclpy's own signal handlers would shut the context down under a running
 callback (whose next publish then fails), and Python's default SIGINT handler raises
 KeyboardInterrupt wherever the main thread happens to be. Here SIGINT and SIGTERM only
-*ask* for a stop: the first one ends the spin loop at the next callback boundary (a
-thread woken by the signal through :func:`signal.set_wakeup_fd` triggers a guard
-condition of the node, so the main thread can wait for work without a polling timeout
-that would wake it, and take the GIL from rotor_sim's real-time loop, several times a
-second), then the node is torn down: its ``on_shutdown()`` if it has one
-(last words while the context is still up), then ``destroy_node()`` (the recorder
-finalizes its bag there). Every further SIGINT or SIGTERM until the end of the teardown is
-counted and ignored: a terminal's Ctrl-C reaches each node twice under ``ros2 launch``
-(once from the process group, once forwarded by launch), and launch sends SIGTERM if a
-node is still running after its ``sigterm_timeout``; none of them may cut the teardown
-short, or the bag is lost and launch reports "process has died". After the teardown the
-two signals stay ignored for the rest of the process (its interpreter's finalization:
-Python would reset a handler of its own to the default action there, and a late
-forwarded SIGINT would kill the process, exit status -2): everything is written by then.
-However the signals arrive, the exit status is 0 and there is no traceback. In-process
-(tests), ``run_node(..., restore_signals=True)`` puts the previous handlers back instead.
+*ask* for a stop (:class:`gyro_rotor.signals.StopSignals`): the first one ends the spin
+loop at the next callback boundary (a thread woken by the signal through
+:func:`signal.set_wakeup_fd` triggers a guard condition of the node, so the main thread
+can wait for work without a polling timeout that would wake it, and take the GIL from
+rotor_sim's real-time loop, several times a second), then the node is torn down: its
+``on_shutdown()`` if it has one (last words while the context is still up), then
+``destroy_node()`` (the recorder finalizes its bag there). Every further SIGINT or SIGTERM
+until the end of the teardown is counted and ignored: a terminal's Ctrl-C reaches each
+node twice under ``ros2 launch`` (once from the process group, once forwarded by launch),
+and launch sends SIGTERM if a node is still running after its ``sigterm_timeout``; none of
+them may cut the teardown short, or the bag is lost and launch reports "process has died".
+After the teardown the two signals stay ignored for the rest of the process (its
+interpreter's finalization: Python would reset a handler of its own to the default action
+there, and a late forwarded SIGINT would kill the process, exit status -2): everything is
+written by then. However the signals arrive, the exit status is 0 and there is no
+traceback. In-process (tests), ``run_node(..., restore_signals=True)`` puts the previous
+handlers back instead.
 
 **Started by launch.** The upstream ``ros2 launch`` of Jazzy dies at once on a SIGTERM of
 its own (ros2/launch#666): its nodes are orphaned and would run (and record) on. A node
@@ -44,10 +45,10 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import threading
 from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError
+from gyro_rotor.signals import StopSignals
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -55,87 +56,11 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from threadpoolctl import threadpool_limits
 
-__all__ = ['run_node', 'spin_until_stopped', 'StopSignals', 'SPIN_TIMEOUT', 'exit_with_parent',
+__all__ = ['run_node', 'spin_until_stopped', 'SPIN_TIMEOUT', 'exit_with_parent',
            'parent_is_launch']
 
 #: longest wait of one spin of the executor [s] (a stop signal wakes it at once)
 SPIN_TIMEOUT = 2.0
-_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-
-class StopSignals:
-    """SIGINT and SIGTERM as a stop request: the first is remembered, the rest counted.
-
-    Installed with :meth:`install`, removed (the previous handlers back) with
-    :meth:`restore`. The handler does nothing but set attributes, so it is safe wherever
-    the main thread is when the signal arrives (inside rclpy, in a callback, in the
-    teardown). With ``wake``, a thread calls ``wake()`` whenever a signal arrives (it
-    reads the wakeup fd of :func:`signal.set_wakeup_fd`), e.g. to wake an executor whose
-    wait would otherwise delay the Python handler until it times out.
-    """
-
-    def __init__(self):
-        #: the first stop signal (None until one arrives)
-        self.signum: int | None = None
-        #: signals after the first (ignored)
-        self.repeats = 0
-        self._previous: dict = {}
-        self._pipe: tuple[int, int] | None = None
-        self._old_fd = -1
-        self._waker: threading.Thread | None = None
-
-    @property
-    def requested(self) -> bool:
-        """Return whether a stop signal arrived."""
-        return self.signum is not None
-
-    def __call__(self, signum, frame) -> None:
-        """Handle a signal (see the class doc)."""
-        if self.signum is None:
-            self.signum = signum
-        else:
-            self.repeats += 1
-
-    def install(self, wake: Callable[[], None] | None = None) -> 'StopSignals':
-        """Handle SIGINT and SIGTERM from now on (call ``wake()`` on each); return self."""
-        for sig in _SIGNALS:
-            self._previous[sig] = signal.signal(sig, self)
-        if wake is not None:
-            r, w = os.pipe()
-            os.set_blocking(w, False)
-            self._old_fd = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
-            self._pipe = (r, w)
-            self._waker = threading.Thread(target=self._wake_loop, args=(r, wake),
-                                           name='signal-wake', daemon=True)
-            self._waker.start()
-        return self
-
-    @staticmethod
-    def _wake_loop(fd: int, wake: Callable[[], None]) -> None:
-        while True:
-            try:
-                if not os.read(fd, 64):         # the write end closed: restore()
-                    return
-            except OSError:
-                return
-            try:
-                wake()
-            except Exception:  # noqa: B902 -- (an executor already shut down)
-                pass
-
-    def restore(self, ignore: bool = False) -> None:
-        """Put the previous handlers back, or with ``ignore`` ignore the signals (idempotent)."""
-        if self._pipe is not None:
-            signal.set_wakeup_fd(self._old_fd)
-            r, w = self._pipe
-            self._pipe = None
-            os.close(w)
-            self._waker.join()
-            os.close(r)
-        for sig, handler in self._previous.items():
-            signal.signal(sig, signal.SIG_IGN if ignore else
-                          signal.SIG_DFL if handler is None else handler)
-        self._previous = {}
 
 
 def _error(err: BaseException) -> int:

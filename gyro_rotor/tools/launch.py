@@ -28,6 +28,7 @@ import time
 from typing import Any, IO, Mapping
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.signals import StopSignals
 
 __all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'SideNode', 'ros_param',
            'energy_seq_from_cdr', 'make_output_dir']
@@ -178,7 +179,8 @@ class SideNode:
     #: longest wait of one spin in :meth:`spin` [s]
     SPIN_STEP = 0.05
 
-    def __init__(self, name: str, domain_id: int, **options: Any):
+    def __init__(self, name: str, domain_id: int, signals: StopSignals | None = None,
+                 **options: Any):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         self.ctx = rclpy.context.Context()
@@ -186,12 +188,23 @@ class SideNode:
         self.node = rclpy.create_node(name, context=self.ctx, **options)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
+        #: the process's stop request, checked between two spins (None: not checked)
+        self.signals = signals
 
     def spin(self, seconds: float) -> None:
-        """Process callbacks for about ``seconds``."""
+        """Process callbacks for about ``seconds``; raise ``Stopped`` once a signal came.
+
+        The stop request (:attr:`signals`) is checked between two spins of the executor,
+        never inside one: its handler only records the signal.
+        """
         end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.ex.spin_once(timeout_sec=min(self.SPIN_STEP, max(0.0, end - time.monotonic())))
+        while True:
+            if self.signals is not None:
+                self.signals.check()
+            rest = end - time.monotonic()
+            if rest <= 0:
+                return
+            self.ex.spin_once(timeout_sec=min(self.SPIN_STEP, rest))
 
     def close(self) -> None:
         """Shut the node down."""

@@ -28,6 +28,7 @@ import time
 from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.signals import StopSignals
 from gyro_rotor.tools.launch import (claim_domain_id, energy_seq_from_cdr, make_output_dir,
                                      NodeProcess, SideNode)
 from gyro_rotor.tools.monitor import message_values
@@ -219,10 +220,11 @@ class _Listener(SideNode):
 
     SPIN_STEP = 0.1
 
-    def __init__(self, domain_id: int):
+    def __init__(self, domain_id: int, signals: StopSignals | None = None):
         from diagnostic_msgs.msg import DiagnosticArray
         from std_msgs.msg import Float64MultiArray
-        super().__init__('gyro_rotor_soak', domain_id, start_parameter_services=False)
+        super().__init__('gyro_rotor_soak', domain_id, signals,
+                         start_parameter_services=False)
         self.sim: dict = {}
         self.sim_message = ''
         self.rtf_windows: list[float] = []
@@ -435,9 +437,13 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     sim = ana = listener = None
     res.loadavg.append(os.getloadavg()[0])
+    # a signal stops the soak at the listener's next spin (Stopped): the nodes are stopped,
+    # the bag finalized, and a signal while they stop is counted, not acted on
+    signals = StopSignals()
     try:
+        signals.install()
         with CpuLoad(load):
-            listener = _Listener(claim.domain_id)
+            listener = _Listener(claim.domain_id, signals)
             sim, ana = _start_nodes(res, str(sc.path or scene), bag, claim.domain_id, logs,
                                     env)
             say(f'soak: ROS_DOMAIN_ID {claim.domain_id}, rotor_sim pid {sim.pid}, '
@@ -447,14 +453,17 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
             _drain(res, listener, drain_timeout)
             _stop_nodes(res, sim, ana, listener, out)
     finally:
-        for p in (sim, ana):
-            if p is not None:
-                p.stop()
-        if listener is not None:
-            listener.close()
-        claim.release()
-        for f in logs.values():
-            f.close()
+        try:
+            for p in (sim, ana):
+                if p is not None:
+                    p.stop()
+            if listener is not None:
+                listener.close()
+            claim.release()
+            for f in logs.values():
+                f.close()
+        finally:
+            signals.restore()
     _count_bag(bag, res)
     (out / 'soak.json').write_text(json.dumps(res.as_dict(), indent=1, default=str))
     return res

@@ -31,6 +31,7 @@ import time
 
 from gyro_rotor.cli.util import check_number
 from gyro_rotor.errors import GyroRotorError, ParameterError
+from gyro_rotor.signals import StopSignals
 from gyro_rotor.tools.launch import claim_domain_id, make_output_dir, NodeProcess, SideNode
 from gyro_rotor.tools.monitor import message_values
 
@@ -87,73 +88,18 @@ def _on_grid(t: float, rate: float) -> float:
 SUBSCRIBERS = 2
 
 
-class _Stop(KeyboardInterrupt):
-    """SIGINT, SIGTERM or SIGHUP while the nodes run (raised by :meth:`_Signals.check`)."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-class _Signals:
-    """SIGINT, SIGTERM and SIGHUP as a stop request: the first is recorded, never raised.
-
-    The handler only sets :attr:`signum`, so it is safe wherever the main thread is when
-    the signal arrives: mostly inside rclpy's C calls (taking and deserializing a
-    message), where a KeyboardInterrupt raised by the handler came out of pybind11 as a
-    ``TypeError`` with a traceback (the monitor's, ce52d5c). The loops call :meth:`check`
-    at their boundaries, which raises :class:`_Stop` there. After :meth:`ignore` (the
-    nodes are being stopped) every signal is ignored.
-    """
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-    def __init__(self):
-        #: the first signal (0: none yet)
-        self.signum = 0
-        self._ignoring = False
-        self._previous: dict = {}
-
-    def __call__(self, signum, _frame) -> None:
-        """Handle a signal: record the first one (see the class doc)."""
-        if not self.signum and not self._ignoring:
-            self.signum = signum
-
-    def install(self) -> '_Signals':
-        """Handle the signals from now on; return self."""
-        for sig in self.SIGNALS:
-            try:
-                self._previous[sig] = signal.signal(sig, self)
-            except ValueError:          # not the main thread: the caller handles signals
-                break
-        return self
-
-    def check(self) -> None:
-        """Raise :class:`_Stop` if a signal arrived (call it where leaving is safe)."""
-        if self.signum:
-            raise _Stop(self.signum)
-
-    def ignore(self) -> None:
-        """Ignore every signal from now on (until :meth:`restore`)."""
-        self._ignoring = True
-
-    def restore(self) -> None:
-        """Put the previous handlers back (idempotent)."""
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-        self._previous = {}
+#: the signals that stop the demo: Ctrl-C, ``kill``, and the terminal closing
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 class _LiveView(SideNode):
     """An rclpy node in the demo process: listens to energy and analysis, kicks."""
 
-    def __init__(self, domain_id: int, signals: _Signals | None = None):
+    def __init__(self, domain_id: int, signals: StopSignals | None = None):
         from gyro_rotor.ros.qos import profile
         from std_msgs.msg import Float64MultiArray, String
         from std_srvs.srv import Trigger
-        super().__init__('gyro_rotor_demo', domain_id)
-        #: the demo's stop request, checked between two spins (:meth:`spin`)
-        self.signals = signals if signals is not None else _Signals()
+        super().__init__('gyro_rotor_demo', domain_id, signals)
         self.energy: dict = {}
         self.analysis: dict = {}
         self.modes: list = []
@@ -199,20 +145,6 @@ class _LiveView(SideNode):
         for st in msg.status:
             if st.name.startswith('rotor_sim') and st.message.startswith('diverged:'):
                 self.diverged = st.message
-
-    def spin(self, seconds: float) -> None:
-        """Process callbacks for about ``seconds``; raise :class:`_Stop` once a signal came.
-
-        The stop request is checked between two spins of the executor, never inside one:
-        the signal handler only records the signal (:class:`_Signals`).
-        """
-        end = time.monotonic() + seconds
-        while True:
-            self.signals.check()
-            rest = end - time.monotonic()
-            if rest <= 0:
-                return
-            self.ex.spin_once(timeout_sec=min(self.SPIN_STEP, rest))
 
     def _call(self, client, request, timeout: float):
         """Call a service and spin until it answers; return the response (None: none).
@@ -437,20 +369,23 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int, str]:
 
     The divergence: why rotor_sim stopped integrating before the duration ('' if not).
 
-    The nodes are stopped (SIGINT, then SIGTERM, then SIGKILL) however this ends; a second
-    signal while they stop is ignored, so the stopping is not cut short. A signal only asks
-    for the stop (:class:`_Signals`): the live view's loops leave at their next boundary.
+    The nodes are stopped (SIGINT, then SIGTERM, then SIGKILL) however this ends; a
+    signal while they stop is counted, not acted on, so the stopping is not cut short. A
+    signal only asks for the stop (:class:`~gyro_rotor.signals.StopSignals`): the live
+    view's loops leave at their next boundary.
     """
     scene_arg = scene.path or args.scene
-    signals = _Signals().install()
+    signals = StopSignals(SIGNALS)
     claim = claim_domain_id()
-    logs = {n: open(out / f'{n}.log', 'w') for n in ('rotor_sim', 'rotor_analysis')}
+    logs: dict = {}
     procs: list = []
     view = None
     stopped_by = 0
     diverged = ''
     codes: dict = {}
     try:
+        signals.install()
+        logs.update((n, open(out / f'{n}.log', 'w')) for n in ('rotor_sim', 'rotor_analysis'))
         print(f'ROS_DOMAIN_ID {claim.domain_id} (localhost only); recording to {out / "bag"}\n'
               f'watch it from another terminal: gyro-rotor monitor --domain-id '
               f'{claim.domain_id}', flush=True)
@@ -466,7 +401,6 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int, str]:
         print(f'\n{"interrupted" if stopped_by == signal.SIGINT else "terminated"}: '
               'stopping the nodes, finalizing the bag', file=sys.stderr, flush=True)
     finally:
-        signals.ignore()
         try:
             codes = {p.module: p.stop() for p in reversed(procs)}
             if view is not None:

@@ -21,11 +21,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
-import signal
 import sys
 import time
 
 from gyro_rotor.errors import ParameterError
+from gyro_rotor.signals import StopSignals
 from gyro_rotor.tools.monitor import Changes, known_values, message_values, \
     system_from_joints, system_topics, TopicStats
 
@@ -247,10 +247,8 @@ def run(args: argparse.Namespace) -> int:
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise ParameterError(f'--domain-id must be in 0..232, got {args.domain_id}')
     args.namespace = _namespace(args.namespace)
-    # Ctrl-C asks the loop to stop: a KeyboardInterrupt raised inside rclpy's C calls (a
-    # message being deserialized) came out as a TypeError with a traceback
-    stop: list = []
-    previous = signal.signal(signal.SIGINT, lambda *_: stop.append(True))
+    # Ctrl-C (or SIGTERM) asks the loop to stop, its normal end (exit status 0)
+    stop = StopSignals()
     context = rclpy.context.Context()
     kwargs = {} if args.domain_id is None else {'domain_id': args.domain_id}
     rclpy.init(context=context, **kwargs)
@@ -262,7 +260,8 @@ def run(args: argparse.Namespace) -> int:
     next_print = t0 + args.period
     tty = sys.stdout.isatty()
     try:
-        while context.ok() and not stop:
+        stop.install()
+        while context.ok() and not stop.requested:
             mon.discover()
             ex.spin_once(timeout_sec=0.05)
             now = time.monotonic()
@@ -280,5 +279,5 @@ def run(args: argparse.Namespace) -> int:
         ex.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-        signal.signal(signal.SIGINT, previous)
+        stop.restore()
     return 0

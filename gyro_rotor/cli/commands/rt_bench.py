@@ -32,6 +32,8 @@ import os
 from pathlib import Path
 import time
 
+from gyro_rotor.signals import StopSignals
+
 HELP = "measure the simulation node's achieved real-time factor and tick lateness"
 
 
@@ -56,8 +58,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
-              integrator: str = 'auto', realtime_priority: int | None = None) -> dict:
-    """Run the node for ``duration`` wall seconds; return its figures."""
+              integrator: str = 'auto', realtime_priority: int | None = None,
+              signals: StopSignals | None = None) -> dict:
+    """Run the node for ``duration`` wall seconds; return its figures.
+
+    ``signals``: a stop request checked between two spins (``Stopped`` ends the run).
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
@@ -77,11 +83,11 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
     executor = SingleThreadedExecutor(context=context)
     try:
         executor.add_node(node)
-        _spin_for(executor, 1.0)              # the loop starts, the first ticks settle
+        _spin_for(executor, 1.0, signals)     # the loop starts, the first ticks settle
         with node.lock:                       # (between two ticks)
             node.pacer.take_window(node.tick_time or node._now())
         node.deadlines.take_window()
-        _spin_for(executor, duration)
+        _spin_for(executor, duration, signals)
         with node.lock:
             w = node.pacer.take_window(node.tick_time or node._now())
         late = node.deadlines.take_window()
@@ -101,14 +107,19 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
         rclpy.shutdown(context=context)
 
 
-def reference_one(rate: float, duration: float, realtime_priority: int | None = None) -> dict:
-    """Sleep to deadlines at ``rate`` for ``duration`` s in a thread, doing nothing else."""
+def reference_one(rate: float, duration: float, realtime_priority: int | None = None,
+                  signals: StopSignals | None = None) -> dict:
+    """Sleep to deadlines at ``rate`` for ``duration`` s in a thread, doing nothing else.
+
+    ``signals``: a stop request checked every 0.1 s (``Stopped`` ends the thread and the run).
+    """
     import threading
     from gyro_rotor.numerics.realtime import (Deadlines, set_thread_priority,
                                               set_timer_slack)
     from gyro_rotor.ros.sim_node import DEFAULT_RT_PRIORITY
     prio = DEFAULT_RT_PRIORITY if realtime_priority is None else realtime_priority
     out = {}
+    halt = threading.Event()
 
     def run():
         set_timer_slack(1)
@@ -116,7 +127,7 @@ def reference_one(rate: float, duration: float, realtime_priority: int | None = 
         d = Deadlines(1.0 / rate)
         d.start()
         end = time.monotonic() + duration
-        while time.monotonic() < end:
+        while time.monotonic() < end and not halt.is_set():
             d.wait()
             d.done()
         set_thread_priority(0)
@@ -125,7 +136,14 @@ def reference_one(rate: float, duration: float, realtime_priority: int | None = 
 
     t = threading.Thread(target=run)
     t.start()
-    t.join()
+    try:
+        while t.is_alive():
+            t.join(0.1)
+            if signals is not None:
+                signals.check()
+    finally:
+        halt.set()
+        t.join()
     la = out['late']
     nan = float('nan')
     return {'scene': '(reference: sleep only)', 'rtf': 1.0, 'rate': rate, 'wall': duration,
@@ -135,11 +153,17 @@ def reference_one(rate: float, duration: float, realtime_priority: int | None = 
             'diverged': None, 'scheduling': out['scheduling'], 'load': os.getloadavg()[0]}
 
 
-def _spin_for(executor, seconds: float) -> None:
-    """Spin as rotor_sim's main() does (woken by work only), for ``seconds``."""
+def _spin_for(executor, seconds: float, signals: StopSignals | None = None) -> None:
+    """Spin as rotor_sim's main() does, for ``seconds``, checking ``signals`` in between.
+
+    As in rotor_sim's main(), the executor waits for work for up to ``SPIN_TIMEOUT``: a
+    signal is acted on within that time.
+    """
     from gyro_rotor.ros.runner import SPIN_TIMEOUT
     end = time.monotonic() + seconds
     while (rest := end - time.monotonic()) > 0:
+        if signals is not None:
+            signals.check()
         executor.spin_once(timeout_sec=min(rest, SPIN_TIMEOUT))
 
 
@@ -185,11 +209,14 @@ def run(args: argparse.Namespace) -> int:
         check_number('--rtf', rtf, low=NODE_RANGES['real_time_factor'][0],
                      high=NODE_RANGES['real_time_factor'][1])
     rows = []
-    for rate in args.publish_rate:
-        rows += [bench_one(s, r, args.duration, rate, args.integrator, args.realtime_priority)
-                 for s in args.scenes for r in args.rtf]
-        if not args.no_reference:
-            rows.append(reference_one(rate, args.duration, args.realtime_priority))
+    with StopSignals() as signals:          # a signal ends the run between two spins
+        for rate in args.publish_rate:
+            rows += [bench_one(s, r, args.duration, rate, args.integrator,
+                               args.realtime_priority, signals)
+                     for s in args.scenes for r in args.rtf]
+            if not args.no_reference:
+                rows.append(reference_one(rate, args.duration, args.realtime_priority,
+                                          signals))
     lines = table(rows, args.duration)
     if args.note:
         lines += ['', args.note]
