@@ -70,7 +70,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -500,8 +500,8 @@ def _measure_hull(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: 
     rate, lo, hi, note, scaled = _measure(tau, y, cols, mus, terms, free, floor, dt, noise)
     if slow and math.isfinite(rate):
         cols2 = cols + [(tau - tau[-1]) ** 2]
-        _, _, _, _, floor2, terms2, _ = _quadratic_fit(tau, y, cols2, mus, noise, tau[-1])
-        second = _measure(tau, y, cols2, mus, terms2, free, floor2, dt, noise)
+        fit2 = _quadratic_fit(tau, y, cols2, mus, noise, tau[-1])
+        second = _measure(tau, y, cols2, mus, fit2.terms, free, fit2.floor, dt, noise)
         if math.isfinite(second[0]):
             lo, hi = min(lo, second[1]), max(hi, second[2])
     return rate, lo, hi, note, scaled
@@ -628,20 +628,35 @@ def _third_order(eigs: Sequence[complex], known: list, free: float, dt: float,
     return out
 
 
-def _quadratic_fit(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, noise: float,
-                   span: float) -> tuple:
-    """Return (coef, res, cov00, rms, floor, terms, free): the fit of eq. 13's terms.
+class _QuadraticFit(NamedTuple):
+    """The linear least squares fit of eq. 13's terms (:func:`_quadratic_fit`)."""
 
-    :func:`_linear_fit`'s (coef, res, cov00); the rms residual, the noise floor, the
-    (exponent, amplitude) of each term, and the slowest rate of the terms that show above
-    the floor and decay resolvably in the window (NaN if none): the rate fitted free.
-    """
+    #: coefficients: the kept columns', then the terms' (cosine, sine for a complex one)
+    coef: np.ndarray
+    #: residual of every sample
+    res: np.ndarray
+    #: variance of the first coefficient (E_inf's)
+    cov00: float
+    #: rms residual
+    rms: float
+    #: noise floor: NOISE_K x the larger of the noise and the rms residual
+    floor: float
+    #: (exponent, amplitude) of each term
+    terms: list
+    #: the slowest rate of the terms that show above the floor and decay resolvably in the
+    #: window (NaN if none): the rate fitted free
+    free: float
+
+
+def _quadratic_fit(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, noise: float,
+                   span: float) -> _QuadraticFit:
+    """Return the fit of eq. 13's terms to ``y`` with the kept columns ``cols``."""
     coef, res, cov00 = _linear_fit(tau, y, cols, mus)
     rms = float(np.sqrt(np.mean(res * res)))
     floor = NOISE_K * max(noise, rms)
     terms = _amplitudes(mus, coef[len(cols):])
     shown = [-mu.real for mu, a in terms if a >= floor and -mu.real * span >= RESOLVABLE]
-    return coef, res, cov00, rms, floor, terms, min(shown, default=math.nan)
+    return _QuadraticFit(coef, res, cov00, rms, floor, terms, min(shown, default=math.nan))
 
 
 def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: float,
@@ -668,16 +683,16 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
     # (measured from the window's end, so that E_inf is the slow part's value there)
     cols = [np.ones_like(tau)] + ([tau - span] if slow else [])
     y = E - E[-1]
-    coef, res, cov00, rms, floor, terms, free = _quadratic_fit(tau, y, cols, mus, noise, span)
+    fit = _quadratic_fit(tau, y, cols, mus, noise, span)
     third: list[complex] = []
-    if math.isfinite(free) and rms >= NOISE_K * noise:
+    if math.isfinite(fit.free) and fit.rms >= NOISE_K * noise:
         # more than noise left: E*'s third-order terms as slow as the free terms join the
         # kept columns (one refit)
-        third = _third_order(eigs, mus, free, dt, span)
+        third = _third_order(eigs, mus, fit.free, dt, span)
         if third:
             cols = cols + list(_basis(tau, third).T)
-            coef, res, cov00, rms, floor, terms, free = _quadratic_fit(tau, y, cols, mus,
-                                                                       noise, span)
+            fit = _quadratic_fit(tau, y, cols, mus, noise, span)
+    coef, res, cov00, rms, floor, terms, free = fit
     E_inf = float(coef[0] + E[-1])
     trend = float(coef[1]) if slow else 0.0
     sigma = max(math.sqrt(max(cov00, 0.0)), noise)
