@@ -48,6 +48,31 @@ def wait_for_log(log: Path, text: str, proc, timeout: float = 60.0) -> None:
     raise AssertionError(f'no {text!r} in {log}: {log.read_text()}')
 
 
+def run_reading(cmd: list, on_line, within_s: float, tmp_path: Path) -> tuple[int, str, str]:
+    """Run ``cmd``, call ``on_line(line, proc)`` on each line of its stdout as it comes.
+
+    Return (exit status, stdout, stderr). ``within_s`` bounds the run (the process is killed
+    after it): a failure bound, not a pace. stderr goes to a file under ``tmp_path``.
+    """
+    err_path = tmp_path / 'stderr.txt'
+    with open(err_path, 'w') as err:
+        p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True)
+    watchdog = threading.Timer(within_s, p.kill)
+    watchdog.start()
+    lines = []
+    try:
+        for line in p.stdout:        # read to the end: on_line may signal the process
+            lines.append(line)
+            on_line(line, p)
+        p.wait()
+    finally:
+        watchdog.cancel()
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    return p.returncode, ''.join(lines), err_path.read_text()
+
+
 def bag_on_disk(bag: Path, topic: str) -> list:
     """Return ``(log_time, data)`` of ``topic`` in the chunks of a bag that reached the disk.
 

@@ -9,10 +9,9 @@ instead, stop the nodes, analyse the data up to the cut and return 130.
 
 import json
 import signal
-import subprocess
 import sys
-import threading
 
+import node_helpers
 import pytest
 
 #: the bound on the whole run (a failure bound, not a pace: the test waits for events)
@@ -35,32 +34,21 @@ def test_demo_ctrl_c_at_a_live_row_stops_cleanly_with_130(tmp_path, rows):
     traceback, the bag finalized and analysed up to the cut.
     """
     out = tmp_path / 'demo'
-    err_path = tmp_path / 'stderr.txt'
-    with open(err_path, 'w') as err:
-        p = subprocess.Popen([sys.executable, '-m', 'gyro_rotor', 'demo', '--rtf', '0',
-                              '--duration', '120', '--out', str(out)],
-                             stdout=subprocess.PIPE, stderr=err, text=True)
-    watchdog = threading.Timer(RUN_WITHIN_S, p.kill)
-    watchdog.start()
-    lines, seen = [], 0
-    try:
-        for line in p.stdout:        # read to the end: the signal is sent from in here
-            lines.append(line)
-            if _is_row(line):
-                seen += 1
-                if seen == rows:
-                    p.send_signal(signal.SIGINT)
-        p.wait()
-    finally:
-        watchdog.cancel()
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    stdout, stderr = ''.join(lines), err_path.read_text()
+    seen = 0
+
+    def on_line(line, p):
+        nonlocal seen
+        if _is_row(line):
+            seen += 1
+            if seen == rows:
+                p.send_signal(signal.SIGINT)
+    status, stdout, stderr = node_helpers.run_reading(
+        [sys.executable, '-m', 'gyro_rotor', 'demo', '--rtf', '0', '--duration', '120',
+         '--out', str(out)], on_line, RUN_WITHIN_S, tmp_path)
     both = stdout[-3000:] + '\n--- stderr ---\n' + stderr[-3000:]
     assert seen >= rows, f'the live table showed {seen} rows, the run ended first\n{both}'
     assert 'Traceback' not in stderr + stdout and 'TypeError' not in stderr + stdout, both
-    assert p.returncode == 130, both
+    assert status == 130, both
     assert 'interrupted: stopping the nodes, finalizing the bag' in stderr, both
     assert (out / 'bag').exists(), both
     report = json.loads((out / 'report' / 'report.json').read_text())

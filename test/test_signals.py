@@ -124,39 +124,25 @@ def test_soak_ctrl_c_stops_the_nodes_finalizes_the_bag_and_exits_130(tmp_path):
     another exception with a traceback, past the stopping of the nodes.
     """
     import re
-    import subprocess
     import sys
     from gyro_rotor.tools.launch import check_bag
     out = tmp_path / 'soak'
-    err_path = tmp_path / 'stderr.txt'
-    with open(err_path, 'w') as err:
-        p = subprocess.Popen([sys.executable, '-m', 'gyro_rotor', 'soak', '--duration', '600',
-                              '--out', str(out)], stdout=subprocess.PIPE, stderr=err,
-                             text=True)
-    watchdog = threading.Timer(180.0, p.kill)      # a failure bound, not a pace
-    watchdog.start()
-    lines, pids = [], []
-    try:
-        for line in p.stdout:        # read to the end: the signal is sent from in here
-            lines.append(line)
-            if line.startswith('soak: ROS_DOMAIN_ID'):
-                pids = [int(x) for x in re.findall(r'pid (\d+)', line)]
-                # the nodes run: the recorder has written energy samples to the disk
-                node_helpers.wait_until(lambda: node_helpers.bag_on_disk(out / 'bag',
-                                                                         '/energy'),
-                                        'energy samples on disk', proc=p, timeout=120.0)
-                p.send_signal(signal.SIGINT)
-        p.wait()
-    finally:
-        watchdog.cancel()
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    stdout, stderr = ''.join(lines), err_path.read_text()
+    pids = []
+
+    def on_line(line, p):
+        if line.startswith('soak: ROS_DOMAIN_ID'):
+            pids.extend(int(x) for x in re.findall(r'pid (\d+)', line))
+            # the nodes run: the recorder has written energy samples to the disk
+            node_helpers.wait_until(lambda: node_helpers.bag_on_disk(out / 'bag', '/energy'),
+                                    'energy samples on disk', proc=p, timeout=120.0)
+            p.send_signal(signal.SIGINT)
+    status, stdout, stderr = node_helpers.run_reading(
+        [sys.executable, '-m', 'gyro_rotor', 'soak', '--duration', '600', '--out', str(out)],
+        on_line, 180.0, tmp_path)
     both = stdout[-3000:] + '\n--- stderr ---\n' + stderr[-3000:]
     assert len(pids) == 2, both
     assert 'Traceback' not in stderr + stdout, both
-    assert p.returncode == 130 and stderr.strip().splitlines()[-1] == 'interrupted', both
+    assert status == 130 and stderr.strip().splitlines()[-1] == 'interrupted', both
     for pid in pids:                 # the nodes were stopped (and reaped), not orphaned
         assert not os.path.exists(f'/proc/{pid}'), (pid, both)
     sim_log = (out / 'rotor_sim.log').read_text()

@@ -30,8 +30,8 @@ from typing import Any, IO, Mapping
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.signals import StopSignals
 
-__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'SideNode', 'ros_param',
-           'energy_seq_from_cdr', 'make_output_dir']
+__all__ = ['claim_domain_id', 'DomainClaim', 'NodeProcess', 'SideNode', 'tear_down',
+           'ros_param', 'energy_seq_from_cdr', 'make_output_dir']
 
 
 class DomainClaim:
@@ -212,6 +212,27 @@ class SideNode:
         self.ex.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.ctx)
+
+
+def tear_down(procs: list, side: SideNode | None, claim: DomainClaim, logs: dict,
+              signals: StopSignals) -> dict:
+    """Stop ``procs`` (the last started first), close ``side``, release ``claim`` and ``logs``.
+
+    The end of a run of the nodes from this process (demo, soak), however it ends: until
+    it is done a signal is counted by ``signals``, not acted on, so the stopping (SIGINT,
+    then SIGTERM, then SIGKILL; the bag finalized) is not cut short; then ``signals`` are
+    restored. Return each process's exit code by module.
+    """
+    try:
+        codes = {p.module: p.stop() for p in reversed(procs)}
+        if side is not None:
+            side.close()
+        claim.release()
+        for f in logs.values():
+            f.close()
+        return codes
+    finally:
+        signals.restore()
 
 
 def launch_arguments(*names: str, **own: tuple[str, str]) -> list:

@@ -30,7 +30,7 @@ from typing import Callable
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.signals import StopSignals
 from gyro_rotor.tools.launch import (claim_domain_id, energy_seq_from_cdr, make_output_dir,
-                                     NodeProcess, SideNode)
+                                     NodeProcess, SideNode, tear_down)
 from gyro_rotor.tools.monitor import message_values
 
 __all__ = ['SoakResult', 'run_soak', 'find_max_rate', 'read_rss_kb', 'read_cpu_s', 'CpuLoad',
@@ -453,17 +453,7 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
             _drain(res, listener, drain_timeout)
             _stop_nodes(res, sim, ana, listener, out)
     finally:
-        try:
-            for p in (sim, ana):
-                if p is not None:
-                    p.stop()
-            if listener is not None:
-                listener.close()
-            claim.release()
-            for f in logs.values():
-                f.close()
-        finally:
-            signals.restore()
+        tear_down([p for p in (ana, sim) if p is not None], listener, claim, logs, signals)
     _count_bag(bag, res)
     (out / 'soak.json').write_text(json.dumps(res.as_dict(), indent=1, default=str))
     return res

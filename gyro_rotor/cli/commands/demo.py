@@ -32,7 +32,8 @@ import time
 from gyro_rotor.cli.util import check_number
 from gyro_rotor.errors import GyroRotorError, ParameterError
 from gyro_rotor.signals import StopSignals
-from gyro_rotor.tools.launch import claim_domain_id, make_output_dir, NodeProcess, SideNode
+from gyro_rotor.tools.launch import (claim_domain_id, make_output_dir, NodeProcess, SideNode,
+                                     tear_down)
 from gyro_rotor.tools.monitor import message_values
 
 HELP = ('live demo: simulation + analysis nodes, a kick, a live table, an MCAP bag, the '
@@ -382,7 +383,6 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int, str]:
     view = None
     stopped_by = 0
     diverged = ''
-    codes: dict = {}
     try:
         signals.install()
         logs.update((n, open(out / f'{n}.log', 'w')) for n in ('rotor_sim', 'rotor_analysis'))
@@ -401,15 +401,7 @@ def _run_live(args, scene, out: Path, kick_at: float) -> tuple[dict, int, str]:
         print(f'\n{"interrupted" if stopped_by == signal.SIGINT else "terminated"}: '
               'stopping the nodes, finalizing the bag', file=sys.stderr, flush=True)
     finally:
-        try:
-            codes = {p.module: p.stop() for p in reversed(procs)}
-            if view is not None:
-                view.close()
-            claim.release()
-            for f in logs.values():
-                f.close()
-        finally:
-            signals.restore()
+        codes = tear_down(procs, view, claim, logs, signals)
     return codes, int(stopped_by), diverged
 
 
