@@ -113,6 +113,31 @@ def test_main_lets_an_error_without_a_signal_through(monkeypatch):
         cli_main.main([])
 
 
+# -- an executor's wait, ended by the signal (rotor_sim's main(), rt-bench) -----------------
+@pytest.mark.ros
+def test_spin_for_acts_on_a_signal_at_once_where_the_waker_triggers_a_guard(ros_domain_id):
+    """A signal during a 60 s wait of the executor ends it at once, not when the wait ends.
+
+    The waker thread triggers a guard condition of the executor's node; a signal that comes
+    before the wait starts leaves the guard triggered, so there is no race to lose.
+    """
+    import time
+    from gyro_rotor.ros.runner import spin_for
+    from gyro_rotor.tools.launch import SideNode
+    side = SideNode('gyro_rotor_test_spin_for', ros_domain_id)
+    guard = side.node.create_guard_condition(lambda: None)
+    signals = StopSignals((signal.SIGINT,)).install(wake=guard.trigger)
+    try:
+        threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGINT)).start()
+        t0 = time.monotonic()
+        with pytest.raises(Stopped):
+            spin_for(side.ex, 60.0, signals, step=60.0)
+        assert time.monotonic() - t0 < 30.0        # without the waker: 60 s
+    finally:
+        signals.restore()
+        side.close()
+
+
 # -- a command that spins rclpy, stopped by Ctrl-C: soak ------------------------------------
 @pytest.mark.ros
 @pytest.mark.slow

@@ -45,6 +45,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import time
 from typing import Callable
 
 from gyro_rotor.errors import GyroRotorError
@@ -56,7 +57,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from threadpoolctl import threadpool_limits
 
-__all__ = ['run_node', 'spin_until_stopped', 'SPIN_TIMEOUT', 'exit_with_parent',
+__all__ = ['run_node', 'spin_until_stopped', 'spin_for', 'SPIN_TIMEOUT', 'exit_with_parent',
            'parent_is_launch']
 
 #: longest wait of one spin of the executor [s] (a stop signal wakes it at once)
@@ -119,6 +120,25 @@ def spin_until_stopped(executor, stop: Callable[[], bool]) -> None:
     """Spin ``executor`` until ``stop()`` is true (checked after each wake-up)."""
     while not stop():
         executor.spin_once(timeout_sec=SPIN_TIMEOUT)
+
+
+def spin_for(executor, seconds: float, signals: StopSignals | None = None,
+             step: float = SPIN_TIMEOUT) -> None:
+    """Spin ``executor`` for about ``seconds``; raise ``Stopped`` once ``signals`` has a request.
+
+    Each spin waits for work for at most ``step`` s. The request is checked between two
+    spins, never inside one (the handler only records the signal): it is acted on within
+    ``step``, or at once where the signals' waker triggers a guard condition of the
+    executor's node (as in :func:`run_node`).
+    """
+    end = time.monotonic() + seconds
+    while True:
+        if signals is not None:
+            signals.check()
+        rest = end - time.monotonic()
+        if rest <= 0:
+            return
+        executor.spin_once(timeout_sec=min(step, rest))
 
 
 def _run(make_node: Callable[[], Node], args: list[str] | None, stop: StopSignals,

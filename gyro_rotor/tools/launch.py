@@ -194,17 +194,11 @@ class SideNode:
     def spin(self, seconds: float) -> None:
         """Process callbacks for about ``seconds``; raise ``Stopped`` once a signal came.
 
-        The stop request (:attr:`signals`) is checked between two spins of the executor,
-        never inside one: its handler only records the signal.
+        The stop request (:attr:`signals`) is checked between two spins of the executor
+        (:func:`gyro_rotor.ros.runner.spin_for`), within :attr:`SPIN_STEP`.
         """
-        end = time.monotonic() + seconds
-        while True:
-            if self.signals is not None:
-                self.signals.check()
-            rest = end - time.monotonic()
-            if rest <= 0:
-                return
-            self.ex.spin_once(timeout_sec=min(self.SPIN_STEP, rest))
+        from gyro_rotor.ros.runner import spin_for
+        spin_for(self.ex, seconds, self.signals, self.SPIN_STEP)
 
     def close(self) -> None:
         """Shut the node down."""
@@ -349,7 +343,6 @@ class LaunchRun:
 
     def wait_for(self, text: str, timeout: float) -> bool:
         """Wait until ``text`` is in the output (False: timeout or launch ended)."""
-        import time
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             if text in self.text():
@@ -390,7 +383,6 @@ class LaunchRun:
 
     def nodes_gone(self, timeout: float = 20.0) -> list[int]:
         """Wait until the nodes' processes are gone; return those still there."""
-        import time
         end = time.monotonic() + timeout
         alive = self.node_pids()
         while alive and time.monotonic() < end:
@@ -480,7 +472,6 @@ def check_bag(path: str, sim_log_text: str = '') -> list[str]:
 def _main(argv: list[str] | None = None) -> int:
     """Ctrl-C ``ros2 launch gyro_rotor gyro_rotor.launch.py`` N times; count the clean stops."""
     import argparse
-    import time
     p = argparse.ArgumentParser(prog='python -m gyro_rotor.tools.launch',
                                 description=_main.__doc__)
     p.add_argument('--env', default=find_rostools(), help='env.sh of a rostools build '

@@ -59,15 +59,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
               integrator: str = 'auto', realtime_priority: int | None = None,
-              signals: StopSignals | None = None) -> dict:
+              signals: StopSignals | None = None, wake: list | None = None) -> dict:
     """Run the node for ``duration`` wall seconds; return its figures.
 
-    ``signals``: a stop request checked between two spins (``Stopped`` ends the run).
+    ``signals``: a stop request checked between two spins (``Stopped`` ends the run);
+    ``wake``: the node's guard condition is on it while the node runs, for the signals'
+    waker to end the executor's wait (as in rotor_sim's main()).
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
+    from gyro_rotor.ros.runner import spin_for
     from gyro_rotor.ros.sim_node import RotorSimNode
 
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -81,13 +84,16 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
         overrides.append(Parameter('realtime_priority', value=int(realtime_priority)))
     node = RotorSimNode(context=context, parameter_overrides=overrides, own_process=True)
     executor = SingleThreadedExecutor(context=context)
+    guard = node.create_guard_condition(lambda: None)
+    if wake is not None:
+        wake.append(guard)
     try:
         executor.add_node(node)
-        _spin_for(executor, 1.0, signals)     # the loop starts, the first ticks settle
+        spin_for(executor, 1.0, signals)      # the loop starts, the first ticks settle
         with node.lock:                       # (between two ticks)
             node.pacer.take_window(node.tick_time or node._now())
         node.deadlines.take_window()
-        _spin_for(executor, duration, signals)
+        spin_for(executor, duration, signals)
         with node.lock:
             w = node.pacer.take_window(node.tick_time or node._now())
         late = node.deadlines.take_window()
@@ -101,6 +107,8 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
                                                  else f', others {node.scheduling_others}'),
                 'load': os.getloadavg()[0]}
     finally:
+        if wake is not None:
+            wake.remove(guard)
         node.on_shutdown()
         executor.shutdown()
         node.destroy_node()
@@ -153,20 +161,6 @@ def reference_one(rate: float, duration: float, realtime_priority: int | None = 
             'diverged': None, 'scheduling': out['scheduling'], 'load': os.getloadavg()[0]}
 
 
-def _spin_for(executor, seconds: float, signals: StopSignals | None = None) -> None:
-    """Spin as rotor_sim's main() does, for ``seconds``, checking ``signals`` in between.
-
-    As in rotor_sim's main(), the executor waits for work for up to ``SPIN_TIMEOUT``: a
-    signal is acted on within that time.
-    """
-    from gyro_rotor.ros.runner import SPIN_TIMEOUT
-    end = time.monotonic() + seconds
-    while (rest := end - time.monotonic()) > 0:
-        if signals is not None:
-            signals.check()
-        executor.spin_once(timeout_sec=min(rest, SPIN_TIMEOUT))
-
-
 def _ms(x: float) -> str:
     return f'{1e3 * x:.3f}'
 
@@ -209,14 +203,18 @@ def run(args: argparse.Namespace) -> int:
         check_number('--rtf', rtf, low=NODE_RANGES['real_time_factor'][0],
                      high=NODE_RANGES['real_time_factor'][1])
     rows = []
-    with StopSignals() as signals:          # a signal ends the run between two spins
+    guards: list = []                       # the running node's, woken by a signal
+    signals = StopSignals().install(wake=lambda: guards and guards[-1].trigger())
+    try:                                    # a signal ends the run between two spins
         for rate in args.publish_rate:
             rows += [bench_one(s, r, args.duration, rate, args.integrator,
-                               args.realtime_priority, signals)
+                               args.realtime_priority, signals, guards)
                      for s in args.scenes for r in args.rtf]
             if not args.no_reference:
                 rows.append(reference_one(rate, args.duration, args.realtime_priority,
                                           signals))
+    finally:
+        signals.restore()
     lines = table(rows, args.duration)
     if args.note:
         lines += ['', args.note]
