@@ -692,27 +692,26 @@ def _fit_energy(t: np.ndarray, E: np.ndarray, eigs: Sequence[complex], noise: fl
         if third:
             cols = cols + list(_basis(tau, third).T)
             fit = _quadratic_fit(tau, y, cols, mus, noise, span)
-    coef, res, cov00, rms, floor, terms, free = fit
-    E_inf = float(coef[0] + E[-1])
-    trend = float(coef[1]) if slow else 0.0
-    sigma = max(math.sqrt(max(cov00, 0.0)), noise)
+    E_inf = float(fit.coef[0] + E[-1])
+    trend = float(fit.coef[1]) if slow else 0.0
+    sigma = max(math.sqrt(max(fit.cov00, 0.0)), noise)
     spread = float(np.std(E))
-    rel = rms / spread if spread > 0 else 0.0
+    rel = fit.rms / spread if spread > 0 else 0.0
     settled = float(np.ptp(E)) <= NOISE_K * max(noise, remainder)
     rate = lo = hi = math.nan
     note, tail = 'no predicted term of E* - E*_inf decays resolvably above its noise floor', None
-    if math.isfinite(free):
-        rate, lo, hi, note, scaled = _measure_hull(tau, y, cols, mus, terms, free,
-                                                   floor, dt, noise, bool(slow))
+    if math.isfinite(fit.free):
+        rate, lo, hi, note, scaled = _measure_hull(tau, y, cols, mus, fit.terms, fit.free,
+                                                   fit.floor, dt, noise, bool(slow))
         if scaled and math.isfinite(rate) and tail_from > 0:
             late = tau >= tail_from * span
             tail = _fit_energy(t[late], E[late], eigs, noise, remainder, 0.0)
     return EnergyFit(t0=t0, E_inf=E_inf, E_inf_sigma=sigma, rate=rate, rate_lo=lo,
                      rate_hi=hi, rel_residual=rel, spread=spread, trend=trend, span=span,
-                     exponents=tuple(mus), coef=tuple(float(c) for c in coef[len(cols):]),
-                     noise=noise, floor=floor, remainder=remainder, settled=settled,
-                     residual_rms=rms, n_eff=_n_eff(res), rate_note=note, slow=bool(slow),
-                     free_rate=free, tail=tail, third=tuple(third))
+                     exponents=tuple(mus), coef=tuple(float(c) for c in fit.coef[len(cols):]),
+                     noise=noise, floor=fit.floor, remainder=remainder, settled=settled,
+                     residual_rms=fit.rms, n_eff=_n_eff(fit.res), rate_note=note,
+                     slow=bool(slow), free_rate=fit.free, tail=tail, third=tuple(third))
 
 
 def envelope_decay_rate(t: np.ndarray, D: np.ndarray, freqs_hz: Sequence[float]) -> float:
