@@ -1,6 +1,6 @@
 """The free rate is measured against everything of E* the window shows, to round-off.
 
-Recorded E*(t) of two random valid systems (test_verdict_random_systems' generator), as
+Recorded E*(t) of random valid systems (test_verdict_random_systems' generator), as
 :func:`fit_energy` received it (``test/data/random_energy_windows.npz``); each simulated
 with the parameters of its prediction, so the true rates are the predicted ones.
 
@@ -25,6 +25,13 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   free terms' 2.9133 by less than the window resolves; left out as 'faster', the free
   rate measured 1.116 (1.004 .. 1.219) 1/s (FAIL). Not yet mended (xfail): kept as
   columns, they cost measurable rates elsewhere (the ``late`` window measured none).
+- ``near7`` (seed 286651472, n 2, m 1; t = 0 .. 7 s, the stop-47 soak's one false FAIL in
+  167 draws): the same family. The free terms lambda_d + lambda_b (lambda_d = -2.93758,
+  lambda_b = -1.5e-5 + 1.36 i) have the third-order term lambda_d + lambda_b +
+  conj lambda_b beside them at frequency 0, faster by 1.5e-5 1/s; left out, the free rate
+  measured 1.744 (1.675 .. 1.824) for 2.9376, rms residual 2.7e-12 of E*'s spread (FAIL);
+  kept as columns (every third-order term faster than the free ones by less than the
+  window resolves), this window and ``near`` measure no rate, and neither does ``late``.
 - ``curved`` (seed 721218819, n 1, m 2; t = 2 .. 10 s): over the last 6 s the 2|alpha|
   term (0.00746 1/s) is merged into E_inf and a line, whose curvature the fit leaves
   (rms residual 1.4e-7 J): the free rate 0.539 (0.532 .. 0.545) for 0.6288, a false FAIL.
@@ -116,7 +123,9 @@ def test_the_merged_slow_parts_curvature_widens_the_interval(windows, name):
 
 
 @pytest.mark.xfail(strict=True, reason='third-order terms faster than the free ones by less '
-                   'than the window resolves are left out: 1.116 (1.004 .. 1.219) for 2.913')
-def test_third_order_terms_barely_faster_than_the_free_ones(windows):
-    fit = _fit(windows, 'near')
+                   'than the window resolves are left out: near 1.116 (1.004 .. 1.219) for '
+                   '2.913, near7 1.744 (1.675 .. 1.824) for 2.9376')
+@pytest.mark.parametrize('name', ['near', 'near7'])
+def test_third_order_terms_barely_faster_than_the_free_ones(windows, name):
+    fit = _fit(windows, name)
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
