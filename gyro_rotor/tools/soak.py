@@ -433,7 +433,7 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
     res = SoakResult(rate=float(rate), rtf=float(rtf), duration=float(duration),
                      scene=sc.name, load=int(load))
     claim = claim_domain_id()
-    logs = {n: open(out / f'{n}.log', 'w') for n in ('rotor_sim', 'rotor_analysis')}
+    logs: dict = {}                 # opened inside the try: tear_down releases the claim
     env = dict(os.environ, PYTHONUNBUFFERED='1')
     sim = ana = listener = None
     res.loadavg.append(os.getloadavg()[0])
@@ -442,6 +442,7 @@ def run_soak(rate: float = 1000.0, duration: float = 600.0, scene: str = 'preces
     signals = StopSignals()
     try:
         signals.install()
+        logs.update((n, open(out / f'{n}.log', 'w')) for n in ('rotor_sim', 'rotor_analysis'))
         with CpuLoad(load):
             listener = _Listener(claim.domain_id, signals)
             sim, ana = _start_nodes(res, str(sc.path or scene), bag, claim.domain_id, logs,
