@@ -14,21 +14,24 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   the free rate follows them (0.4448 (0.4414 .. 0.4481) over 2 .. 10 s: FAIL).
 - ``cubic`` (seed 3435928384, n 2, m 2; t = 0 .. 4 s): the quadratic form fits E* to its
   noise, yet a free rate for the slowest shown terms (3.792 1/s, frequency 1.406 rad/s)
-  fitted best at 0.035 (0 .. 2.25) 1/s (FAIL): held at its predicted rate times the faster
-  terms' common factor, the term at 3.7946 1/s (2e-3 faster, another frequency) traded
-  against it. With the rate shared by every term the window cannot tell from the slowest
-  (decay.py's module doc), no rate is measured (NOT YET).
-- ``near`` (seed 4130726406, n 2, m 2; t = 2 .. 10 s): the slowest shown terms at 2.9133
-  1/s; fitted alone, 1.116 (1.004 .. 1.219) 1/s (FAIL). Sharing the rate with those at
-  up to 2.9141: 2.870 (2.845 .. 2.897), 1.5 % short of the slowest (the verdict's bound is
-  0.9 x 2.9133 = 2.622: PASS, rightly, but the interval misses the truth: xfail).
+  fits best at 0.035 (0 .. 2.25) 1/s: E*'s third-order term 2 lambda_b + conj lambda_b of
+  the all but undamped mode lambda_b = -6e-5 + 1.406 i at the same frequency, below the
+  fit's floor but not below the profile's level (FAIL). Not yet mended (xfail): measured
+  again with the third-order terms as columns it has no rate (NOT YET), but with that
+  check (and the parabola's below) 7 of 60 replayed soak draws went from confirmed to
+  insufficient data, most by losing right rates to those columns.
+- ``near`` (seed 4130726406, n 2, m 2; t = 2 .. 10 s): the third-order terms
+  lambda_d + 2 Re lambda_j with Re lambda_j ~ -1e-3 decay at 2.9141 1/s, faster than the
+  free terms' 2.9133 by less than the window resolves; left out as 'faster', the free
+  rate measured 1.116 (1.004 .. 1.219) 1/s (FAIL). Not yet mended (xfail): kept as
+  columns, they cost measurable rates elsewhere (the ``late`` window measured none).
 - ``near7`` (seed 286651472, n 2, m 1; t = 0 .. 7 s, the stop-47 soak's one false FAIL in
-  167 draws): the slowest shown term lambda_d + lambda_b (2.93759 1/s, 1.36 rad/s) beside
-  lambda_d + lambda_c (2.93765, 3.96 rad/s); fitted alone, 1.744 (1.675 .. 1.824) 1/s (FAIL);
-  sharing the rate, 2.938 (1.679 .. 2.938).
-- ``beside`` (seed 435201895, n 2, m 2; t = 0 .. 4 s): the slowest shown term at 1.00733
-  beside terms up to 1.00868 1/s; measured right both ways: a right rate the sharing must
-  not lose (keeping third-order terms beside the free ones as columns lost it).
+  167 draws): the same family. The free terms lambda_d + lambda_b (lambda_d = -2.93758,
+  lambda_b = -1.5e-5 + 1.36 i) have the third-order term lambda_d + lambda_b +
+  conj lambda_b beside them at frequency 0, faster by 1.5e-5 1/s; left out, the free rate
+  measured 1.744 (1.675 .. 1.824) for 2.9376, rms residual 2.7e-12 of E*'s spread (FAIL);
+  kept as columns (every third-order term faster than the free ones by less than the
+  window resolves), this window and ``near`` measure no rate, and neither does ``late``.
 - ``curved`` (seed 721218819, n 1, m 2; t = 2 .. 10 s): over the last 6 s the 2|alpha|
   term (0.00746 1/s) is merged into E_inf and a line, whose curvature the fit leaves
   (rms residual 1.4e-7 J): the free rate 0.539 (0.532 .. 0.545) for 0.6288, a false FAIL.
@@ -45,7 +48,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from gyro_rotor.analysis.decay import _exponents, fit_energy, RESOLVABLE
+from gyro_rotor.analysis.decay import _exponents, fit_energy
 import numpy as np
 import pytest
 
@@ -64,25 +67,18 @@ def _fit(w, name):
                       remainder=rem)
 
 
-def _shared(fit):
-    """Return the predicted rates that share the free rate (the window cannot tell them apart)."""
-    return [-mu.real for mu in fit.exponents
-            if abs(-mu.real - fit.free_rate) * fit.span < RESOLVABLE]
+def _holds(fit, truth):
+    """Return whether the measured rate's interval holds the truth (or none is measured)."""
+    return math.isnan(fit.rate) or fit.rate_lo <= truth <= fit.rate_hi
 
 
-def _holds(fit):
-    """Return whether the rate's interval meets the rates that share it (or none is measured)."""
-    rates = _shared(fit)
-    return math.isnan(fit.rate) or (fit.rate_lo <= max(rates) and fit.rate_hi >= min(rates))
-
-
-@pytest.mark.parametrize('name', ['short', 'late', 'near7', 'beside'])
+@pytest.mark.parametrize('name', ['short', 'late'])
 def test_every_rate_measured_holds_the_truth(windows, name):
     fit = _fit(windows, name)
     parts = [fit] + ([fit.tail] if fit.tail is not None else [])
     for f in parts:
         assert math.isfinite(f.free_rate)
-        assert _holds(f), (f.t0, f.rate, f.rate_lo, f.rate_hi, _shared(f))
+        assert _holds(f, f.free_rate), (f.t0, f.rate, f.rate_lo, f.rate_hi, f.free_rate)
     assert any(math.isfinite(f.rate) for f in parts)       # and something is measured
 
 
@@ -108,12 +104,12 @@ def test_third_order_terms_take_the_late_window_to_round_off(windows):
     assert fit.residual_rms < 100 * fit.noise
 
 
-def test_a_term_beside_the_slowest_at_another_frequency_takes_no_rate_from_it(windows):
-    """``cubic``: 0.035 (0 .. 2.25) for 3.792 fitted alone; sharing the rate, none or right."""
+@pytest.mark.xfail(strict=True, reason="an undamped third-order term below the fit's floor "
+                   'draws the free rate: 0.035 (0 .. 2.25) for 3.792; measured again with '
+                   'them as columns, right rates were lost elsewhere')
+def test_a_third_order_term_below_the_floor_at_the_free_terms_frequency(windows):
     fit = _fit(windows, 'cubic')
-    assert len(_shared(fit)) > 1
-    for f in [fit] + ([fit.tail] if fit.tail is not None else []):
-        assert _holds(f), (f.t0, f.rate, f.rate_lo, f.rate_hi, _shared(f))
+    assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
 
 
 @pytest.mark.parametrize('name', ['curved', 'line'])
@@ -123,11 +119,13 @@ def test_the_merged_slow_parts_curvature_widens_the_interval(windows, name):
     parts = [fit] + ([fit.tail] if fit.tail is not None else [])
     assert any(math.isfinite(f.rate) for f in parts)
     for f in parts:
-        assert _holds(f), (f.t0, f.rate, f.rate_lo, f.rate_hi, _shared(f))
+        assert _holds(f, f.free_rate), (f.t0, f.rate, f.rate_lo, f.rate_hi, f.free_rate)
 
 
-@pytest.mark.xfail(strict=True, reason='sharing the rate with the terms beside the slowest: '
-                   '2.870 (2.845 .. 2.897) for 2.9133 .. 2.9141 (the verdict PASSes rightly)')
-def test_third_order_terms_barely_faster_than_the_free_ones(windows):
-    fit = _fit(windows, 'near')
-    assert _holds(fit), (fit.rate, fit.rate_lo, fit.rate_hi, _shared(fit))
+@pytest.mark.xfail(strict=True, reason='third-order terms faster than the free ones by less '
+                   'than the window resolves are left out: near 1.116 (1.004 .. 1.219) for '
+                   '2.913, near7 1.744 (1.675 .. 1.824) for 2.9376')
+@pytest.mark.parametrize('name', ['near', 'near7'])
+def test_third_order_terms_barely_faster_than_the_free_ones(windows, name):
+    fit = _fit(windows, name)
+    assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)

@@ -43,15 +43,6 @@ kept columns (:func:`_third_order`): a random system with a mode the drive barel
 reaches measured 0.4448 (0.4414 .. 0.4481) 1/s for its 0.5237 over 2 .. 10 s, residual
 1.8e-7 J, and with them the residual is round-off.
 
-The free rate is shared by every term whose predicted rate the window cannot tell from
-the slowest shown one (by less than :data:`RESOLVABLE` / T): their common rate lies among
-theirs. Fitted free alone, beside a term faster by 2e-5 1/s at another frequency (held
-at its predicted rate times the faster terms' common factor, below), the slowest of a
-random system measured 1.744 (1.675 .. 1.824) 1/s for 2.9376 (FAIL), another's 0.035
-(0 .. 2.25) for 3.792 (FAIL), a third's 1.116 (1.004 .. 1.219) for 2.913; sharing the rate
-they measure 2.938 (1.679 .. 2.938), none, and 2.870 (2.845 .. 2.897), 1.5 % short of
-2.9133 (test_decay_third_order).
-
 The faster terms that show get their predicted rates times one common factor, fitted
 alternately with r (:func:`_faster_scale`): fixed as predicted, their error leaked into r
 (elastic_frame at 0.8 K_D: 0.531 measured, 0.367 true). The rate is measured only while
@@ -450,8 +441,7 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     """Return (rate, lo, hi, note, scaled) of the slowest shown terms (rate ``free``).
 
     Fitted free; ``scaled``: faster terms showed and got their rates scaled by one factor.
-    ``group``: the terms fitted free (default: every term whose rate the window cannot
-    tell from ``free``, by less than RESOLVABLE / span; module doc). A term of them
+    ``group``: the terms fitted free (default: every term of rate ``free``). A term of them
     that shows (amplitude above the floor) but whose own part (:func:`_own_parts`) is below
     it is one the window cannot tell from E_inf and the other terms: its leftover is the
     remainder's, and a rate shared with it follows the remainder (tri over 0 .. 4 s: its
@@ -462,7 +452,7 @@ def _measure(tau: np.ndarray, y: np.ndarray, cols: list, mus: list, terms: list,
     """
     amp = dict(terms)
     if group is None:
-        group = [mu for mu in mus if abs(-mu.real - free) * tau[-1] < RESOLVABLE]
+        group = [mu for mu in mus if abs(-mu.real - free) <= 1e-9 * free]
     fixed = [mu for mu in mus if mu not in group]
     # the other terms the window resolves as decaying: their rates scaled by one fitted
     # factor while any of them shows (a wrong K_D moves them all, eq. 17)
