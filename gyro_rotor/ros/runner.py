@@ -42,6 +42,7 @@ directory, malformed ``--ros-args``) end in one ``ERROR:`` line on stderr and ex
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import sys
@@ -57,8 +58,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from threadpoolctl import threadpool_limits
 
-__all__ = ['run_node', 'spin_until_stopped', 'spin_for', 'SPIN_TIMEOUT', 'exit_with_parent',
-           'parent_is_launch']
+__all__ = ['run_node', 'spin_for', 'SPIN_TIMEOUT', 'exit_with_parent', 'parent_is_launch']
 
 #: longest wait of one spin of the executor [s] (a stop signal wakes it at once)
 SPIN_TIMEOUT = 2.0
@@ -116,15 +116,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
         stop.restore(ignore=not restore_signals)
 
 
-def spin_until_stopped(executor, stop: Callable[[], bool]) -> None:
-    """Spin ``executor`` until ``stop()`` is true (checked after each wake-up)."""
-    while not stop():
-        executor.spin_once(timeout_sec=SPIN_TIMEOUT)
-
-
 def spin_for(executor, seconds: float, signals: StopSignals | None = None,
              step: float = SPIN_TIMEOUT) -> None:
     """Spin ``executor`` for about ``seconds``; raise ``Stopped`` once ``signals`` has a request.
+
+    ``seconds`` may be ``math.inf``: a node's main loop (:func:`run_node`) spins until the
+    request.
 
     Each spin waits for work for at most ``step`` s. The request is checked between two
     spins, never inside one (the handler only records the signal): it is acted on within
@@ -155,7 +152,7 @@ def _run(make_node: Callable[[], Node], args: list[str] | None, stop: StopSignal
         executor.add_node(node)
         # a signal triggers it: its (empty) callback ends the executor's wait
         holder.append(node.create_guard_condition(lambda: None))
-        spin_until_stopped(executor, lambda: stop.requested)
+        spin_for(executor, math.inf, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (GyroRotorError, ParameterException) as err:

@@ -84,10 +84,11 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
         overrides.append(Parameter('realtime_priority', value=int(realtime_priority)))
     node = RotorSimNode(context=context, parameter_overrides=overrides, own_process=True)
     executor = SingleThreadedExecutor(context=context)
-    guard = node.create_guard_condition(lambda: None)
-    if wake is not None:
-        wake.append(guard)
+    guard = None
     try:
+        if wake is not None:
+            guard = node.create_guard_condition(lambda: None)
+            wake.append(guard)
         executor.add_node(node)
         spin_for(executor, 1.0, signals)      # the loop starts, the first ticks settle
         with node.lock:                       # (between two ticks)
@@ -107,7 +108,7 @@ def bench_one(scene: str, rtf: float, duration: float, publish_rate: float,
                                                  else f', others {node.scheduling_others}'),
                 'load': os.getloadavg()[0]}
     finally:
-        if wake is not None:
+        if guard is not None:
             wake.remove(guard)
         node.on_shutdown()
         executor.shutdown()
