@@ -26,18 +26,29 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   rate measured 1.116 (1.004 .. 1.219) 1/s (FAIL). Not yet mended (xfail): kept as
   columns, they cost measurable rates elsewhere (the ``late`` window measured none).
 - ``near7`` (seed 286651472, n 2, m 1; t = 0 .. 7 s, the stop-47 soak's one false FAIL in
-  167 draws): the same family. The free terms lambda_d + lambda_b (lambda_d = -2.93758,
-  lambda_b = -1.5e-5 + 1.36 i) have the third-order term lambda_d + lambda_b +
-  conj lambda_b beside them at frequency 0, faster by 1.5e-5 1/s; left out, the free rate
-  measured 1.744 (1.675 .. 1.824) for 2.9376, rms residual 2.7e-12 of E*'s spread (FAIL);
-  kept as columns (every third-order term faster than the free ones by less than the
-  window resolves), this window and ``near`` measure no rate, and neither does ``late``.
+  167 draws): the free terms lambda_d + lambda_b (lambda_d = -2.93758, lambda_b = -1.5e-5 +
+  1.36 i) measured 1.744 (1.675 .. 1.824) for 2.9376 (FAIL). Taken for the ``near``
+  family at first (the third-order term lambda_d + lambda_b + conj lambda_b, faster by
+  1.5e-5 1/s, left out), it was the search: the free rate's profile has more than one
+  minimum, and only the coarse grid's least point was refined; refining every coarse
+  minimum, the predicted rate among the grid's points, measures 2.9403 (2.9255 .. 2.9507).
+- ``beat`` (seed 615112150, n 1, m 1; t = 0 .. 2 s, a 10-s run): the free terms at
+  14.11 and 12.55 rad/s (4.3953 1/s) beat at 1.56 rad/s, the frequency of the all but
+  undamped term; over the last 75 % the profile has a local minimum at 3.27 1/s and its
+  least (under 1e-3 of that one's residual) within 2 % of 4.3953, between two coarse grid
+  points 1.5 apart in ratio: 3.273 (3.193 .. 3.376) 1/s against the bound 3.956 (a false
+  FAIL); refined
+  at every coarse minimum, 4.39528 (4.39493 .. 4.39538).
 - ``curved`` (seed 721218819, n 1, m 2; t = 2 .. 10 s): over the last 6 s the 2|alpha|
   term (0.00746 1/s) is merged into E_inf and a line, whose curvature the fit leaves
   (rms residual 1.4e-7 J): the free rate 0.539 (0.532 .. 0.545) for 0.6288, a false FAIL.
   The rate measured with the slow part to second order (a parabola) was discarded: its
   terms were judged against the line's floor (10 x 1.4e-7 J), not its own fit's. With its
-  own floor it measures 0.6285, and the interval 0.532 .. 0.6288 holds the truth.
+  own floor it measures 0.6285, and the interval 0.532 .. 0.6288 held the truth, by
+  2e-5; once the search found the parabola's least residual (``beat``), 0.62869
+  (0.62850 .. 0.62880) no longer did. With the cubic as well, 0.628818
+  (0.628805 .. 0.628864): the interval holds the rates of the slow part to second and
+  third order.
 - ``line`` (seed 4208142203, n 1, m 2; t = 0 .. 2 s): the same, its 2|alpha| term
   (0.0128 1/s) merged: 1.58 (1.00 .. 2.34) 1/s for 7.881 (FAIL); with the parabola's
   measurement 1.00 .. 7.886.
@@ -72,7 +83,7 @@ def _holds(fit, truth):
     return math.isnan(fit.rate) or fit.rate_lo <= truth <= fit.rate_hi
 
 
-@pytest.mark.parametrize('name', ['short', 'late'])
+@pytest.mark.parametrize('name', ['short', 'late', 'near7', 'beat'])
 def test_every_rate_measured_holds_the_truth(windows, name):
     fit = _fit(windows, name)
     parts = [fit] + ([fit.tail] if fit.tail is not None else [])
@@ -124,8 +135,7 @@ def test_the_merged_slow_parts_curvature_widens_the_interval(windows, name):
 
 @pytest.mark.xfail(strict=True, reason='third-order terms faster than the free ones by less '
                    'than the window resolves are left out: near 1.116 (1.004 .. 1.219) for '
-                   '2.913, near7 1.744 (1.675 .. 1.824) for 2.9376')
-@pytest.mark.parametrize('name', ['near', 'near7'])
-def test_third_order_terms_barely_faster_than_the_free_ones(windows, name):
-    fit = _fit(windows, name)
+                   '2.913')
+def test_third_order_terms_barely_faster_than_the_free_ones(windows):
+    fit = _fit(windows, 'near')
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
