@@ -31,14 +31,13 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   family at first (the third-order term lambda_d + lambda_b + conj lambda_b, faster by
   1.5e-5 1/s, left out), it was the search: the free rate's profile has more than one
   minimum, and only the coarse grid's least point was refined; refining every coarse
-  minimum, the predicted rate among the grid's points, measures 2.9403 (2.9255 .. 2.9507).
+  minimum, the predicted rate among the grid's points, measures 2.9403 (2.9358 .. 2.9407).
 - ``beat`` (seed 615112150, n 1, m 1; t = 0 .. 2 s, a 10-s run): the free terms at
   14.11 and 12.55 rad/s (4.3953 1/s) beat at 1.56 rad/s, the frequency of the all but
   undamped term; over the last 75 % the profile has a local minimum at 3.27 1/s and its
   least (under 1e-3 of that one's residual) within 2 % of 4.3953, between two coarse grid
   points 1.5 apart in ratio: 3.273 (3.193 .. 3.376) 1/s against the bound 3.956 (a false
-  FAIL); refined
-  at every coarse minimum, 4.39528 (4.39493 .. 4.39538).
+  FAIL); refined at every coarse minimum, 4.39528 (4.39493 .. 4.39538).
 - ``curved`` (seed 721218819, n 1, m 2; t = 2 .. 10 s): over the last 6 s the 2|alpha|
   term (0.00746 1/s) is merged into E_inf and a line, whose curvature the fit leaves
   (rms residual 1.4e-7 J): the free rate 0.539 (0.532 .. 0.545) for 0.6288, a false FAIL.
