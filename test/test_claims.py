@@ -436,8 +436,11 @@ def test_below_K_inv_the_floor_is_the_round_off_of_A_K(seed, n, frac):
 
     At or below K_inv every root is A(K)'s (:meth:`_Roots.forms`) and a slow one's error
     is eps ||A(K)||'s: the slowest root's, against 50 digits, was 0.04 to 0.14 eps ||A(K)||
-    here, 2.2e2 to 3.6e3 eps ||A^-1|| |lambda|^2 (seed 103, K = 1e-3 K_inv). Above K_inv the
-    roots taken from A(K)^-1 have its bound.
+    on one machine, 0.009 to 0.22 on another (AMD EPYC, AVX-512: LAPACK's kernels differ,
+    and so does the round-off, not its scale), and 1.2e2 to 4.8e3 eps ||A^-1|| |lambda|^2
+    (seed 103, K = 1e-3 K_inv). Asserted: the error within three decades below one
+    eps ||A(K)||, the backward-stable scale (the band 0.01 .. 0.2 of one machine's figures
+    failed on the other). Above K_inv the roots taken from A(K)^-1 have its bound.
     """
     import mpmath
     from scipy.optimize import linear_sum_assignment
@@ -455,7 +458,7 @@ def test_below_K_inv_the_floor_is_the_round_off_of_A_K(seed, n, frac):
     err = abs(lam[r[s]] - exact[c[s]])
     floor = cl._floor(R, K, lam)
     assert np.all(floor == 1e4 * eps * cl._norm2(R.A(K)))
-    assert 0.01 * floor[r[s]] / 1e4 < err <= 0.2 * floor[r[s]] / 1e4
+    assert 1e-3 * floor[r[s]] / 1e4 < err <= floor[r[s]] / 1e4
     assert err > 100 * eps * cl._norm2(R._inverse(K)) * abs(exact[c[s]]) ** 2
     K = 10 * R.K_inv
     lam, (A, Ai) = R(K, vectors=False)[0], R.forms(K)
