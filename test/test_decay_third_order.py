@@ -51,6 +51,16 @@ with the parameters of its prediction, so the true rates are the predicted ones.
 - ``line`` (seed 4208142203, n 1, m 2; t = 0 .. 2 s): the same, its 2|alpha| term
   (0.0128 1/s) merged: 1.58 (1.00 .. 2.34) 1/s for 7.881 (FAIL); with the parabola's
   measurement 1.00 .. 7.886.
+
+Not yet mended (strict xfail), the false FAILs of a soak on this code (seed 5001: 351
+draws, 287 confirmed, 62 insufficient data, 2 not confirmed by decay: these two):
+
+- ``tail`` (seed 4010597016, n 3, m 2; t = 2 .. 10 s, a 20-s run): over the window the
+  free rate is the truth, 0.0570115 (0.0570112 .. 0.0570150) 1/s; over its last 75 %
+  0.0484 (0.0446 .. 0.0513), wholly below the bound 0.05131.
+- ``fast`` (seed 1285713523, n 2, m 1; t = 0 .. 6 s, a 10-s run): 2.79 (2.43 .. 3.18)
+  1/s for 10.94, the rate's profile off by a factor 4 with the fit's residual 3.2e-12 of
+  E*'s spread.
 """
 
 from __future__ import annotations
@@ -132,3 +142,13 @@ def test_the_merged_slow_parts_curvature_widens_the_interval(windows, name):
 def test_third_order_terms_beside_the_free_ones(windows, name):
     fit = _fit(windows, name)
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
+
+
+@pytest.mark.xfail(strict=True, reason='false FAILs of the seed-5001 soak (module doc): tail '
+                   '0.0484 (0.0446 .. 0.0513) over the last 75 % for 0.0570; fast 2.79 '
+                   '(2.43 .. 3.18) for 10.94')
+@pytest.mark.parametrize('name', ['tail', 'fast'])
+def test_the_soaks_false_fails(windows, name):
+    fit = _fit(windows, name)
+    for f in [fit] + ([fit.tail] if fit.tail is not None else []):
+        assert _holds(f, f.free_rate), (f.t0, f.rate, f.rate_lo, f.rate_hi, f.free_rate)
