@@ -16,22 +16,30 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   noise, yet a free rate for the slowest shown terms (3.792 1/s, frequency 1.406 rad/s)
   fits best at 0.035 (0 .. 2.25) 1/s: E*'s third-order term 2 lambda_b + conj lambda_b of
   the all but undamped mode lambda_b = -6e-5 + 1.406 i at the same frequency, below the
-  fit's floor but not below the profile's level (FAIL). Not yet mended (xfail): measured
-  again with the third-order terms as columns it has no rate (NOT YET), but with that
-  check (and the parabola's below) 7 of 60 replayed soak draws went from confirmed to
-  insufficient data, most by losing right rates to those columns.
+  fit's floor but not below the profile's level (FAIL). Measured again with the
+  third-order terms as columns it had no rate, but with that check (and the parabola's
+  below) 7 of 60 replayed soak draws went from confirmed to insufficient data, most by
+  losing right rates to those columns. The slowest shown term has a partner 3e-3 1/s
+  faster, exp(-3.795 t) cos(3.378 t), that the window cannot tell from it: with it in the
+  free group (``tail``) that partner's own part, 4.7e-16 J, is below the floor 1.6e-15 J,
+  and no rate is measured (NOT YET: no FAIL).
 - ``near`` (seed 4130726406, n 2, m 2; t = 2 .. 10 s): the third-order terms
   lambda_d + 2 Re lambda_j with Re lambda_j ~ -1e-3 decay at 2.9141 1/s, faster than the
   free terms' 2.9133 by less than the window resolves; left out as 'faster', the free
-  rate measured 1.116 (1.004 .. 1.219) 1/s (FAIL). Not yet mended (xfail): kept as
-  columns, they cost measurable rates elsewhere (the ``late`` window measured none).
+  rate measured 1.116 (1.004 .. 1.219) 1/s (FAIL). With the terms the window cannot tell
+  from the free ones in their group (``tail``) 2.8715 (2.8458 .. 2.8977), above the bound
+  0.9 x 2.9133 (no FAIL) but not holding the truth: not yet mended (xfail); the
+  third-order terms kept as columns cost measurable rates elsewhere (the ``late`` window
+  measured none).
 - ``near7`` (seed 286651472, n 2, m 1; t = 0 .. 7 s, the stop-47 soak's one false FAIL in
   167 draws): the free terms lambda_d + lambda_b (lambda_d = -2.93758, lambda_b = -1.5e-5 +
   1.36 i) measured 1.744 (1.675 .. 1.824) for 2.9376 (FAIL). Taken for the ``near``
   family at first (the third-order term lambda_d + lambda_b + conj lambda_b, faster by
   1.5e-5 1/s, left out), it was the search: the free rate's profile has more than one
   minimum, and only the coarse grid's least point was refined; refining every coarse
-  minimum, the predicted rate among the grid's points, measures 2.9403 (2.9358 .. 2.9407).
+  minimum, the predicted rate among the grid's points, measures 2.9403 (2.9358 .. 2.9407);
+  with the terms it cannot tell from the free ones in their group (``tail``), 2.93761
+  (2.93736 .. 2.93771).
 - ``beat`` (seed 615112150, n 1, m 1; t = 0 .. 2 s, a 10-s run): the free terms at
   14.11 and 12.55 rad/s (4.3953 1/s) beat at 1.56 rad/s, the frequency of the all but
   undamped term; over the last 75 % the profile has a local minimum at 3.27 1/s and its
@@ -52,15 +60,21 @@ with the parameters of its prediction, so the true rates are the predicted ones.
   (0.0128 1/s) merged: 1.58 (1.00 .. 2.34) 1/s for 7.881 (FAIL); with the parabola's
   measurement 1.00 .. 7.886.
 
-Not yet mended (strict xfail), the false FAILs of a soak on this code (seed 5001: 351
-draws, 287 confirmed, 62 insufficient data, 2 not confirmed by decay: these two):
+The two false FAILs of a soak (seed 5001: 351 draws, 287 confirmed, 62 insufficient data,
+2 not confirmed by decay: these two), one cause: terms whose rates the window cannot tell
+from the free ones' were fitted as faster terms, not in the free group.
 
 - ``tail`` (seed 4010597016, n 3, m 2; t = 2 .. 10 s, a 20-s run): over the window the
   free rate is the truth, 0.0570115 (0.0570112 .. 0.0570150) 1/s; over its last 75 %
-  0.0484 (0.0446 .. 0.0513), wholly below the bound 0.05131.
+  0.0484 (0.0446 .. 0.0513), wholly below the bound 0.05131. The slowest shown terms
+  (0.05701 1/s, 2.4e-5 and 6.6e-5 J) have partners 3e-4 1/s faster, the larger 2.0e-4 J.
+  In the group, each term's rate shifted by one free amount: 0.0570115 (0.0541 .. 0.0599)
+  over the last 75 %. (One rate shared by all of them measured 0.05721 (0.05720 ..
+  0.05722) over the window: between the two predicted rates, holding neither.)
 - ``fast`` (seed 1285713523, n 2, m 1; t = 0 .. 6 s, a 10-s run): 2.79 (2.43 .. 3.18)
-  1/s for 10.94, the rate's profile off by a factor 4 with the fit's residual 3.2e-12 of
-  E*'s spread.
+  1/s for 10.94: the free term (1.2e-5 J) has a partner 3.3e-4 1/s faster and 100 times
+  larger; its own part showed 1.2 times the floor and its rate followed the remainder.
+  In the group, the terms fall below the floor within the window: no rate (NOT YET).
 """
 
 from __future__ import annotations
@@ -92,7 +106,7 @@ def _holds(fit, truth):
     return math.isnan(fit.rate) or fit.rate_lo <= truth <= fit.rate_hi
 
 
-@pytest.mark.parametrize('name', ['short', 'late', 'near7', 'beat'])
+@pytest.mark.parametrize('name', ['short', 'late', 'near7', 'beat', 'tail'])
 def test_every_rate_measured_holds_the_truth(windows, name):
     fit = _fit(windows, name)
     parts = [fit] + ([fit.tail] if fit.tail is not None else [])
@@ -134,21 +148,17 @@ def test_the_merged_slow_parts_curvature_widens_the_interval(windows, name):
         assert _holds(f, f.free_rate), (f.t0, f.rate, f.rate_lo, f.rate_hi, f.free_rate)
 
 
-@pytest.mark.xfail(strict=True, reason="E*'s third-order terms beside the free ones: cubic (an "
-                   "undamped one below the fit's floor at their frequency) 0.035 (0 .. 2.25) "
-                   'for 3.792, near (faster by less than the window resolves, left out) '
-                   '1.116 (1.004 .. 1.219) for 2.913')
-@pytest.mark.parametrize('name', ['cubic', 'near'])
-def test_third_order_terms_beside_the_free_ones(windows, name):
+@pytest.mark.parametrize('name', ['cubic', 'fast'])
+def test_terms_the_window_cannot_tell_apart_are_measured_together(windows, name):
+    """No rate where the free group's terms fade or hide: NOT YET, not a FAIL (module doc)."""
     fit = _fit(windows, name)
+    assert math.isnan(fit.rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
+    assert 'below the noise floor' in fit.rate_note, fit.rate_note
+
+
+@pytest.mark.xfail(strict=True, reason="E*'s third-order terms faster than the free ones by "
+                   'less than the window resolves, left out: near 2.8715 (2.8458 .. 2.8977) '
+                   'for 2.9133')
+def test_third_order_terms_beside_the_free_ones(windows):
+    fit = _fit(windows, 'near')
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
-
-
-@pytest.mark.xfail(strict=True, reason='false FAILs of the seed-5001 soak (module doc): tail '
-                   '0.0484 (0.0446 .. 0.0513) over the last 75 % for 0.0570; fast 2.79 '
-                   '(2.43 .. 3.18) for 10.94')
-@pytest.mark.parametrize('name', ['tail', 'fast'])
-def test_the_soaks_false_fails(windows, name):
-    fit = _fit(windows, name)
-    for f in [fit] + ([fit.tail] if fit.tail is not None else []):
-        assert _holds(f, f.free_rate), (f.t0, f.rate, f.rate_lo, f.rate_hi, f.free_rate)
