@@ -75,6 +75,14 @@ from the free ones' were fitted as faster terms, not in the free group.
   1/s for 10.94: the free term (1.2e-5 J) has a partner 3.3e-4 1/s faster and 100 times
   larger; its own part showed 1.2 times the floor and its rate followed the remainder.
   In the group, the terms fall below the floor within the window: no rate (NOT YET).
+- ``lone`` (seed 2259047846, n 3, m 2; t = 2 .. 10 s, a 20-s run; the one false FAIL of
+  a fresh soak (seed 5002) of 351 draws on this code): the free group, four terms at
+  0.0133 and 0.01396 1/s (r T ~ 0.11), measures 0.0130; three of them (0.86, 1.37 and
+  5.15 rad/s; 8.3e-4, 5.1e-5, 5.8e-6 J) show no own part above the floor and are kept as
+  predicted, and the one left (5.9e-5 J at 5.65 rad/s) measures 0.00954 (0.00754 ..
+  0.01155) for 0.0133, below the bound 0.01197. The weak terms kept apart split the group
+  again; before the group held the terms the window cannot tell apart, this window had no
+  rate (the least residual at the search's lower end). Not yet mended (strict xfail).
 """
 
 from __future__ import annotations
@@ -161,4 +169,12 @@ def test_terms_the_window_cannot_tell_apart_are_measured_together(windows, name)
                    'for 2.9133')
 def test_third_order_terms_beside_the_free_ones(windows):
     fit = _fit(windows, 'near')
+    assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
+
+
+@pytest.mark.xfail(strict=True, reason="a lone term of the free group measured, its partners "
+                   "kept as predicted (no own part above the floor): 0.00954 (0.00754 .. "
+                   "0.01155) for 0.0133")
+def test_a_lone_term_of_the_group(windows):
+    fit = _fit(windows, 'lone')
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
