@@ -172,9 +172,9 @@ def test_third_order_terms_beside_the_free_ones(windows):
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
 
 
-@pytest.mark.xfail(strict=True, reason="a lone term of the free group measured, its partners "
-                   "kept as predicted (no own part above the floor): 0.00954 (0.00754 .. "
-                   "0.01155) for 0.0133")
+@pytest.mark.xfail(strict=True, reason='a lone term of the free group measured, its partners '
+                   'kept as predicted (no own part above the floor): 0.00954 (0.00754 .. '
+                   '0.01155) for 0.0133')
 def test_a_lone_term_of_the_group(windows):
     fit = _fit(windows, 'lone')
     assert _holds(fit, fit.free_rate), (fit.rate, fit.rate_lo, fit.rate_hi, fit.free_rate)
