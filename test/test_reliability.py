@@ -245,6 +245,36 @@ def test_divergence_stops_integrating_keeps_the_last_good_state_and_says_error()
         rclpy.try_shutdown(context=ctx)
 
 
+@pytest.mark.ros
+def test_a_status_is_decided_and_published_under_the_loops_lock():
+    """No report decided before a divergence is sent after its ERROR: the lock is held.
+
+    The loop thread publishes a divergence's ERROR at once (under the loop's lock); a
+    periodic report decided under it and sent outside it followed that ERROR with
+    'running' (the test above, once in a fresh clone on a fast machine).
+    """
+    import rclpy
+    from rclpy.parameter import Parameter
+    from gyro_rotor.ros.sim_node import RotorSimNode
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    node = RotorSimNode(context=ctx, parameter_overrides=[Parameter('scene', value='precession')])
+    try:
+        real, held = node.pub['diagnostics'], []
+
+        class Spy:
+            def publish(self, msg):
+                held.append(node.lock._is_owned())
+                real.publish(msg)
+
+        node.pub['diagnostics'] = Spy()
+        node._publish_diagnostics()
+        assert held == [True]
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
 class _LiveRig:
     """rotor_sim (rtf 1, 250 Hz, diagnostics every 0.2 s) in a thread, a probe in another."""
 

@@ -502,21 +502,25 @@ class RotorSimNode(Node):
 
     # -- diagnostics, scene, services --------------------------------------------------------
     def _publish_diagnostics(self) -> None:
+        """Publish the simulation's status, decided and sent under the loop's lock.
+
+        The loop thread reports a divergence at once (:meth:`_log`); a periodic report
+        decided before it and sent after it (outside the lock) said 'running' after the
+        ERROR, as a fresh clone's test_reliability saw once on a fast machine.
+        """
         with self.lock:
             level, msg, values = self.sim.diagnostics()
-            t = self.sim.stepper.t
-            scene_name = self.sim.scene.name
-        late = self.deadlines.take_window()
-        values.update(ack_wait_s=self.acks.wait_s, ack_timeouts=self.acks.timeouts,
-                      scheduling=self.scheduling, scheduling_others=self.scheduling_others,
-                      tick_late_p99=late.lateness_p99,
-                      tick_late_max=late.lateness_max, late_ticks=late.late,
-                      late_ticks_total=self.deadlines.late_total,
-                      **{f'published_{k}': v for k, v in self.published.items()})
-        self.published['diagnostics'] += 1
-        self.pub['diagnostics'].publish(ros_msgs.diagnostic_array(
-            ros_msgs.stamp(t), f'{self.get_name()}: simulation', level, msg,
-            values, hardware_id=f'scene:{scene_name}'))
+            late = self.deadlines.take_window()
+            values.update(ack_wait_s=self.acks.wait_s, ack_timeouts=self.acks.timeouts,
+                          scheduling=self.scheduling, scheduling_others=self.scheduling_others,
+                          tick_late_p99=late.lateness_p99,
+                          tick_late_max=late.lateness_max, late_ticks=late.late,
+                          late_ticks_total=self.deadlines.late_total,
+                          **{f'published_{k}': v for k, v in self.published.items()})
+            self.published['diagnostics'] += 1
+            self.pub['diagnostics'].publish(ros_msgs.diagnostic_array(
+                ros_msgs.stamp(self.sim.stepper.t), f'{self.get_name()}: simulation', level,
+                msg, values, hardware_id=f'scene:{self.sim.scene.name}'))
 
     def _publish_scene(self) -> None:
         with self.lock:
