@@ -164,15 +164,10 @@ class EnergyFit:
 
 def _amplitudes(mus: Sequence[complex], coef: Sequence[float]) -> list[tuple[complex, float]]:
     """Return (exponent, amplitude [J]) of each term: a real column, or a cos/sin pair."""
-    out, i = [], 0
-    for mu in mus:
-        if abs(mu.imag) <= 1e-12:
-            out.append((mu, abs(coef[i])))
-            i += 1
-        else:
-            out.append((mu, math.hypot(coef[i], coef[i + 1])))
-            i += 2
-    return out
+    widths = _widths(mus)
+    edges = np.cumsum([0, *widths])
+    return [(mu, abs(coef[a]) if w == 1 else math.hypot(coef[a], coef[a + 1]))
+            for mu, a, w in zip(mus, edges[:-1], widths)]
 
 
 def _golden_log(f, a: float, b: float, steps: int) -> tuple[float, float]:
@@ -211,11 +206,22 @@ def _exponents(eigs: Sequence[complex]) -> list[complex]:
     return out
 
 
+def _is_real(mu: complex) -> bool:
+    """Return True if the term exp(mu t) is real: one column of :func:`_basis`, else two."""
+    return abs(mu.imag) <= 1e-12
+
+
+def _widths(exponents: Sequence[complex]) -> np.ndarray:
+    """Return each term's number of columns in :func:`_basis` (1 real, 2 a cos/sin pair)."""
+    return np.array([1 if _is_real(mu) else 2 for mu in exponents], dtype=int)
+
+
 def _basis(tau: np.ndarray, exponents: Sequence[complex]) -> np.ndarray:
+    """Return the columns exp(mu tau), or their cos/sin pair (:func:`_widths`), of each term."""
     cols = []
     for mu in exponents:
         env = np.exp(mu.real * tau)
-        if abs(mu.imag) <= 1e-12:
+        if _is_real(mu):
             cols.append(env)
         else:
             cols += [env * np.cos(mu.imag * tau), env * np.sin(mu.imag * tau)]
@@ -317,8 +323,7 @@ def _faster_scale(tau: np.ndarray, y: np.ndarray, Q: np.ndarray, group: Sequence
     y_perp = y - Q @ (Q.T @ y)
     G = _basis(tau, group)
     trig = _basis(tau, [complex(0.0, mu.imag) for mu in faster])
-    reals = np.array([mu.real for mu in faster
-                      for _ in ((0,) if abs(mu.imag) <= 1e-12 else (0, 1))])
+    reals = np.repeat([mu.real for mu in faster], _widths(faster))
 
     def rss(kappa: float) -> float:
         F = np.column_stack([G, np.exp(np.outer(tau, kappa * reals)) * trig])
@@ -346,8 +351,7 @@ def _own_parts(F: np.ndarray, Q: np.ndarray, c: np.ndarray,
     terms can take: a term that the window cannot tell from them has none to show its rate.
     """
     P = F - Q @ (Q.T @ F)
-    widths = [1 if abs(mu.imag) <= 1e-12 else 2 for mu in group]
-    edges = np.cumsum([0] + widths)
+    edges = np.cumsum([0, *_widths(group)])
     out = []
     for a, b in zip(edges[:-1], edges[1:]):
         Pk = P[:, a:b]
@@ -402,8 +406,7 @@ def _free_rate(tau: np.ndarray, y: np.ndarray, Xf: np.ndarray, group: Sequence[c
 
     trig = _basis(tau, [complex(0.0, mu.imag) for mu in group])    # the group's cos, sin
     # each column's rate above rate0 (terms the window cannot tell from rate0, _measure)
-    above = np.array([-mu.real - rate0 for mu in group
-                      for _ in ((0,) if abs(mu.imag) <= 1e-12 else (0, 1))])
+    above = np.repeat([-mu.real - rate0 for mu in group], _widths(group))
 
     def at(r: float) -> np.ndarray:
         return np.exp(-np.outer(tau, r + above)) * trig
@@ -586,7 +589,7 @@ def _why_not(own: float, end: float, weak: list, free: float, floor: float,
 
 def _fmt_mu(mu: complex) -> str:
     """Name a term of E* by its exponent (rate, and frequency if it oscillates)."""
-    if abs(mu.imag) <= 1e-12:
+    if _is_real(mu):
         return f'exp({mu.real:.4g} t)'
     return f'exp({mu.real:.4g} t) cos({mu.imag:.4g} t)'
 
