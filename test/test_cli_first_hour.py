@@ -236,6 +236,24 @@ def test_general_locus_plot_magnifies_the_slow_branches():
         plt.close(fig)
 
 
+def test_no_branch_of_the_locus_takes_a_markers_colour():
+    """twin_gimbal's five modes: tab10 drew the fourth in the K_D* red, the fifth in purple."""
+    from matplotlib.colors import same_color
+    from gyro_rotor.linear.locus_plot import MEETING_COLOR, SCENE_K_D_COLOR
+    claims, fig = _locus_fig('twin_gimbal')
+    try:
+        branches = [ln for a in fig.axes for ln in a.get_lines() if len(ln.get_xdata()) > 2]
+        assert len({ln.get_color() for ln in branches}) == 5
+        for ln in branches:
+            for marker in (MEETING_COLOR, SCENE_K_D_COLOR):
+                assert not same_color(ln.get_color(), marker), (ln.get_label(), marker)
+        marks = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() in ('D', '.')]
+        assert marks and all(same_color(ln.get_color(), MEETING_COLOR if ln.get_marker() == 'D'
+                                        else SCENE_K_D_COLOR) for ln in marks)
+    finally:
+        plt.close(fig)
+
+
 def test_general_locus_plot_of_a_part_of_the_range_says_where_it_starts():
     from gyro_rotor.linear.system import check_claims, linearize_scene
     from gyro_rotor.linear.locus_plot import locus_figure

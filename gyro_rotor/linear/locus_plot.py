@@ -13,7 +13,17 @@ import math
 
 import numpy as np
 
-__all__ = ['plot_root_locus', 'locus_figure']
+__all__ = ['plot_root_locus', 'locus_figure', 'MEETING_COLOR', 'SCENE_K_D_COLOR',
+           'BRANCH_COLORS']
+
+#: the colour of the K_D* markers (a pair meets on the real axis) and of the scene's K_D
+MEETING_COLOR = 'tab:red'
+SCENE_K_D_COLOR = 'tab:purple'
+#: the branches' colours, one a mode: matplotlib's tab10 without the markers' colours and
+#: the grey of the axes, so that no branch takes a marker's colour (with tab10 itself the
+#: fourth and fifth modes were drawn in the K_D* red and the scene's K_D purple)
+BRANCH_COLORS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:brown', 'tab:pink', 'tab:olive',
+                 'tab:cyan')
 
 
 def _frame(ax, scale: float, top: float) -> None:
@@ -170,10 +180,9 @@ def locus_figure(lin, claims, *, K_lo: float, K_hi: float, title: str = ''):
     else:
         fig, ax = plt.subplots(figsize=(8.5, 5.8), dpi=110)
         side = []
-    cmap = plt.get_cmap('tab10').colors
     labels = sorted({d.label(j) for j in range(d.R.shape[1]) if d.upper[j]},
                     key=lambda t: -float(t.split('(')[-1].split()[0]))
-    color = {t: cmap[i % len(cmap)] for i, t in enumerate(labels)}
+    color = {t: BRANCH_COLORS[i % len(BRANCH_COLORS)] for i, t in enumerate(labels)}
     _draw_main(ax, d, color, title)
     for ax2, j in zip(side, d.slow):
         _draw_slow_branch(ax2, d, j, color.get(d.label(j), 'tab:gray'))
@@ -209,12 +218,12 @@ def _draw_main(ax, d: _Locus, color: dict, title: str) -> None:
     if d.mark is not None:
         for z in np.linalg.eigvals(d.ds.A(d.mark)):
             if z.imag >= -1e-9 * S and abs(z) < 2 * S:
-                ax.plot(z.real, abs(z.imag), '.', color='tab:purple', ms=9)
+                ax.plot(z.real, abs(z.imag), '.', color=SCENE_K_D_COLOR, ms=9)
     for i, mt in enumerate(d.meetings):
-        ax.plot(mt.lam, 0.0, 'D', color='tab:red', ms=7)
+        ax.plot(mt.lam, 0.0, 'D', color=MEETING_COLOR, ms=7)
         ax.annotate(f'K_D* = {mt.K_D:.4g} ({mt.kind})', (mt.lam, 0.0),
-                    textcoords='offset points', xytext=(8, 12 + 20 * i), color='tab:red',
-                    fontsize=8, arrowprops={'arrowstyle': '-', 'color': 'tab:red', 'lw': 0.6})
+                    textcoords='offset points', xytext=(8, 12 + 20 * i), color=MEETING_COLOR,
+                    fontsize=8, arrowprops={'arrowstyle': '-', 'color': MEETING_COLOR, 'lw': 0.6})
     _frame(ax, S, 1.15)
     ax.set_title(title or 'root locus over K_D', fontsize=10)
     _ticks(ax)
@@ -222,10 +231,10 @@ def _draw_main(ax, d: _Locus, color: dict, title: str) -> None:
     marks = [Line2D([], [], ls='', marker='x', color='0.3', ms=8, mew=2, label=d.start),
              Line2D([], [], ls='', marker='o', mfc='none', color='0.2', ms=8,
                     label='K_D -> infinity (locked system)'),
-             Line2D([], [], ls='', marker='D', color='tab:red', ms=6,
+             Line2D([], [], ls='', marker='D', color=MEETING_COLOR, ms=6,
                     label='K_D*: a pair meets on the real axis')]
     if d.mark is not None:
-        marks.append(Line2D([], [], ls='', marker='.', color='tab:purple', ms=9,
+        marks.append(Line2D([], [], ls='', marker='.', color=SCENE_K_D_COLOR, ms=9,
                             label=f"scene's K_D = {d.mark:.4g}"))
     if d.fixed.size:
         marks.append(Line2D([], [], ls='', marker='+', color='k', ms=9, mew=2,
@@ -247,7 +256,7 @@ def _draw_slow_branch(ax2, d: _Locus, j: int, col) -> None:
     ax2.plot(z[0].real * f, y[0], 'x', color=col, ms=9, mew=2)
     if d.mark is not None and d.K[0] <= d.mark <= d.K[-1]:
         i = int(np.argmin(np.abs(np.log(d.K) - math.log(d.mark))))
-        ax2.plot(z[i].real * f, y[i], '.', color='tab:purple', ms=9)
+        ax2.plot(z[i].real * f, y[i], '.', color=SCENE_K_D_COLOR, ms=9)
     im_lo, im_hi = float(y.min()), float(y.max())
     pad = max(0.15 * (im_hi - im_lo), 1e-9 * max(w0, 1.0))
     for x in d.locked:
