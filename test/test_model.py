@@ -1,5 +1,7 @@
 """The singularity-free model against an independent Lagrange implementation (eqs. 18, 19, 23)."""
 
+import functools
+import math
 import subprocess
 import sys
 
@@ -8,9 +10,14 @@ from gyro_rotor.core.params import RotorParams
 from gyro_rotor.core.rotations import (body_rates_from_euler, euler_from_quaternion,
                                        euler_rates_from_body, quaternion_from_euler)
 from gyro_rotor.core.scene import load_scene
+from hypothesis import given, settings, strategies as st
+import mpmath
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+
+EPS = np.finfo(float).eps
+TINY = np.finfo(float).smallest_subnormal
 
 
 def lagrange_rhs(p: RotorParams):
@@ -154,21 +161,58 @@ def test_core_does_not_import_rclpy():
 
 
 def test_compiled_scalar_forms_equal_the_blends():
-    # the kernels compile drive_law and tilt_ratio on floats as an if (core.model): the same
-    # numbers as the 0/1 blends, both laws, both sides of the series limit
+    # the kernels compile drive_law, tilt_ratio and twist_angle on floats as an if
+    # (core.model): the same numbers as the 0/1 blends, both laws, both sides of the rational's
+    # reach (theta = 2 atan 0.66 = 1.167, chi likewise) and the quaternion's other sign
     numba = pytest.importorskip('numba')
-    from gyro_rotor.core.model import drive_law, tilt_ratio
+    from gyro_rotor.core.model import drive_law, tilt_ratio, twist_angle
 
     @numba.njit
-    def compiled(z, zd, K_S, K_D, pp, th, st):
-        return drive_law(z, zd, K_S, K_D, pp), tilt_ratio(th, st)
-    blend_law, blend_ratio = numba.njit(drive_law), numba.njit(tilt_ratio)   # the blends
+    def compiled(z, zd, K_S, K_D, pp, a, b, qz, qw):
+        return drive_law(z, zd, K_S, K_D, pp), tilt_ratio(a, b), twist_angle(qz, qw)
+    blends = (numba.njit(drive_law), numba.njit(tilt_ratio), numba.njit(twist_angle))
     rng = np.random.default_rng(3)
     for pp in (0.0, 1.0, 2.0, 4.0):
-        for th in (0.0, 3e-5, 9.99e-5, 1e-4, 0.3, 2.0, 3.1):
+        for th in (0.0, 3e-5, 1e-4, 0.3, 1.16, 1.1674, 1.17, 2.0, 3.1):
             z, zd, K_S, K_D = rng.normal(size=4) * (3.0, 5.0, 10.0, 0.5)
-            st = float(np.sin(th))
-            got = compiled(z, zd, K_S, K_D, pp, th, st)
-            assert got == (blend_law(z, zd, K_S, K_D, pp), blend_ratio(th, st)), (pp, th)
-            assert np.allclose(got, (drive_law(z, zd, K_S, K_D, pp), tilt_ratio(th, st)),
-                               rtol=1e-15, atol=0.0)
+            a, b = np.sin(th / 2.0) ** 2, np.cos(th / 2.0) ** 2
+            qz = np.sin(th / 2.0) * rng.choice((-1.0, 1.0))
+            qw = np.cos(th / 2.0) * rng.choice((-1.0, 1.0))
+            got = compiled(z, zd, K_S, K_D, pp, a, b, qz, qw)
+            want = (blends[0](z, zd, K_S, K_D, pp), blends[1](a, b), blends[2](qz, qw))
+            assert got == want, (pp, th)
+            plain = (drive_law(z, zd, K_S, K_D, pp), tilt_ratio(a, b), twist_angle(qz, qw))
+            assert np.allclose(got, plain, rtol=1e-15, atol=0.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0.0, 3.14159), st.floats(-3.14159, 3.14159), st.floats(0.5, 2.0))
+def test_the_rational_angles_are_within_a_few_eps_of_atan2(theta, chi, norm):
+    # theta/sin theta and chi = 2 atan2(q_z, q_w) without atan2 (core.model): against atan2 in
+    # 40 digits, on a quaternion of any norm near 1, on both sides of the rational's reach,
+    # compiled (the kernels' form) and as blends (floats and arrays)
+    numba = pytest.importorskip('numba')
+    from gyro_rotor.core.model import tilt_ratio, twist_angle
+    compiled = _compiled_angles(numba)
+    a = norm * math.sin(theta / 2.0) ** 2
+    b = norm * math.cos(theta / 2.0) ** 2
+    qz, qw = math.sqrt(norm) * math.sin(chi / 2.0), math.sqrt(norm) * math.cos(chi / 2.0)
+    with mpmath.workdps(40):
+        half = mpmath.atan2(mpmath.sqrt(mpmath.mpf(a)), mpmath.sqrt(mpmath.mpf(b)))
+        ratio = float(2 * half / mpmath.sin(2 * half)) if half > 0 else 1.0
+        twist = float(2 * mpmath.atan2(mpmath.mpf(qz), mpmath.mpf(qw)))
+    arrays = (tilt_ratio(np.array([a]), np.array([b]))[0],
+              twist_angle(np.array([qz]), np.array([qw]))[0])
+    for r, c in (compiled(a, b, qz, qw), (tilt_ratio(a, b), twist_angle(qz, qw)), arrays):
+        assert abs(r - ratio) <= 4 * EPS * ratio
+        assert abs(c - twist) <= 4 * EPS * abs(twist) + 4 * TINY   # TINY: subnormal chi
+
+
+@functools.lru_cache(maxsize=1)
+def _compiled_angles(numba):
+    from gyro_rotor.core.model import tilt_ratio, twist_angle
+
+    @numba.njit
+    def angles(a, b, qz, qw):
+        return tilt_ratio(a, b), twist_angle(qz, qw)
+    return angles

@@ -49,9 +49,9 @@ from gyro_rotor.errors import did_you_mean, SceneError
 import numpy as np
 
 __all__ = ['Model', 'FullModel', 'UprightAxisModel', 'LockedHousingModel', 'MODELS',
-           'make_model', 'drive_torque', 'drive_potential', 'theta_over_sin', 'drive_law',
+           'make_model', 'drive_torque', 'drive_potential', 'drive_law',
            'pack_params', 'tilt_twist_torque', 'drive_rates', 'full_rhs', 'upright_rhs',
-           'locked_rhs', 'axial_momentum', 'numba_able', 'tilt_ratio',
+           'locked_rhs', 'axial_momentum', 'numba_able', 'tilt_ratio', 'twist_angle', 'atan_ratio',
            'perturb_state',
            'PERTURBATION_KEYS', 'AXIS_DOWN']
 
@@ -78,7 +78,6 @@ except ImportError:  # pragma: no cover
 
     _HAVE_NUMBA = False
 
-_SERIES_LIMIT = 1e-4
 #: the kick of a centrifuge scene (``perturbation.KEY``, :func:`perturb_state`)
 PERTURBATION_KEYS = ('dtheta', 'dthetadot', 'dpsidot', 'dchi', 'dz', 'dzdot')
 
@@ -95,15 +94,6 @@ def pack_params(p: RotorParams) -> np.ndarray:
                      float(p.pole_pairs)])
 
 
-def theta_over_sin(sin_t: float, cos_t: float) -> float:
-    """Return theta / sin(theta), regular at theta = 0 (series 1 + theta^2/6 + 7 theta^4/360)."""
-    theta = math.atan2(sin_t, cos_t)
-    if theta < _SERIES_LIMIT:
-        t2 = theta * theta
-        return 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
-    return theta / sin_t
-
-
 # -- the equations, written once ---------------------------------------------------------------
 # Each function below is plain arithmetic that runs unchanged on floats (Python lists, the
 # plain-float right-hand side for scipy), on numpy arrays of trajectories (the ensemble's numpy
@@ -117,12 +107,45 @@ def _drive_law_scalar(z, zdot, K_S, K_D, pp):
     return -(K_S / pp) * math.sin(pp * z) - K_D * zdot
 
 
-def _ratio_scalar(th, st):
+# theta/sin theta and chi without atan2 (two thirds of an evaluation of the full model when
+# they were atan2 calls on the critical path). With a = q_x^2 + q_y^2 = |q|^2 sin^2(theta/2) and
+# b = q_w^2 + q_z^2 = |q|^2 cos^2(theta/2), t = tan(theta/2) = sqrt(a/b), and
+#     theta/sin theta = (1 + t^2) atan(t)/t,    sin theta = 2 sqrt(a b)/(a + b),
+# atan(t)/t an even function of t: a function of w = a/b, no square root. Where t <= 0.66
+# (theta <= 67 degrees) it is Cephes' rational 1 + w P(w)/Q(w) (S. L. Moshier, atan.c); beyond,
+# the angle by atan2. The twist chi = 2 atan2(q_z, q_w) takes the same rational of
+# v = q_z/q_w where |v| < 0.66 and q_w > 0.
+_ATAN_REACH = 0.66
+_ATAN_P = (-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1,
+           -1.228866684490136173410e2, -6.485021904942025371773e1)
+_ATAN_Q = (2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2,
+           4.853903996359136964868e2, 1.945506571482613964425e2)
+
+
+@numba_able
+def atan_ratio(w):
+    """Return atan(t)/t for w = t^2 in [0, 0.66^2] (Cephes' rational, within 2 eps)."""
+    p0, p1, p2, p3, p4 = _ATAN_P
+    q0, q1, q2, q3, q4 = _ATAN_Q
+    num = (((p0 * w + p1) * w + p2) * w + p3) * w + p4
+    den = ((((w + q0) * w + q1) * w + q2) * w + q3) * w + q4
+    return 1.0 + w * num / den
+
+
+def _ratio_scalar(a, b):
     """Return :func:`tilt_ratio` for floats, with an ``if`` instead of its blend."""
-    if th < _SERIES_LIMIT:
-        t2 = th * th
-        return 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
-    return th / st
+    if a <= _ATAN_REACH * _ATAN_REACH * b:
+        w = a / b
+        return (1.0 + w) * atan_ratio(w)
+    return math.atan2(math.sqrt(a), math.sqrt(b)) * (a + b) / math.sqrt(a * b)
+
+
+def _twist_scalar(qz, qw):
+    """Return :func:`twist_angle` for floats, with an ``if`` instead of its blend."""
+    if abs(qz) < _ATAN_REACH * qw:
+        v = qz / qw
+        return 2.0 * v * atan_ratio(v * v)
+    return 2.0 * math.atan2(qz, qw)
 
 
 def drive_law(z, zdot, K_S, K_D, pp):
@@ -138,12 +161,20 @@ def drive_law(z, zdot, K_S, K_D, pp):
     return lin * (-K_S * z) + sine * (-(K_S / ppn) * np.sin(ppn * z * sine)) - K_D * zdot
 
 
-def tilt_ratio(th, st):
-    """Return theta / sin theta from theta and sin theta, by its series below _SERIES_LIMIT."""
-    t2 = th * th
-    small = 1.0 * (th < _SERIES_LIMIT)
-    return (small * (1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0)
-            + (1.0 - small) * (th / (st + small)))
+def tilt_ratio(a, b):
+    """Return theta/sin theta from a = |q|^2 sin^2(theta/2), b = |q|^2 cos^2(theta/2) (above)."""
+    near = 1.0 * (a <= _ATAN_REACH * _ATAN_REACH * b)
+    w = near * a / (b + (1.0 - near))
+    half = np.arctan2(np.sqrt(a), np.sqrt(b))   # theta/2
+    return (near * ((1.0 + w) * atan_ratio(w))
+            + (1.0 - near) * (half * (a + b) / (np.sqrt(a * b) + near)))
+
+
+def twist_angle(qz, qw):
+    """Return the housing's twist chi = 2 atan2(q_z, q_w) (exact for |chi| < 2 pi; above)."""
+    near = 1.0 * (np.abs(qz) < _ATAN_REACH * qw)
+    v = near * qz / (near * qw + (1.0 - near))
+    return near * (2.0 * v * atan_ratio(v * v)) + (1.0 - near) * (2.0 * np.arctan2(qz, qw))
 
 
 @numba_able
@@ -151,32 +182,35 @@ def tilt_twist_torque(qw, qx, qy, qz, Gs, c_theta, c_psi):
     """Restoring torques of eq. (19) in body axes from the stator quaternion (module doc).
 
     Returns (M_1, M_2, M_3): tilt M = -(dV/dcos theta) (e_3 x k) with dV/dcos theta =
-    G s - c_theta theta/sin theta, plus twist -c_psi chi w, chi = 2 atan2(q_z, q_w).
+    G s - c_theta theta/sin theta, plus twist -c_psi chi w, chi = 2 atan2(q_z, q_w). Written
+    with a, b of :func:`tilt_ratio`: k_1,2 = 2 e_1,2/(a + b) and w_1,2 = k_1,2/(1 + k_3) =
+    e_1,2/b, e_1 = q_x q_z - q_w q_y, e_2 = q_y q_z + q_w q_x.
     """
-    inv_n = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz)
-    k1 = 2.0 * (qx * qz - qw * qy) * inv_n
-    k2 = 2.0 * (qy * qz + qw * qx) * inv_n
-    k3 = (qw * qw - qx * qx - qy * qy + qz * qz) * inv_n
-    st = np.sqrt(k1 * k1 + k2 * k2)
-    th = np.arctan2(st, k3)
-    dV = Gs - c_theta * tilt_ratio(th, st)
-    tw = c_psi * 2.0 * np.arctan2(qz, qw)
-    tw_k = tw / (1.0 + k3)
-    return dV * k2 - tw_k * k1, -dV * k1 - tw_k * k2, -tw
+    a = qx * qx + qy * qy
+    b = qw * qw + qz * qz
+    e1 = qx * qz - qw * qy
+    e2 = qy * qz + qw * qx
+    dV2 = 2.0 * (Gs - c_theta * tilt_ratio(a, b)) / (a + b)   # dV/dcos theta * 2/|q|^2
+    tw = c_psi * twist_angle(qz, qw)
+    tw_b = tw / b
+    return dV2 * e2 - tw_b * e1, -dV2 * e1 - tw_b * e2, -tw
 
 
 if _HAVE_NUMBA:  # pragma: no branch
-    # the kernels compile drive_law and tilt_ratio on floats as their scalar forms above (an
-    # ``if`` where the blends compute both sides: a sine of 0, a division, about a tenth of
-    # the full model's evaluation; the same numbers for floats, test_model checks it); on
-    # arrays as themselves
+    # the kernels compile drive_law, tilt_ratio and twist_angle on floats as their scalar forms
+    # above (an ``if`` where the blends compute both sides: a sine of 0, atan2, divisions; the
+    # same numbers for floats, test_model checks it); on arrays as themselves
     @_overload(drive_law, inline='always')
     def _drive_law_typed(z, zdot, K_S, K_D, pp):
         return _drive_law_scalar if _all_scalars(z, zdot, K_S, K_D, pp) else drive_law
 
     @_overload(tilt_ratio, inline='always')
-    def _tilt_ratio_typed(th, st):
-        return _ratio_scalar if _all_scalars(th, st) else tilt_ratio
+    def _tilt_ratio_typed(a, b):
+        return _ratio_scalar if _all_scalars(a, b) else tilt_ratio
+
+    @_overload(twist_angle, inline='always')
+    def _twist_angle_typed(qz, qw):
+        return _twist_scalar if _all_scalars(qz, qw) else twist_angle
 
 
 @numba_able
