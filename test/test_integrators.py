@@ -493,3 +493,16 @@ def test_auto_choice_is_remembered_but_follows_a_changed_table(monkeypatch):
     rate = model_rate(p.params)
     best, costs = cheapest_explicit(rate, 1e-10, 100.0)
     assert costs == {m: method_cost(m, rate, 1e-10, 100.0) for m in costs}
+
+
+def test_radau_resolvent_is_the_inverse():
+    # radau9's (I + mu A)^-1 from A's eigen-decomposition (radau.resolvent, three complex
+    # reciprocals, no pivoting) against numpy's inverse, over mu = h K_D b_k from 0 to beyond
+    # any run's (K_D = 1e6 at h = 0.01 is mu = 1.5e6)
+    from gyro_rotor.numerics.integrators import tableaux as tb
+    from gyro_rotor.numerics.integrators.radau import resolvent
+    out = np.empty((5, 5))
+    for mu in np.concatenate([[0.0], np.logspace(-8, 12, 81)]):
+        resolvent(mu, tb.RADAU5_LAM, tb.RADAU5_PROJ, out)
+        want = np.linalg.inv(np.eye(5) + mu * tb.RADAU5_A)
+        assert np.abs(out - want).max() <= 1e-13 * np.abs(want).max(), mu

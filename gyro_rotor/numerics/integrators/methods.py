@@ -396,7 +396,8 @@ class Radau9(LoopStepped):
         return radau.radau_run(self.kind, self.P, self.y, self.t, t_eval, self.rtol, self.atol,
                                self.h_max, self._h_next, self.renormalize, max_steps,
                                tb.RADAU5_A, tb.RADAU5_AINV, tb.RADAU5_C, tb.RADAU5_BH,
-                               tb.RADAU5_GAMMA0, self.iter_rtol_max, Y, counts, self._ylast)
+                               tb.RADAU5_GAMMA0, tb.RADAU5_LAM, tb.RADAU5_PROJ,
+                               self.iter_rtol_max, Y, counts, self._ylast)
 
 
 class Split8(Integrator):

@@ -209,8 +209,28 @@ def radau_estimator(C: np.ndarray, gamma0: float) -> np.ndarray:
     return np.linalg.solve(V, rhs)
 
 
+def resolvent_parts(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spectral parts of (I + mu A)^-1 = sum_i Re(P_i / (1 + mu lambda_i)) for any real mu.
+
+    A = S diag(lambda) S^-1; P_i = S[:, i] S^-1[i, :], one of each conjugate pair with the
+    weight 2, the real roots with 1. Returns LAM (r, 2): (Re, Im) lambda_i, and PROJ
+    (r, 2, s, s): (Re, Im) P_i, r = the real roots and one of each pair.
+    """
+    lam, S = np.linalg.eig(A)
+    Si = np.linalg.inv(S)
+    keep = [i for i in range(lam.shape[0]) if lam[i].imag >= 0.0]
+    LAM = np.array([[lam[i].real, lam[i].imag] for i in keep])
+    PROJ = np.empty((len(keep), 2) + A.shape)
+    for r, i in enumerate(keep):
+        Pi = np.outer(S[:, i], Si[i, :]) * (1.0 if lam[i].imag == 0.0 else 2.0)
+        PROJ[r, 0] = Pi.real
+        PROJ[r, 1] = Pi.imag
+    return LAM, PROJ
+
+
 RADAU5_A, RADAU5_B, RADAU5_C = radau_iia(5)
 RADAU5_AINV = np.linalg.inv(RADAU5_A)
+RADAU5_LAM, RADAU5_PROJ = resolvent_parts(RADAU5_A)
 RADAU5_GAMMA0 = 0.2
 RADAU5_BH = radau_estimator(RADAU5_C, RADAU5_GAMMA0)
 
