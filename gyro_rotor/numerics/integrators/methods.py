@@ -483,7 +483,9 @@ ERROR_FLOOR = {'dop853': 2e-14, 'vern7': 6e-15, 'vern8': 7e-15, 'vern9': 5e-15}
 #: pair: replayed on the bench's rows (bench/work_precision.csv, auto's pick per scene and
 #: rtol), the per-pair values change which cells of auto / own best exceed 1.2 (precession
 #: and pole_slip at 1e-9 down to 1.10 and 1.00, fast_spin up to 1.36 and 1.38), not their
-#: worst (1.33 now, 1.38 then)
+#: worst (1.33 now, 1.38 then). Remeasured with the atan2-free right-hand side (25 ns): dop853
+#: 6.1-8.2, the Verner pairs 5.3-20.5 (precession, nutation, pole_slip); replayed on the rows of
+#: ebfe1e1's bench the worst is 1.30 at 2 (and at 6 for every pair), 1.32-1.36 per pair
 STEP_OVERHEAD = 2.0
 #: with several steps per sample interval, steps land on the samples (kernels.land_step):
 #: the interpolant is then needed for about this fraction of the samples
