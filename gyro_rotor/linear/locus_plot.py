@@ -20,8 +20,9 @@ __all__ = ['plot_root_locus', 'locus_figure', 'MEETING_COLOR', 'SCENE_K_D_COLOR'
 MEETING_COLOR = 'tab:red'
 SCENE_K_D_COLOR = 'tab:purple'
 #: the branches' colours, one a mode: matplotlib's tab10 without the markers' colours and
-#: the grey of the axes, so that no branch takes a marker's colour (with tab10 itself the
-#: fourth and fifth modes were drawn in the K_D* red and the scene's K_D purple)
+#: 'tab:gray' (the colour of a branch with no label of its own), so that no branch takes a
+#: marker's colour (with tab10 itself the fourth and fifth modes were drawn in the K_D* red
+#: and the scene's K_D purple)
 BRANCH_COLORS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:brown', 'tab:pink', 'tab:olive',
                  'tab:cyan')
 
