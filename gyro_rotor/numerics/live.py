@@ -411,6 +411,9 @@ class LiveSimulation:
             raise ParameterError('diverged: reset first')
         y_old = self.stepper.y.copy()
         y = self.model.kick(y_old, self.scene.model_kick(self.perturbation))
+        why = self.model.singular_at(y)     # the centrifuge's axis at theta = pi
+        if why:
+            raise ParameterError(f'kick refused: {why}')
         try:       # the new stepper first: a state the model cannot evaluate changes nothing
             stepper = self._new_stepper(self.model, self.stepper.t, y, self.cfg)
         except GyroRotorError as err:
