@@ -506,3 +506,40 @@ def test_radau_resolvent_is_the_inverse():
         resolvent(mu, tb.RADAU5_LAM, tb.RADAU5_PROJ, out)
         want = np.linalg.inv(np.eye(5) + mu * tb.RADAU5_A)
         assert np.abs(out - want).max() <= 1e-13 * np.abs(want).max(), mu
+
+
+@pytest.mark.parametrize('terms', [1, 2, 5, 13])
+@pytest.mark.parametrize('with_base', [True, False])
+def test_lincomb_vector_sum_is_the_sum(terms, with_base):
+    """The compiled vector stage sum is base + h sum_j c_j a_j, at m ... m + 3 only.
+
+    Four components at once, the last array read lane by lane (primitives.lincomb).
+    Against math.fsum of the exact products: within (terms + 2) eps of the sum of the
+    magnitudes (fused and reassociated); a wrong lane, coefficient or array would be off
+    by the size of a term. The pure-Python stand-in (no numba) is held to the same.
+    """
+    from numba import njit
+    from gyro_rotor.numerics.integrators.primitives import LANES, lincomb
+    rng = np.random.default_rng(terms + 100 * with_base)
+    n = 11
+    arrays = tuple(rng.normal(size=n) * 10.0 ** rng.uniform(-3, 3) for _ in range(terms))
+    coeffs = tuple(float(c) for c in rng.normal(size=terms))
+    base = rng.normal(size=n) if with_base else None
+    h = float(rng.uniform(1e-3, 1.0))
+
+    @njit
+    def compiled(out, base, h, coeffs, arrays, m):
+        lincomb(out, base, h, coeffs, arrays, m)
+
+    eps = np.finfo(float).eps
+    for fn in (compiled, lincomb):
+        for m in range(n - LANES + 1):
+            out = np.full(n, np.nan)
+            fn(out, base, h, coeffs, arrays, m)
+            inside = np.arange(m, m + LANES)
+            assert np.isnan(np.delete(out, inside)).all()
+            for r in inside:
+                parts = [h * c * a[r] for c, a in zip(coeffs, arrays)]
+                parts += [base[r]] if with_base else []
+                size = sum(abs(p) for p in parts)
+                assert abs(out[r] - math.fsum(parts)) <= (terms + 2) * eps * size, (fn, m, r)

@@ -3,10 +3,11 @@
 The generic kernels read a tableau from arrays and loop over its (mostly zero) entries: a
 DOP853 step costs about 1,000 multiply-adds of A[i, j] K[j, m] in dependent chains, more
 than the right-hand side itself. Here each tableau (:mod:`~.tableaux`, where the numbers are
-written once) becomes straight-line code: one loop over the components per stage, with the
-non-zero coefficients as named module constants (numba folds them into the machine code),
-zeros skipped, and the error norm computed with one division per component. The adaptive
-run loop of DOP853 and of the Verner pairs is one template (:data:`_RUN`).
+written once) becomes straight-line code: each stage sum a vector sum over four components
+at a time (:func:`~.primitives.lincomb`), with the non-zero coefficients as named module
+constants (numba folds them into the machine code), zeros skipped, and the error norm
+computed with one division per component. The adaptive run loop of DOP853 and of the
+Verner pairs is one template (:data:`_RUN`).
 
 :func:`load` writes the generated module into the cache directory
 (:func:`gyro_rotor.core.cache.cache_root`, folder ``kernels``) under a hash of its text and
@@ -27,6 +28,7 @@ import textwrap
 from gyro_rotor.core import model
 from gyro_rotor.core.cache import cache_root, import_file, note, write_atomic
 from gyro_rotor.numerics.integrators import primitives, tableaux as tb
+from gyro_rotor.numerics.integrators.primitives import LANES
 
 __all__ = ['generate', 'load']
 
@@ -38,7 +40,7 @@ argument conventions are those of the generic kernels (see :mod:`~.rk_codegen`).
 """
 
 from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, finish_run,
-                                                        land_on_sample, land_step, njit,
+                                                        land_on_sample, land_step, lincomb, njit,
                                                         NONFINITE, normalize_quaternion, OK,
                                                         pi_accept_factor, PI_ERR_FLOOR,
                                                         pi_reject_factor, rhs, start_run,
@@ -83,14 +85,33 @@ def _sum(terms: list[str], indent: str, lead: str) -> list[str]:
     return out
 
 
+def _blocked(target: str, terms: list[str], indent: str, base: str | None = None,
+             scale: str | None = None) -> list[str]:
+    """Lines of ``target[m] = base[m] + scale * (sum of terms)`` for every component m.
+
+    ``terms`` are ``'<constant> * k<j>[m]'``; ``target`` and ``base`` are array names
+    (``base`` None: no base), ``scale`` a variable (None: 1). Every LANES components are one
+    :func:`primitives.lincomb` (vector code); the remaining n mod LANES a plain loop.
+    """
+    coeffs = ', '.join(t.split(' * ')[0] for t in terms)
+    arrays = ', '.join(t.split(' * ')[1][:-3] for t in terms)
+    one = ',' if len(terms) == 1 else ''
+    lines = [f'{indent}for m in range(0, n - {LANES - 1}, {LANES}):']
+    lines += _sum([f'{target}, {base}, {scale or 1.0}, ({coeffs}{one}), ({arrays}{one}), m'],
+                  indent + '    ', 'lincomb')
+    lines += [f'{indent}for m in range(n - n % {LANES}, n):']
+    lead = (f'{base}[m] + ' if base else '') + (f'{scale} * ' if scale else '')
+    lines += _sum(terms, indent + '    ', f'{target}[m] = {lead}')
+    return lines
+
+
 def _stages(A, rows, consts: list, prefix: str, base: str) -> list[str]:
     """Lines of the stages ``rows``: ytmp = base + h sum_j A[i, j] k_j, then k_i = f(ytmp)."""
     lines = []
     for i in rows:
         terms = [f'{_const(prefix, (i, j), A[i, j], consts)} * k{j}[m]'
                  for j in range(i) if A[i, j] != 0.0]
-        lines += ['    for m in range(n):']
-        lines += _sum(terms, '        ', f'ytmp[m] = {base}[m] + h * ')
+        lines += _blocked('ytmp', terms, '    ', base, 'h')
         lines += [f'    rhs(kind, ytmp, P, k{i})']
     return lines
 
@@ -105,8 +126,7 @@ def _step_lines(name: str, A, B, s: int, consts: list, pre: str, doc: list[str])
     f += _stages(A, range(1, s), consts, pre + 'a', 'y')
     terms = [f'{_const(pre + "b", (j,), B[j], consts)} * k{j}[m]'
              for j in range(s) if B[j] != 0.0]
-    f += ['    for m in range(n):']
-    f += _sum(terms, '        ', 'y_new[m] = y[m] + h * ')
+    f += _blocked('y_new', terms, '    ', 'y', 'h')
     f += [f'    rhs(kind, y_new, P, k{s})']
     return f
 
@@ -121,18 +141,22 @@ def _dop853() -> tuple[list[str], list[str]]:
         '    ``K`` (16, n): rows 0-11 the stages (row 0 a copy of ``f``), row 12 f(y_new),',
         '    also copied to ``f_new``.',
         '    """'])
-    f += ['    for m in range(n):',
-          '        f_new[m] = k12[m]',
-          "    # error estimate of Hairer's DOP853 (scipy's DOP853._estimate_error_norm)",
-          '    e5 = 0.0',
-          '    e3 = 0.0',
-          '    for m in range(n):',
-          '        inv = 1.0 / (atol + rtol * max(abs(y[m]), abs(y_new[m])))']
     t5 = [f'{_const("e5", (j,), E5[j], consts)} * k{j}[m]' for j in range(13) if E5[j] != 0.0]
     t3 = [f'{_const("e3", (j,), E3[j], consts)} * k{j}[m]' for j in range(13) if E3[j] != 0.0]
-    f += _sum(t5, '        ', 'a5 = inv * ')
-    f += _sum(t3, '        ', 'a3 = inv * ')
-    f += ['        e5 += a5 * a5',
+    f += ["    # error estimate of Hairer's DOP853 (scipy's DOP853._estimate_error_norm); the",
+          "    # two sums go to rows 13 and 14 of K, which only the interpolant's stages use",
+          '    s5 = K[13]',
+          '    s3 = K[14]']
+    f += _blocked('s5', t5, '    ')
+    f += _blocked('s3', t3, '    ')
+    f += ['    e5 = 0.0',
+          '    e3 = 0.0',
+          '    for m in range(n):',
+          '        f_new[m] = k12[m]',
+          '        inv = 1.0 / (atol + rtol * max(abs(y[m]), abs(y_new[m])))',
+          '        a5 = inv * s5[m]',
+          '        a3 = inv * s3[m]',
+          '        e5 += a5 * a5',
           '        e3 += a3 * a3',
           '    if e5 == 0.0 and e3 == 0.0:',
           '        return 0.0',
@@ -157,7 +181,8 @@ def _dop853() -> tuple[list[str], list[str]]:
     for r in range(4):
         terms = [f'{_const("d", (r, j), D[r, j], consts)} * k{j}[m]'
                  for j in range(16) if D[r, j] != 0.0]
-        f += _sum(terms, '        ', f'F[{3 + r}, m] = h * ')
+        f += [f'    F{3 + r} = F[{3 + r}]']
+        f += _blocked(f'F{3 + r}', terms, '    ', scale='h')
     f += ['', '', _JIT,
           'def dop853_eval(kind, F, y_old, x, out):',
           '    """Evaluate the DOP853 interpolant at fraction ``x`` of the step into ``out``."""',
@@ -284,14 +309,16 @@ def _verner(name: str) -> tuple[list[str], list[str]]:
         'f(y_new), also',
         '    copied to ``f_new``.',
         '    """'])
+    terms = [f'{_const(pre + "e", (j,), E[j], consts)} * k{j}[m]'
+             for j in range(s) if E[j] != 0.0]
+    f += ["    # the error sum goes to the first row of the interpolant's stages",
+          f'    se = K[{s + 1}]']
+    f += _blocked('se', terms, '    ')
     f += ['    acc = 0.0',
           '    for m in range(n):',
           f'        f_new[m] = k{s}[m]',
-          '        inv = 1.0 / (atol + rtol * max(abs(y[m]), abs(y_new[m])))']
-    terms = [f'{_const(pre + "e", (j,), E[j], consts)} * k{j}[m]'
-             for j in range(s) if E[j] != 0.0]
-    f += _sum(terms, '        ', 'e = inv * ')
-    f += ['        acc += e * e',
+          '        e = se[m] / (atol + rtol * max(abs(y[m]), abs(y_new[m])))',
+          '        acc += e * e',
           '    return abs(h) * math.sqrt(acc / n)']
     used = sorted({j for j in range(tot) if A[s + 1:, j].any() or R[j].any()}
                   | set(range(s + 1, tot)))
@@ -305,11 +332,11 @@ def _verner(name: str) -> tuple[list[str], list[str]]:
           '    n = state_size(kind, y_old)']
     f += [f'    k{j} = K[{j}]' for j in used]
     f += _stages(A, range(s + 1, tot), consts, pre + 'a', 'y_old')
-    f += ['    for m in range(n):']
     for q in range(p):
         terms = [f'{_const(pre + "r", (i, q), R[i, q], consts)} * k{i}[m]'
                  for i in range(tot) if R[i, q] != 0.0]
-        f += _sum(terms, '        ', f'F[{q}, m] = h * ')
+        f += [f'    F{q} = F[{q}]']
+        f += _blocked(f'F{q}', terms, '    ', scale='h')
     # Horner's scheme, one coefficient a line
     horner = [f'v = F[{p - 1}, m]'] + [f'v = F[{q}, m] + x * v' for q in range(p - 2, -1, -1)]
     f += ['', '', _JIT,
