@@ -8,7 +8,8 @@ peers (:mod:`gyro_rotor.numerics.bench_peers`) as baselines.
 
 **Work precision** (:func:`run_sweep`, any scene, centrifuge or system file): for every
 scene (and the K_D variants of stiff_drive) and every method over a sweep of
-tolerances (adaptive) or steps (fixed-step), one run over the scene's duration sampled at
+tolerances (adaptive; RTOLS, 1e-3 to 1e-12 at 1 and 3 a decade) or steps (fixed-step),
+one run over the scene's duration sampled at
 SAMPLE_RATE Hz is compared with a high-accuracy reference (this project's DOP853 at
 rtol 1e-13, or RODAS4 at 1e-13 where the scene is stiff, not the stiff default radau9;
 RODAS4 agrees with scipy's Radau at 1e-12 to 2e-12 on stiff_drive). Recorded per run:
@@ -93,7 +94,7 @@ __all__ = ['BenchRow', 'DEFAULT_SCENES', 'QUICK_SCENES', 'run_sweep', 'reference
            'tolerance_sweep',
            'scipy_run', 'rhs_cost', 'compile_times', 'system_work_precision', 'WPRow',
            'best_at', 'SYSTEM_SCENES', 'DEFAULT_LABEL', 'stiff_table', 'StiffRow',
-           'STIFF_K_D']
+           'STIFF_K_D', 'COST_SCENES', 'steps_per_radian']
 
 SAMPLE_RATE = 100.0
 ERROR_LEVELS = (1e-3, 1e-6, 1e-9)
@@ -103,8 +104,12 @@ QUICK_SCIPY = ('LSODA',)
 QUICK_PEERS = {'cyrk': ('DOP853',)}
 #: the peers' row names: PEER_LABEL[package] + ':' + method
 PEER_LABEL = {'cyrk': 'CyRK', 'numbalsoda': 'numbalsoda'}
-# tolerance sweeps (atol = rtol * ATOL_RATIO) and step sweeps (step = factor / model rate)
-RTOLS = {'full': (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
+# tolerance sweeps (atol = rtol * ATOL_RATIO) and step sweeps (step = factor / model rate).
+# The full sweep takes two tolerances a decade (1 and 3): a method whose error lands just
+# above a level must otherwise pay for ten times the tolerance, about 1.3 to 1.4 times the
+# cost for an eighth-order pair (pole_slip's vern8 at rtol 1e-9: error 1.1e-9, so rtol 1e-10)
+RTOLS = {'full': (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9,
+                  1e-9, 3e-10, 1e-10, 3e-11, 1e-11, 3e-12, 1e-12),
          'quick': (1e-5, 1e-8)}
 # (rk8 from 3.2: at 0.8 it was already at error 1.4e-10 on fast_spin, so the sweep missed
 # its cheaper settings for 1e-6 and 1e-3; where 0.01 s x model rate is below the factor the
@@ -459,6 +464,44 @@ def best_table(rows: list[BenchRow], levels=ERROR_LEVELS) -> dict:
                 if cur[i] is None or r.wall_per_sim < cur[i]:
                     cur[i] = r.wall_per_sim
     return out
+
+
+#: the scenes whose rows give auto's cost table (methods.STEPS_PER_RADIAN)
+COST_SCENES = ('precession', 'nutation', 'upright', 'fast_spin', 'conservative', 'pole_slip')
+
+
+def steps_per_radian(rows: list[BenchRow]) -> dict | None:
+    """Return auto's cost table as this sweep measures it, or None without its scenes.
+
+    For each of methods.COST_METHODS and each error of methods.COST_ERRORS: the fewest steps
+    of a run that reached the error, per radian of the scene's fastest rate (rate x t_end),
+    geometric mean over COST_SCENES (None where a scene never reached it); and each
+    method's floor, the smallest error it reached on them. :data:`methods.STEPS_PER_RADIAN`
+    and :data:`methods.ERROR_FLOOR` are this function's output for a full sweep.
+    """
+    from gyro_rotor.numerics.integrators import methods as M
+    from gyro_rotor.numerics.integrators.base import rates_of
+    done = {r.scene for r in rows}
+    if not set(COST_SCENES) <= done:
+        return None
+    radians = {}
+    for name in COST_SCENES:
+        scene = load_scene(name)
+        radians[name] = max(rates_of(scene.system.params)) * scene.t_end
+    table, floors = {}, {}
+    for m in M.COST_METHODS:
+        ok = [r for r in rows if r.method == m and r.scene in radians and r.status == 0
+              and math.isfinite(r.err)]
+        vals = []
+        for e in M.COST_ERRORS:
+            fewest = [min((r.nsteps for r in ok if r.scene == sc and r.err <= e), default=None)
+                      for sc in COST_SCENES]
+            vals.append(None if None in fewest else math.exp(
+                sum(math.log(n / radians[sc]) for n, sc in zip(fewest, COST_SCENES))
+                / len(COST_SCENES)))
+        table[m] = tuple(vals)
+        floors[m] = min((r.err for r in ok), default=math.nan)
+    return {'steps': table, 'floor': floors}
 
 
 QUICK_DRIFT_METHODS = ('auto', 'dop853')

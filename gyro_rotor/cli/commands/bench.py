@@ -177,6 +177,33 @@ def peer_table(rows, levels=(1e-6, 1e-9)) -> list[str]:
                      'auto / own best', 'load'], cells)
 
 
+def cost_table_lines(rows) -> list[str]:
+    """Markdown lines: auto's cost table as this run measures it, beside the one in use.
+
+    ``bench.steps_per_radian`` of the rows (nothing without its six scenes): the steps per
+    radian each explicit pair needs for each error, and its error floor; the package's
+    tables (methods.STEPS_PER_RADIAN, ERROR_FLOOR) are this output of a full sweep.
+    """
+    import gyro_rotor.numerics.bench as bench
+    from gyro_rotor.numerics.integrators import methods
+    fit = bench.steps_per_radian(rows)
+    if fit is None:
+        return []
+    errs = methods.COST_ERRORS
+    cells = []
+    for m, vals in fit['steps'].items():
+        for label, v, floor in (('this run', vals, fit['floor'][m]),
+                                ('in use', methods.STEPS_PER_RADIAN[m],
+                                 methods.ERROR_FLOOR[m])):
+            cells.append([m, label, *('-' if x is None else f'{x:.3g}' for x in v),
+                          f'{floor:.1e}'])
+    return (['', "auto's cost table: steps per radian of the fastest rate to reach each "
+             'error (fewest steps of the sweep, geometric mean over '
+             f'{", ".join(bench.COST_SCENES)}; methods.STEPS_PER_RADIAN and ERROR_FLOOR are '
+             'this table of a full sweep):', '']
+            + md_table(['method', 'table', *(f'{e:.0e}' for e in errs), 'floor'], cells))
+
+
 def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
     """Write the markdown report and return its text."""
     import gyro_rotor.numerics.bench as bench
@@ -233,6 +260,7 @@ def write_markdown(path, rows, drift, poles, args, elapsed) -> str:
         auto_rows.append([s, auto, *cells])
     lines += md_table(['scene', 'auto', 'vs scipy at 1e-6', 'at 1e-9', 'vs own best at 1e-6',
                        'at 1e-9'], auto_rows)
+    lines += cost_table_lines(rows)
     if drift:
         cps = [c for c in (10.0, 100.0, 1000.0) if c <= args.drift_t_end] or [args.drift_t_end]
         lines += ['', f'Relative E* drift on conservative (K_D = 0) at '
