@@ -71,3 +71,29 @@ def test_steps_per_radian_is_the_geometric_mean_of_the_fewest_steps():
                 assert v is None
         assert fit['floor'][m] == 3e-10
     assert steps_per_radian([r for r in rows if r.scene != 'upright']) is None
+
+
+def test_auto_cost_table_is_that_of_the_committed_benchmark():
+    """The cost table in use is that of the committed benchmark run, to its digits.
+
+    methods.STEPS_PER_RADIAN and ERROR_FLOOR against bench.steps_per_radian of the rows of
+    bench/work_precision.csv. A table left from another sweep (the decade sweep's differed
+    by up to 20 %) or a benchmark rerun without its table fails here. Reads the file only,
+    no timing.
+    """
+    import csv
+    import dataclasses
+    from pathlib import Path
+    from gyro_rotor.numerics.bench import BenchRow, steps_per_radian
+    from gyro_rotor.numerics.integrators import methods
+    kinds = {f.name: f.type for f in dataclasses.fields(BenchRow)}
+    cast = {'int': lambda v: int(float(v)), 'float': float, 'str': str}
+    path = Path(__file__).resolve().parents[1] / 'bench' / 'work_precision.csv'
+    with open(path, newline='') as fh:
+        rows = [BenchRow(**{k: cast[kinds[k]](v) for k, v in r.items() if k in kinds})
+                for r in csv.DictReader(fh)]
+    fit = steps_per_radian(rows)
+    for m in methods.COST_METHODS:
+        assert [float(f'{v:.3g}') for v in fit['steps'][m]] == list(
+            methods.STEPS_PER_RADIAN[m]), m
+        assert float(f"{fit['floor'][m]:.1e}") == methods.ERROR_FLOOR[m], m
