@@ -45,7 +45,7 @@ __all__ = ['HAVE_NUMBA', 'njit', 'KIND', 'FullKind', 'UprightKind', 'LockedKind'
            'initial_step',
            'land_step', 'land_on_sample', 'equal_steps', 'fixed_segment', 'store_samples',
            'start_run', 'finish_run', 'too_small', 'clip_to_sample', 'lu_factor', 'lu_solve',
-           'LANES', 'lincomb']
+           'LANES', 'FAST_MATH', 'lincomb']
 
 
 class FullKind(enum.IntEnum):
@@ -503,6 +503,11 @@ def lu_solve(M, piv, b):
 
 #: the components :func:`lincomb` computes in one call: one vector of four doubles (AVX)
 LANES = 4
+#: the fast-math flags of the kernels that allow them (the generated Runge-Kutta kernels,
+#: radau's, :func:`lincomb`): LLVM may fuse multiply-adds, reassociate sums and multiply by
+#: reciprocals; not 'nnan'/'ninf', so NaN and inf still propagate and the run loops still
+#: stop on a non-finite state. A tuple: its order is part of the generated kernels' text
+FAST_MATH = ('contract', 'reassoc', 'arcp', 'nsz')
 
 
 def lincomb(out, base, h, coeffs, arrays, m):
@@ -526,9 +531,6 @@ def lincomb(out, base, h, coeffs, arrays, m):
 if HAVE_NUMBA:  # pragma: no branch
     from llvmlite import ir
     from numba.extending import intrinsic
-
-    #: fast-math flags of the vector sums: those of the generated kernels (rk_codegen._JIT)
-    _VEC_FLAGS = ('contract', 'reassoc', 'arcp', 'nsz')
 
     @intrinsic
     def _lincomb_vec(typingctx, out, base, h, coeffs, arrays, m):
@@ -571,11 +573,11 @@ if HAVE_NUMBA:  # pragma: no branch
                     x = lanes(arrays[j], builder.extract_value(a_v, j))
                 else:
                     x = builder.load(at(arrays[j], builder.extract_value(a_v, j)), align=8)
-                term = builder.fmul(splat(builder.extract_value(c_v, j)), x, flags=_VEC_FLAGS)
-                acc = term if acc is None else builder.fadd(acc, term, flags=_VEC_FLAGS)
-            b = builder.fmul(splat(h_v), acc, flags=_VEC_FLAGS)
+                term = builder.fmul(splat(builder.extract_value(c_v, j)), x, flags=FAST_MATH)
+                acc = term if acc is None else builder.fadd(acc, term, flags=FAST_MATH)
+            b = builder.fmul(splat(h_v), acc, flags=FAST_MATH)
             if base is not types.none:
-                b = builder.fadd(builder.load(at(base, base_v), align=8), b, flags=_VEC_FLAGS)
+                b = builder.fadd(builder.load(at(base, base_v), align=8), b, flags=FAST_MATH)
             builder.store(b, at(out, out_v), align=8)
             return context.get_dummy_value()
 

@@ -26,7 +26,8 @@ from __future__ import annotations
 import math
 
 from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, clip_to_sample,
-                                                        finish_run, MAX_FACTOR, MIN_FACTOR, njit,
+                                                        FAST_MATH, finish_run, MAX_FACTOR,
+                                                        MIN_FACTOR, njit,
                                                         NONFINITE, normalize_quaternion, OK, rhs,
                                                         SAFETY, start_run, state_size,
                                                         store_samples, too_small, UNDERFLOW)
@@ -34,10 +35,6 @@ import numpy as np
 
 __all__ = ['stiff_direction', 'radau_run', 'extrapolate', 'resolvent', 'MAX_ITER']
 
-#: numba's fast-math flags of these kernels, those of the generated explicit ones
-#: (rk_codegen): fused multiply-adds, reassociated sums, reciprocals; not 'nnan'/'ninf', so a
-#: non-finite state still stops the run
-FAST_MATH = {'contract', 'reassoc', 'arcp', 'nsz'}
 #: the number of stages of the kernels (the tableau RADAU5_*: a compile-time constant, so
 #: that LLVM unrolls the loops over the stages)
 STAGES = 5
@@ -68,7 +65,7 @@ def stiff_direction(kind, P, b):
     return k, P[7] * b[k]
 
 
-@njit(cache=True, error_model='numpy', fastmath=FAST_MATH)
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def resolvent(mu, LAM, PROJ, out):
     """(I + mu A)^-1 into ``out`` from A's spectral parts (tableaux.resolvent_parts).
 
@@ -90,7 +87,7 @@ def resolvent(mu, LAM, PROJ, out):
                 out[i, j] += cr * PROJ[r, 0, i, j] - ci * PROJ[r, 1, i, j]
 
 
-@njit(cache=True, error_model='numpy', fastmath=FAST_MATH)
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def extrapolate(C, Zp, ratio, Z):
     """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio).
 
@@ -118,7 +115,7 @@ def extrapolate(C, Zp, ratio, Z):
                 Z[i, m] += lj * Zp[j, m]
 
 
-@njit(cache=True, error_model='numpy', fastmath=FAST_MATH)
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def radau_solve(kind, P, y, f, h, rtol, atol, A, LAM, PROJ, b, k, lam, Z, F, V, T, ytmp, sc,
                 itol_max):
     """Solve the stage equations for Z (start values in Z); return the iterations or -1."""
@@ -162,7 +159,7 @@ def radau_solve(kind, P, y, f, h, rtol, atol, A, LAM, PROJ, b, k, lam, Z, F, V, 
     return -1
 
 
-@njit(cache=True, error_model='numpy', fastmath=FAST_MATH)
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
               A, Ainv, C, BH, gamma0, LAM, PROJ, itol_max, Y_out, counts, y_last):
     """Adaptive Radau IIA through the sample times: steps are clipped to land on each sample.

@@ -28,7 +28,7 @@ import textwrap
 from gyro_rotor.core import model
 from gyro_rotor.core.cache import cache_root, import_file, note, write_atomic
 from gyro_rotor.numerics.integrators import primitives, tableaux as tb
-from gyro_rotor.numerics.integrators.primitives import LANES
+from gyro_rotor.numerics.integrators.primitives import FAST_MATH, LANES
 
 __all__ = ['generate', 'load']
 
@@ -51,11 +51,9 @@ __all__ = [{names}]
 '''
 
 #: numba options of every generated kernel: numpy's error model, as the generic kernels, and
-#: the fast-math flags that let LLVM fuse multiply-adds, reassociate the stage sums and
-#: multiply by reciprocals (about 20 % of a DOP853 step); not 'nnan'/'ninf', so NaN and inf
-#: still propagate and the run loops still stop on a non-finite state
+#: the fast-math flags (primitives.FAST_MATH: about 20 % of a DOP853 step)
 _JIT = ("@njit(cache=True, error_model='numpy', "
-        "fastmath={'contract', 'reassoc', 'arcp', 'nsz'})")
+        f"fastmath={{{', '.join(repr(f) for f in FAST_MATH)}}})")
 
 
 def _lit(x: float) -> str:
