@@ -83,23 +83,24 @@ def _sum(terms: list[str], indent: str, lead: str) -> list[str]:
     return out
 
 
-def _blocked(target: str, terms: list[str], indent: str, base: str | None = None,
+def _blocked(target: str, terms: list[tuple[str, int]], indent: str, base: str | None = None,
              scale: str | None = None) -> list[str]:
     """Lines of ``target[m] = base[m] + scale * (sum of terms)`` for every component m.
 
-    ``terms`` are ``'<constant> * k<j>[m]'``; ``target`` and ``base`` are array names
-    (``base`` None: no base), ``scale`` a variable (None: 1). Every LANES components are one
-    :func:`primitives.lincomb` (vector code); the remaining n mod LANES a plain loop.
+    ``terms`` are ``(constant, j)``: the constant's name times stage ``k<j>``; ``target`` and
+    ``base`` are array names (``base`` None: no base), ``scale`` a variable (None: 1). Every
+    LANES components are one :func:`primitives.lincomb` (vector code); the remaining n mod
+    LANES a plain loop.
     """
-    coeffs = ', '.join(t.split(' * ')[0] for t in terms)
-    arrays = ', '.join(t.split(' * ')[1][:-3] for t in terms)
+    coeffs = ', '.join(c for c, _ in terms)
+    arrays = ', '.join(f'k{j}' for _, j in terms)
     one = ',' if len(terms) == 1 else ''
     lines = [f'{indent}for m in range(0, n - {LANES - 1}, {LANES}):']
     lines += _sum([f'{target}, {base}, {scale or 1.0}, ({coeffs}{one}), ({arrays}{one}), m'],
                   indent + '    ', 'lincomb')
     lines += [f'{indent}for m in range(n - n % {LANES}, n):']
     lead = (f'{base}[m] + ' if base else '') + (f'{scale} * ' if scale else '')
-    lines += _sum(terms, indent + '    ', f'{target}[m] = {lead}')
+    lines += _sum([f'{c} * k{j}[m]' for c, j in terms], indent + '    ', f'{target}[m] = {lead}')
     return lines
 
 
@@ -107,7 +108,7 @@ def _stages(A, rows, consts: list, prefix: str, base: str) -> list[str]:
     """Lines of the stages ``rows``: ytmp = base + h sum_j A[i, j] k_j, then k_i = f(ytmp)."""
     lines = []
     for i in rows:
-        terms = [f'{_const(prefix, (i, j), A[i, j], consts)} * k{j}[m]'
+        terms = [(_const(prefix, (i, j), A[i, j], consts), j)
                  for j in range(i) if A[i, j] != 0.0]
         lines += _blocked('ytmp', terms, '    ', base, 'h')
         lines += [f'    rhs(kind, ytmp, P, k{i})']
@@ -122,7 +123,7 @@ def _step_lines(name: str, A, B, s: int, consts: list, pre: str, doc: list[str])
     f += [f'    k{j} = K[{j}]' for j in range(s + 1)]
     f += ['    for m in range(n):', '        k0[m] = f[m]']
     f += _stages(A, range(1, s), consts, pre + 'a', 'y')
-    terms = [f'{_const(pre + "b", (j,), B[j], consts)} * k{j}[m]'
+    terms = [(_const(pre + 'b', (j,), B[j], consts), j)
              for j in range(s) if B[j] != 0.0]
     f += _blocked('y_new', terms, '    ', 'y', 'h')
     f += [f'    rhs(kind, y_new, P, k{s})']
@@ -139,8 +140,8 @@ def _dop853() -> tuple[list[str], list[str]]:
         '    ``K`` (16, n): rows 0-11 the stages (row 0 a copy of ``f``), row 12 f(y_new),',
         '    also copied to ``f_new``.',
         '    """'])
-    t5 = [f'{_const("e5", (j,), E5[j], consts)} * k{j}[m]' for j in range(13) if E5[j] != 0.0]
-    t3 = [f'{_const("e3", (j,), E3[j], consts)} * k{j}[m]' for j in range(13) if E3[j] != 0.0]
+    t5 = [(_const('e5', (j,), E5[j], consts), j) for j in range(13) if E5[j] != 0.0]
+    t3 = [(_const('e3', (j,), E3[j], consts), j) for j in range(13) if E3[j] != 0.0]
     f += ["    # error estimate of Hairer's DOP853 (scipy's DOP853._estimate_error_norm); the",
           "    # two sums go to rows 13 and 14 of K, which only the interpolant's stages use",
           '    s5 = K[13]',
@@ -177,7 +178,7 @@ def _dop853() -> tuple[list[str], list[str]]:
           '        F[1, m] = h * f_old[m] - dy',
           '        F[2, m] = 2.0 * dy - h * (f_new[m] + f_old[m])']
     for r in range(4):
-        terms = [f'{_const("d", (r, j), D[r, j], consts)} * k{j}[m]'
+        terms = [(_const('d', (r, j), D[r, j], consts), j)
                  for j in range(16) if D[r, j] != 0.0]
         f += [f'    F{3 + r} = F[{3 + r}]']
         f += _blocked(f'F{3 + r}', terms, '    ', scale='h')
@@ -307,7 +308,7 @@ def _verner(name: str) -> tuple[list[str], list[str]]:
         'f(y_new), also',
         '    copied to ``f_new``.',
         '    """'])
-    terms = [f'{_const(pre + "e", (j,), E[j], consts)} * k{j}[m]'
+    terms = [(_const(pre + 'e', (j,), E[j], consts), j)
              for j in range(s) if E[j] != 0.0]
     f += ["    # the error sum goes to the first row of the interpolant's stages",
           f'    se = K[{s + 1}]']
@@ -331,7 +332,7 @@ def _verner(name: str) -> tuple[list[str], list[str]]:
     f += [f'    k{j} = K[{j}]' for j in used]
     f += _stages(A, range(s + 1, tot), consts, pre + 'a', 'y_old')
     for q in range(p):
-        terms = [f'{_const(pre + "r", (i, q), R[i, q], consts)} * k{i}[m]'
+        terms = [(_const(pre + 'r', (i, q), R[i, q], consts), i)
                  for i in range(tot) if R[i, q] != 0.0]
         f += [f'    F{q} = F[{q}]']
         f += _blocked(f'F{q}', terms, '    ', scale='h')
