@@ -33,7 +33,8 @@ from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, clip
                                                         store_samples, too_small, UNDERFLOW)
 import numpy as np
 
-__all__ = ['stiff_direction', 'radau_run', 'extrapolate', 'resolvent', 'MAX_ITER']
+__all__ = ['stiff_direction', 'radau_run', 'lagrange_weights', 'extrapolate', 'resolvent',
+           'MAX_ITER']
 
 #: the number of stages of the kernels (the tableau RADAU5_*: a compile-time constant, so
 #: that LLVM unrolls the loops over the stages)
@@ -46,6 +47,8 @@ ITER_TOL = 0.01
 #: stages unsolved: the step's error is then the method's, not the iteration's); the
 #: kernels take it as the argument ``itol_max``
 ITER_RTOL_MAX = 1e-4
+#: the kernels' compiler options, with the fast-math flags of primitives.FAST_MATH
+_fast_njit = njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 
 
 @njit(cache=True, error_model='numpy')
@@ -65,7 +68,7 @@ def stiff_direction(kind, P, b):
     return k, P[7] * b[k]
 
 
-@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
+@_fast_njit
 def resolvent(mu, LAM, PROJ, out):
     """(I + mu A)^-1 into ``out`` from A's spectral parts (tableaux.resolvent_parts).
 
@@ -87,21 +90,33 @@ def resolvent(mu, LAM, PROJ, out):
                 out[i, j] += cr * PROJ[r, 0, i, j] - ci * PROJ[r, 1, i, j]
 
 
-@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
-def extrapolate(C, Zp, ratio, Z):
-    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio).
+@_fast_njit
+def lagrange_weights(C):
+    """1 / the denominators of the Lagrange basis on the nodes 0, C[0], ..., C[s - 1].
 
-    For any number of stages s = C.shape[0] (radau9's and :mod:`~.radau_jac`'s kernels).
+    The basis polynomial of node C[j] vanishes at 0 and the other nodes; its denominator is
+    C[j] prod_(q != j) (C[j] - C[q]). Once a run, for :func:`extrapolate` at every step.
     """
     s = C.shape[0]
-    n = Z.shape[1]
-    w = np.empty(s)               # 1 / (the basis polynomials' denominators)
+    w = np.empty(s)
     for j in range(s):
         den = C[j]                    # the node 0 of the basis (value 0 there)
         for q in range(s):
             if q != j:
                 den *= C[j] - C[q]
         w[j] = 1.0 / den
+    return w
+
+
+@_fast_njit
+def extrapolate(C, w, Zp, ratio, Z):
+    """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio).
+
+    For any number of stages s = C.shape[0] (radau9's and :mod:`~.radau_jac`'s kernels);
+    ``w`` = :func:`lagrange_weights` (C).
+    """
+    s = C.shape[0]
+    n = Z.shape[1]
     for i in range(s):
         th = 1.0 + C[i] * ratio
         for m in range(n):
@@ -115,7 +130,7 @@ def extrapolate(C, Zp, ratio, Z):
                 Z[i, m] += lj * Zp[j, m]
 
 
-@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
+@_fast_njit
 def radau_solve(kind, P, y, f, h, rtol, atol, A, LAM, PROJ, b, k, lam, Z, F, V, T, ytmp, sc,
                 itol_max):
     """Solve the stage equations for Z (start values in Z); return the iterations or -1."""
@@ -159,7 +174,7 @@ def radau_solve(kind, P, y, f, h, rtol, atol, A, LAM, PROJ, b, k, lam, Z, F, V, 
     return -1
 
 
-@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
+@_fast_njit
 def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
               A, Ainv, C, BH, gamma0, LAM, PROJ, itol_max, Y_out, counts, y_last):
     """Adaptive Radau IIA through the sample times: steps are clipped to land on each sample.
@@ -180,6 +195,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
     F = np.empty((s, n))
     V = np.empty((s, n))
     T = np.empty((s, s))
+    w = lagrange_weights(C)
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
     nsteps = 0
@@ -191,7 +207,7 @@ def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_st
             break
         h, h_free, clipped, t_next = clip_to_sample(t_eval, kk, t, h, h_max, t_end)
         if h_old > 0.0:
-            extrapolate(C, Zp, h / h_old, Z)
+            extrapolate(C, w, Zp, h / h_old, Z)
         else:
             for i in range(s):
                 for m in range(n):

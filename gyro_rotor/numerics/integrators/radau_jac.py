@@ -38,7 +38,7 @@ from gyro_rotor.numerics.integrators.primitives import (all_finite, BUDGET, clip
                                                         MIN_FACTOR, njit, NONFINITE, OK, rhs,
                                                         start_run, store_samples, too_small,
                                                         UNDERFLOW)
-from gyro_rotor.numerics.integrators.radau import extrapolate
+from gyro_rotor.numerics.integrators.radau import extrapolate, lagrange_weights
 import numpy as np
 
 __all__ = ['Radau9Jac', 'transformation', 'radau_jac_run', 'STAGES', 'tableau']
@@ -238,6 +238,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
     bc = np.empty((npair, n), dtype=np.complex128)
     pr = np.zeros(n, dtype=np.int64)
     pc = np.zeros((npair, n), dtype=np.int64)
+    w = lagrange_weights(C)
     t = t0
     t_end = t_eval[t_eval.shape[0] - 1]
     njev = 0
@@ -265,7 +266,7 @@ def radau_jac_run(f, jac, P, y0, t0, t_eval, rtol, atol, h_max, h_init, max_step
                 continue
             h_lu = h
         if h_old > 0.0:
-            extrapolate(C, Zp, h / h_old, Z)
+            extrapolate(C, w, Zp, h / h_old, Z)
         else:
             for i in range(s):
                 for m in range(n):
