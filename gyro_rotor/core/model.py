@@ -610,7 +610,7 @@ class FullModel(Model):
         W1, W2, W3, z, zd = (Y[..., i] for i in (4, 5, 6, 7, 8))
         q = Y[..., 0:4]
         theta = tilt(q)
-        chi = 2.0 * np.arctan2(q[..., 3], q[..., 0])
+        chi = twist(q, unwrap=False)
         V = p.Gs * np.cos(theta) + 0.5 * p.c_theta * theta ** 2 + 0.5 * p.c_psi * chi ** 2
         return (0.5 * p.I * (W1 ** 2 + W2 ** 2) + 0.5 * p.C_M * W3 ** 2
                 + 0.5 * p.C_R * (zd + W3) ** 2 + drive_potential(p, z) + V)

@@ -92,7 +92,7 @@ def euler_from_quaternion(q):
     q = np.asarray(q, dtype=float)
     w, x, y, z = np.moveaxis(q, -1, 0)
     theta = tilt(q)
-    sigma = 2.0 * np.arctan2(z, w)
+    sigma = twist(q, unwrap=False)       # psi + phi_M
     small = np.hypot(x, y) < 1e-300
     delta = np.where(small, 0.0, 2.0 * np.arctan2(y, x))
     psi = (sigma + delta) / 2
