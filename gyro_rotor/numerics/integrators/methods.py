@@ -482,15 +482,10 @@ STEPS_PER_RADIAN = {
 #: takes a method whose floor is above the requested tolerance; dop853 is the fallback)
 ERROR_FLOOR = {'dop853': 1.2e-14, 'vern7': 7.5e-15, 'vern8': 6.3e-15, 'vern9': 4.7e-15}
 #: a step's work besides its evaluations (stage sums, error norm, landing, projection,
-#: copies) in evaluations. Measured on precession and pole_slip without samples at rtol 1e-6
-#: and 1e-9 (load 1.5-2.4), a right-hand side alone 37-40 ns: dop853 2.1-3.0, vern7 4.1-4.5,
-#: vern8 5.1-5.8, vern9 6.1-6.8 (the stage sums grow with the stages). Kept at 2 for every
-#: pair: replayed on the bench's rows (bench/work_precision.csv, auto's pick per scene and
-#: rtol), the per-pair values change which cells of auto / own best exceed 1.2 (precession
-#: and pole_slip at 1e-9 down to 1.10 and 1.00, fast_spin up to 1.36 and 1.38), not their
-#: worst (1.33 now, 1.38 then). Remeasured with the atan2-free right-hand side (25 ns): dop853
-#: 6.1-8.2, the Verner pairs 5.3-20.5 (precession, nutation, pole_slip); replayed on the rows of
-#: ebfe1e1's bench the worst is 1.30 at 2 (and at 6 for every pair), 1.32-1.36 per pair
+#: copies), in evaluations. Measured without samples on precession, nutation and pole_slip
+#: (a right-hand side alone 25 ns): dop853 6.1-8.2, the Verner pairs 5.3-20.5. auto's picks
+#: hardly depend on it: replayed on the half-decade sweep (bench/work_precision.csv), they
+#: cost at most 1.16 times the fastest own method at any value from 2 to 6; kept at 2
 STEP_OVERHEAD = 2.0
 #: with several steps per sample interval, steps land on the samples (kernels.land_step):
 #: the interpolant is then needed for about this fraction of the samples
