@@ -47,8 +47,6 @@ ITER_TOL = 0.01
 #: stages unsolved: the step's error is then the method's, not the iteration's); the
 #: kernels take it as the argument ``itol_max``
 ITER_RTOL_MAX = 1e-4
-#: the kernels' compiler options, with the fast-math flags of primitives.FAST_MATH
-_fast_njit = njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 
 
 @njit(cache=True, error_model='numpy')
@@ -68,7 +66,7 @@ def stiff_direction(kind, P, b):
     return k, P[7] * b[k]
 
 
-@_fast_njit
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def resolvent(mu, LAM, PROJ, out):
     """(I + mu A)^-1 into ``out`` from A's spectral parts (tableaux.resolvent_parts).
 
@@ -90,7 +88,7 @@ def resolvent(mu, LAM, PROJ, out):
                 out[i, j] += cr * PROJ[r, 0, i, j] - ci * PROJ[r, 1, i, j]
 
 
-@_fast_njit
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def lagrange_weights(C):
     """1 / the denominators of the Lagrange basis on the nodes 0, C[0], ..., C[s - 1].
 
@@ -108,7 +106,7 @@ def lagrange_weights(C):
     return w
 
 
-@_fast_njit
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def extrapolate(C, w, Zp, ratio, Z):
     """Start values: the last step's collocation polynomial at t_n + c_i h (h / h_old = ratio).
 
@@ -130,7 +128,7 @@ def extrapolate(C, w, Zp, ratio, Z):
                 Z[i, m] += lj * Zp[j, m]
 
 
-@_fast_njit
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def radau_solve(kind, P, y, f, h, rtol, atol, A, LAM, PROJ, b, k, lam, Z, F, V, T, ytmp, sc,
                 itol_max):
     """Solve the stage equations for Z (start values in Z); return the iterations or -1."""
@@ -174,7 +172,7 @@ def radau_solve(kind, P, y, f, h, rtol, atol, A, LAM, PROJ, b, k, lam, Z, F, V, 
     return -1
 
 
-@_fast_njit
+@njit(cache=True, error_model='numpy', fastmath=set(FAST_MATH))
 def radau_run(kind, P, y0, t0, t_eval, rtol, atol, h_max, h_init, renorm, max_steps,
               A, Ainv, C, BH, gamma0, LAM, PROJ, itol_max, Y_out, counts, y_last):
     """Adaptive Radau IIA through the sample times: steps are clipped to land on each sample.
