@@ -16,11 +16,12 @@ from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.core.system.system_file import list_systems, load_system, system_from_mapping
 from gyro_rotor.errors import NotSteadyError, ParameterError, SystemFileError
 from gyro_rotor.linear.stability import ModeKind
-from gyro_rotor.linear.system import check_claims, from_analytic, linearize_scene, modes
+from gyro_rotor.linear.system import (assess, check_claims, from_analytic, linearize_scene,
+                                      modes)
 from gyro_rotor.numerics.ensemble import run_ensemble
 from gyro_rotor.numerics.integrators.methods import integrate
 from gyro_rotor.numerics.simulate import integrate as integrate_general
-from hypothesis import given, HealthCheck, settings, strategies as st
+from hypothesis import example, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from random_systems import random_system_file
@@ -1094,3 +1095,30 @@ def test_a_singular_potential_gives_one_error_line_and_no_warnings(tmp_path):
     err = _errors(r.stderr)          # a cold cache first says what it generates
     assert r.returncode == 1 and err.count('\n') == 1, r.stderr
     assert err.startswith('ERROR: ') and 'not finite' in err, r.stderr
+
+
+@settings(max_examples=8, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(seed=st.integers(0, 2 ** 32 - 1), n=st.integers(1, 3), m=st.integers(1, 3))
+@example(seed=0, n=1, m=3)          # more modes than coordinates: names must collide first
+def test_every_mode_has_its_own_name(seed, n, m, tmp_path_factory):
+    """eig, the report and the live table tell modes apart by name: one name a mode.
+
+    A name is the dominant coordinate; two modes dominated by one coordinate (twin_gimbal's
+    beta1 at 2.52 and 6.11 Hz) carry their frequency (a real root its rate) as well. The
+    two roots of a pair are one mode: one name.
+    """
+    folder = tmp_path_factory.mktemp('names')
+    (folder / 'sys.yaml').write_text(yaml.safe_dump(random_system_file(seed, n, m)))
+    (folder / 'scene.yaml').write_text(yaml.safe_dump(
+        {'/**': {'ros__parameters': {'system': 'sys.yaml', 't_end': 1.0}}}))
+    for scene in (load_scene(str(folder / 'scene.yaml')), load_scene('twin_gimbal')):
+        ms, verdict = assess(linearize_scene(scene))
+        ms = [x for x in ms if x.kind != ModeKind.ZERO]
+        one = [x for x in ms if x.kind == ModeKind.REAL or x.eigenvalue.imag > 0]
+        assert len({x.name for x in one}) == len(one), [x.name for x in one]
+        for x in ms:        # a pair's lower root is named as its upper one
+            if x.kind == ModeKind.OSCILLATORY and x.eigenvalue.imag < 0:
+                twin = min(one, key=lambda u: abs(u.eigenvalue - x.eigenvalue.conjugate()))
+                assert x.name == twin.name
+        assert not verdict.slowest_mode or verdict.slowest_mode in {x.name for x in ms}

@@ -114,7 +114,7 @@ def predict(scene: Scene) -> Prediction:
     terms = scene.system.steady_terms()
     q_s = terms['steady'][0] if terms['steady'] else ()
     return Prediction(
-        scene=scene.name, coords=lin.coords, modes=_unique_names(out),
+        scene=scene.name, coords=lin.coords, modes=out,
         spectral_abscissa=float(verdict.spectral_abscissa), verdict=str(verdict.verdict),
         E_inf=float(model.energy(scene.steady_state(model))), pole_pairs=max(scene.pole_pairs),
         K_D=float(lin.K_all.max()), source='linear.system.assess',
@@ -124,24 +124,6 @@ def predict(scene: Scene) -> Prediction:
 
 def _zero(mode) -> bool:
     return mode.kind == ModeKind.ZERO
-
-
-def _unique_names(modes: tuple) -> tuple:
-    """Give modes that share a name (the dominant coordinate of two modes) their frequency.
-
-    The name labels a mode in the report, the ``analysis_modes`` topic and the live
-    table; two modes called 'mode (beta1)' could not be told apart there.
-    """
-    count: dict = {}
-    for m in modes:
-        count[m.name] = count.get(m.name, 0) + 1
-    out = []
-    for m in modes:
-        if count[m.name] > 1:
-            label = f'{m.freq_hz:.3g} Hz' if m.freq_hz > 0 else f'{m.eigenvalue.real:.3g} 1/s'
-            m = dataclasses.replace(m, name=f'{m.name} {label}')
-        out.append(m)
-    return tuple(out)
 
 
 def _position_channels(A: np.ndarray, n: int, scale: float) -> tuple:

@@ -49,8 +49,8 @@ from gyro_rotor.core.system.model import GeneralModel
 from gyro_rotor.linear.stability import judge, Mode, ModeKind, named_modes
 import numpy as np
 
-__all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'assess', 'check_claims',
-           'dominant', 'name_roots']
+__all__ = ['Linearization', 'linearize_scene', 'from_analytic', 'modes', 'distinct_names',
+           'assess', 'check_claims', 'dominant', 'name_roots']
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,8 +212,11 @@ def modes(lin: Linearization, K: float | None = None) -> list[Mode]:
 
 
 def assess(lin: Linearization, K: float | None = None) -> tuple:
-    """Return the modes of A(K) (:func:`modes`) and their :class:`Verdict` (one rule)."""
-    ms = modes(lin, K)
+    """Return the modes of A(K) (:func:`modes`, :func:`distinct_names`) and their verdict.
+
+    One rule (:class:`Verdict`) for ``eig``, the analysis' prediction and the sweeps.
+    """
+    ms = distinct_names(modes(lin, K))
     Ks = lin.K_all if K is None else np.array([float(K)])
     return ms, judge(ms, not np.any(Ks > 0))
 
@@ -272,6 +275,25 @@ def _modes_by_coordinate(lin: Linearization, K: float | None) -> list[Mode]:
     return [dataclasses.replace(m, name=(
         f'zero root (cyclic {m.name})' if m.kind == ModeKind.ZERO else
         f'{"mode" if m.reached_by_drive else "unreached mode"} ({m.name})')) for m in out]
+
+
+def distinct_names(out: list[Mode]) -> list[Mode]:
+    """Give modes that share a name (the dominant coordinate of two modes) their frequency.
+
+    The name labels a mode in ``eig``, the report, the ``analysis_modes`` topic and the
+    live table; two modes called 'mode (beta1)' could not be told apart there. A pair's
+    two roots keep one name (the same frequency); a real root gets its rate instead. (The
+    Campbell diagram and the root locus name their tracked branches their own way.)
+    """
+    def label(m: Mode) -> str:
+        return (f'{m.freq_hz:.3g} Hz' if m.kind == ModeKind.OSCILLATORY
+                else f'{m.eigenvalue.real:.3g} 1/s')
+    labels: dict = {}
+    for m in out:
+        if m.kind != ModeKind.ZERO:
+            labels.setdefault(m.name, set()).add(label(m))
+    return [dataclasses.replace(m, name=f'{m.name} {label(m)}')
+            if len(labels.get(m.name, ())) > 1 else m for m in out]
 
 
 def _followed(lin: Linearization, Ks: np.ndarray, lam: np.ndarray) -> tuple:
