@@ -543,3 +543,19 @@ def test_lincomb_vector_sum_is_the_sum(terms, with_base):
                 parts += [base[r]] if with_base else []
                 size = sum(abs(p) for p in parts)
                 assert abs(out[r] - math.fsum(parts)) <= (terms + 2) * eps * size, (fn, m, r)
+
+
+def test_warm_up_on_worker_processes_runs_each_job_and_raises_a_jobs_error():
+    # the bootstrap's warm-up compiles on one process a core; a job that fails there must
+    # fail the warm-up, not vanish with its process (the kernels are cached here: seconds)
+    from gyro_rotor.numerics.integrators import warmup
+    assert warmup.warm_up(workers=2, jobs=['rk4', 'ensemble']) > 0.0
+    with pytest.raises(ParameterError, match='no_such_method'):
+        warmup.warm_up(workers=2, jobs=['rk4', 'no_such_method'])
+
+
+def test_warm_up_covers_every_method_and_the_ensemble_slowest_first():
+    from gyro_rotor.numerics.integrators import METHODS, warmup
+    jobs = warmup.warm_jobs()
+    assert sorted(jobs) == sorted(list(METHODS) + ['ensemble'])
+    assert tuple(jobs[:len(warmup.SLOWEST_FIRST)]) == warmup.SLOWEST_FIRST
