@@ -81,7 +81,8 @@ from gyro_rotor.core.peer_equations import PeerEquations
 from gyro_rotor.core.scene import load_scene, Scene
 from gyro_rotor.core.system.codegen import pack
 from gyro_rotor.numerics import bench_peers
-from gyro_rotor.numerics.bench_scenes import DEFAULT_SCENES, QUICK_SCENES, SYSTEM_SCENES
+from gyro_rotor.numerics.bench_scenes import (DEFAULT_SCENES, QUICK_SCENES, REPEATS,
+                                              SYSTEM_SCENES)
 from gyro_rotor.numerics.integrators import choose_method, integrate, kernels, METHODS
 from gyro_rotor.numerics.integrators.base import kernel_args
 from gyro_rotor.numerics.kernel_system import kernel_model, methods_for
@@ -344,7 +345,7 @@ def _peers(scene: Scene, quick: bool):
     return make(scene, quick) if make else (None, {})
 
 
-def run_sweep(spec: str, *, quick: bool = False, repeats: int = 3, scipy: bool = True,
+def run_sweep(spec: str, *, quick: bool = False, repeats: int = REPEATS, scipy: bool = True,
               peers: bool = True, methods=None,
               progress: Callable[[str], None] | None = None) -> list[BenchRow]:
     """All runs of one scene spec, any system (see module doc); returns the rows."""
@@ -480,14 +481,14 @@ def steps_per_radian(rows: list[BenchRow]) -> dict | None:
     and :data:`methods.ERROR_FLOOR` are this function's output for a full sweep.
     """
     from gyro_rotor.numerics.integrators import methods as M
-    from gyro_rotor.numerics.integrators.base import rates_of
+    from gyro_rotor.numerics.integrators.base import model_rate
     done = {r.scene for r in rows}
     if not set(COST_SCENES) <= done:
         return None
     radians = {}
     for name in COST_SCENES:
         scene = load_scene(name)
-        radians[name] = max(rates_of(scene.system.params)) * scene.t_end
+        radians[name] = model_rate(scene.system.params) * scene.t_end
     table, floors = {}, {}
     for m in M.COST_METHODS:
         ok = [r for r in rows if r.method == m and r.scene in radians and r.status == 0
@@ -695,7 +696,7 @@ def _system_case(spec: str, t_end: float, K_D: float | None = None):
 
 
 def system_work_precision(names=SYSTEM_SCENES, t_end: float = 2.0,
-                          repeats: int = 3) -> list[WPRow]:
+                          repeats: int = REPEATS) -> list[WPRow]:
     """Error against wall time: the default method vs lambdify + solve_ivp (module doc)."""
     rows = []
     for name in names:
@@ -772,7 +773,7 @@ class StiffRow:
 
 
 def stiff_table(K_Ds=STIFF_K_D, name: str = 'twin_gimbal', t_end: float = 2.0,
-                level: float = 1e-6, repeats: int = 3) -> tuple[list, dict]:
+                level: float = 1e-6, repeats: int = REPEATS) -> tuple[list, dict]:
     """Stiff drives: ``auto`` against scipy's Radau, BDF, LSODA over K_D (module doc).
 
     For each K_D (scene override ``K_D``: every rotor's), the error of a run is that of

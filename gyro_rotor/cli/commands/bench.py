@@ -42,7 +42,8 @@ import time
 
 from gyro_rotor.cli.util import check_number, error_hint, make_unique_dir, RUNS_DIR
 from gyro_rotor.errors import GyroRotorError, ParameterError
-from gyro_rotor.numerics.bench_scenes import DEFAULT_SCENES, QUICK_SCENES, SYSTEM_SCENES
+from gyro_rotor.numerics.bench_scenes import (DEFAULT_SCENES, QUICK_SCENES, REPEATS,
+                                              SYSTEM_SCENES)
 
 HELP = ('benchmark any scene: work precision of the integrators against scipy and the '
         'compiled peers, the generated systems, stiff drives')
@@ -84,7 +85,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--quick', action='store_true',
                    help='a smoke run of well under a minute (see the module doc)')
     p.add_argument('--repeats', type=int, default=None,
-                   help='repeats per run, best wall (default 3; 1 with --quick)')
+                   help=f'repeats per run, best wall (default {REPEATS}; 1 with --quick)')
     p.add_argument('--out', default=None,
                    help='output directory (default: a new bench_out/bench-YYYYmmdd-HHMMSS, '
                    'ignored by git; the committed results are in bench: --out bench)')
@@ -346,7 +347,7 @@ def resolve_settings(args: argparse.Namespace) -> str | None:
     import gyro_rotor.numerics.bench as bench
     table = args.table
     if args.repeats is None:
-        args.repeats = 1 if args.quick else 3
+        args.repeats = 1 if args.quick else REPEATS
     if args.drift_t_end is None:
         args.drift_t_end = 100.0 if args.quick else 1000.0
     if args.level is None:
