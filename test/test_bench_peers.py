@@ -75,7 +75,9 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
 
     The machine's speed drifts over minutes: back-to-back repeats put a slow spell on one
     method. Here run A is slow on its first pass and B on its later ones; each keeps its
-    fastest pass, and the passes alternate A, B, A, B, ...
+    fastest pass. Every pass runs each job once, the first in the jobs' order, the later
+    ones each in its own order: the first runs of a pass are the slower ones, and in a fixed
+    order they were always the same job's (auto's).
     """
     import dataclasses
     from gyro_rotor.numerics.bench import timed_in_rounds
@@ -87,6 +89,7 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
 
     now, calls = [0.0], []
     took = {'A': [3.0e-3, 1.0e-3, 2.0e-3], 'B': [1.0e-3, 5.0e-3, 4.0e-3]}
+    took.update({c: [1.0e-3] * 8 for c in 'CDEFGH'})
 
     def job(name):
         def fn():
@@ -94,11 +97,14 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
             now[0] += took[name].pop(0)
             return None, 1, 1, 0, 0.5          # Y, nfev, nsteps, status, t_done
         return ('gyro_rotor', name, 'rtol=1e-06', fn)
-    rows = timed_in_rounds([job('A'), job('B')],
+    rows = timed_in_rounds([job(c) for c in 'ABCDEFGH'],
                            lambda family, name, setting, out, wall: Row(name, wall / out[4]),
                            3, clock=lambda: now[0])
-    assert calls == ['A', 'B', 'A', 'B', 'A', 'B']
-    assert [(r.name, r.wall_per_sim) for r in rows] == [('A', 2.0e-3), ('B', 2.0e-3)]
+    passes = [calls[8 * k:8 * k + 8] for k in range(3)]
+    assert len(calls) == 24 and all(sorted(p) == list('ABCDEFGH') for p in passes)
+    assert passes[0] == list('ABCDEFGH') and passes[1] != passes[0] and passes[2] != passes[1]
+    assert [r.name for r in rows] == list('ABCDEFGH')
+    assert [r.wall_per_sim for r in rows[:2]] == pytest.approx([2.0e-3, 2.0e-3], rel=1e-12)
 
 
 @pytest.mark.parametrize('quick', [True, False])
