@@ -313,7 +313,8 @@ class Rodas4(Integrator):
     """RODAS4 (Hairer and Wanner II, sec. IV.7): Rosenbrock 4(3), L-stable, adaptive.
 
     Linear solves only (no Newton iteration): one LU of W = I/(h gamma) - J per step, J by
-    central differences. Cost does not grow with the stiffness K_D (1/C_R + 1/C_M).
+    forward differences (kernels.fd_jacobian). Cost does not grow with the stiffness K_D
+    (1/C_R + 1/C_M).
     """
 
     name = 'rodas4'
