@@ -71,7 +71,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import random
 import subprocess
 import sys
 import tempfile
@@ -427,14 +426,16 @@ def timed_in_rounds(jobs: list, row: Callable, repeats: int,
     over the whole sweep, not run back to back: this machine's speed drifts by tens of per
     cent over minutes (stop 37: the same radau9 runs of stiff_drive, repeated back to back,
     took 0.246 ms/s as auto's and 0.422 ms/s as radau9's two minutes later, 0.34 and 0.35
-    when alternated), and a slow spell must fall on every method alike, not on one. Each
-    round after the first runs the jobs in its own order (shuffled, seeded by the round):
-    the first runs of a round are slower, and in a fixed order they were always auto's
-    (in the run at 4607b1b, auto against the method it ran at the same rtol, same steps,
-    median over the scenes: 1.08 for the round's first job, 1.05, 1.04, 1.03 for the next,
-    1.01 from the sixth on). After a run over its budget (status -3) or slower than
-    SLOW_RUN, the method's tighter settings are skipped; a run slower than SLOW_REPEAT is
-    not repeated. ``clock``: seconds.
+    when alternated), and a slow spell must fall on every method alike, not on one. Round
+    k starts (k - 1) / repeats of the way into the jobs and wraps around: the
+    first runs of a round are slower, and from one fixed start they were always auto's (in
+    the run at 4607b1b, auto against the method it ran at the same rtol, same steps, median
+    over the scenes: 1.08 for the round's first job, 1.05, 1.04, 1.03 for the next, 1.01
+    from the sixth on). A rotation, not a shuffle: a run right after another method's is
+    slower too, and a shuffled order (the run at 1a6f9fa) put one before nearly every run
+    (the same pairs: median 1.020 and 19 % above 1.05, against 1.011 and 11 %). After a
+    run over its budget (status -3) or slower than SLOW_RUN, the method's tighter settings
+    are skipped; a run slower than SLOW_REPEAT is not repeated. ``clock``: seconds.
     """
     rows, again, over_budget = [], [], set()
     for family, name, setting, fn in jobs:
@@ -451,7 +452,8 @@ def timed_in_rounds(jobs: list, row: Callable, repeats: int,
     for k in range(2, max(1, repeats) + 1):
         if progress and again:
             progress(f'repeat {k} of {repeats}: {len(again)} runs')
-        for i, fn, t_done in random.Random(k).sample(again, len(again)):
+        start = (k - 1) * len(again) // repeats
+        for i, fn, t_done in again[start:] + again[:start]:
             t0 = clock()
             fn()
             w = (clock() - t0) / t_done
