@@ -74,10 +74,12 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
     """The repeats of one run are spread over the sweep, not back to back (stop 37).
 
     The machine's speed drifts over minutes: back-to-back repeats put a slow spell on one
-    method. Here run A is slow on its first pass and B on its later ones; each keeps its
-    fastest pass. Every pass runs each job once in the jobs' order, each later pass from
-    its own start (a rotation): the first runs of a pass are the slower ones, and from one
-    start they were always the same job's (auto's).
+    method. Here a setting of method A is slow on its first pass and one of B on its later
+    ones; each keeps its fastest timed pass. Every pass runs each job once in the jobs'
+    order, each later pass from its own start (a rotation): the first runs of a pass are
+    the slower ones, and from one start they were always the same job's (auto's). In the
+    later passes a method's first job is run once untimed before its timed run (a run
+    after another package's code is slower), and only there.
     """
     import dataclasses
     from gyro_rotor.numerics.bench import timed_in_rounds
@@ -88,23 +90,40 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
         wall_per_sim: float
 
     now, calls = [0.0], []
-    took = {'A': [3.0e-3, 1.0e-3, 2.0e-3], 'B': [1.0e-3, 5.0e-3, 4.0e-3]}
-    took.update({c: [1.0e-3] * 8 for c in 'CDEFGH'})
+    jobs = [('A', 1), ('A', 2), ('A', 3), ('B', 1), ('B', 2), ('B', 3), ('C', 1), ('C', 2)]
+    slow = {('A', 1): 3.0e-3, ('B', 1): 1.0e-3}      # their first pass; later ones below
+    later = {('A', 1): [1.0e-3, 2.0e-3], ('B', 1): [5.0e-3, 4.0e-3]}
+    reads = [0]                 # clock reads: odd while a timed run is under way
 
-    def job(name):
+    def clock():
+        reads[0] += 1
+        return now[0]
+
+    def job(name, n):
         def fn():
-            calls.append(name)
-            now[0] += took[name].pop(0)
+            calls.append(f'{name}{n}')
+            if len(calls) <= len(jobs):
+                dt = slow.get((name, n), 1.0e-3)
+            elif reads[0] % 2:
+                dt = later[(name, n)].pop(0) if (name, n) in later else 1.0e-3
+            else:
+                dt = 9.0e-3             # an untimed run: were it timed, rows would show it
+            now[0] += dt
             return None, 1, 1, 0, 0.5          # Y, nfev, nsteps, status, t_done
-        return ('gyro_rotor', name, 'rtol=1e-06', fn)
-    rows = timed_in_rounds([job(c) for c in 'ABCDEFGH'],
+        return ('gyro_rotor', name, f'rtol=1e-0{n}', fn)
+
+    rows = timed_in_rounds([job(*j) for j in jobs],
                            lambda family, name, setting, out, wall: Row(name, wall / out[4]),
-                           3, clock=lambda: now[0])
-    passes = [calls[8 * k:8 * k + 8] for k in range(3)]
-    assert len(calls) == 24 and all(sorted(p) == list('ABCDEFGH') for p in passes)
-    assert passes == [list('ABCDEFGH'), list('CDEFGHAB'), list('FGHABCDE')]
-    assert [r.name for r in rows] == list('ABCDEFGH')
-    assert [r.wall_per_sim for r in rows[:2]] == pytest.approx([2.0e-3, 2.0e-3], rel=1e-12)
+                           3, clock=clock)
+    assert calls[:8] == ['A1', 'A2', 'A3', 'B1', 'B2', 'B3', 'C1', 'C2']
+    # pass 2 from job 8 * 1 // 3 = 2, pass 3 from 8 * 2 // 3 = 5; each method's first job
+    # in a pass (and the pass's first) twice: untimed, then timed
+    assert calls[8:] == ['A3', 'A3', 'B1', 'B1', 'B2', 'B3', 'C1', 'C1', 'C2', 'A1', 'A1',
+                         'A2',
+                         'B3', 'B3', 'C1', 'C1', 'C2', 'A1', 'A1', 'A2', 'A3', 'B1', 'B1',
+                         'B2']
+    assert [r.name for r in rows] == list('AAABBBCC')
+    assert [r.wall_per_sim for r in rows] == pytest.approx([2.0e-3] * 8, rel=1e-12)
 
 
 @pytest.mark.parametrize('quick', [True, False])

@@ -433,8 +433,14 @@ def timed_in_rounds(jobs: list, row: Callable, repeats: int,
     over the scenes: 1.08 for the round's first job, 1.05, 1.04, 1.03 for the next, 1.01
     from the sixth on). A rotation, not a shuffle: a run right after another method's is
     slower too, and a shuffled order (the run at 1a6f9fa) put one before nearly every run
-    (the same pairs: median 1.020 and 19 % above 1.05, against 1.011 and 11 %). After a
-    run over its budget (status -3) or slower than SLOW_RUN, the method's tighter settings
+    (the same pairs: median 1.020 and 19 % above 1.05, against 1.011 and 11 %). In the
+    rounds of repeats, a method's first run in the round (a job whose family and name
+    differ from the run before it) is run once untimed before it is timed: after another
+    package's code its first run is slower (fast_spin, vern8 at rtol 3e-4, best of 40 at
+    load 1: 0.103 ms/s after a CyRK run, 0.107 after numbalsoda, 0.099 after a run of its
+    own), and with the rotation auto's first setting came after the peers in every round
+    (the run at 8422299: 1.17 times the same computation in vern8's row). After a run
+    over its budget (status -3) or slower than SLOW_RUN, the method's tighter settings
     are skipped; a run slower than SLOW_REPEAT is not repeated. ``clock``: seconds.
     """
     rows, again, over_budget = [], [], set()
@@ -448,12 +454,16 @@ def timed_in_rounds(jobs: list, row: Callable, repeats: int,
         if out[3] == -3 or wall > SLOW_RUN:
             over_budget.add(name)
         if wall <= SLOW_REPEAT:
-            again.append((len(rows) - 1, fn, out[4]))
+            again.append((len(rows) - 1, (family, name), fn, out[4]))
     for k in range(2, max(1, repeats) + 1):
         if progress and again:
             progress(f'repeat {k} of {repeats}: {len(again)} runs')
         start = (k - 1) * len(again) // repeats
-        for i, fn, t_done in again[start:] + again[:start]:
+        before = None
+        for i, method, fn, t_done in again[start:] + again[:start]:
+            if method != before:
+                fn()            # untimed: the method's code back in the caches
+                before = method
             t0 = clock()
             fn()
             w = (clock() - t0) / t_done
