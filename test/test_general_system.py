@@ -647,6 +647,13 @@ def test_tune_finds_a_better_common_K_D(capsys):
     assert 'd ln(rate)' not in out
 
 
+def test_tune_names_a_repeated_root_once_with_its_multiplicity(capsys):
+    """centrifuge_euler's cyclic psi gives a double zero root: one name, '(2 roots)'."""
+    assert main(['tune', 'centrifuge_euler']) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if 'not judged' in x)
+    assert line.endswith(': zero root (cyclic psi) (2 roots)'), line
+
+
 def test_tune_refuses_a_system_unstable_for_every_K_D(capsys):
     """An indefinite potential (c_b2 < 0): one ERROR line naming the growing root, exit 1."""
     lam = np.linalg.eigvals(linearize_scene(load_scene(

@@ -10,6 +10,7 @@ of the slowest root's d Re/d K = -(w^H B C' v)/(w^H v) (left and right eigenvect
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 
@@ -111,8 +112,11 @@ def tune(lin) -> TuneResult:
                       xtol=1e-12 * K_in)
     rate_at = {f'{f:g}': rate(K_best * f) for f in (0.5, 0.9, 1.1, 2.0)}
     now = [m.eigenvalue.real for m in here if m.kind != ModeKind.ZERO and m.reached_by_drive]
-    excluded = [m.name + (f' ({m.freq_hz:.4g} Hz)' if m.kind == ModeKind.OSCILLATORY else '')
-                for m in here if m.kind == ModeKind.ZERO or not m.reached_by_drive]
+    # a repeated root once, with its multiplicity (a cyclic coordinate's double zero root)
+    excluded = collections.Counter(
+        m.name + (f' ({m.freq_hz:.4g} Hz)' if m.kind == ModeKind.OSCILLATORY else '')
+        for m in here if m.kind == ModeKind.ZERO or not m.reached_by_drive)
+    excluded = [f'{name} ({n} roots)' if n > 1 else name for name, n in excluded.items()]
     return TuneResult(K_D_best=K_best, rate_best=r_best,
                       tau_best=1.0 / r_best if r_best > 0 else math.inf,
                       governing_modes=gov, excluded_modes=excluded,
