@@ -143,3 +143,29 @@ def test_the_bench_picks_peers_by_the_equations_the_system_says_they_copy(monkey
     assert bench._peers(prec, quick) == (('full', list(full)), dict(full))
     assert bench._peers(load_scene('locked_housing'), quick) == (None, {})
     assert bench._peers(twin, quick) == (('generated', twin), {'cyrk': general})
+
+
+def test_the_stiff_table_puts_ours_against_the_best_of_scipy_and_of_cyrk(monkeypatch):
+    """`bench --table stiff`: auto's row carries scipy best / ours and CyRK best / ours.
+
+    Each is the fastest run of that family with error <= level; a run above the level
+    (here CyRK's faster LSODA at 2e-6) is not a peer's best.
+    """
+    import argparse
+    from gyro_rotor.cli.commands import bench as bench_cmd
+    from gyro_rotor.numerics import bench
+    S = bench.StiffRow
+    rows = [S(100.0, 'auto (radau9)', 1e-4, 5e-7, 0.001, 2.0, 10, 0.5),
+            S(100.0, 'lambdify+LSODA', 1e-6, 6e-7, 0.040, 2.0, 10, 0.5),
+            S(100.0, 'lambdify+Radau', 1e-4, 4e-7, 0.050, 2.0, 10, 0.5),
+            S(100.0, bench.PEER_PREFIX + 'Radau', 1e-6, 3e-7, 0.004, 2.0, -1, 0.5),
+            S(100.0, bench.PEER_PREFIX + 'LSODA', 1e-5, 2e-6, 0.002, 2.0, -1, 0.5),
+            S(100.0, bench.PEER_PREFIX + 'LSODA', 1e-6, 8e-7, 0.003, 2.0, -1, 0.5)]
+    monkeypatch.setattr(bench, 'stiff_table', lambda **kw: (rows, {100.0: 1e-12}))
+    args = argparse.Namespace(table=bench_cmd.BenchTable.STIFF, scenes='twin_gimbal',
+                              out='bench', t_end=2.0, level=1e-6, repeats=1)
+    lines = bench_cmd.stiff_lines(args, 'twin_gimbal')
+    head = next(x for x in lines if x.startswith('| K_D | method |'))
+    assert head.rstrip(' |').endswith('scipy best / ours | CyRK best / ours'), head
+    ours = next(x for x in lines if x.startswith('| 100 | auto (radau9) |'))
+    assert ours.rstrip(' |').endswith('| 40.0x | 3.0x'), ours

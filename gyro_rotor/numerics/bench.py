@@ -60,8 +60,9 @@ default tolerance.
   (:func:`gyro_rotor.numerics.bench_peers.make_general_peer`), rows ``CyRK+numba:<method>``.
 - :func:`stiff_table`: a stiff drive on twin_gimbal, K_D = 1e2, 1e4, 1e6: ``auto`` (radau9
   with the generated Jacobian) against scipy's Radau, BDF and LSODA on the lambdified
-  right-hand side, with and without a lambdified Jacobian, in wall milliseconds per
-  simulated second at a given error (issue 25, item 4).
+  right-hand side, with and without a lambdified Jacobian, and, where installed, CyRK's
+  Radau and LSODA on the numba cfunc of :func:`system_work_precision`, in wall milliseconds
+  per simulated second at a given error (issue 25, item 4; issue 26).
 
 Results are data; :mod:`gyro_rotor.cli.commands.bench` prints, writes and plots.
 """
@@ -769,6 +770,8 @@ STIFF_OUR_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
 #: scipy's stiff solvers and tolerances in the stiff table
 STIFF_SCIPY_METHODS = ('Radau', 'BDF', 'LSODA')
 STIFF_SCIPY_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9)
+#: CyRK's stiff solvers in the stiff table (where installed), on the same tolerances
+STIFF_PEER_METHODS = ('Radau', 'LSODA')
 
 
 @dataclasses.dataclass
@@ -792,16 +795,19 @@ class StiffRow:
 
 def stiff_table(K_Ds=STIFF_K_D, name: str = 'twin_gimbal', t_end: float = 2.0,
                 level: float = 1e-6, repeats: int = REPEATS) -> tuple[list, dict]:
-    """Stiff drives: ``auto`` against scipy's Radau, BDF, LSODA over K_D (module doc).
+    """Stiff drives: ``auto`` against scipy's Radau, BDF, LSODA and CyRK's over K_D (module doc).
 
     For each K_D (scene override ``K_D``: every rotor's), the error of a run is that of
     :func:`system_work_precision` (largest |q - q_ref|, |z - z_ref| over the samples at 100
     Hz) against radau9 at rtol 1e-13, itself checked against rodas4 (forward-difference
     Jacobian, independent code) at rtol 1e-12: ``checks[K_D]`` is their difference. scipy
     runs on the lambdified right-hand side (:func:`~.bench_peers.lambdified_rhs`), without
-    and with the lambdified Jacobian (:func:`~.bench_peers.lambdified_jac`); a sweep stops
-    once two runs met ``level`` or one took longer than SYSTEM_SLOW_RUN. Every wall time is
-    the best of ``repeats`` runs. Returns (rows, checks).
+    and with the lambdified Jacobian (:func:`~.bench_peers.lambdified_jac`); where CyRK is
+    installed, its Radau and LSODA (STIFF_PEER_METHODS) on a numba cfunc of the same
+    lambdify with the constants substituted (:func:`~.bench_peers.make_general_peer`, as in
+    :func:`system_work_precision`), rows ``CyRK+numba:<method>``: a speed-conscious user's
+    stiff solvers. A sweep stops once two runs met ``level`` or one took longer than
+    SYSTEM_SLOW_RUN. Every wall time is the best of ``repeats`` runs. Returns (rows, checks).
     """
     rows, checks = [], {}
     for K_D in K_Ds:
@@ -815,6 +821,19 @@ def stiff_table(K_Ds=STIFF_K_D, name: str = 'twin_gimbal', t_end: float = 2.0,
             rows.append(StiffRow(K_D, f'auto ({run.method})', rtol,
                                  errors(model, run.y, ref)['err'], wall, t_end, run.nfev,
                                  _load()))
+        if 'cyrk' in bench_peers.available():
+            peer = bench_peers.make_general_peer(scene)
+            bench_peers.peer_run(peer, 'cyrk', 'Radau', y0, te[:2], 1e-3, 1e-6)   # compile
+            for method in STIFF_PEER_METHODS:
+                def run_peer(rtol, method=method):
+                    (Y, *_), wall = best_of(lambda: _peer_run(peer, 'cyrk', y0.size, y0, te,
+                                                              method, rtol, rtol * 1e-3),
+                                            repeats)
+                    return StiffRow(K_D, f'{PEER_PREFIX}{method}', rtol,
+                                    errors(model, Y, ref)['err'], wall, t_end, -1, _load())
+                rows += tolerance_sweep(
+                    STIFF_SCIPY_RTOLS, run_peer, SYSTEM_SLOW_RUN,
+                    lambda done: sum(r.err <= level for r in done) >= 2)
         fun, jac = bench_peers.lambdified_rhs(scene), bench_peers.lambdified_jac(scene)
         for method in STIFF_SCIPY_METHODS:
             for label, J in (('', None), ('+jac', jac)):

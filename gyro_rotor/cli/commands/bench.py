@@ -23,8 +23,8 @@ default method against sympy lambdify + scipy and CyRK on the system files' scen
 (default centrifuge_euler, twin_gimbal, elastic_frame) over --t-end at error --level.
 
 ``stiff`` writes ``general_stiff.md``: one system file's scene (default twin_gimbal) at
-K_D = 1e2, 1e4, 1e6, auto against scipy's Radau, BDF and LSODA at error --level (default
-1e-6).
+K_D = 1e2, 1e4, 1e6, auto against scipy's Radau, BDF and LSODA and (where installed) CyRK's
+Radau and LSODA at error --level (default 1e-6).
 """
 
 from __future__ import annotations
@@ -517,7 +517,7 @@ def stiff_lines(args: argparse.Namespace, spec: str) -> list:
     import gyro_rotor.numerics.bench as bench
     rows, checks = bench.stiff_table(name=spec, t_end=args.t_end, level=args.level,
                                      repeats=args.repeats)
-    lines = ['# Stiff drive on a generated system: auto vs scipy', '',
+    lines = ['# Stiff drive on a generated system: auto vs scipy and CyRK', '',
              f'Command: `{_command(args)}`', '',
              f'{spec} ({_shape(spec)}, '
              f'{args.t_end:g} s simulated, sampled at {bench.SAMPLE_RATE:g} Hz (every method '
@@ -526,7 +526,9 @@ def stiff_lines(args: argparse.Namespace, spec: str) -> list:
              'radau9 at rtol 1e-13, checked against rodas4 (forward-difference Jacobian) at '
              'rtol 1e-12. Wall: best of '
              f'{args.repeats} runs for every method (scipy on a sympy-lambdified right-hand '
-             'side, `+jac`: with the lambdified Jacobian). Machine: '
+             'side, `+jac`: with the lambdified Jacobian; `CyRK+numba:`, where CyRK is '
+             'installed: its Radau and LSODA on a numba cfunc of the same lambdify, the '
+             'constants substituted). Machine: '
              f'{platform.machine()}, {os.cpu_count()} cores, shared with other jobs (load '
              'average in the table).', '',
              f'## Cheapest run with error <= {args.level:g}', '']
@@ -539,16 +541,18 @@ def stiff_lines(args: argparse.Namespace, spec: str) -> list:
                 best[r.method] = r
         ours = min((r for m, r in best.items() if m.startswith('auto')),
                    key=lambda r: r.wall, default=None)
-        scipy_best = min((r for m, r in best.items() if m.startswith('lambdify')),
-                         key=lambda r: r.wall, default=None)
+        scipy_best, peer_best = (
+            min((r for m, r in best.items() if m.startswith(prefix)), key=lambda r: r.wall,
+                default=None) for prefix in ('lambdify', bench.PEER_PREFIX))
         for r in sorted(best.values(), key=lambda r: r.wall):
-            gain = (f'{scipy_best.wall / r.wall:.1f}x' if r is ours and scipy_best else '')
+            gain = [f'{other.wall / r.wall:.1f}x' if r is ours and other else ''
+                    for other in (scipy_best, peer_best)]
             cheapest.append([f'{K_D:g}', r.method, f'{r.rtol:g}', f'{r.err:.2e}',
-                             f'{r.ms_per_s:.2f}', r.nfev, f'{r.load:.1f}', gain])
+                             f'{r.ms_per_s:.2f}', r.nfev, f'{r.load:.1f}', *gain])
         if ours:
             ours_all.append(ours)
     lines += md_table(['K_D', 'method', 'rtol', 'error', 'ms per simulated s', 'nfev', 'load',
-                       'scipy best / ours'], cheapest)
+                       'scipy best / ours', 'CyRK best / ours'], cheapest)
     lines += ['']
     lines += md_table(['K_D', 'reference check: largest difference rodas4 - radau9 [rad]'],
                       [[f'{K_D:g}', f'{checks[K_D]:.1e}'] for K_D in sorted(checks)])
