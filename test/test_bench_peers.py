@@ -75,13 +75,13 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
 
     The machine's speed drifts over minutes: back-to-back repeats put a slow spell on one
     method. Here a setting of method A is slow on its first pass and one of B on its later
-    ones; each keeps its fastest timed pass. Every pass runs each job once in the jobs'
-    order, each later pass from its own start (a rotation): the first runs of a pass are
-    the slower ones, and from one start they were always the same job's (auto's). In the
-    later passes a method's first job is run once untimed before its timed run (a run
-    after another package's code is slower), and only there.
+    ones; each keeps its fastest timed pass. Round 1 runs the jobs in their order; each
+    later round runs every job once, a method's settings together and in their order (a
+    block), the blocks in a shuffled order (``random.Random(k)``), and each block's first
+    job once untimed before its timed run (a run after another package's code is slower).
     """
     import dataclasses
+    import random
     from gyro_rotor.numerics.bench import timed_in_rounds
 
     @dataclasses.dataclass
@@ -116,14 +116,39 @@ def test_the_bench_repeats_in_rounds_and_keeps_each_run_s_fastest():
                            lambda family, name, setting, out, wall: Row(name, wall / out[4]),
                            3, clock=clock)
     assert calls[:8] == ['A1', 'A2', 'A3', 'B1', 'B2', 'B3', 'C1', 'C2']
-    # pass 2 from job 8 * 1 // 3 = 2, pass 3 from 8 * 2 // 3 = 5; each method's first job
-    # in a pass (and the pass's first) twice: untimed, then timed
-    assert calls[8:] == ['A3', 'A3', 'B1', 'B1', 'B2', 'B3', 'C1', 'C1', 'C2', 'A1', 'A1',
-                         'A2',
-                         'B3', 'B3', 'C1', 'C1', 'C2', 'A1', 'A1', 'A2', 'A3', 'B1', 'B1',
-                         'B2']
+    block = {'A': ['A1', 'A1', 'A2', 'A3'], 'B': ['B1', 'B1', 'B2', 'B3'], 'C': ['C1', 'C1', 'C2']}
+    rest = calls[8:]
+    for k in (2, 3):
+        order = list('ABC')
+        random.Random(k).shuffle(order)
+        want = [c for m in order for c in block[m]]
+        assert rest[:len(want)] == want, (k, rest)
+        rest = rest[len(want):]
+    assert rest == []
     assert [r.name for r in rows] == list('AAABBBCC')
     assert [r.wall_per_sim for r in rows] == pytest.approx([2.0e-3] * 8, rel=1e-12)
+
+
+def test_no_block_of_the_bench_always_follows_the_same_one():
+    """Over the rounds of a sweep of 20 methods, the first is not always after the last.
+
+    With a rotation of the jobs the last block (a peer's) came before the first (auto's)
+    in every round; auto's first settings then ran slower than the same computations.
+    """
+    from gyro_rotor.numerics.bench import REPEATS, timed_in_rounds
+    calls = []
+
+    def job(m):
+        def fn():
+            calls.append(m)
+            return None, 1, 1, 0, 1.0
+        return ('gyro_rotor', f'm{m}', 'rtol=1e-03', fn)
+    timed_in_rounds([job(m) for m in range(20)], lambda *a: type('R', (), {
+        'wall_per_sim': 0.0})(), REPEATS, clock=lambda: 0.0)
+    rounds = [calls[20:][k * 40:(k + 1) * 40:2] for k in range(REPEATS - 1)]
+    assert all(sorted(r) == list(range(20)) for r in rounds)
+    before_first = [r[r.index(0) - 1] if r.index(0) else None for r in rounds]
+    assert before_first.count(19) < len(rounds), before_first
 
 
 @pytest.mark.parametrize('quick', [True, False])

@@ -72,6 +72,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import random
 import subprocess
 import sys
 import tempfile
@@ -427,20 +428,20 @@ def timed_in_rounds(jobs: list, row: Callable, repeats: int,
     over the whole sweep, not run back to back: this machine's speed drifts by tens of per
     cent over minutes (stop 37: the same radau9 runs of stiff_drive, repeated back to back,
     took 0.246 ms/s as auto's and 0.422 ms/s as radau9's two minutes later, 0.34 and 0.35
-    when alternated), and a slow spell must fall on every method alike, not on one. Round
-    k starts (k - 1) / repeats of the way into the jobs and wraps around: the
-    first runs of a round are slower, and from one fixed start they were always auto's (in
-    the run at 4607b1b, auto against the method it ran at the same rtol, same steps, median
-    over the scenes: 1.08 for the round's first job, 1.05, 1.04, 1.03 for the next, 1.01
-    from the sixth on). A rotation, not a shuffle: a run right after another method's is
-    slower too, and a shuffled order (the run at 1a6f9fa) put one before nearly every run
-    (the same pairs: median 1.020 and 19 % above 1.05, against 1.011 and 11 %). In the
-    rounds of repeats, a method's first run in the round (a job whose family and name
-    differ from the run before it) is run once untimed before it is timed: after another
-    package's code its first run is slower (fast_spin, vern8 at rtol 3e-4, best of 40 at
-    load 1: 0.103 ms/s after a CyRK run, 0.107 after numbalsoda, 0.099 after a run of its
-    own), and with the rotation auto's first setting came after the peers in every round
-    (the run at 8422299: 1.17 times the same computation in vern8's row). After a run
+    when alternated), and a slow spell must fall on every method alike, not on one.
+
+    The order of a round. A method's runs (its settings, consecutive in ``jobs``: a block)
+    stay together, and the block's first run is run once untimed before it is timed: a
+    run right after another package's code is slower (fast_spin, vern8 at rtol 3e-4, best
+    of 40 at load 1: 0.103 ms/s after a CyRK run, 0.107 after numbalsoda, 0.099 after a
+    run of its own), and a shuffle of single runs (the run at 1a6f9fa) put one before
+    nearly every run (auto against the method it ran at the same rtol, same steps: median
+    1.020 and 19 % above 1.05, against 1.011 and 11 % in the fixed order). Round 1 runs
+    the blocks in their order, round k >= 2 in an order shuffled by ``random.Random(k)``:
+    a rotation of the jobs (the runs at 8422299 and 312932d) kept the last block (a peer)
+    before the first (auto) in every round, and auto's first settings stayed slower than
+    the same computations (312932d: 6 to 18 us a run; precession, auto run after the
+    package's own methods instead: 1.058 against 1.111 on its first setting). After a run
     over its budget (status -3) or slower than SLOW_RUN, the method's tighter settings
     are skipped; a run slower than SLOW_REPEAT is not repeated. ``clock``: seconds.
     """
@@ -456,20 +457,25 @@ def timed_in_rounds(jobs: list, row: Callable, repeats: int,
             over_budget.add(name)
         if wall <= SLOW_REPEAT:
             again.append((len(rows) - 1, (family, name), fn, out[4]))
+    blocks: list[list] = []
+    for entry in again:
+        if blocks and blocks[-1][0][1] == entry[1]:
+            blocks[-1].append(entry)
+        else:
+            blocks.append([entry])
     for k in range(2, max(1, repeats) + 1):
         if progress and again:
             progress(f'repeat {k} of {repeats}: {len(again)} runs')
-        start = (k - 1) * len(again) // repeats
-        before = None
-        for i, method, fn, t_done in again[start:] + again[:start]:
-            if method != before:
-                fn()            # untimed: the method's code back in the caches
-                before = method
-            t0 = clock()
-            fn()
-            w = (clock() - t0) / t_done
-            if w < rows[i].wall_per_sim:
-                rows[i] = dataclasses.replace(rows[i], wall_per_sim=w)
+        order = list(blocks)
+        random.Random(k).shuffle(order)
+        for block in order:
+            block[0][2]()           # untimed: the method's code back in the caches
+            for i, _, fn, t_done in block:
+                t0 = clock()
+                fn()
+                w = (clock() - t0) / t_done
+                if w < rows[i].wall_per_sim:
+                    rows[i] = dataclasses.replace(rows[i], wall_per_sim=w)
     return rows
 
 
