@@ -468,8 +468,8 @@ COST_ERRORS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
 #: benchmark's sweep (rtol 1e-3 ... 1e-12 at 1 and 3 a decade, atol = rtol / 100), geometric
 #: mean over precession, nutation, upright, fast_spin, conservative and pole_slip: what
 #: ``gyro-rotor bench`` prints as "auto's cost table" (bench.steps_per_radian; from the nsteps
-#: and err columns, which do not depend on the machine's load), here of the run at 312932d
-#: (the same table and floors as the run at 8422299; the same steps as at 68b020f and 512ca0d)
+#: and err columns, which do not depend on the machine's load), here of the run at 326fd6a
+#: (the same table and floors as at 8422299 and 312932d; the same steps as at 68b020f, 512ca0d)
 #: The decade sweep before it gave a table under which auto's picks, replayed on that run's
 #: rows, cost up to 1.26 times the fastest own method (pole_slip at 1e-9); this one 1.16, with
 #: STEP_OVERHEAD anywhere from 2 to 6 (fitted and replayed on the same six scenes)
