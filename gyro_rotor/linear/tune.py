@@ -112,20 +112,27 @@ def tune(lin) -> TuneResult:
                       xtol=1e-12 * K_in)
     rate_at = {f'{f:g}': rate(K_best * f) for f in (0.5, 0.9, 1.1, 2.0)}
     now = [m.eigenvalue.real for m in here if m.kind != ModeKind.ZERO and m.reached_by_drive]
-    # a repeated root once, with its multiplicity (a cyclic coordinate's double zero root)
-    excluded = collections.Counter(
-        m.name + (f' ({m.freq_hz:.4g} Hz)' if m.kind == ModeKind.OSCILLATORY else '')
-        for m in here if m.kind == ModeKind.ZERO or not m.reached_by_drive)
-    excluded = [f'{name} ({n} roots)' if n > 1 else name for name, n in excluded.items()]
     return TuneResult(K_D_best=K_best, rate_best=r_best,
                       tau_best=1.0 / r_best if r_best > 0 else math.inf,
-                      governing_modes=gov, excluded_modes=excluded,
+                      governing_modes=gov, excluded_modes=_not_judged(here),
                       rate_at=rate_at,
                       relative_rate={f: rate_at[f] / r_best for f in ('0.5', '2')},
                       K_D_range_90=(edge(K_lo, grid[grid < K_lo][::-1]),
                                     edge(K_hi, grid[grid > K_hi])),
                       K_D_current=lin.K_all.tolist(),
                       rate_current=-max(now) if np.any(lin.K_all > 0) else 0.0)
+
+
+def _not_judged(here) -> list:
+    """Return the names of the modes ``tune`` does not judge (zero, or not reached).
+
+    An oscillatory one with its frequency; a repeated root once, with its multiplicity (a
+    cyclic coordinate's double zero root).
+    """
+    names = collections.Counter(
+        m.name + (f' ({m.freq_hz:.4g} Hz)' if m.kind == ModeKind.OSCILLATORY else '')
+        for m in here if m.kind == ModeKind.ZERO or not m.reached_by_drive)
+    return [f'{name} ({n} roots)' if n > 1 else name for name, n in names.items()]
 
 
 def _refuse(lin, K: float, modes) -> None:
